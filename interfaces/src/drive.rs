@@ -1,0 +1,485 @@
+//! The in-memory drive: one time series per sensor plus the vehicle parameters.
+//!
+//! This is the plain-data twin of a drive folder (`shared/design/drive-format.md`)
+//! and of an MCAP recording. Values are kept as the source gave them (wheel
+//! units included) so that converting between the two formats loses nothing;
+//! [`Drive::wheel_revolutions`] turns any wheel unit into cumulative revolutions
+//! for the algorithms. Positions are local ENU metres; lat/lon input is
+//! converted on reading and its origin kept in [`GnssAntenna`]/[`VehicleParams`].
+//!
+//! Times are seconds on the drive's one clock; within a series they strictly
+//! increase (the readers enforce it).
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Parameters of `vehicle.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct VehicleParams {
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Rear track t_R, metres.
+    pub track_width_m: f64,
+    /// Initial guess for every wheel's circumference; also the scale behind
+    /// `_m_s` wheel columns.
+    pub nominal_circumference_m: f64,
+    /// Wheelbase, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wheelbase_m: Option<f64>,
+    /// Encoder ticks per wheel revolution (needed by `_ticks` columns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ticks_per_rev: Option<f64>,
+    /// The `[gnss]` table.
+    #[serde(default, skip_serializing_if = "GnssAntenna::is_empty")]
+    pub gnss: GnssAntenna,
+}
+
+/// The `[gnss]` table of `vehicle.toml`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GnssAntenna {
+    /// Antenna position, body x (forward) from the rear-axle centre, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub antenna_x_m: Option<f64>,
+    /// Antenna position, body y (left) from the rear-axle centre, metres.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub antenna_y_m: Option<f64>,
+    /// Latitude of the local ENU origin, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin_lat_deg: Option<f64>,
+    /// Longitude of the local ENU origin, degrees.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin_lon_deg: Option<f64>,
+}
+
+impl GnssAntenna {
+    /// True when no key of the table is set.
+    pub fn is_empty(&self) -> bool {
+        self == &GnssAntenna::default()
+    }
+}
+
+/// Unit of one wheel column.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WheelUnit {
+    /// `_rev`: cumulative revolutions since an arbitrary start.
+    Rev,
+    /// `_ticks`: cumulative encoder ticks (needs `ticks_per_rev`).
+    Ticks,
+    /// `_rad_s`: wheel angular speed.
+    RadS,
+    /// `_m_s`: wheel speed as the vehicle reports it, scaled by the nominal circumference.
+    MS,
+}
+
+impl WheelUnit {
+    /// Every unit.
+    pub const ALL: [WheelUnit; 4] = [WheelUnit::Rev, WheelUnit::Ticks, WheelUnit::RadS, WheelUnit::MS];
+
+    /// Column suffix in `wheels.csv`, e.g. `"rad_s"` for `rl_rad_s`.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            WheelUnit::Rev => "rev",
+            WheelUnit::Ticks => "ticks",
+            WheelUnit::RadS => "rad_s",
+            WheelUnit::MS => "m_s",
+        }
+    }
+
+    /// True for rates (integrated to get revolutions), false for cumulative counts.
+    pub fn is_rate(self) -> bool {
+        matches!(self, WheelUnit::RadS | WheelUnit::MS)
+    }
+}
+
+/// One wheel position.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Wheel {
+    /// Rear left.
+    Rl,
+    /// Rear right.
+    Rr,
+    /// Front left.
+    Fl,
+    /// Front right.
+    Fr,
+}
+
+impl Wheel {
+    /// All four, rear first.
+    pub const ALL: [Wheel; 4] = [Wheel::Rl, Wheel::Rr, Wheel::Fl, Wheel::Fr];
+
+    /// Column prefix: `rl`, `rr`, `fl`, `fr`.
+    pub fn prefix(self) -> &'static str {
+        match self {
+            Wheel::Rl => "rl",
+            Wheel::Rr => "rr",
+            Wheel::Fl => "fl",
+            Wheel::Fr => "fr",
+        }
+    }
+}
+
+/// One row of `wheels.csv`, in the units of [`WheelSeries::units`].
+///
+/// A front value is `None` when the wheel is absent or its cell was empty.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WheelSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Rear left.
+    pub rl: f64,
+    /// Rear right.
+    pub rr: f64,
+    /// Front left.
+    pub fl: Option<f64>,
+    /// Front right.
+    pub fr: Option<f64>,
+}
+
+/// Units of the wheel columns present.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WheelUnits {
+    /// Unit of the rear-left column.
+    pub rl: WheelUnit,
+    /// Unit of the rear-right column.
+    pub rr: WheelUnit,
+    /// Unit of the front-left column, `None` when absent.
+    pub fl: Option<WheelUnit>,
+    /// Unit of the front-right column, `None` when absent.
+    pub fr: Option<WheelUnit>,
+}
+
+impl WheelUnits {
+    /// The same unit for both rear wheels, no front wheels.
+    pub fn rear(unit: WheelUnit) -> WheelUnits {
+        WheelUnits {
+            rl: unit,
+            rr: unit,
+            fl: None,
+            fr: None,
+        }
+    }
+
+    /// The same unit for all four wheels.
+    pub fn all(unit: WheelUnit) -> WheelUnits {
+        WheelUnits {
+            rl: unit,
+            rr: unit,
+            fl: Some(unit),
+            fr: Some(unit),
+        }
+    }
+
+    /// Unit of a wheel, `None` when it is absent.
+    pub fn of(&self, wheel: Wheel) -> Option<WheelUnit> {
+        match wheel {
+            Wheel::Rl => Some(self.rl),
+            Wheel::Rr => Some(self.rr),
+            Wheel::Fl => self.fl,
+            Wheel::Fr => self.fr,
+        }
+    }
+}
+
+/// The wheel time series.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WheelSeries {
+    /// Unit of every column present.
+    pub units: WheelUnits,
+    /// Rows in time order.
+    pub samples: Vec<WheelSample>,
+}
+
+/// A GNSS fix in local ENU.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GnssSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// East, m.
+    pub x_m: f64,
+    /// North, m.
+    pub y_m: f64,
+    /// Horizontal 1-sigma, m, when given.
+    pub sigma_m: Option<f64>,
+}
+
+/// An IMU row.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ImuSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Yaw rate, rad/s, positive turning left.
+    pub gz_rad_s: f64,
+    /// Longitudinal acceleration, m/s^2.
+    pub ax_m_s2: Option<f64>,
+    /// Lateral acceleration, m/s^2.
+    pub ay_m_s2: Option<f64>,
+    /// Vertical acceleration, m/s^2.
+    pub az_m_s2: Option<f64>,
+    /// Roll rate, rad/s.
+    pub gx_rad_s: Option<f64>,
+    /// Pitch rate, rad/s.
+    pub gy_rad_s: Option<f64>,
+}
+
+/// An absolute heading.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HeadingSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// Yaw, rad, 0 = east, counter-clockwise positive.
+    pub yaw_rad: f64,
+    /// 1-sigma, rad, when given.
+    pub sigma_rad: Option<f64>,
+}
+
+/// A true pose of the rear-axle centre (scoring only: no estimator reads it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TruthSample {
+    /// Time, s.
+    pub t_s: f64,
+    /// East, m.
+    pub x_m: f64,
+    /// North, m.
+    pub y_m: f64,
+    /// Yaw, rad, when given.
+    pub yaw_rad: Option<f64>,
+}
+
+/// True circumference of each wheel (`[circumference_m]` of `truth.toml`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WheelCircumferences {
+    /// Rear left, m.
+    pub rl: f64,
+    /// Rear right, m.
+    pub rr: f64,
+    /// Front left, m.
+    pub fl: f64,
+    /// Front right, m.
+    pub fr: f64,
+}
+
+/// `truth.toml`: the true parameters of a simulated drive.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TruthParams {
+    /// The true effective rear track, m.
+    pub track_width_m: f64,
+    /// True effective circumference of each wheel.
+    pub circumference_m: WheelCircumferences,
+    /// Every effect switched on, by catalogue id, with its parameters.
+    #[serde(default)]
+    pub effects: BTreeMap<String, BTreeMap<String, f64>>,
+    /// Other keys (scenario, seed, vehicle, sensor settings), kept as they are.
+    #[serde(flatten)]
+    pub extra: BTreeMap<String, toml_value::Value>,
+}
+
+/// A self-contained value type for the free-form keys of `truth.toml`, so
+/// this crate needs no TOML dependency.
+pub mod toml_value {
+    use serde::{Deserialize, Serialize};
+    use std::collections::BTreeMap;
+
+    /// A TOML-compatible value.
+    #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+    #[serde(untagged)]
+    pub enum Value {
+        /// A boolean.
+        Bool(bool),
+        /// An integer.
+        Integer(i64),
+        /// A float.
+        Float(f64),
+        /// A string.
+        String(String),
+        /// An array.
+        Array(Vec<Value>),
+        /// A table.
+        Table(BTreeMap<String, Value>),
+    }
+}
+
+/// A whole drive.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Drive {
+    /// `vehicle.toml`.
+    pub vehicle: VehicleParams,
+    /// `wheels.csv` (required).
+    pub wheels: WheelSeries,
+    /// `gnss.csv`: required to calibrate, optional to dead-reckon.
+    pub gnss: Option<Vec<GnssSample>>,
+    /// `imu.csv`.
+    pub imu: Option<Vec<ImuSample>>,
+    /// `heading.csv`.
+    pub heading: Option<Vec<HeadingSample>>,
+    /// `truth.csv` (scoring only).
+    pub truth: Option<Vec<TruthSample>>,
+    /// `truth.toml` (simulated drives).
+    pub truth_params: Option<TruthParams>,
+}
+
+/// Cumulative revolutions of the wheels at one wheel sample time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WheelRevs {
+    /// Time, s.
+    pub t_s: f64,
+    /// Rear-left cumulative revolutions.
+    pub rl: f64,
+    /// Rear-right cumulative revolutions.
+    pub rr: f64,
+    /// Front-left cumulative revolutions, when present.
+    pub fl: Option<f64>,
+    /// Front-right cumulative revolutions, when present.
+    pub fr: Option<f64>,
+}
+
+/// Why wheel values cannot be turned into revolutions.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WheelConversionError {
+    /// `_ticks` columns without `ticks_per_rev` in `vehicle.toml`.
+    #[error("wheels.csv has _ticks columns but vehicle.toml has no ticks_per_rev")]
+    MissingTicksPerRev,
+    /// `_m_s` columns need a positive `nominal_circumference_m`.
+    #[error("wheels.csv has _m_s columns but nominal_circumference_m = {0} is not positive")]
+    BadNominalCircumference(f64),
+}
+
+impl Drive {
+    /// Duration from the first to the last wheel sample, s.
+    pub fn wheel_duration_s(&self) -> f64 {
+        match (self.wheels.samples.first(), self.wheels.samples.last()) {
+            (Some(a), Some(b)) => b.t_s - a.t_s,
+            _ => 0.0,
+        }
+    }
+
+    /// Every wheel value as cumulative revolutions (0 at the first sample for
+    /// rates; as given for counts, ticks divided by `ticks_per_rev`).
+    ///
+    /// Rates are integrated with the trapezoidal rule; `_m_s` speeds are first
+    /// divided by the nominal circumference they were computed with.
+    pub fn wheel_revolutions(&self) -> Result<Vec<WheelRevs>, WheelConversionError> {
+        let samples = &self.wheels.samples;
+        let units = self.wheels.units;
+        let ticks = self.vehicle.ticks_per_rev;
+        let nominal = self.vehicle.nominal_circumference_m;
+        let scale = |unit: WheelUnit| -> Result<f64, WheelConversionError> {
+            match unit {
+                WheelUnit::Rev => Ok(1.0),
+                WheelUnit::Ticks => match ticks {
+                    Some(t) if t > 0.0 => Ok(1.0 / t),
+                    _ => Err(WheelConversionError::MissingTicksPerRev),
+                },
+                WheelUnit::RadS => Ok(1.0 / std::f64::consts::TAU),
+                WheelUnit::MS => {
+                    if nominal > 0.0 {
+                        Ok(1.0 / nominal)
+                    } else {
+                        Err(WheelConversionError::BadNominalCircumference(nominal))
+                    }
+                }
+            }
+        };
+        let channel = |wheel: Wheel, pick: &dyn Fn(&WheelSample) -> Option<f64>| {
+            let Some(unit) = units.of(wheel) else {
+                return Ok(vec![None; samples.len()]);
+            };
+            let k = scale(unit)?;
+            let mut out = Vec::with_capacity(samples.len());
+            if unit.is_rate() {
+                let mut acc = 0.0;
+                let mut prev: Option<(f64, f64)> = None;
+                for s in samples {
+                    match pick(s) {
+                        Some(rate) => {
+                            if let Some((t0, r0)) = prev {
+                                acc += 0.5 * (rate + r0) * k * (s.t_s - t0);
+                            }
+                            prev = Some((s.t_s, rate));
+                            out.push(Some(acc));
+                        }
+                        None => out.push(None),
+                    }
+                }
+            } else {
+                out.extend(samples.iter().map(|s| pick(s).map(|v| v * k)));
+            }
+            Ok::<_, WheelConversionError>(out)
+        };
+        let rl = channel(Wheel::Rl, &|s| Some(s.rl))?;
+        let rr = channel(Wheel::Rr, &|s| Some(s.rr))?;
+        let fl = channel(Wheel::Fl, &|s| s.fl)?;
+        let fr = channel(Wheel::Fr, &|s| s.fr)?;
+        Ok(samples
+            .iter()
+            .enumerate()
+            .map(|(i, s)| WheelRevs {
+                t_s: s.t_s,
+                rl: rl[i].unwrap_or(f64::NAN),
+                rr: rr[i].unwrap_or(f64::NAN),
+                fl: fl[i],
+                fr: fr[i],
+            })
+            .collect())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn drive(units: WheelUnits, samples: Vec<WheelSample>) -> Drive {
+        Drive {
+            vehicle: VehicleParams {
+                name: None,
+                track_width_m: 1.5,
+                nominal_circumference_m: 2.0,
+                wheelbase_m: None,
+                ticks_per_rev: Some(100.0),
+                gnss: GnssAntenna::default(),
+            },
+            wheels: WheelSeries { units, samples },
+            gnss: None,
+            imu: None,
+            heading: None,
+            truth: None,
+            truth_params: None,
+        }
+    }
+
+    fn row(t_s: f64, rl: f64, rr: f64) -> WheelSample {
+        WheelSample {
+            t_s,
+            rl,
+            rr,
+            fl: None,
+            fr: None,
+        }
+    }
+
+    #[test]
+    fn rates_integrate_to_revolutions() {
+        let tau = std::f64::consts::TAU;
+        let d = drive(
+            WheelUnits::rear(WheelUnit::RadS),
+            vec![row(0.0, tau, 2.0 * tau), row(1.0, tau, 2.0 * tau), row(3.0, tau, 2.0 * tau)],
+        );
+        let revs = d.wheel_revolutions().unwrap();
+        assert!((revs[2].rl - 3.0).abs() < 1e-12);
+        assert!((revs[2].rr - 6.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn speeds_use_the_nominal_circumference_and_ticks_their_count() {
+        let d = drive(WheelUnits::rear(WheelUnit::MS), vec![row(0.0, 4.0, 4.0), row(1.0, 4.0, 4.0)]);
+        assert!((d.wheel_revolutions().unwrap()[1].rl - 2.0).abs() < 1e-12);
+        let mut d = drive(WheelUnits::rear(WheelUnit::Ticks), vec![row(0.0, 50.0, 0.0)]);
+        assert!((d.wheel_revolutions().unwrap()[0].rl - 0.5).abs() < 1e-12);
+        d.vehicle.ticks_per_rev = None;
+        let err = d.wheel_revolutions().unwrap_err();
+        assert!(err.to_string().contains("ticks_per_rev"), "{err}");
+    }
+}

@@ -1,0 +1,13 @@
+//! Shared contracts of the wheel-odometry calibration graph.
+//!
+//! - [`wire`]: the `#[repr(C)]` zero-copy types published over iceoryx2 and the
+//!   service names they travel on. Only primitives and arrays cross the wire.
+//! - [`drive`]: the in-memory drive (one time series per sensor plus the vehicle
+//!   parameters) that every tool reads, writes, simulates and calibrates.
+//! - [`effects`]: the stable ids of the physics catalogue.
+//! - [`logging`]: the one tracing setup every binary uses.
+
+pub mod drive;
+pub mod effects;
+pub mod logging;
+pub mod wire;

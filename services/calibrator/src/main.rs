@@ -1,0 +1,3 @@
+//! `calibrator` command-line entry point.
+
+fn main() {}

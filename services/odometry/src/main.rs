@@ -1,0 +1,3 @@
+//! `odometry` command-line entry point.
+
+fn main() {}

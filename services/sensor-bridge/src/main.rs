@@ -1,0 +1,3 @@
+//! `sensor-bridge` command-line entry point.
+
+fn main() {}
