@@ -5,8 +5,10 @@
 //! - [`drive`]: the in-memory drive (one time series per sensor plus the vehicle
 //!   parameters) that every tool reads, writes, simulates and calibrates.
 //! - [`effects`]: the stable ids of the physics catalogue.
+//! - [`bus`]: the iceoryx2 helpers every service uses to open topics the same way.
 //! - [`logging`]: the one tracing setup every binary uses.
 
+pub mod bus;
 pub mod drive;
 pub mod effects;
 pub mod logging;

@@ -1,3 +1,119 @@
 //! `odometry` command-line entry point.
 
-fn main() {}
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
+use odometry::estimate_file::{Estimate, OdometryParams};
+use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
+use std::path::PathBuf;
+
+#[derive(Debug, Parser)]
+#[command(name = "odometry", version, about = "2W odometry: dead-reckoning evaluation and the pose service")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Dead-reckon through simulated GNSS outages placed every 10 s along a
+    /// drive, the pose taken from truth.csv at each outage start, and score
+    /// the position at each outage end.
+    Evaluate(EvaluateArgs),
+}
+
+#[derive(Debug, clap::Args)]
+struct EvaluateArgs {
+    /// Drive folder or MCAP recording (needs truth.csv).
+    drive: PathBuf,
+    /// Estimate written by `calibrator calibrate --json`; without it, the
+    /// nominal values of vehicle.toml.
+    #[arg(long)]
+    estimate: Option<PathBuf>,
+    /// Outage length, seconds.
+    #[arg(long, default_value_t = 30.0)]
+    outage: f64,
+    /// Time between outage starts, seconds.
+    #[arg(long, default_value_t = 10.0)]
+    spacing: f64,
+    /// Heading source during the outage: `wheels` (the paper's 2W model) or `gyro`.
+    #[arg(long, default_value = "gyro")]
+    heading: HeadingMode,
+    /// Write the result as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    interfaces::logging::init();
+    match cli.command {
+        Command::Evaluate(args) => run_evaluate(&args),
+    }
+}
+
+fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
+    let loaded = sensor_bridge::read_drive(&args.drive)
+        .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+    let drive = loaded.drive;
+    let (params, source) = match &args.estimate {
+        Some(path) => {
+            let estimate = Estimate::load(path).context("cannot use the estimate")?;
+            (estimate.params, path.display().to_string())
+        }
+        None => (OdometryParams::nominal(&drive.vehicle), "nominal (vehicle.toml)".to_string()),
+    };
+    let config = EvaluateConfig {
+        outage_s: args.outage,
+        spacing_s: args.spacing,
+        odometer: OdometerConfig {
+            heading: args.heading,
+            ..OdometerConfig::default()
+        },
+        ..EvaluateConfig::default()
+    };
+    let report = evaluate(&drive, &params, &config)
+        .with_context(|| format!("cannot evaluate {}", args.drive.display()))?;
+    print_report(&report, &source, &args.drive.display().to_string());
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&report).context("cannot serialise the report")?;
+        std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(())
+}
+
+fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
+    println!("drive      {drive}");
+    println!("parameters {source}");
+    let p = &report.params;
+    println!(
+        "           c_rl {:.5} m  c_rr {:.5} m  track {:.4} m  gyro bias {:.6} rad/s  scale {:.5}",
+        p.c_rl_m, p.c_rr_m, p.track_width_m, p.gyro_bias_rad_s, p.gyro_scale
+    );
+    println!("heading    {}", report.heading);
+    println!();
+    println!("  start s  length s  distance m   error m  error %  start yaw from");
+    for o in &report.outages {
+        let pct = o.error_pct.map_or_else(|| "     -".to_string(), |p| format!("{p:6.2}"));
+        println!(
+            "  {:7.2}  {:8.1}  {:10.1}  {:8.3}  {pct}   {}",
+            o.t_start_s, o.length_s, o.distance_m, o.error_m, o.start_yaw_source
+        );
+    }
+    println!();
+    let pct = report
+        .median_error_pct
+        .map_or_else(|| "-".to_string(), |p| format!("{p:.2} %"));
+    println!(
+        "median error {:.3} m   p90 {:.3} m   median {pct} of the distance   ({} outages)",
+        report.median_error_m,
+        report.p90_error_m,
+        report.outages.len()
+    );
+    for w in &report.warnings {
+        println!("warning: {w}");
+    }
+}

@@ -1,2 +1,8 @@
 //! Sensor bridge: drives in and out (drive folder, MCAP), the vehicle
 //! simulator, and publishing drives over iceoryx2.
+
+pub mod drive_io;
+pub mod record;
+pub mod replay;
+pub mod sim;
+pub use drive_io::{read_drive, summarize, write_drive, DriveError, DriveSummary, LoadedDrive};

@@ -1,3 +1,143 @@
 //! `sensor-bridge` command-line entry point.
+//!
+//! Each subcommand is one variant of [`Command`] dispatching to one function.
 
-fn main() {}
+mod graph_cmds;
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use sensor_bridge::{read_drive, write_drive, DriveError, DriveSummary, LoadedDrive};
+use std::path::{Path, PathBuf};
+
+/// Drives in and out, the simulator, and the iceoryx2 bridge.
+#[derive(Parser)]
+#[command(name = "sensor-bridge", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Convert a drive between a drive folder and an MCAP recording (either
+    /// direction; OUT ending in .mcap is written as MCAP, anything else as a folder).
+    Convert(ConvertArgs),
+    /// Summarise a drive: duration, distance, rate and gaps of every stream,
+    /// GNSS outages, loading warnings.
+    Info(InfoArgs),
+    /// Publish a drive over iceoryx2 with its recorded timestamps, paced at
+    /// --speed FACTOR times real time or as fast as subscribers take it (--max).
+    Replay(graph_cmds::ReplayArgs),
+    /// Subscribe to every sensor topic and write a recording (until Ctrl-C,
+    /// or the end of the stream with --until-end).
+    Record(graph_cmds::RecordArgs),
+    /// Simulate a drive with its own truth (truth.csv, truth.toml): scenario
+    /// paper, garage, mixed or long; every physics-catalogue effect is a knob.
+    Simulate(sensor_bridge::sim::cli::SimulateArgs),
+}
+
+#[derive(Args)]
+struct ConvertArgs {
+    /// Input drive: a drive folder or an .mcap file.
+    input: PathBuf,
+    /// Output: an .mcap file or a folder.
+    output: PathBuf,
+    /// Convert what can be read from a truncated MCAP instead of failing.
+    #[arg(long)]
+    allow_truncated: bool,
+}
+
+#[derive(Args)]
+struct InfoArgs {
+    /// A drive folder or an .mcap file.
+    drive: PathBuf,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn main() -> Result<()> {
+    let cli = Cli::parse();
+    interfaces::logging::init();
+    match cli.command {
+        Command::Convert(args) => convert(&args),
+        Command::Info(args) => info(&args),
+        Command::Replay(args) => graph_cmds::run_replay(&args),
+        Command::Record(args) => graph_cmds::run_record(&args),
+        Command::Simulate(args) => sensor_bridge::sim::cli::run(&args)
+            .map(|_| ())
+            .context("simulate"),
+    }
+}
+
+fn print_warnings(loaded: &LoadedDrive) {
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+}
+
+fn convert(args: &ConvertArgs) -> Result<()> {
+    if args.input == args.output {
+        bail!(
+            "input and output are the same path: {}",
+            args.input.display()
+        );
+    }
+    let loaded = match read_drive(&args.input) {
+        Ok(l) => l,
+        Err(DriveError::TruncatedMcap {
+            partial: Some(partial),
+            ..
+        }) if args.allow_truncated => *partial,
+        Err(e) => {
+            return Err(e).with_context(|| format!("reading {}", args.input.display()));
+        }
+    };
+    print_warnings(&loaded);
+    write_drive(&loaded.drive, &args.output)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    tracing::info!(
+        "wrote {} ({} wheel samples)",
+        args.output.display(),
+        loaded.drive.wheels.samples.len()
+    );
+    Ok(())
+}
+
+fn print_summary(loaded: &LoadedDrive, path: &Path, json: bool) -> Result<()> {
+    let summary = DriveSummary::of_loaded(loaded);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!("drive:     {}", path.display());
+        print!("{summary}");
+    }
+    Ok(())
+}
+
+fn info(args: &InfoArgs) -> Result<()> {
+    match read_drive(&args.drive) {
+        Ok(loaded) => print_summary(&loaded, &args.drive, args.json),
+        Err(DriveError::TruncatedMcap {
+            partial: Some(partial),
+            path,
+            offset,
+            file_len,
+            record,
+            messages_read,
+        }) => {
+            // Show what could be read, then fail with the damage.
+            print_summary(&partial, &args.drive, args.json)?;
+            Err(DriveError::TruncatedMcap {
+                path,
+                offset,
+                file_len,
+                record,
+                messages_read,
+                partial: None,
+            })
+            .context("the recording is damaged; the summary above covers what was read")
+        }
+        Err(e) => Err(e).with_context(|| format!("reading {}", args.drive.display())),
+    }
+}

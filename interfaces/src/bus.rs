@@ -1,0 +1,934 @@
+//! iceoryx2 plumbing shared by every service: one place that decides how a
+//! topic is opened, so that every process opens it with the same settings.
+//!
+//! # Conventions
+//!
+//! - Every publish-subscribe service `NAME` has an **event service of the same
+//!   `NAME`**. A publisher notifies it after every sample ([`EVENT_SAMPLE`]) and
+//!   once more when its stream ends ([`EVENT_END_OF_STREAM`]); iceoryx2 itself
+//!   emits [`EVENT_PUBLISHER_DROPPED`] when a notifier is dropped and
+//!   [`EVENT_PUBLISHER_DEAD`] when a dead one is cleaned up. Subscribers attach
+//!   [`TopicSubscriber::listener`] to a `WaitSet` and block: no polling.
+//! - Streams ([`Delivery::Lossless`]: sensors and poses) do not overflow: the
+//!   service is created without safe overflow and the publisher waits while a
+//!   subscriber's buffer is full (backpressure), so nothing is lost at replay
+//!   speed. A subscriber that does not take a sample for [`BusSettings::stall_timeout`]
+//!   loses that sample (with a warning) rather than blocking the whole graph;
+//!   a dead subscriber's resources are cleaned up while the publisher waits.
+//! - The estimate ([`Delivery::Latest`]) keeps a history of one, so a subscriber
+//!   that starts late gets the latest accepted estimate. The publisher delivers
+//!   history when it updates its connections: call
+//!   [`TopicPublisher::update_connections`] now and then (e.g. on a WaitSet interval).
+//! - Every process of one graph uses the same iceoryx2 prefix and root path
+//!   ([`BusSettings`], from `WHEELCAL_IOX_PREFIX` / `WHEELCAL_IOX_ROOT`), so that
+//!   several graphs (tests) run side by side without seeing each other.
+//! - A subscriber only takes part in backpressure once it has *attached* to
+//!   a publisher's connection, which happens when it receives or updates its
+//!   connections after the publisher connected. Until then the connection
+//!   buffers up to its size and drops the rest. So a publisher that must not
+//!   lose anything waits for its subscribers, calls [`TopicPublisher::announce`]
+//!   (subscribers wake and attach in [`TopicSubscriber::take_events`]) and
+//!   gives them a moment before it floods them.
+//! - Sequence numbers: [`TopicPublisher::publish`] numbers every sample from 0;
+//!   [`TopicSubscriber`] counts the gaps per publisher ([`TopicSubscriber::lost`]).
+//!
+//! # Termination
+//!
+//! Creating a [`Bus`] installs iceoryx2's SIGINT/SIGTERM handler: the signals no
+//! longer kill the process, every loop must check [`shutdown_requested`] (or
+//! the result of a `WaitSet` run, see [`stop_requested_by`]). A signal may be
+//! delivered to any thread; a main loop blocked in a WaitSet should attach an
+//! interval (e.g. 100 ms) so that it notices a signal taken by another thread.
+
+use crate::wire::{
+    CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, WheelRotations, ESTIMATE_SERVICE,
+    GNSS_SERVICE, HEADING_SERVICE, IMU_SERVICE, POSE_SERVICE, WHEELS_SERVICE,
+};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
+use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+use iceoryx2::waitset::WaitSetRunResult;
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::fmt::Debug;
+use std::path::{Path as StdPath, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// The iceoryx2 service flavour used by every process (inter-process, single-threaded ports).
+pub type Ipc = ipc::Service;
+
+/// Environment variable holding the iceoryx2 prefix of the graph.
+pub const ENV_PREFIX: &str = "WHEELCAL_IOX_PREFIX";
+/// Environment variable holding the iceoryx2 root path of the graph.
+pub const ENV_ROOT: &str = "WHEELCAL_IOX_ROOT";
+
+/// Event id: a new sample was published.
+pub const EVENT_SAMPLE: usize = 1;
+/// Event id: the publisher has published its last sample (end of a replay).
+pub const EVENT_END_OF_STREAM: usize = 2;
+/// Event id emitted by iceoryx2 when a publisher's notifier is dropped.
+pub const EVENT_PUBLISHER_DROPPED: usize = 3;
+/// Event id emitted by iceoryx2 when a dead publisher's notifier is cleaned up.
+pub const EVENT_PUBLISHER_DEAD: usize = 4;
+/// Event id: a publisher connected; subscribers attach to it (see
+/// [`TopicPublisher::announce`]).
+pub const EVENT_CONNECT: usize = 5;
+
+/// Subscriber buffer of the lossless streams, samples. At 100 Hz this is 10 s of
+/// data: a paced replay never waits, `--max` waits on the slowest subscriber.
+pub const STREAM_BUFFER: usize = 1024;
+/// Subscriber buffer of the estimate topic.
+pub const LATEST_BUFFER: usize = 4;
+/// Maximum subscribers per topic (calibrator, odometry, recorder, viewers, tests).
+pub const MAX_SUBSCRIBERS: usize = 8;
+/// Maximum publishers per topic (2: a restarted publisher beside a dead one not yet cleaned up).
+pub const MAX_PUBLISHERS: usize = 2;
+/// Maximum nodes per service.
+pub const MAX_NODES: usize = 32;
+
+/// How a topic delivers its samples.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Delivery {
+    /// Every sample reaches every connected subscriber; the publisher waits
+    /// (backpressure) while a subscriber's buffer is full.
+    Lossless {
+        /// Subscriber buffer size, samples.
+        buffer: usize,
+    },
+    /// Only the latest matters: the buffer overflows (oldest dropped) and a
+    /// late subscriber receives the last `history` samples.
+    Latest {
+        /// Subscriber buffer size, samples.
+        buffer: usize,
+        /// Samples kept for late subscribers.
+        history: usize,
+    },
+}
+
+/// A wire type with its service and delivery.
+pub trait Topic: ZeroCopySend + Copy + Debug + Default + 'static {
+    /// The service name.
+    const SERVICE: &'static str;
+    /// How samples are delivered.
+    const DELIVERY: Delivery;
+    /// The common header.
+    fn header(&self) -> &Header;
+    /// The common header, mutable.
+    fn header_mut(&mut self) -> &mut Header;
+}
+
+macro_rules! topic {
+    ($ty:ty, $service:expr, $delivery:expr) => {
+        impl Topic for $ty {
+            const SERVICE: &'static str = $service;
+            const DELIVERY: Delivery = $delivery;
+            fn header(&self) -> &Header {
+                &self.header
+            }
+            fn header_mut(&mut self) -> &mut Header {
+                &mut self.header
+            }
+        }
+    };
+}
+
+const STREAM: Delivery = Delivery::Lossless {
+    buffer: STREAM_BUFFER,
+};
+topic!(WheelRotations, WHEELS_SERVICE, STREAM);
+topic!(GnssFix, GNSS_SERVICE, STREAM);
+topic!(Imu, IMU_SERVICE, STREAM);
+topic!(Heading, HEADING_SERVICE, STREAM);
+topic!(Pose, POSE_SERVICE, STREAM);
+topic!(
+    CircumferenceEstimate,
+    ESTIMATE_SERVICE,
+    Delivery::Latest {
+        buffer: LATEST_BUFFER,
+        history: 1
+    }
+);
+
+/// Errors of the bus helpers.
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    /// The prefix or root path is not usable by iceoryx2.
+    #[error("invalid iceoryx2 setting {setting} = {value:?}: {detail}")]
+    InvalidSetting {
+        /// `WHEELCAL_IOX_PREFIX` or `WHEELCAL_IOX_ROOT` (or the node name).
+        setting: &'static str,
+        /// The value given.
+        value: String,
+        /// What iceoryx2 said.
+        detail: String,
+    },
+    /// The root directory could not be created.
+    #[error("cannot create iceoryx2 root directory {path}: {source}")]
+    RootDir {
+        /// The directory.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Node creation failed.
+    #[error("cannot create iceoryx2 node {name:?}: {detail}")]
+    Node {
+        /// Node name.
+        name: String,
+        /// What iceoryx2 said.
+        detail: String,
+    },
+    /// A service, port or waitset operation failed.
+    #[error("iceoryx2 service {service}: {action} failed: {detail}")]
+    Service {
+        /// Service name.
+        service: String,
+        /// What was attempted (open, publish, receive, ...).
+        action: &'static str,
+        /// What iceoryx2 said.
+        detail: String,
+    },
+    /// Waiting for subscribers ended by a termination request.
+    #[error("interrupted by a termination request")]
+    Interrupted,
+    /// Waiting for subscribers timed out.
+    #[error("timed out after {waited_s:.1} s waiting for subscribers: {detail}")]
+    Timeout {
+        /// Seconds waited.
+        waited_s: f64,
+        /// Which topics missed how many subscribers.
+        detail: String,
+    },
+}
+
+fn service_err(service: &str, action: &'static str, e: impl std::fmt::Debug) -> BusError {
+    BusError::Service {
+        service: service.to_string(),
+        action,
+        detail: format!("{e:?}"),
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Termination
+
+static SHUTDOWN: AtomicBool = AtomicBool::new(false);
+
+/// True once SIGINT or SIGTERM was received (or [`request_shutdown`] called).
+///
+/// iceoryx2 records the last signal and resets it when asked; this latches it,
+/// so every caller in the process sees the request.
+pub fn shutdown_requested() -> bool {
+    if iceoryx2_bb_posix::signal::SignalHandler::termination_requested() {
+        SHUTDOWN.store(true, Ordering::SeqCst);
+    }
+    SHUTDOWN.load(Ordering::SeqCst)
+}
+
+/// Ask every loop of this process to stop.
+pub fn request_shutdown() {
+    SHUTDOWN.store(true, Ordering::SeqCst);
+}
+
+/// True when a WaitSet run result means the loop must end (a signal, or a
+/// callback that asked to stop); latches signals for [`shutdown_requested`].
+pub fn stop_requested_by(result: WaitSetRunResult) -> bool {
+    match result {
+        WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt => {
+            request_shutdown();
+            true
+        }
+        WaitSetRunResult::StopRequest => true,
+        WaitSetRunResult::AllEventsHandled => shutdown_requested(),
+    }
+}
+
+/// Sleep up to `duration` in short steps, returning early (false) on a
+/// termination request; true when the whole time passed.
+pub fn sleep_unless_shutdown(duration: Duration) -> bool {
+    let end = Instant::now() + duration;
+    loop {
+        if shutdown_requested() {
+            return false;
+        }
+        let now = Instant::now();
+        if now >= end {
+            return true;
+        }
+        std::thread::sleep((end - now).min(Duration::from_millis(20)));
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Settings and node
+
+/// Where a graph's iceoryx2 resources live. Every process of one graph must
+/// use the same settings; children inherit them through [`BusSettings::env`].
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct BusSettings {
+    /// iceoryx2 prefix of every shared-memory object and file (default `iox2_`).
+    pub prefix: Option<String>,
+    /// iceoryx2 root path for service and node files (default `/tmp/iceoryx2/`).
+    pub root: Option<PathBuf>,
+    /// How long a publisher waits on one full subscriber before it drops the
+    /// sample for that subscriber (default 10 s).
+    pub stall_timeout: Option<Duration>,
+}
+
+impl BusSettings {
+    /// Settings from `WHEELCAL_IOX_PREFIX` and `WHEELCAL_IOX_ROOT` (unset or
+    /// empty = iceoryx2's defaults).
+    pub fn from_env() -> BusSettings {
+        let var = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+        BusSettings {
+            prefix: var(ENV_PREFIX),
+            root: var(ENV_ROOT).map(PathBuf::from),
+            stall_timeout: None,
+        }
+    }
+
+    /// Settings isolated from every other graph: prefix `wc<tag>_<pid>_<n>_`
+    /// and a root directory of that name under `root_parent`.
+    pub fn isolated(tag: &str, root_parent: &StdPath) -> BusSettings {
+        static COUNTER: AtomicU64 = AtomicU64::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tag: String = tag
+            .chars()
+            .filter(|c| c.is_ascii_alphanumeric())
+            .take(16)
+            .collect();
+        let prefix = format!("wc{tag}_{}_{n}_", std::process::id());
+        BusSettings {
+            root: Some(root_parent.join(&prefix)),
+            prefix: Some(prefix),
+            stall_timeout: None,
+        }
+    }
+
+    /// The environment variables that hand these settings to a child process.
+    pub fn env(&self) -> Vec<(&'static str, String)> {
+        let mut out = Vec::new();
+        if let Some(p) = &self.prefix {
+            out.push((ENV_PREFIX, p.clone()));
+        }
+        if let Some(r) = &self.root {
+            out.push((ENV_ROOT, r.display().to_string()));
+        }
+        out
+    }
+
+    /// The iceoryx2 configuration: iceoryx2's defaults with prefix and root
+    /// replaced. No config file is read: every setting the graph depends on
+    /// is set in code, so all processes agree whatever files a machine has.
+    pub fn iceoryx_config(&self) -> Result<Config, BusError> {
+        let mut config = Config::default();
+        if let Some(prefix) = &self.prefix {
+            config.global.prefix =
+                FileName::new(prefix.as_bytes()).map_err(|e| BusError::InvalidSetting {
+                    setting: ENV_PREFIX,
+                    value: prefix.clone(),
+                    detail: format!("{e:?}"),
+                })?;
+        }
+        if let Some(root) = &self.root {
+            let text = root.display().to_string();
+            let mut text_slash = text.clone();
+            if !text_slash.ends_with('/') {
+                text_slash.push('/');
+            }
+            let path =
+                Path::new(text_slash.as_bytes()).map_err(|e| BusError::InvalidSetting {
+                    setting: ENV_ROOT,
+                    value: text.clone(),
+                    detail: format!("{e:?}"),
+                })?;
+            config.global.set_root_path(&path);
+        }
+        Ok(config)
+    }
+
+    /// Remove what a graph with these settings leaves behind once every one of
+    /// its processes has exited: iceoryx2 keeps a tiny persistent management
+    /// segment per prefix in `/dev/shm`, and the root directory. Does nothing
+    /// for the default prefix (other graphs may share it). Returns the number
+    /// of shared-memory files removed.
+    pub fn remove_leftovers(&self) -> usize {
+        let Some(prefix) = self.prefix.as_deref().filter(|p| !p.is_empty() && *p != "iox2_")
+        else {
+            return 0;
+        };
+        let mut removed = 0;
+        if let Ok(dir) = std::fs::read_dir("/dev/shm") {
+            for entry in dir.flatten() {
+                if entry.file_name().to_string_lossy().starts_with(prefix)
+                    && std::fs::remove_file(entry.path()).is_ok()
+                {
+                    removed += 1;
+                }
+            }
+        }
+        if let Some(root) = &self.root {
+            let _ = std::fs::remove_dir_all(root);
+        }
+        removed
+    }
+
+    /// Stall timeout in effect.
+    pub fn stall_timeout(&self) -> Duration {
+        self.stall_timeout.unwrap_or(Duration::from_secs(10))
+    }
+}
+
+/// One process's connection to the graph: an iceoryx2 node with the graph's
+/// settings. Open topics with [`Bus::publisher`] and [`Bus::subscriber`].
+#[derive(Debug)]
+pub struct Bus {
+    node: Node<Ipc>,
+    config: Config,
+    settings: BusSettings,
+}
+
+impl Bus {
+    /// Create a node named `name` with the given settings. Dead nodes of
+    /// earlier (killed) processes are cleaned up on the way.
+    pub fn open(settings: &BusSettings, name: &str) -> Result<Bus, BusError> {
+        // Install the signal handler now, so that SIGTERM/SIGINT are caught
+        // from here on and every loop sees them through `shutdown_requested`.
+        let _ = shutdown_requested();
+        let config = settings.iceoryx_config()?;
+        if let Some(root) = &settings.root {
+            std::fs::create_dir_all(root).map_err(|source| BusError::RootDir {
+                path: root.clone(),
+                source,
+            })?;
+        }
+        let node_name = NodeName::new(name).map_err(|e| BusError::InvalidSetting {
+            setting: "node name",
+            value: name.to_string(),
+            detail: format!("{e:?}"),
+        })?;
+        let node = NodeBuilder::new()
+            .name(&node_name)
+            .config(&config)
+            .create::<Ipc>()
+            .map_err(|e| BusError::Node {
+                name: name.to_string(),
+                detail: format!("{e:?}"),
+            })?;
+        Ok(Bus {
+            node,
+            config,
+            settings: settings.clone(),
+        })
+    }
+
+    /// [`Bus::open`] with [`BusSettings::from_env`].
+    pub fn from_env(name: &str) -> Result<Bus, BusError> {
+        Bus::open(&BusSettings::from_env(), name)
+    }
+
+    /// The iceoryx2 node.
+    pub fn node(&self) -> &Node<Ipc> {
+        &self.node
+    }
+
+    /// The iceoryx2 configuration of the node.
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// The settings the bus was opened with.
+    pub fn settings(&self) -> &BusSettings {
+        &self.settings
+    }
+
+    /// Remove the resources of dead nodes (processes killed without cleanup);
+    /// returns how many were cleaned up.
+    pub fn cleanup_dead_nodes(&self) -> usize {
+        cleanup_dead_nodes(&self.config)
+    }
+
+    /// A WaitSet for this process's main loop.
+    pub fn waitset(&self) -> Result<WaitSet<Ipc>, BusError> {
+        WaitSetBuilder::new()
+            .create::<Ipc>()
+            .map_err(|e| service_err("waitset", "create", e))
+    }
+
+    fn open_services<T: Topic>(
+        &self,
+    ) -> Result<(PubSubFactory<Ipc, T, ()>, EventFactory<Ipc>), BusError> {
+        let name = ServiceName::new(T::SERVICE).map_err(|e| service_err(T::SERVICE, "name", e))?;
+        let (overflow, buffer, history) = match T::DELIVERY {
+            Delivery::Lossless { buffer } => (false, buffer, 0),
+            Delivery::Latest { buffer, history } => (true, buffer, history),
+        };
+        // Two processes may create the same service at the same moment; the
+        // loser sees a transient error and retries.
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let pubsub = loop {
+            let r = self
+                .node
+                .service_builder(&name)
+                .publish_subscribe::<T>()
+                .enable_safe_overflow(overflow)
+                .subscriber_max_buffer_size(buffer)
+                .history_size(history)
+                .subscriber_max_borrowed_samples(2)
+                .max_subscribers(MAX_SUBSCRIBERS)
+                .max_publishers(MAX_PUBLISHERS)
+                .max_nodes(MAX_NODES)
+                .open_or_create();
+            match r {
+                Ok(s) => break s,
+                Err(e) if Instant::now() < deadline => {
+                    tracing::debug!(service = T::SERVICE, "open_or_create: {e:?}, retrying");
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => return Err(service_err(T::SERVICE, "open publish-subscribe", e)),
+            }
+        };
+        let event = loop {
+            let r = self
+                .node
+                .service_builder(&name)
+                .event()
+                .max_notifiers(2 * MAX_PUBLISHERS)
+                .max_listeners(2 * MAX_SUBSCRIBERS)
+                .max_nodes(MAX_NODES)
+                .notifier_dropped_event(EventId::new(EVENT_PUBLISHER_DROPPED))
+                .notifier_dead_event(EventId::new(EVENT_PUBLISHER_DEAD))
+                .open_or_create();
+            match r {
+                Ok(s) => break s,
+                Err(e) if Instant::now() < deadline => {
+                    tracing::debug!(service = T::SERVICE, "event open_or_create: {e:?}, retrying");
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                Err(e) => return Err(service_err(T::SERVICE, "open event", e)),
+            }
+        };
+        Ok((pubsub, event))
+    }
+
+    /// Open topic `T` for publishing.
+    pub fn publisher<T: Topic>(&self) -> Result<TopicPublisher<T>, BusError> {
+        let (service, event) = self.open_services::<T>()?;
+        let mut builder = service.publisher_builder().max_loaned_samples(2);
+        if let Delivery::Lossless { .. } = T::DELIVERY {
+            let stall = self.settings.stall_timeout();
+            let config = self.config.clone();
+            let last_cleanup_ms = AtomicU64::new(0);
+            let warned = AtomicBool::new(false);
+            builder = builder
+                .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+                .set_backpressure_handler(move |info: &BackpressureInfo| {
+                    backpressure(info, stall, &config, &last_cleanup_ms, &warned)
+                });
+        }
+        let publisher = builder
+            .create()
+            .map_err(|e| service_err(T::SERVICE, "create publisher", e))?;
+        let notifier = event
+            .notifier_builder()
+            .default_event_id(EventId::new(EVENT_SAMPLE))
+            .create()
+            .map_err(|e| service_err(T::SERVICE, "create notifier", e))?;
+        Ok(TopicPublisher {
+            service,
+            _event: event,
+            publisher,
+            notifier,
+            next_seq: 0,
+            notify_failed: false,
+        })
+    }
+
+    /// Open topic `T` for subscribing (with the history, for [`Delivery::Latest`]).
+    pub fn subscriber<T: Topic>(&self) -> Result<TopicSubscriber<T>, BusError> {
+        let (service, event) = self.open_services::<T>()?;
+        let builder = match T::DELIVERY {
+            Delivery::Lossless { buffer } => service.subscriber_builder().buffer_size(buffer),
+            Delivery::Latest { buffer, history } => service
+                .subscriber_builder()
+                .buffer_size(buffer)
+                .history_request(history),
+        };
+        let subscriber = builder
+            .create()
+            .map_err(|e| service_err(T::SERVICE, "create subscriber", e))?;
+        let listener = event
+            .listener_builder()
+            .create()
+            .map_err(|e| service_err(T::SERVICE, "create listener", e))?;
+        Ok(TopicSubscriber {
+            _service: service,
+            _event: event,
+            subscriber,
+            listener,
+            seq: RefCell::new(SeqTracker::default()),
+        })
+    }
+}
+
+/// Remove the resources of dead nodes under `config`; returns how many.
+pub fn cleanup_dead_nodes(config: &Config) -> usize {
+    let mut cleaned = 0;
+    let r = Node::<Ipc>::list(config, |state| {
+        if let NodeState::Dead(view) = state {
+            match view.try_remove_stale_resources() {
+                Ok(()) => cleaned += 1,
+                Err(e) => tracing::debug!("dead node cleanup failed: {e:?}"),
+            }
+        }
+        CallbackProgression::Continue
+    });
+    if let Err(e) = r {
+        tracing::warn!("cannot list iceoryx2 nodes: {e:?}");
+    }
+    if cleaned > 0 {
+        tracing::info!("cleaned up {cleaned} dead iceoryx2 node(s)");
+    }
+    cleaned
+}
+
+/// What a lossless publisher does while a subscriber's buffer is full.
+fn backpressure(
+    info: &BackpressureInfo,
+    stall: Duration,
+    config: &Config,
+    last_cleanup_ms: &AtomicU64,
+    warned: &AtomicBool,
+) -> BackpressureAction {
+    if shutdown_requested() {
+        return BackpressureAction::DiscardData;
+    }
+    if info.elapsed_time >= stall {
+        if !warned.swap(true, Ordering::Relaxed) {
+            tracing::warn!(
+                "a subscriber (port {:x}) took no sample for {:.1} s: dropping samples for it \
+                 (it will see a gap in the sequence numbers)",
+                info.receiver_port_id,
+                info.elapsed_time.as_secs_f64()
+            );
+        }
+        return BackpressureAction::DiscardData;
+    }
+    // Every 250 ms of waiting, look for dead subscribers (a SIGKILLed process
+    // leaves its full buffer behind); cleaning them up disconnects the
+    // channel and ends the wait.
+    let ms = info.elapsed_time.as_millis() as u64;
+    let last = last_cleanup_ms.load(Ordering::Relaxed);
+    if ms >= 250 && (ms < last || ms - last >= 250) {
+        last_cleanup_ms.store(ms, Ordering::Relaxed);
+        cleanup_dead_nodes(config);
+    }
+    BackpressureAction::Retry
+}
+
+// ---------------------------------------------------------------------------
+// Publisher
+
+/// A publisher of topic `T` with its wakeup notifier; numbers every sample.
+#[derive(Debug)]
+pub struct TopicPublisher<T: Topic> {
+    service: PubSubFactory<Ipc, T, ()>,
+    _event: EventFactory<Ipc>,
+    publisher: Publisher<Ipc, T, ()>,
+    notifier: Notifier<Ipc>,
+    next_seq: u64,
+    notify_failed: bool,
+}
+
+impl<T: Topic> TopicPublisher<T> {
+    /// Publish `sample` (its `header.seq` is replaced by the next sequence
+    /// number) and wake the subscribers; returns the sequence number used.
+    pub fn publish(&mut self, mut sample: T) -> Result<u64, BusError> {
+        let seq = self.next_seq;
+        sample.header_mut().seq = seq;
+        let slot = self
+            .publisher
+            .loan_uninit()
+            .map_err(|e| service_err(T::SERVICE, "loan", e))?;
+        slot.write_payload(sample)
+            .send()
+            .map_err(|e| service_err(T::SERVICE, "send", e))?;
+        self.next_seq += 1;
+        // The sample is delivered; a failed wakeup only delays the subscriber
+        // until its next wakeup, so it is reported, not fatal.
+        if let Err(e) = self.notifier.notify() {
+            if !self.notify_failed {
+                self.notify_failed = true;
+                tracing::warn!(service = T::SERVICE, "wakeup notification failed: {e:?}");
+            }
+        }
+        Ok(seq)
+    }
+
+    /// Connect to every subscriber now and wake them, so that they attach to
+    /// the connection (in [`TopicSubscriber::take_events`]) before data flows.
+    pub fn announce(&self) -> Result<(), BusError> {
+        self.update_connections()?;
+        self.notifier
+            .notify_with_custom_event_id(EventId::new(EVENT_CONNECT))
+            .map(|_| ())
+            .map_err(|e| service_err(T::SERVICE, "notify connect", e))
+    }
+
+    /// Tell the subscribers that this stream has ended.
+    pub fn end_of_stream(&self) -> Result<(), BusError> {
+        self.notifier
+            .notify_with_custom_event_id(EventId::new(EVENT_END_OF_STREAM))
+            .map(|_| ())
+            .map_err(|e| service_err(T::SERVICE, "notify end of stream", e))
+    }
+
+    /// Connect new subscribers (and hand them the history).
+    pub fn update_connections(&self) -> Result<(), BusError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| service_err(T::SERVICE, "update connections", e))
+    }
+
+    /// Number of subscribers of the service (in every process).
+    pub fn subscriber_count(&self) -> usize {
+        use iceoryx2::service::port_factory::PortFactory as _;
+        self.service.dynamic_config().number_of_subscribers()
+    }
+
+    /// Number of samples published so far (the next sequence number).
+    pub fn published(&self) -> u64 {
+        self.next_seq
+    }
+
+    /// The service name.
+    pub fn service_name(&self) -> &'static str {
+        T::SERVICE
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Subscriber
+
+/// What [`TopicSubscriber::take_events`] found.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TopicEvents {
+    /// New-sample notifications.
+    pub samples: u64,
+    /// A publisher announced the end of its stream.
+    pub end_of_stream: bool,
+    /// A publisher went away (dropped or found dead).
+    pub publisher_gone: bool,
+    /// A publisher announced itself ([`TopicPublisher::announce`]).
+    pub connect: bool,
+}
+
+fn tally(ev: &mut TopicEvents, id: usize, count: u64) {
+    match id {
+        EVENT_SAMPLE => ev.samples += count,
+        EVENT_END_OF_STREAM => ev.end_of_stream = true,
+        EVENT_PUBLISHER_DROPPED | EVENT_PUBLISHER_DEAD => ev.publisher_gone = true,
+        EVENT_CONNECT => ev.connect = true,
+        _ => {}
+    }
+}
+
+/// A subscriber of topic `T` with its wakeup listener and a gap counter.
+#[derive(Debug)]
+pub struct TopicSubscriber<T: Topic> {
+    _service: PubSubFactory<Ipc, T, ()>,
+    _event: EventFactory<Ipc>,
+    subscriber: Subscriber<Ipc, T, ()>,
+    listener: Listener<Ipc>,
+    seq: RefCell<SeqTracker>,
+}
+
+impl<T: Topic> TopicSubscriber<T> {
+    /// The listener to attach to a WaitSet; drain it with [`TopicSubscriber::take_events`].
+    pub fn listener(&self) -> &Listener<Ipc> {
+        &self.listener
+    }
+
+    /// Consume the pending notifications (a WaitSet callback must, or it
+    /// spins) and attach to any new publisher.
+    pub fn take_events(&self) -> Result<TopicEvents, BusError> {
+        let mut ev = TopicEvents::default();
+        self.listener
+            .try_wait(|a| tally(&mut ev, a.id.as_value(), a.count))
+            .map_err(|e| service_err(T::SERVICE, "listener try_wait", e))?;
+        self.connect()?;
+        Ok(ev)
+    }
+
+    /// Attach to the connections of new publishers (receiving does it too).
+    pub fn connect(&self) -> Result<(), BusError> {
+        self.subscriber
+            .update_connections()
+            .map_err(|e| service_err(T::SERVICE, "update connections", e))
+    }
+
+    /// Block up to `timeout` for a notification, then consume all pending ones.
+    pub fn wait_events(&self, timeout: Duration) -> Result<TopicEvents, BusError> {
+        let mut ev = TopicEvents::default();
+        self.listener
+            .timed_wait(|a| tally(&mut ev, a.id.as_value(), a.count), timeout)
+            .map_err(|e| service_err(T::SERVICE, "listener timed_wait", e))?;
+        let more = self.take_events()?;
+        ev.samples += more.samples;
+        ev.end_of_stream |= more.end_of_stream;
+        ev.publisher_gone |= more.publisher_gone;
+        ev.connect |= more.connect;
+        Ok(ev)
+    }
+
+    /// The next sample, copied out of shared memory, or `None` when the
+    /// buffer is empty. Sequence gaps are counted ([`TopicSubscriber::lost`]).
+    ///
+    /// Takes `&self` so that the listener can stay attached to a WaitSet
+    /// (the guard borrows it) while the loop receives.
+    pub fn receive(&self) -> Result<Option<T>, BusError> {
+        match self.subscriber.receive() {
+            Ok(Some(sample)) => {
+                let value = *sample.payload();
+                self.seq
+                    .borrow_mut()
+                    .observe(sample.header().publisher_id().value(), value.header().seq);
+                Ok(Some(value))
+            }
+            Ok(None) => Ok(None),
+            Err(e) => Err(service_err(T::SERVICE, "receive", e)),
+        }
+    }
+
+    /// Samples missing in the sequence numbers so far (all publishers).
+    pub fn lost(&self) -> u64 {
+        self.seq.borrow().lost()
+    }
+
+    /// Samples received so far.
+    pub fn received(&self) -> u64 {
+        self.seq.borrow().received()
+    }
+
+    /// Number of publishers of the service right now.
+    pub fn publisher_count(&self) -> usize {
+        use iceoryx2::service::port_factory::PortFactory as _;
+        self._service.dynamic_config().number_of_publishers()
+    }
+
+    /// The service name.
+    pub fn service_name(&self) -> &'static str {
+        T::SERVICE
+    }
+}
+
+/// Counts sequence gaps per publisher: a sample whose number is above the
+/// expected one means samples were lost in between; one below it means the
+/// publisher restarted (counted, not a loss).
+#[derive(Debug, Clone, Default)]
+pub struct SeqTracker {
+    next: HashMap<u128, u64>,
+    lost: u64,
+    received: u64,
+    restarts: u64,
+}
+
+impl SeqTracker {
+    /// Record sequence number `seq` from publisher `publisher`.
+    pub fn observe(&mut self, publisher: u128, seq: u64) {
+        self.received += 1;
+        match self.next.get(&publisher) {
+            Some(&expected) if seq > expected => self.lost += seq - expected,
+            Some(&expected) if seq < expected => self.restarts += 1,
+            None if seq > 0 => self.lost += seq,
+            _ => {}
+        }
+        self.next.insert(publisher, seq + 1);
+    }
+
+    /// Samples missing so far (a first sample numbered n > 0 counts n missing).
+    pub fn lost(&self) -> u64 {
+        self.lost
+    }
+
+    /// Samples observed.
+    pub fn received(&self) -> u64 {
+        self.received
+    }
+
+    /// Times a publisher's numbers went backwards.
+    pub fn restarts(&self) -> u64 {
+        self.restarts
+    }
+}
+
+/// Wait until every `(topic, count, minimum)` that `counts` returns has
+/// `count >= minimum`, polling every 10 ms; ends early on a termination request.
+pub fn wait_until<F: FnMut() -> Vec<(&'static str, usize, usize)>>(
+    mut counts: F,
+    timeout: Option<Duration>,
+) -> Result<(), BusError> {
+    let start = Instant::now();
+    loop {
+        let missing: Vec<String> = counts()
+            .into_iter()
+            .filter(|(_, have, want)| have < want)
+            .map(|(name, have, want)| format!("{name}: {have} of {want}"))
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        if shutdown_requested() {
+            return Err(BusError::Interrupted);
+        }
+        if let Some(t) = timeout {
+            if start.elapsed() >= t {
+                return Err(BusError::Timeout {
+                    waited_s: start.elapsed().as_secs_f64(),
+                    detail: missing.join(", "),
+                });
+            }
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seq_tracker_counts_gaps_and_restarts() {
+        let mut t = SeqTracker::default();
+        for s in [0, 1, 2, 5, 6] {
+            t.observe(7, s);
+        }
+        assert_eq!(t.lost(), 2);
+        t.observe(7, 0);
+        assert_eq!(t.restarts(), 1);
+        assert_eq!(t.lost(), 2);
+        t.observe(9, 3);
+        assert_eq!(t.lost(), 5);
+        assert_eq!(t.received(), 7);
+    }
+
+    #[test]
+    fn settings_round_trip_through_env_pairs() {
+        let s = BusSettings::isolated("unit test!", StdPath::new("/tmp/x"));
+        let prefix = s.prefix.clone().unwrap();
+        assert!(prefix.starts_with("wcunittest_"), "{prefix}");
+        let env = s.env();
+        assert_eq!(env[0], (ENV_PREFIX, prefix.clone()));
+        assert_eq!(env[1].1, format!("/tmp/x/{prefix}"));
+        let config = s.iceoryx_config().unwrap();
+        assert_eq!(config.global.prefix.as_bytes(), prefix.as_bytes());
+        assert!(config.global.root_path().as_bytes().starts_with(b"/tmp/x/wc"));
+    }
+}

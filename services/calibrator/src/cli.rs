@@ -1,0 +1,228 @@
+//! The `calibrate` subcommand: read the drive, run the pure library, print
+//! the report, write the JSON and the pictures.
+
+use anyhow::{Context, Result};
+use calibrator::{
+    calibrate_with_progress, plots, report, CalibrationConfig, Method, Progress, TimeOffsetMode,
+    TrackWidthMode,
+};
+use clap::{Args, ValueEnum};
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// `--method`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// The paper's iterative EKF + weighted least squares.
+    Paper,
+    /// Levenberg-Marquardt fit of the 2W model to the GNSS fixes (default).
+    Batch,
+}
+
+/// `--track-width`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum TrackArg {
+    /// Keep vehicle.toml's value.
+    Fixed,
+    /// Estimate it (batch); an error when the drive cannot determine it.
+    Estimate,
+    /// Estimate it when the drive turns enough (batch).
+    Auto,
+}
+
+/// `--time-offset`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum OffsetArg {
+    /// Do not check.
+    Off,
+    /// Estimate and warn.
+    Check,
+    /// Estimate, warn and compensate.
+    Compensate,
+}
+
+/// Arguments of `calibrator calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Drive folder or MCAP recording.
+    pub drive: PathBuf,
+    /// Write the calibration JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write SVG pictures (track.svg, iterations.svg) into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Estimator.
+    #[arg(long, value_enum)]
+    pub method: Option<MethodArg>,
+    /// Also run the other method and print both side by side.
+    #[arg(long)]
+    pub compare: bool,
+    /// Side-slip in the model (paper: the layer-1 estimate; batch: a fitted gain).
+    #[arg(long)]
+    pub side_slip: bool,
+    /// Iterations of the paper's loop.
+    #[arg(long)]
+    pub iterations: Option<usize>,
+    /// Step ratio alpha of eq. (11).
+    #[arg(long)]
+    pub alpha: Option<f64>,
+    /// q_M of eq. (10a).
+    #[arg(long)]
+    pub q_m: Option<f64>,
+    /// q_P of eq. (10b).
+    #[arg(long)]
+    pub q_p: Option<f64>,
+    /// Effective track width handling.
+    #[arg(long, value_enum)]
+    pub track_width: Option<TrackArg>,
+    /// Do not estimate the gyro bias and scale.
+    #[arg(long)]
+    pub no_gyro: bool,
+    /// Wheel/GNSS time offset handling.
+    #[arg(long, value_enum)]
+    pub time_offset: Option<OffsetArg>,
+    /// GNSS 1-sigma noise, m (default: sigma_m column or estimated).
+    #[arg(long)]
+    pub gnss_sigma: Option<f64>,
+    /// Batch segment length, s.
+    #[arg(long)]
+    pub segment_length: Option<f64>,
+    /// Do not use the IMU accelerations in the position reference.
+    #[arg(long)]
+    pub no_imu_accel: bool,
+    /// No progress bar.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+impl CalibrateArgs {
+    /// The library configuration these arguments ask for.
+    pub fn config(&self) -> CalibrationConfig {
+        let mut c = CalibrationConfig::default();
+        if let Some(m) = self.method {
+            c.method = match m {
+                MethodArg::Paper => Method::Paper,
+                MethodArg::Batch => Method::Batch,
+            };
+        }
+        c.compare = self.compare;
+        c.side_slip = self.side_slip;
+        if let Some(v) = self.iterations {
+            c.iterations = v;
+        }
+        if let Some(v) = self.alpha {
+            c.alpha = v;
+        }
+        if let Some(v) = self.q_m {
+            c.q_m = v;
+        }
+        if let Some(v) = self.q_p {
+            c.q_p = v;
+        }
+        if let Some(t) = self.track_width {
+            c.track_width = match t {
+                TrackArg::Fixed => TrackWidthMode::Fixed,
+                TrackArg::Estimate => TrackWidthMode::Estimate,
+                TrackArg::Auto => TrackWidthMode::Auto,
+            };
+        }
+        c.estimate_gyro = !self.no_gyro;
+        if let Some(o) = self.time_offset {
+            c.time_offset = match o {
+                OffsetArg::Off => TimeOffsetMode::Off,
+                OffsetArg::Check => TimeOffsetMode::Check,
+                OffsetArg::Compensate => TimeOffsetMode::Compensate,
+            };
+        }
+        c.gnss_sigma_m = self.gnss_sigma;
+        if let Some(v) = self.segment_length {
+            c.segment_length_s = v;
+        }
+        if self.no_imu_accel {
+            c.use_imu_acceleration = false;
+        }
+        c
+    }
+}
+
+/// A text progress bar on standard error.
+struct Bar {
+    shown: bool,
+    last: i32,
+}
+
+impl Bar {
+    fn update(&mut self, p: Progress) {
+        let pct = (100.0 * p.fraction).round() as i32;
+        if pct == self.last {
+            return;
+        }
+        self.last = pct;
+        let filled = (pct / 4).clamp(0, 25) as usize;
+        let stage = serde_json::to_string(&p.stage).unwrap_or_default();
+        let mut err = std::io::stderr();
+        let _ = write!(
+            err,
+            "\r[{}{}] {:3}% {:<12}",
+            "#".repeat(filled),
+            " ".repeat(25 - filled),
+            pct,
+            stage.trim_matches('"')
+        );
+        let _ = err.flush();
+        self.shown = true;
+    }
+}
+
+/// Run `calibrator calibrate`.
+pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
+    let loaded = sensor_bridge::read_drive(&args.drive)
+        .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+    let drive = loaded.drive;
+    let config = args.config();
+    // A bar only where it helps: drives longer than five minutes.
+    let mut bar = Bar { shown: false, last: -1 };
+    let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
+    let result = calibrate_with_progress(&drive, &config, &mut |p| {
+        if show {
+            bar.update(p)
+        }
+    });
+    if bar.shown {
+        eprintln!();
+    }
+    let cal = result.with_context(|| format!("cannot calibrate {}", args.drive.display()))?;
+    print!("{}", report::render_text(&cal));
+    if !loaded.warnings.is_empty() {
+        println!("reading the drive:");
+        for w in &loaded.warnings {
+            println!("  - {w}");
+        }
+    }
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&cal).context("cannot encode the calibration as JSON")?;
+        std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(dir) = &args.plots {
+        write_plots(dir, &cal)?;
+    }
+    Ok(())
+}
+
+fn write_plots(dir: &Path, cal: &calibrator::Calibration) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    for (name, svg) in [
+        ("track.svg", plots::track_svg(cal)),
+        ("iterations.svg", plots::iterations_svg(cal)),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
+}

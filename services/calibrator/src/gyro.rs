@@ -1,0 +1,154 @@
+//! The yaw-rate gyro's bias and scale, estimated beside the circumferences.
+//!
+//! Convention (the physics catalogue's `gyro_bias`, `gyro_scale`):
+//! `omega_gyro = (1 + scale) omega + bias`, so the odometry recovers the yaw
+//! rate as `omega = (omega_gyro - bias) / (1 + scale)`.
+//!
+//! The model is the one the odometry runs through a GNSS outage: distance
+//! from the calibrated wheels, heading from the gyro. It is fitted to the GNSS
+//! fixes by the batch machinery ([`crate::batch::fit`]) with the
+//! circumferences held at their estimate. The mean gyro rate at standstill,
+//! when the drive has some, enters as a prior on the bias. Without enough
+//! turning the scale is held at 0 (and a warning says so).
+
+use crate::batch::{fit, stages, SlipGain, StepModel, MAX_GLOBAL};
+use crate::prep::Prepared;
+use crate::reference::{standstill_gyro_bias, Reference};
+use crate::report::{Warning, WarningCode};
+use crate::uncertainty::Sigmas;
+use crate::CalibrationError;
+use serde::{Deserialize, Serialize};
+
+/// The gyro calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GyroEstimate {
+    /// Bias, rad/s (`omega_gyro = (1 + scale) omega + bias`).
+    pub bias_rad_s: f64,
+    /// 1-sigma of the bias, rad/s.
+    pub sigma_bias_rad_s: f64,
+    /// Scale error (0 = perfect).
+    pub scale: f64,
+    /// 1-sigma of the scale; `None` when the scale was held at 0.
+    pub sigma_scale: Option<f64>,
+    /// Mean gyro rate over the standstill periods, rad/s, when there were some.
+    pub standstill_bias_rad_s: Option<f64>,
+    /// Seconds of standstill used.
+    pub standstill_s: f64,
+    /// RMS of the GNSS residuals of the wheel + gyro model, m.
+    pub residual_rms_m: f64,
+}
+
+struct GyroModel<'a> {
+    p: &'a Prepared,
+    gyro: &'a [f64],
+    c: [f64; 2],
+    slip: SlipGain,
+    prior_bias: Option<(f64, f64)>,
+    hold_scale: bool,
+}
+
+impl StepModel for GyroModel<'_> {
+    fn n_global(&self) -> usize {
+        2
+    }
+
+    fn increments(
+        &self,
+        k: usize,
+        g: &[f64],
+        d_ds: &mut [f64; MAX_GLOBAL],
+        d_dyaw: &mut [f64; MAX_GLOBAL],
+    ) -> Option<(f64, f64)> {
+        let dg = self.gyro[k] - self.gyro[k - 1];
+        if !dg.is_finite() {
+            return None;
+        }
+        let dt = self.p.t[k] - self.p.t[k - 1];
+        let ds = 0.5 * (self.p.dn_rl[k] * self.c[0] + self.p.dn_rr[k] * self.c[1]);
+        let (b, s) = (g[0], g[1]);
+        let num = dg - b * dt;
+        *d_ds = [0.0; MAX_GLOBAL];
+        *d_dyaw = [0.0; MAX_GLOBAL];
+        d_dyaw[0] = -dt / (1.0 + s);
+        d_dyaw[1] = -num / ((1.0 + s) * (1.0 + s));
+        Some((ds, num / (1.0 + s)))
+    }
+
+    fn slip(&self) -> SlipGain {
+        self.slip
+    }
+
+    fn priors(&self) -> Vec<(usize, f64, f64)> {
+        let mut out = Vec::new();
+        if let Some((b, s)) = self.prior_bias {
+            out.push((0, b, s));
+        }
+        if self.hold_scale {
+            out.push((1, 0.0, 1e-6));
+        }
+        out
+    }
+}
+
+/// Fit the gyro bias and scale with the circumferences `c` (and side-slip gain, if any).
+pub fn estimate(
+    p: &Prepared,
+    r: &Reference,
+    c: [f64; 2],
+    side_slip_gain: Option<f64>,
+    segment_length_s: f64,
+    warnings: &mut Vec<Warning>,
+) -> Result<Option<GyroEstimate>, CalibrationError> {
+    let (Some(gyro), Some(_)) = (p.gyro_at_wheel.as_deref(), p.gyro.as_ref()) else {
+        return Ok(None);
+    };
+    let standstill = standstill_gyro_bias(p);
+    let turn_deg = r.total_turn_rad.to_degrees();
+    let hold_scale = turn_deg < 90.0;
+    if hold_scale {
+        warnings.push(Warning::new(
+            WarningCode::GyroScaleUnobservable,
+            format!("gyro scale held at 0: the drive turns only {turn_deg:.0} deg (at least 90 needed to estimate it)"),
+        ));
+    }
+    let model = GyroModel {
+        p,
+        gyro,
+        c,
+        slip: side_slip_gain.map_or(SlipGain::Off, SlipGain::Fixed),
+        prior_bias: standstill.map(|(b, s, _)| (b, s)),
+        hold_scale,
+    };
+    let b0 = standstill
+        .map(|s| s.0)
+        .or(r.heading_filter_gyro_bias)
+        .unwrap_or(0.0);
+    let breaks = |k: usize| k > 0 && !(gyro[k] - gyro[k - 1]).is_finite();
+    let result = fit(&model, p, r, &[b0, 0.0], &stages(segment_length_s), &breaks, &mut |_| {});
+    let f = match result {
+        Ok(f) => f,
+        Err(e) => {
+            warnings.push(Warning::new(
+                WarningCode::GyroUnobservable,
+                format!("gyro bias and scale not estimated: {e}"),
+            ));
+            return Ok(None);
+        }
+    };
+    // Sigmas of (bias, scale): reuse the generic sigma helper on a 2x2 block.
+    let sig = Sigmas::from_covariance(&f.formal);
+    let jk = f.jackknife.as_ref().map(Sigmas::from_covariance);
+    let (sb, ss) = match jk {
+        Some(j) => (sig.rl.max(j.rl), sig.rr.max(j.rr)),
+        None => (sig.rl, sig.rr),
+    };
+    Ok(Some(GyroEstimate {
+        bias_rad_s: f.g[0],
+        sigma_bias_rad_s: sb,
+        scale: f.g[1],
+        sigma_scale: (!hold_scale).then_some(ss),
+        standstill_bias_rad_s: standstill.map(|s| s.0),
+        standstill_s: standstill.map_or(0.0, |s| s.2),
+        residual_rms_m: f.residual_rms_m,
+    }))
+}

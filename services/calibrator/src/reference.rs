@@ -1,0 +1,1139 @@
+//! Layer 1: the reference poses `r_k = [x~, y~, theta~]` and the side-slip
+//! estimate (paper section 3.1).
+//!
+//! - Position: a Kalman filter on `p'' = a` per axis (white-noise
+//!   acceleration; the IMU's accelerations rotated into ENU as the input in the
+//!   second pass), GNSS fixes as measurements with an innovation gate, then a
+//!   Rauch-Tung-Striebel smoother (the method is off-line, so the reference
+//!   may use the future too). Between fixes the smoothed states are joined by
+//!   cubic Hermite curves (the smoothed mean of that model). The antenna lever
+//!   arm is removed with the reference heading.
+//! - Heading: a filter on `[theta, gyro bias]` driven by the yaw-rate gyro,
+//!   corrected by the GNSS course (from the smoothed velocity, corrected for
+//!   the lever arm; weighted down in corners where side-slip separates course
+//!   and heading) and by an absolute heading when the drive has one; smoothed.
+//! - Side-slip: beta = course - heading, filtered as a first-order Markov
+//!   process (Bevly et al.); also summarised as a gain beta = -k a_y.
+//! - The wheel/GNSS time offset is estimated from the speeds (GNSS speed
+//!   against wheel speed at shifted times) and optionally compensated.
+//!
+//! Everything is produced at the wheel sample times, with a validity flag
+//! that is false in GNSS outages longer than `max_gnss_gap_s`.
+
+use crate::prep::{Fix, Prepared};
+use crate::report::{Warning, WarningCode};
+use crate::{CalibrationConfig, CalibrationError, TimeOffsetMode};
+use odometry::two_wheel::wrap_angle;
+use serde::{Deserialize, Serialize};
+
+/// Process noise of the position filter without accelerations, m^2/s^3.
+const Q_ACCEL_FREE: f64 = 4.0;
+/// Process noise of the position filter with IMU accelerations as input, m^2/s^3.
+const Q_ACCEL_IMU: f64 = 0.5;
+/// Minimum speed for a usable GNSS course, m/s.
+const COURSE_MIN_SPEED: f64 = 2.0;
+
+/// The estimated wheel/GNSS time offset.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TimeOffset {
+    /// GNSS stamps late by this much relative to the wheels, s.
+    pub gnss_late_s: f64,
+    /// Its 1-sigma, s.
+    pub sigma_s: f64,
+    /// Whether the GNSS time stamps were shifted by it.
+    pub compensated: bool,
+}
+
+/// A GNSS fix as the later layers use it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefFix {
+    /// Time (after any time-offset compensation), s.
+    pub t: f64,
+    /// Antenna east, m.
+    pub x: f64,
+    /// Antenna north, m.
+    pub y: f64,
+    /// 1-sigma, m.
+    pub sigma: f64,
+    /// Passed the outlier gate.
+    pub accepted: bool,
+}
+
+/// The layer-1 output at the wheel sample times.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reference {
+    /// Rear-axle centre east, m.
+    pub x: Vec<f64>,
+    /// Rear-axle centre north, m.
+    pub y: Vec<f64>,
+    /// Heading, rad, unwrapped (continuous).
+    pub yaw: Vec<f64>,
+    /// Side-slip angle, rad (0 where not estimated).
+    pub beta: Vec<f64>,
+    /// True where a GNSS fix is close enough for the reference to be trusted.
+    pub valid: Vec<bool>,
+    /// The GNSS fixes with their sigma and gate decision.
+    pub fixes: Vec<RefFix>,
+    /// The GNSS 1-sigma used for fixes without their own, m.
+    pub gnss_sigma_m: f64,
+    /// True when `gnss_sigma_m` was estimated from the fixes.
+    pub gnss_sigma_estimated: bool,
+    /// Fixes rejected by the gate.
+    pub outliers: usize,
+    /// The wheel/GNSS time offset, when checked and determinable.
+    pub time_offset: Option<TimeOffset>,
+    /// Side-slip gain k in beta = -k a_y, rad per m/s^2, when estimated.
+    pub side_slip_gain: Option<f64>,
+    /// Mean gyro bias of the heading filter, rad/s.
+    pub heading_filter_gyro_bias: Option<f64>,
+    /// Distance driven where the reference is valid (nominal circumference), m.
+    pub distance_m: f64,
+    /// Total absolute heading change where valid, rad.
+    pub total_turn_rad: f64,
+    /// Number of GNSS outages (gaps longer than `max_gnss_gap_s` inside the drive).
+    pub outages: usize,
+}
+
+/// Symmetric 2x2 covariance of one axis: position, cross, velocity.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Cov2 {
+    pp: f64,
+    pv: f64,
+    vv: f64,
+}
+
+/// Smoothed position/velocity at the GNSS epochs.
+struct PosTrack {
+    t: Vec<f64>,
+    /// [x, y, vx, vy].
+    s: Vec<[f64; 4]>,
+    /// Smoothed covariance per axis (shared by x and y).
+    cov: Vec<Cov2>,
+    accepted: Vec<bool>,
+}
+
+impl PosTrack {
+    /// Hermite interpolation of position (and velocity) at `t` in [t_j, t_{j+1}].
+    fn at(&self, j: usize, t: f64) -> [f64; 4] {
+        let n = self.t.len();
+        if j + 1 >= n {
+            let a = self.s[n - 1];
+            let dt = t - self.t[n - 1];
+            return [a[0] + a[2] * dt, a[1] + a[3] * dt, a[2], a[3]];
+        }
+        let (t0, t1) = (self.t[j], self.t[j + 1]);
+        let h = t1 - t0;
+        if t <= t0 || h <= 0.0 {
+            let a = self.s[j];
+            let dt = t - t0;
+            return [a[0] + a[2] * dt, a[1] + a[3] * dt, a[2], a[3]];
+        }
+        let s = ((t - t0) / h).min(1.0);
+        let (a, b) = (self.s[j], self.s[j + 1]);
+        let s2 = s * s;
+        let s3 = s2 * s;
+        let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
+        let h10 = s3 - 2.0 * s2 + s;
+        let h01 = -2.0 * s3 + 3.0 * s2;
+        let h11 = s3 - s2;
+        let d00 = (6.0 * s2 - 6.0 * s) / h;
+        let d10 = 3.0 * s2 - 4.0 * s + 1.0;
+        let d01 = (-6.0 * s2 + 6.0 * s) / h;
+        let d11 = 3.0 * s2 - 2.0 * s;
+        [
+            h00 * a[0] + h10 * h * a[2] + h01 * b[0] + h11 * h * b[2],
+            h00 * a[1] + h10 * h * a[3] + h01 * b[1] + h11 * h * b[3],
+            d00 * a[0] + d10 * a[2] + d01 * b[0] + d11 * b[2],
+            d00 * a[1] + d10 * a[3] + d01 * b[1] + d11 * b[3],
+        ]
+    }
+}
+
+/// Kinematic input of one filter interval: position and velocity change
+/// explained by the measured acceleration.
+type Input = [f64; 4];
+
+/// Forward Kalman filter with innovation gate + RTS smoother on `p'' = a`.
+fn smooth_positions(
+    fixes: &[RefFix],
+    z: &[[f64; 2]],
+    q: f64,
+    gate: f64,
+    inputs: Option<&[Input]>,
+) -> Result<PosTrack, CalibrationError> {
+    let n = fixes.len();
+    let mut xf: Vec<[f64; 4]> = Vec::with_capacity(n);
+    let mut pf: Vec<Cov2> = Vec::with_capacity(n);
+    let mut pp: Vec<Cov2> = Vec::with_capacity(n);
+    let mut accepted = Vec::with_capacity(n);
+    let mut rejects_in_row = 0usize;
+    let mut last_rejected: Option<(f64, [f64; 2])> = None;
+    for j in 0..n {
+        let r = fixes[j].sigma * fixes[j].sigma;
+        if j == 0 {
+            xf.push([z[0][0], z[0][1], 0.0, 0.0]);
+            let c = Cov2 {
+                pp: r,
+                pv: 0.0,
+                vv: 400.0,
+            };
+            pf.push(c);
+            pp.push(c);
+            accepted.push(true);
+            continue;
+        }
+        let tt = fixes[j].t - fixes[j - 1].t;
+        let a = xf[j - 1];
+        let u = inputs.map_or([0.0; 4], |i| i[j]);
+        let xp = [
+            a[0] + a[2] * tt + u[0],
+            a[1] + a[3] * tt + u[1],
+            a[2] + u[2],
+            a[3] + u[3],
+        ];
+        let c = pf[j - 1];
+        let pred = Cov2 {
+            pp: c.pp + 2.0 * tt * c.pv + tt * tt * c.vv + q * tt * tt * tt / 3.0,
+            pv: c.pv + tt * c.vv + q * tt * tt / 2.0,
+            vv: c.vv + q * tt,
+        };
+        pp.push(pred);
+        let nu = [z[j][0] - xp[0], z[j][1] - xp[1]];
+        let s = pred.pp + r;
+        let d2 = (nu[0] * nu[0] + nu[1] * nu[1]) / s;
+        let mut take = d2 <= gate * gate;
+        let mut p_use = pred;
+        if !take && rejects_in_row >= 5 {
+            // A run of rejections that agree with each other is a jump the
+            // filter missed, not outliers: restart on it.
+            if let Some((t_prev, z_prev)) = last_rejected {
+                let jump = ((z[j][0] - z_prev[0]).powi(2) + (z[j][1] - z_prev[1]).powi(2)).sqrt();
+                let speed = (a[2] * a[2] + a[3] * a[3]).sqrt();
+                if jump <= (speed + 5.0) * (fixes[j].t - t_prev) + 3.0 * fixes[j].sigma {
+                    take = true;
+                    p_use = Cov2 {
+                        pp: pred.pp + nu[0] * nu[0] + nu[1] * nu[1],
+                        pv: pred.pv,
+                        vv: pred.vv + 100.0,
+                    };
+                }
+            }
+        }
+        if take {
+            let s = p_use.pp + r;
+            let k0 = p_use.pp / s;
+            let k1 = p_use.pv / s;
+            let nu = [z[j][0] - xp[0], z[j][1] - xp[1]];
+            xf.push([
+                xp[0] + k0 * nu[0],
+                xp[1] + k0 * nu[1],
+                xp[2] + k1 * nu[0],
+                xp[3] + k1 * nu[1],
+            ]);
+            pf.push(Cov2 {
+                pp: p_use.pp - k0 * p_use.pp,
+                pv: p_use.pv - k0 * p_use.pv,
+                vv: p_use.vv - k1 * p_use.pv,
+            });
+            if rejects_in_row > 0 {
+                pp[j] = p_use;
+            }
+            rejects_in_row = 0;
+            last_rejected = None;
+            accepted.push(true);
+        } else {
+            xf.push(xp);
+            pf.push(pred);
+            rejects_in_row += 1;
+            last_rejected = Some((fixes[j].t, z[j]));
+            accepted.push(false);
+        }
+    }
+    // Rauch-Tung-Striebel backward pass.
+    let mut xs = xf.clone();
+    let mut ps = pf.clone();
+    for j in (0..n.saturating_sub(1)).rev() {
+        let tt = fixes[j + 1].t - fixes[j].t;
+        let c = pf[j];
+        let p1 = pp[j + 1];
+        // C = Pf F^T Pp^-1 with F = [[1, tt], [0, 1]].
+        let pft = [[c.pp + tt * c.pv, c.pv], [c.pv + tt * c.vv, c.vv]];
+        let det = p1.pp * p1.vv - p1.pv * p1.pv;
+        if !(det.is_finite() && det > 0.0) {
+            return Err(CalibrationError::Numerical {
+                stage: "reference position smoother",
+                detail: format!("predicted covariance not positive definite at t = {:.3} s", fixes[j + 1].t),
+            });
+        }
+        let inv = [[p1.vv / det, -p1.pv / det], [-p1.pv / det, p1.pp / det]];
+        let g = [
+            [
+                pft[0][0] * inv[0][0] + pft[0][1] * inv[1][0],
+                pft[0][0] * inv[0][1] + pft[0][1] * inv[1][1],
+            ],
+            [
+                pft[1][0] * inv[0][0] + pft[1][1] * inv[1][0],
+                pft[1][0] * inv[0][1] + pft[1][1] * inv[1][1],
+            ],
+        ];
+        let a = xf[j];
+        let u = inputs.map_or([0.0; 4], |i| i[j + 1]);
+        let xp = [
+            a[0] + a[2] * tt + u[0],
+            a[1] + a[3] * tt + u[1],
+            a[2] + u[2],
+            a[3] + u[3],
+        ];
+        let nx = xs[j + 1];
+        for axis in 0..2 {
+            let dp = nx[axis] - xp[axis];
+            let dv = nx[axis + 2] - xp[axis + 2];
+            xs[j][axis] = a[axis] + g[0][0] * dp + g[0][1] * dv;
+            xs[j][axis + 2] = a[axis + 2] + g[1][0] * dp + g[1][1] * dv;
+        }
+        let dpp = ps[j + 1].pp - p1.pp;
+        let dpv = ps[j + 1].pv - p1.pv;
+        let dvv = ps[j + 1].vv - p1.vv;
+        // P += G dP G^T
+        let m00 = g[0][0] * dpp + g[0][1] * dpv;
+        let m01 = g[0][0] * dpv + g[0][1] * dvv;
+        let m10 = g[1][0] * dpp + g[1][1] * dpv;
+        let m11 = g[1][0] * dpv + g[1][1] * dvv;
+        ps[j] = Cov2 {
+            pp: c.pp + m00 * g[0][0] + m01 * g[0][1],
+            pv: c.pv + m00 * g[1][0] + m01 * g[1][1],
+            vv: c.vv + m10 * g[1][0] + m11 * g[1][1],
+        };
+    }
+    if xs.iter().any(|s| !s.iter().all(|v| v.is_finite())) {
+        return Err(CalibrationError::Numerical {
+            stage: "reference position smoother",
+            detail: "non-finite smoothed state".to_string(),
+        });
+    }
+    Ok(PosTrack {
+        t: fixes.iter().map(|f| f.t).collect(),
+        s: xs,
+        cov: ps,
+        accepted,
+    })
+}
+
+/// GNSS noise from the fixes: MAD of second differences, per axis.
+fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
+    let mut d = Vec::new();
+    for w in fixes.windows(3) {
+        let (h0, h1) = (w[1].t - w[0].t, w[2].t - w[1].t);
+        if h0 <= 0.0 || h1 <= 0.0 || h0 > 1.5 || h1 > 1.5 || (h0 - h1).abs() > 0.25 * h0.max(h1) {
+            continue;
+        }
+        // Second difference of equally spaced samples: variance 6 sigma^2 for white noise.
+        d.push((w[2].x - 2.0 * w[1].x + w[0].x).abs());
+        d.push((w[2].y - 2.0 * w[1].y + w[0].y).abs());
+    }
+    if d.len() < 10 {
+        return None;
+    }
+    d.sort_by(f64::total_cmp);
+    let mad = d[d.len() / 2];
+    Some(1.4826 * mad / 6f64.sqrt())
+}
+
+/// Cumulative centre distance at the wheel times (nominal circumference).
+fn cumulative_distance(p: &Prepared) -> Vec<f64> {
+    let mut s = Vec::with_capacity(p.len());
+    let mut acc = 0.0;
+    for k in 0..p.len() {
+        acc += 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c;
+        s.push(acc);
+    }
+    s
+}
+
+/// Linear interpolation of a series given at increasing `t`.
+fn interp(t: &[f64], v: &[f64], x: f64) -> Option<f64> {
+    let n = t.len();
+    if n < 2 || !(x >= t[0] && x <= t[n - 1]) {
+        return None;
+    }
+    let i = t.partition_point(|&s| s <= x).clamp(1, n - 1);
+    let (t0, t1) = (t[i - 1], t[i]);
+    let f = if t1 > t0 { (x - t0) / (t1 - t0) } else { 0.0 };
+    Some(v[i - 1] + f * (v[i] - v[i - 1]))
+}
+
+/// Estimate the GNSS latency relative to the wheels from the speeds:
+/// minimise `sum (v_gnss(t) - k v_wheel(t - tau))^2` over `tau` in +-0.5 s
+/// (k absorbs the unknown circumference), refine with a parabola fitted
+/// over +-0.15 s around the minimum. The sigma is the time-delay Fisher
+/// bound `s / (k sqrt(sum a^2))` (a the wheel acceleration, s the residual
+/// RMS), inflated by the number of samples per second because the smoothed
+/// GNSS speeds are correlated over about a second. `None` when the speed
+/// hardly changes (no timing information) or the minimum is at the edge.
+fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
+    let dist = cumulative_distance(p);
+    let h = 0.25;
+    let wheel_speed = |t: f64| -> Option<f64> {
+        let a = interp(&p.t, &dist, t - h)?;
+        let b = interp(&p.t, &dist, t + h)?;
+        Some((b - a) / (2.0 * h))
+    };
+    let (t_first, t_last) = (p.t[0] + 0.5 + 2.0 * h, p.t[p.len() - 1] - 0.5 - 2.0 * h);
+    let mut obs = Vec::new();
+    for (j, &t) in track.t.iter().enumerate() {
+        if !track.accepted[j] || t < t_first || t > t_last {
+            continue;
+        }
+        let s = track.s[j];
+        let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
+        if v > 1.0 {
+            obs.push((t, v));
+        }
+    }
+    if obs.len() < 20 {
+        return None;
+    }
+    let step = 0.01;
+    let lags: Vec<f64> = (-50..=50).map(|i| i as f64 * step).collect();
+    let mut sse = Vec::with_capacity(lags.len());
+    let mut gain = 1.0;
+    for &lag in &lags {
+        let (mut sgw, mut sww, mut sgg) = (0.0, 0.0, 0.0);
+        for &(t, vg) in &obs {
+            let vw = wheel_speed(t - lag)?;
+            sgw += vg * vw;
+            sww += vw * vw;
+            sgg += vg * vg;
+        }
+        if sww <= 0.0 {
+            return None;
+        }
+        if lag == 0.0 {
+            gain = sgw / sww;
+        }
+        sse.push(sgg - sgw * sgw / sww);
+    }
+    let i_min = (0..sse.len()).min_by(|&a, &b| sse[a].total_cmp(&sse[b]))?;
+    if i_min < 15 || i_min + 15 >= sse.len() {
+        return None;
+    }
+    // Least-squares parabola over +-0.15 s around the minimum.
+    let (mut m, mut v) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
+    for i in i_min - 15..=i_min + 15 {
+        let x = lags[i] - lags[i_min];
+        let basis = [1.0, x, x * x];
+        for r in 0..3 {
+            v[r] += basis[r] * sse[i];
+            for c in 0..3 {
+                m[r][c] += basis[r] * basis[c];
+            }
+        }
+    }
+    let mat = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
+    let coef = mat.try_inverse()? * nalgebra::Vector3::new(v[0], v[1], v[2]);
+    if !(coef[2] > 0.0) {
+        return None;
+    }
+    let tau = lags[i_min] - coef[1] / (2.0 * coef[2]);
+    if tau.abs() > 0.5 {
+        return None;
+    }
+    // Fisher bound.
+    let mut sum_a2 = 0.0;
+    for &(t, _) in &obs {
+        let a = (wheel_speed(t + 0.1)? - wheel_speed(t - 0.1)?) / 0.2;
+        sum_a2 += a * a;
+    }
+    let s2 = sse[i_min] / (obs.len() as f64 - 2.0).max(1.0);
+    let per_second = (obs.len() as f64 / (obs.last()?.0 - obs.first()?.0).max(1.0)).max(1.0);
+    let sigma = (s2 * per_second / (gain * gain * sum_a2).max(1e-12)).sqrt();
+    Some((tau, sigma))
+}
+
+/// The heading reference at the epochs and between them.
+struct HeadingTrack {
+    t: Vec<f64>,
+    yaw: Vec<f64>,
+    bias: Vec<f64>,
+}
+
+/// One heading measurement: time, value (rad), variance (rad^2).
+#[derive(Clone, Copy)]
+struct HeadingMeas {
+    t: f64,
+    z: f64,
+    var: f64,
+}
+
+fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<HeadingTrack, CalibrationError> {
+    let n = meas.len();
+    let q_theta = 2.5e-7; // (5e-4 rad/sqrt(s))^2, gyro angle random walk
+    let q_bias = 1e-10; // bias random walk, (rad/s)^2/s
+    let q_free = 0.25; // heading random walk without gyro, rad^2/s
+    let scale_var = 0.005f64 * 0.005; // gyro scale uncertainty per radian turned
+    let mut xf: Vec<[f64; 2]> = Vec::with_capacity(n);
+    let mut pf: Vec<[f64; 3]> = Vec::with_capacity(n);
+    let mut pp: Vec<[f64; 3]> = Vec::with_capacity(n);
+    let mut inc: Vec<Option<f64>> = Vec::with_capacity(n);
+    for j in 0..n {
+        if j == 0 {
+            xf.push([meas[0].z, bias0]);
+            let c = [meas[0].var, 0.0, 1e-4];
+            pf.push(c);
+            pp.push(c);
+            inc.push(None);
+            continue;
+        }
+        let tt = meas[j].t - meas[j - 1].t;
+        let dg = p
+            .gyro
+            .as_ref()
+            .and_then(|g| Some(g.cum_at(meas[j].t)? - g.cum_at(meas[j - 1].t)?));
+        inc.push(dg);
+        let a = xf[j - 1];
+        let c = pf[j - 1];
+        let (xp, pred) = match dg {
+            Some(dg) => {
+                // theta' = theta + dg - b tt; F = [[1, -tt], [0, 1]].
+                let xp = [a[0] + dg - a[1] * tt, a[1]];
+                let p00 = c[0] - 2.0 * tt * c[1] + tt * tt * c[2] + q_theta * tt + scale_var * dg * dg
+                    + q_bias * tt * tt * tt / 3.0;
+                let p01 = c[1] - tt * c[2] - q_bias * tt * tt / 2.0;
+                let p11 = c[2] + q_bias * tt;
+                (xp, [p00, p01, p11])
+            }
+            None => (a, [c[0] + q_free * tt, c[1], c[2] + q_bias * tt]),
+        };
+        pp.push(pred);
+        let m = meas[j];
+        let nu = wrap_angle(m.z - xp[0]);
+        let s = pred[0] + m.var;
+        let d2 = nu * nu / s;
+        if d2 > 25.0 {
+            xf.push(xp);
+            pf.push(pred);
+            continue;
+        }
+        let k0 = pred[0] / s;
+        let k1 = pred[1] / s;
+        xf.push([xp[0] + k0 * nu, xp[1] + k1 * nu]);
+        pf.push([pred[0] - k0 * pred[0], pred[1] - k0 * pred[1], pred[2] - k1 * pred[1]]);
+    }
+    let mut xs = xf.clone();
+    let mut ps = pf.clone();
+    for j in (0..n.saturating_sub(1)).rev() {
+        let tt = meas[j + 1].t - meas[j].t;
+        let c = pf[j];
+        let p1 = pp[j + 1];
+        let gyro = inc[j + 1];
+        let (f01, xp) = match gyro {
+            Some(dg) => (-tt, [xf[j][0] + dg - xf[j][1] * tt, xf[j][1]]),
+            None => (0.0, xf[j]),
+        };
+        // Pf F^T
+        let pft = [[c[0] + f01 * c[1], c[1]], [c[1] + f01 * c[2], c[2]]];
+        let det = p1[0] * p1[2] - p1[1] * p1[1];
+        if !(det.is_finite() && det > 0.0) {
+            return Err(CalibrationError::Numerical {
+                stage: "reference heading smoother",
+                detail: format!("predicted covariance not positive definite at t = {:.3} s", meas[j + 1].t),
+            });
+        }
+        let inv = [[p1[2] / det, -p1[1] / det], [-p1[1] / det, p1[0] / det]];
+        let g = [
+            [
+                pft[0][0] * inv[0][0] + pft[0][1] * inv[1][0],
+                pft[0][0] * inv[0][1] + pft[0][1] * inv[1][1],
+            ],
+            [
+                pft[1][0] * inv[0][0] + pft[1][1] * inv[1][0],
+                pft[1][0] * inv[0][1] + pft[1][1] * inv[1][1],
+            ],
+        ];
+        let d0 = xs[j + 1][0] - xp[0];
+        let d1 = xs[j + 1][1] - xp[1];
+        xs[j] = [xf[j][0] + g[0][0] * d0 + g[0][1] * d1, xf[j][1] + g[1][0] * d0 + g[1][1] * d1];
+        let dp = [ps[j + 1][0] - p1[0], ps[j + 1][1] - p1[1], ps[j + 1][2] - p1[2]];
+        let m00 = g[0][0] * dp[0] + g[0][1] * dp[1];
+        let m01 = g[0][0] * dp[1] + g[0][1] * dp[2];
+        let m10 = g[1][0] * dp[0] + g[1][1] * dp[1];
+        let m11 = g[1][0] * dp[1] + g[1][1] * dp[2];
+        ps[j] = [
+            c[0] + m00 * g[0][0] + m01 * g[0][1],
+            c[1] + m00 * g[1][0] + m01 * g[1][1],
+            c[2] + m10 * g[1][0] + m11 * g[1][1],
+        ];
+    }
+    if xs.iter().any(|s| !(s[0].is_finite() && s[1].is_finite())) {
+        return Err(CalibrationError::Numerical {
+            stage: "reference heading smoother",
+            detail: "non-finite smoothed heading".to_string(),
+        });
+    }
+    Ok(HeadingTrack {
+        t: meas.iter().map(|m| m.t).collect(),
+        yaw: xs.iter().map(|s| s[0]).collect(),
+        bias: xs.iter().map(|s| s[1]).collect(),
+    })
+}
+
+impl HeadingTrack {
+    /// Heading at `t` given the gyro's cumulative angle `g_t` there (NaN when
+    /// not covered), with the closing error between epochs spread linearly.
+    fn at(&self, t: f64, g_t: f64, gyro: Option<&crate::prep::Gyro>, cursor: &mut usize) -> f64 {
+        let n = self.t.len();
+        if n == 1 {
+            return self.yaw[0];
+        }
+        while *cursor + 1 < n && self.t[*cursor + 1] <= t {
+            *cursor += 1;
+        }
+        let j = *cursor;
+        let g_of = |tt: f64| gyro.and_then(|g| g.cum_at(tt));
+        if t <= self.t[0] {
+            return match (g_t.is_finite(), g_of(self.t[0])) {
+                (true, Some(g0)) => self.yaw[0] + (g_t - g0) - self.bias[0] * (t - self.t[0]),
+                _ => self.yaw[0],
+            };
+        }
+        if j + 1 >= n {
+            return match (g_t.is_finite(), g_of(self.t[n - 1])) {
+                (true, Some(g1)) => self.yaw[n - 1] + (g_t - g1) - self.bias[n - 1] * (t - self.t[n - 1]),
+                _ => self.yaw[n - 1],
+            };
+        }
+        let (t0, t1) = (self.t[j], self.t[j + 1]);
+        let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        match (g_t.is_finite(), g_of(t0), g_of(t1)) {
+            (true, Some(g0), Some(g1)) => {
+                let b = self.bias[j];
+                let part = (g_t - g0) - b * (t - t0);
+                let whole = (g1 - g0) - b * (t1 - t0);
+                let closure = self.yaw[j + 1] - self.yaw[j] - whole;
+                self.yaw[j] + part + f * closure
+            }
+            _ => self.yaw[j] + f * (self.yaw[j + 1] - self.yaw[j]),
+        }
+    }
+}
+
+/// Build the reference for the prepared drive.
+pub fn build(
+    p: &Prepared,
+    config: &CalibrationConfig,
+    warnings: &mut Vec<Warning>,
+) -> Result<Reference, CalibrationError> {
+    let (gnss_sigma_m, estimated) = match config.gnss_sigma_m {
+        Some(s) => (s, false),
+        None => {
+            let given: Vec<f64> = p.fixes.iter().filter_map(|f| f.sigma).collect();
+            if given.len() == p.fixes.len() {
+                let mut g = given;
+                g.sort_by(f64::total_cmp);
+                (g[g.len() / 2], false)
+            } else {
+                // Receivers filter their output, so the short-term scatter
+                // understates the error: never below 0.3 m when estimated.
+                (estimate_gnss_sigma(&p.fixes).unwrap_or(1.0).max(0.3), true)
+            }
+        }
+    };
+    let sigma_of = |f: &Fix| -> f64 {
+        match (config.gnss_sigma_m, f.sigma) {
+            (Some(s), _) => s,
+            (None, Some(s)) => s.max(0.01),
+            (None, None) => gnss_sigma_m,
+        }
+    };
+    let mut fixes: Vec<RefFix> = p
+        .fixes
+        .iter()
+        .map(|f| RefFix {
+            t: f.t,
+            x: f.x,
+            y: f.y,
+            sigma: sigma_of(f),
+            accepted: true,
+        })
+        .collect();
+    let gate = config.outlier_gate_sigma;
+    let antenna: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
+
+    // Pass 1: GNSS alone, for the course and the time offset.
+    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
+    let mut time_offset = None;
+    if config.time_offset != TimeOffsetMode::Off {
+        match estimate_time_offset(p, &pass1) {
+            Some((tau, sigma)) => {
+                let significant = tau.abs() >= 0.015 && tau.abs() > 3.0 * sigma;
+                let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
+                if significant {
+                    warnings.push(Warning::new(
+                        WarningCode::TimeOffset,
+                        format!(
+                            "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms){}",
+                            1000.0 * tau.abs(),
+                            if tau > 0.0 { "later" } else { "earlier" },
+                            1000.0 * sigma,
+                            if compensate {
+                                "; the GNSS times were shifted to match"
+                            } else {
+                                "; not compensated"
+                            }
+                        ),
+                    ));
+                }
+                if compensate {
+                    for f in &mut fixes {
+                        f.t -= tau;
+                    }
+                    pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
+                }
+                time_offset = Some(TimeOffset {
+                    gnss_late_s: tau,
+                    sigma_s: sigma,
+                    compensated: compensate,
+                });
+            }
+            None => warnings.push(Warning::new(
+                WarningCode::TimeOffset,
+                "the wheel/GNSS time offset could not be determined (too few speed changes with GNSS); it is not checked"
+                    .to_string(),
+            )),
+        }
+    }
+    let outliers = pass1.accepted.iter().filter(|a| !**a).count();
+    for (f, a) in fixes.iter_mut().zip(&pass1.accepted) {
+        f.accepted = *a;
+    }
+    let usable = fixes.iter().filter(|f| f.accepted).count();
+    if usable < 10 {
+        return Err(CalibrationError::TooFewGnss {
+            usable,
+            total: p.fixes.len(),
+            detail: format!(", {outliers} rejected as outliers"),
+            needed: 10,
+        });
+    }
+    if outliers > 0 {
+        let first = fixes.iter().find(|f| !f.accepted).map_or(f64::NAN, |f| f.t);
+        warnings.push(Warning::new(
+            WarningCode::GnssOutliers,
+            format!(
+                "gnss: {outliers} of {} fixes rejected as outliers (innovation beyond {gate:.1} sigma; first at t = {first:.2} s)",
+                fixes.len()
+            ),
+        ));
+    }
+
+    // Heading: gyro + GNSS course (+ absolute heading).
+    let gyro = p.gyro.as_ref();
+    let omega_at = |t: f64| gyro.and_then(|g| g.mean_rate(t - 0.1, t + 0.1));
+    let [lx, ly] = p.lever_arm;
+    let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
+    for j in 0..pass1.t.len() {
+        if !pass1.accepted[j] {
+            continue;
+        }
+        let s = pass1.s[j];
+        let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
+        if v < COURSE_MIN_SPEED {
+            continue;
+        }
+        let var_c = pass1.cov[j].vv / (v * v);
+        if var_c > 0.04 {
+            continue;
+        }
+        let w = omega_at(pass1.t[j]).unwrap_or(0.0);
+        let lever = (w * lx).atan2(v - w * ly);
+        let ay = v * w;
+        let sig_beta = 0.002 + 0.004 * ay.abs();
+        course_meas.push((
+            HeadingMeas {
+                t: pass1.t[j],
+                z: s[3].atan2(s[2]) - lever,
+                var: var_c + sig_beta * sig_beta,
+            },
+            v,
+        ));
+    }
+    let mut meas: Vec<HeadingMeas> = course_meas.iter().map(|m| m.0).collect();
+    for h in &p.headings {
+        let s = h.sigma_rad.unwrap_or(0.05);
+        meas.push(HeadingMeas {
+            t: h.t_s,
+            z: h.yaw_rad,
+            var: s * s,
+        });
+    }
+    meas.sort_by(|a, b| a.t.total_cmp(&b.t));
+    meas.dedup_by(|b, a| b.t <= a.t);
+    if meas.len() < 2 {
+        return Err(CalibrationError::TooShort {
+            distance_m: 0.0,
+            needed_m: 50.0,
+        });
+    }
+    let bias0 = standstill_gyro_bias(p).map_or(0.0, |b| b.0);
+    let heading = heading_filter(&meas, p, bias0)?;
+
+    // Side-slip at the course epochs: course - heading, Markov-filtered.
+    let mut slip_t = Vec::new();
+    let mut slip_z = Vec::new();
+    let mut slip_var = Vec::new();
+    let mut cursor = 0usize;
+    let (mut s_aa, mut s_ab) = (0.0, 0.0);
+    if gyro.is_some() {
+        for (m, v) in &course_meas {
+            let g_t = gyro.and_then(|g| g.cum_at(m.t)).unwrap_or(f64::NAN);
+            let th = heading.at(m.t, g_t, gyro, &mut cursor);
+            let b = wrap_angle(m.z - th);
+            slip_t.push(m.t);
+            slip_z.push(b);
+            slip_var.push(m.var.min(0.01));
+            if let Some(w) = omega_at(m.t) {
+                let ay = v * w;
+                s_aa += ay * ay;
+                s_ab += ay * b;
+            }
+        }
+    }
+    let side_slip_gain = (s_aa > 50.0).then(|| -s_ab / s_aa);
+    let beta_track = smooth_side_slip(&slip_t, &slip_z, &slip_var);
+    if config.side_slip && gyro.is_none() {
+        warnings.push(Warning::new(
+            WarningCode::SideSlipUnavailable,
+            "side-slip needs a yaw-rate gyro (imu.csv gz_rad_s): running with beta = 0".to_string(),
+        ));
+    }
+
+    // Pass 2: lever arm removed with the heading, accelerations as input.
+    let mut hcur = 0usize;
+    let axle: Vec<[f64; 2]> = fixes
+        .iter()
+        .map(|f| {
+            let g_t = gyro.and_then(|g| g.cum_at(f.t)).unwrap_or(f64::NAN);
+            let th = heading.at(f.t, g_t, gyro, &mut hcur);
+            let (s, c) = th.sin_cos();
+            [f.x - (c * lx - s * ly), f.y - (s * lx + c * ly)]
+        })
+        .collect();
+    let use_accel = config.use_imu_acceleration && p.accel.len() > 10;
+    let inputs = if use_accel {
+        Some(accel_inputs(&fixes, p, &heading))
+    } else {
+        None
+    };
+    let pass2 = smooth_positions(
+        &fixes,
+        &axle,
+        if use_accel { Q_ACCEL_IMU } else { Q_ACCEL_FREE },
+        gate,
+        inputs.as_deref(),
+    )?;
+
+    // Everything at the wheel times.
+    let n = p.len();
+    let mut x = Vec::with_capacity(n);
+    let mut y = Vec::with_capacity(n);
+    let mut yaw = Vec::with_capacity(n);
+    let mut beta = Vec::with_capacity(n);
+    let mut valid = Vec::with_capacity(n);
+    let acc_t: Vec<f64> = fixes.iter().filter(|f| f.accepted).map(|f| f.t).collect();
+    let mut j = 0usize;
+    let mut a = 0usize;
+    let mut hc = 0usize;
+    let mut bc = 0usize;
+    let half = 0.5 * config.max_gnss_gap_s;
+    for k in 0..n {
+        let t = p.t[k];
+        while j + 1 < pass2.t.len() && pass2.t[j + 1] <= t {
+            j += 1;
+        }
+        let s = pass2.at(j, t);
+        x.push(s[0]);
+        y.push(s[1]);
+        let g_t = p.gyro_at_wheel.as_ref().map_or(f64::NAN, |g| g[k]);
+        yaw.push(heading.at(t, g_t, gyro, &mut hc));
+        beta.push(beta_track.as_ref().map_or(0.0, |b| b.at(t, &mut bc)));
+        while a + 1 < acc_t.len() && acc_t[a + 1] <= t {
+            a += 1;
+        }
+        let ok = if t < acc_t[0] {
+            acc_t[0] - t <= half.min(0.5)
+        } else if a + 1 >= acc_t.len() {
+            t - acc_t[a] <= half.min(0.5)
+        } else {
+            acc_t[a + 1] - acc_t[a] <= config.max_gnss_gap_s
+        };
+        valid.push(ok);
+    }
+    if yaw.iter().any(|v| !v.is_finite()) || x.iter().any(|v| !v.is_finite()) {
+        return Err(CalibrationError::Numerical {
+            stage: "reference interpolation",
+            detail: "non-finite reference pose".to_string(),
+        });
+    }
+    let outages = acc_t
+        .windows(2)
+        .filter(|w| w[1] - w[0] > config.max_gnss_gap_s)
+        .count();
+    if outages > 0 {
+        let longest = acc_t
+            .windows(2)
+            .map(|w| (w[1] - w[0], w[0]))
+            .fold((0.0, 0.0), |m, v| if v.0 > m.0 { v } else { m });
+        warnings.push(Warning::new(
+            WarningCode::GnssOutage,
+            format!(
+                "gnss: {outages} outage(s) longer than {:.1} s (longest {:.1} s at t = {:.1} s): no reference there, the model bridges them",
+                config.max_gnss_gap_s, longest.0, longest.1
+            ),
+        ));
+    }
+    let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &valid);
+    let heading_filter_gyro_bias = gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
+    Ok(Reference {
+        x,
+        y,
+        yaw,
+        beta,
+        valid,
+        fixes,
+        gnss_sigma_m,
+        gnss_sigma_estimated: estimated,
+        outliers,
+        time_offset,
+        side_slip_gain,
+        heading_filter_gyro_bias,
+        distance_m,
+        total_turn_rad,
+        outages,
+    })
+}
+
+/// Distance and absolute turning where the reference is valid (heading
+/// sampled once per second so that noise does not add up).
+fn motion_summary(p: &Prepared, yaw: &[f64], valid: &[bool]) -> (f64, f64) {
+    let mut dist = 0.0;
+    let mut turn = 0.0;
+    let mut last: Option<(f64, f64)> = None;
+    for k in 0..p.len() {
+        if !valid[k] {
+            last = None;
+            continue;
+        }
+        dist += 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c;
+        match last {
+            None => last = Some((p.t[k], yaw[k])),
+            Some((t0, y0)) if p.t[k] - t0 >= 1.0 => {
+                turn += (yaw[k] - y0).abs();
+                last = Some((p.t[k], yaw[k]));
+            }
+            _ => {}
+        }
+    }
+    (dist, turn)
+}
+
+/// Mean gyro rate over the standstill intervals: (bias, standard error, seconds).
+pub fn standstill_gyro_bias(p: &Prepared) -> Option<(f64, f64, f64)> {
+    let g = p.gyro.as_ref()?;
+    let (mut sum_angle, mut sum_t) = (0.0, 0.0);
+    let mut rates = Vec::new();
+    for &(a, b) in &p.standstill {
+        // Stay clear of the moments the car starts and stops.
+        let (a, b) = (a + 0.3, b - 0.3);
+        if b - a < 0.5 {
+            continue;
+        }
+        if let (Some(ga), Some(gb)) = (g.cum_at(a), g.cum_at(b)) {
+            if g.gaps.iter().any(|&(s, e)| s < b && e > a) {
+                continue;
+            }
+            sum_angle += gb - ga;
+            sum_t += b - a;
+            rates.push((gb - ga) / (b - a));
+        }
+    }
+    if sum_t < 2.0 {
+        return None;
+    }
+    let mean = sum_angle / sum_t;
+    // Standard error from the spread of the intervals, with a floor for white noise.
+    let spread = if rates.len() > 1 {
+        let m = rates.iter().sum::<f64>() / rates.len() as f64;
+        (rates.iter().map(|r| (r - m).powi(2)).sum::<f64>() / (rates.len() - 1) as f64 / rates.len() as f64).sqrt()
+    } else {
+        0.0
+    };
+    Some((mean, spread.max(2e-4 / sum_t.sqrt()), sum_t))
+}
+
+/// Smoothed side-slip angle at the course epochs.
+struct SlipTrack {
+    t: Vec<f64>,
+    beta: Vec<f64>,
+}
+
+impl SlipTrack {
+    fn at(&self, t: f64, cursor: &mut usize) -> f64 {
+        let n = self.t.len();
+        if n == 0 || t < self.t[0] - 0.5 || t > self.t[n - 1] + 0.5 {
+            return 0.0;
+        }
+        while *cursor + 1 < n && self.t[*cursor + 1] <= t {
+            *cursor += 1;
+        }
+        let j = *cursor;
+        if t <= self.t[0] {
+            return self.beta[0];
+        }
+        if j + 1 >= n {
+            return self.beta[n - 1];
+        }
+        let (t0, t1) = (self.t[j], self.t[j + 1]);
+        if t1 - t0 > 2.0 {
+            return 0.0;
+        }
+        let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        self.beta[j] + f * (self.beta[j + 1] - self.beta[j])
+    }
+}
+
+/// First-order Markov side-slip filter with RTS smoothing.
+fn smooth_side_slip(t: &[f64], z: &[f64], var: &[f64]) -> Option<SlipTrack> {
+    let n = t.len();
+    if n < 5 {
+        return None;
+    }
+    let tau = 2.0;
+    let stat_var = 0.02f64 * 0.02;
+    let mut xf = Vec::with_capacity(n);
+    let mut pf = Vec::with_capacity(n);
+    let mut pp = Vec::with_capacity(n);
+    let mut phis = Vec::with_capacity(n);
+    let (mut x, mut p) = (0.0, stat_var);
+    for j in 0..n {
+        let phi = if j == 0 { 1.0 } else { (-(t[j] - t[j - 1]) / tau).exp() };
+        let xp = phi * x;
+        let ppred = if j == 0 { p } else { phi * phi * p + stat_var * (1.0 - phi * phi) };
+        let k = ppred / (ppred + var[j]);
+        x = xp + k * (z[j] - xp);
+        p = (1.0 - k) * ppred;
+        xf.push(x);
+        pf.push(p);
+        pp.push(ppred);
+        phis.push(phi);
+    }
+    let mut xs = xf.clone();
+    for j in (0..n - 1).rev() {
+        let c = pf[j] * phis[j + 1] / pp[j + 1];
+        xs[j] = xf[j] + c * (xs[j + 1] - phis[j + 1] * xf[j]);
+    }
+    Some(SlipTrack {
+        t: t.to_vec(),
+        beta: xs,
+    })
+}
+
+/// Position/velocity change from the IMU accelerations rotated by the
+/// heading, for each interval ending at fix j (entry 0 unused).
+fn accel_inputs(fixes: &[RefFix], p: &Prepared, heading: &HeadingTrack) -> Vec<Input> {
+    let gyro = p.gyro.as_ref();
+    let mut out = vec![[0.0; 4]; fixes.len()];
+    let mut i = p.accel.partition_point(|a| a.t < fixes.first().map_or(0.0, |f| f.t));
+    let mut hc = 0usize;
+    for j in 1..fixes.len() {
+        let (t0, t1) = (fixes[j - 1].t, fixes[j].t);
+        let (mut dvx, mut dvy, mut dpx, mut dpy) = (0.0, 0.0, 0.0, 0.0);
+        let mut tprev = t0;
+        let mut aprev: Option<[f64; 2]> = None;
+        while i < p.accel.len() && p.accel[i].t <= t1 {
+            let s = p.accel[i];
+            let g_t = gyro.and_then(|g| g.cum_at(s.t)).unwrap_or(f64::NAN);
+            let th = heading.at(s.t, g_t, gyro, &mut hc);
+            let (sn, cs) = th.sin_cos();
+            let a = [cs * s.ax - sn * s.ay, sn * s.ax + cs * s.ay];
+            let a0 = aprev.unwrap_or(a);
+            let h = s.t - tprev;
+            let am = [0.5 * (a0[0] + a[0]), 0.5 * (a0[1] + a[1])];
+            dpx += dvx * h + 0.5 * am[0] * h * h;
+            dpy += dvy * h + 0.5 * am[1] * h * h;
+            dvx += am[0] * h;
+            dvy += am[1] * h;
+            tprev = s.t;
+            aprev = Some(a);
+            i += 1;
+        }
+        if let Some(a) = aprev {
+            let h = t1 - tprev;
+            dpx += dvx * h + 0.5 * a[0] * h * h;
+            dpy += dvy * h + 0.5 * a[1] * h * h;
+            dvx += a[0] * h;
+            dvy += a[1] * h;
+        }
+        // Long gaps without accelerations: no input (the process noise covers it).
+        if t1 - t0 > 5.0 && aprev.is_none() {
+            continue;
+        }
+        out[j] = [dpx, dpy, dvx, dvy];
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smoother_follows_a_constant_velocity_track_and_gates_an_outlier() {
+        let n = 200;
+        let mut fixes = Vec::new();
+        let mut z = Vec::new();
+        for j in 0..n {
+            let t = j as f64 * 0.1;
+            let mut p = [10.0 * t, 5.0];
+            if j == 100 {
+                p[0] += 30.0;
+            }
+            fixes.push(RefFix {
+                t,
+                x: p[0],
+                y: p[1],
+                sigma: 0.5,
+                accepted: true,
+            });
+            z.push(p);
+        }
+        let tr = smooth_positions(&fixes, &z, 4.0, 5.0, None).expect("smoother");
+        assert!(!tr.accepted[100]);
+        assert_eq!(tr.accepted.iter().filter(|a| !**a).count(), 1);
+        let mid = tr.at(100, 10.0);
+        assert!((mid[0] - 100.0).abs() < 0.2, "{mid:?}");
+        assert!((mid[2] - 10.0).abs() < 0.2, "{mid:?}");
+        let between = tr.at(50, 5.05);
+        assert!((between[0] - 50.5).abs() < 0.1, "{between:?}");
+    }
+
+    #[test]
+    fn gnss_sigma_is_recovered_from_second_differences() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let noise = Normal::new(0.0, 0.8).expect("normal");
+        let fixes: Vec<Fix> = (0..2000)
+            .map(|j| {
+                let t = j as f64 * 0.1;
+                Fix {
+                    t,
+                    x: 15.0 * t + noise.sample(&mut rng),
+                    y: noise.sample(&mut rng),
+                    sigma: None,
+                }
+            })
+            .collect();
+        let s = estimate_gnss_sigma(&fixes).expect("sigma");
+        assert!((s - 0.8).abs() < 0.08, "{s}");
+    }
+}

@@ -1,0 +1,659 @@
+//! Dead-reckoning fed sample by sample: the code the service and `odometry
+//! evaluate` share.
+//!
+//! [`Odometer`] turns wheel revolutions (and, in [`HeadingMode::Gyro`], yaw
+//! rates) into increments of travelled distance and heading between two wheel
+//! samples; [`DeadReckoner`] adds those increments to a pose with the 2W
+//! step of the paper's eq. (1) (side-slip 0).
+//!
+//! Heading modes:
+//! - [`HeadingMode::WheelDifference`]: the paper's pure 2W model, heading change
+//!   `(d_RR - d_RL) / t_R` from the rear wheels.
+//! - [`HeadingMode::Gyro`]: distance from the rear wheels, heading change from
+//!   the calibrated gyro, `w = (gz - bias) / (1 + scale)` integrated over the
+//!   wheel interval. The gyro is integrated with the trapezoidal rule between
+//!   its own samples and evaluated at the wheel times (linear interpolation of
+//!   the rate inside its history, the last rate held beyond the newest gyro
+//!   sample). A value taken with a held rate is corrected in the next
+//!   increment, so the total heading change always equals the gyro integral.
+//!   While the gyro is missing or older than [`OdometerConfig::max_gyro_gap_s`]
+//!   the increment falls back to the wheel difference and is counted.
+//!
+//! Wheel zero offsets: wheel-rate sensors (the WID drives' hub gyros, for
+//! one) read a small non-zero rate at standstill, different on the two
+//! wheels, which the wheel difference turns into a steady heading drift
+//! (0.0155 rad/s of rear rate difference is 0.003 rad/s of yaw, 0.1 rad in
+//! 30 s). When [`OdometerConfig::learn_wheel_offsets`] is on, the odometer
+//! learns each rear wheel's rate offset while the vehicle stands (both rear
+//! rates below [`OdometerConfig::standstill_rate_rev_s`], and the gyro, when
+//! there is one, below [`OdometerConfig::standstill_gyro_rad_s`], for at least
+//! [`OdometerConfig::standstill_min_s`]) and subtracts it from every increment.
+//! With encoders the learned offset is simply zero. While standing, the
+//! increments are zero (no distance, no heading change, whatever the gyro
+//! bias), a zero-velocity update.
+//!
+//! Parameters can change between two samples ([`Odometer::set_params`]): the
+//! pose stays where it is and only the next increments use the new values.
+//!
+//! Pure: no clock, no I/O. Times are seconds on the drive's clock.
+
+use crate::estimate_file::OdometryParams;
+use crate::two_wheel::{step, Pose2};
+use std::collections::VecDeque;
+
+/// Where the heading change of the dead-reckoning comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum HeadingMode {
+    /// The paper's 2W model: heading from the rear wheel difference.
+    WheelDifference,
+    /// Heading from the calibrated yaw-rate gyro, distance from the rear wheels.
+    Gyro,
+}
+
+impl HeadingMode {
+    /// Short name used on the command line and in reports: `wheels` or `gyro`.
+    pub fn name(self) -> &'static str {
+        match self {
+            HeadingMode::WheelDifference => "wheels",
+            HeadingMode::Gyro => "gyro",
+        }
+    }
+}
+
+impl std::fmt::Display for HeadingMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for HeadingMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "wheels" | "wheel" | "wheel-difference" | "2w" => Ok(HeadingMode::WheelDifference),
+            "gyro" => Ok(HeadingMode::Gyro),
+            other => Err(format!("unknown heading mode `{other}` (expected `wheels` or `gyro`)")),
+        }
+    }
+}
+
+/// Which source gave the heading change of one increment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum HeadingSource {
+    /// The rear wheel difference.
+    Wheels,
+    /// The gyro.
+    Gyro,
+    /// None: the vehicle stands (wheel offsets learning on), the pose is held.
+    Standstill,
+}
+
+/// Motion between two consecutive wheel samples.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Increment {
+    /// Time of the earlier wheel sample, s.
+    pub t0_s: f64,
+    /// Time of the later wheel sample, s.
+    pub t1_s: f64,
+    /// Distance travelled by the rear-axle centre, m (negative when reversing).
+    pub ds_m: f64,
+    /// Heading change, rad.
+    pub dyaw_rad: f64,
+    /// Source of `dyaw_rad`.
+    pub heading_source: HeadingSource,
+}
+
+/// A sample the odometer cannot use.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InputError {
+    /// A timestamp that does not increase within its stream.
+    #[error("{stream} sample at t = {t_s} s is not after the previous one at {previous_t_s} s; skipped")]
+    OutOfOrder {
+        /// `wheels` or `imu`.
+        stream: &'static str,
+        /// Its time.
+        t_s: f64,
+        /// The previous time of that stream.
+        previous_t_s: f64,
+    },
+    /// A NaN or infinite value.
+    #[error("{stream} sample at t = {t_s} s has a non-finite value; skipped")]
+    NonFinite {
+        /// `wheels` or `imu`.
+        stream: &'static str,
+        /// Its time.
+        t_s: f64,
+    },
+}
+
+/// Tuning of the [`Odometer`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometerConfig {
+    /// Heading mode.
+    pub heading: HeadingMode,
+    /// In gyro mode, the newest gyro sample may be at most this old at the end
+    /// of an increment (and one must exist at its start), else the wheel
+    /// difference is used for that increment. Seconds.
+    pub max_gyro_gap_s: f64,
+    /// Learn and subtract the rear wheels' rate offsets at standstill.
+    pub learn_wheel_offsets: bool,
+    /// Rear wheel rate below which the vehicle may be standing, rev/s.
+    pub standstill_rate_rev_s: f64,
+    /// Gyro yaw rate below which the vehicle may be standing, rad/s.
+    pub standstill_gyro_rad_s: f64,
+    /// Standing time needed before offsets are learned, s.
+    pub standstill_min_s: f64,
+}
+
+impl Default for OdometerConfig {
+    fn default() -> Self {
+        OdometerConfig {
+            heading: HeadingMode::Gyro,
+            max_gyro_gap_s: 0.25,
+            learn_wheel_offsets: true,
+            // 0.01 rev/s is under 2 cm/s: no car creeps that slowly for a second.
+            standstill_rate_rev_s: 0.01,
+            standstill_gyro_rad_s: 0.02,
+            standstill_min_s: 1.0,
+        }
+    }
+}
+
+/// One gyro sample with the raw integral of the yaw rate up to it.
+#[derive(Debug, Clone, Copy)]
+struct GyroPoint {
+    t_s: f64,
+    gz_rad_s: f64,
+    integral_rad: f64,
+}
+
+/// The raw (uncorrected) gyro integral as a function of time.
+#[derive(Debug, Clone, Default)]
+struct GyroIntegral {
+    history: VecDeque<GyroPoint>,
+}
+
+impl GyroIntegral {
+    fn push(&mut self, t_s: f64, gz_rad_s: f64) -> Result<(), InputError> {
+        if !(t_s.is_finite() && gz_rad_s.is_finite()) {
+            return Err(InputError::NonFinite { stream: "imu", t_s });
+        }
+        let integral_rad = match self.history.back() {
+            None => 0.0,
+            Some(last) if t_s <= last.t_s => {
+                return Err(InputError::OutOfOrder {
+                    stream: "imu",
+                    t_s,
+                    previous_t_s: last.t_s,
+                })
+            }
+            Some(last) => last.integral_rad + 0.5 * (last.gz_rad_s + gz_rad_s) * (t_s - last.t_s),
+        };
+        self.history.push_back(GyroPoint {
+            t_s,
+            gz_rad_s,
+            integral_rad,
+        });
+        Ok(())
+    }
+
+    fn newest_t(&self) -> Option<f64> {
+        self.history.back().map(|p| p.t_s)
+    }
+
+    /// Raw integral at `t_s`; `None` without any sample.
+    fn at(&self, t_s: f64) -> Option<f64> {
+        let first = self.history.front()?;
+        let last = self.history.back()?;
+        if t_s >= last.t_s {
+            return Some(last.integral_rad + last.gz_rad_s * (t_s - last.t_s));
+        }
+        if t_s <= first.t_s {
+            return Some(first.integral_rad - first.gz_rad_s * (first.t_s - t_s));
+        }
+        // First point strictly after t_s; t_s lies in [history[i-1], history[i]).
+        let i = self.history.partition_point(|p| p.t_s <= t_s);
+        let (a, b) = (self.history[i - 1], self.history[i]);
+        let dt = t_s - a.t_s;
+        let slope = (b.gz_rad_s - a.gz_rad_s) / (b.t_s - a.t_s);
+        Some(a.integral_rad + a.gz_rad_s * dt + 0.5 * slope * dt * dt)
+    }
+
+    /// Forget samples no longer needed for times at or after `t_s`.
+    fn prune_before(&mut self, t_s: f64) {
+        while self.history.len() > 1 && self.history[1].t_s <= t_s {
+            self.history.pop_front();
+        }
+    }
+}
+
+/// Counters of what the odometer did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OdometerStats {
+    /// Increments produced.
+    pub increments: u64,
+    /// Increments in gyro mode that used the wheel difference because the gyro was missing.
+    pub gyro_fallbacks: u64,
+    /// Standstill stretches the wheel offsets were learned from.
+    pub standstills: u64,
+}
+
+/// Rear-wheel rate offsets learned at standstill.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct WheelOffsets {
+    /// Rear-left offset, rev/s.
+    pub rl_rev_s: f64,
+    /// Rear-right offset, rev/s.
+    pub rr_rev_s: f64,
+}
+
+/// The standstill being observed: its duration and revolutions.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Standstill {
+    duration_s: f64,
+    rl_rev: f64,
+    rr_rev: f64,
+    counted: bool,
+}
+
+/// Turns wheel samples (and gyro samples) into [`Increment`]s.
+#[derive(Debug, Clone)]
+pub struct Odometer {
+    params: OdometryParams,
+    config: OdometerConfig,
+    last_wheels: Option<(f64, f64, f64)>,
+    gyro: GyroIntegral,
+    /// Raw gyro integral at the last wheel time, when the gyro was fresh then.
+    gyro_mark: Option<f64>,
+    offsets: WheelOffsets,
+    standstill: Standstill,
+    stats: OdometerStats,
+}
+
+impl Odometer {
+    /// A new odometer; the first wheel sample only sets the reference.
+    pub fn new(params: OdometryParams, config: OdometerConfig) -> Odometer {
+        Odometer {
+            params,
+            config,
+            last_wheels: None,
+            gyro: GyroIntegral::default(),
+            gyro_mark: None,
+            offsets: WheelOffsets::default(),
+            standstill: Standstill::default(),
+            stats: OdometerStats::default(),
+        }
+    }
+
+    /// The wheel rate offsets learned so far (zero before the first standstill).
+    pub fn wheel_offsets(&self) -> WheelOffsets {
+        self.offsets
+    }
+
+    /// Watch for standstill over the raw increment and learn the offsets.
+    /// Returns true while the vehicle stands.
+    fn watch_standstill(&mut self, dt: f64, dn_rl: f64, dn_rr: f64) -> bool {
+        let c = &self.config;
+        let bias = self.params.gyro_bias_rad_s;
+        let gyro_still = self
+            .gyro
+            .history
+            .back()
+            .is_none_or(|g| (g.gz_rad_s - bias).abs() < c.standstill_gyro_rad_s);
+        let still = dn_rl.abs() < c.standstill_rate_rev_s * dt && dn_rr.abs() < c.standstill_rate_rev_s * dt && gyro_still;
+        if !still {
+            self.standstill = Standstill::default();
+            return false;
+        }
+        let s = &mut self.standstill;
+        s.duration_s += dt;
+        s.rl_rev += dn_rl;
+        s.rr_rev += dn_rr;
+        if s.duration_s >= c.standstill_min_s {
+            self.offsets = WheelOffsets {
+                rl_rev_s: s.rl_rev / s.duration_s,
+                rr_rev_s: s.rr_rev / s.duration_s,
+            };
+            if !s.counted {
+                s.counted = true;
+                self.stats.standstills += 1;
+            }
+        }
+        true
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &OdometryParams {
+        &self.params
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &OdometerConfig {
+        &self.config
+    }
+
+    /// What has happened so far.
+    pub fn stats(&self) -> OdometerStats {
+        self.stats
+    }
+
+    /// Use new parameters from the next increment on (nothing already
+    /// integrated changes).
+    pub fn set_params(&mut self, params: OdometryParams) {
+        self.params = params;
+    }
+
+    /// Time of the last wheel sample taken, s.
+    pub fn last_wheel_time(&self) -> Option<f64> {
+        self.last_wheels.map(|(t, _, _)| t)
+    }
+
+    /// Forget the wheel reference (after inputs went stale): the next wheel
+    /// sample starts afresh and yields no increment.
+    pub fn restart(&mut self) {
+        self.last_wheels = None;
+        self.gyro_mark = None;
+    }
+
+    /// Take a yaw-rate sample (raw, as measured).
+    pub fn gyro(&mut self, t_s: f64, gz_rad_s: f64) -> Result<(), InputError> {
+        self.gyro.push(t_s, gz_rad_s)
+    }
+
+    fn gyro_fresh_at(&self, t_s: f64) -> bool {
+        self.gyro
+            .newest_t()
+            .is_some_and(|tg| t_s - tg <= self.config.max_gyro_gap_s)
+    }
+
+    /// Take a wheel sample (cumulative revolutions of the rear wheels). Returns
+    /// the increment since the previous wheel sample, or `None` for the first.
+    pub fn wheels(&mut self, t_s: f64, rl_rev: f64, rr_rev: f64) -> Result<Option<Increment>, InputError> {
+        if !(t_s.is_finite() && rl_rev.is_finite() && rr_rev.is_finite()) {
+            return Err(InputError::NonFinite { stream: "wheels", t_s });
+        }
+        let increment = match self.last_wheels {
+            Some((t0, _, _)) if t_s <= t0 => {
+                return Err(InputError::OutOfOrder {
+                    stream: "wheels",
+                    t_s,
+                    previous_t_s: t0,
+                })
+            }
+            None => None,
+            Some((t0, rl0, rr0)) => {
+                let dt = t_s - t0;
+                let (mut dn_rl, mut dn_rr) = (rl_rev - rl0, rr_rev - rr0);
+                let mut standing = false;
+                if self.config.learn_wheel_offsets {
+                    standing = self.watch_standstill(dt, dn_rl, dn_rr);
+                    dn_rl -= self.offsets.rl_rev_s * dt;
+                    dn_rr -= self.offsets.rr_rev_s * dt;
+                }
+                let (ds_m, dyaw_wheels) = self.params.two_wheel.increments(dn_rl, dn_rr);
+                let gyro_dyaw = match (self.config.heading, self.gyro_mark) {
+                    (HeadingMode::Gyro, Some(mark)) if self.gyro_fresh_at(t_s) => self
+                        .gyro
+                        .at(t_s)
+                        .map(|now| (now - mark - self.params.gyro_bias_rad_s * (t_s - t0)) / (1.0 + self.params.gyro_scale)),
+                    _ => None,
+                };
+                let (ds_m, dyaw_rad, heading_source) = match gyro_dyaw {
+                    // A standing car neither moves nor turns: hold the pose.
+                    _ if standing => (0.0, 0.0, HeadingSource::Standstill),
+                    Some(d) => (ds_m, d, HeadingSource::Gyro),
+                    None => {
+                        if self.config.heading == HeadingMode::Gyro {
+                            self.stats.gyro_fallbacks += 1;
+                        }
+                        (ds_m, dyaw_wheels, HeadingSource::Wheels)
+                    }
+                };
+                self.stats.increments += 1;
+                Some(Increment {
+                    t0_s: t0,
+                    t1_s: t_s,
+                    ds_m,
+                    dyaw_rad,
+                    heading_source,
+                })
+            }
+        };
+        self.last_wheels = Some((t_s, rl_rev, rr_rev));
+        self.gyro_mark = if self.gyro_fresh_at(t_s) { self.gyro.at(t_s) } else { None };
+        self.gyro.prune_before(t_s);
+        Ok(increment)
+    }
+}
+
+/// A pose dead-reckoned with an [`Odometer`].
+#[derive(Debug, Clone)]
+pub struct DeadReckoner {
+    odometer: Odometer,
+    pose: Pose2,
+}
+
+impl DeadReckoner {
+    /// Start at `pose`; the first wheel sample sets the wheel reference.
+    pub fn new(params: OdometryParams, config: OdometerConfig, pose: Pose2) -> DeadReckoner {
+        DeadReckoner {
+            odometer: Odometer::new(params, config),
+            pose,
+        }
+    }
+
+    /// The current pose (at the last wheel sample).
+    pub fn pose(&self) -> Pose2 {
+        self.pose
+    }
+
+    /// Put the pose somewhere else (e.g. at the truth at an outage start).
+    pub fn set_pose(&mut self, pose: Pose2) {
+        self.pose = pose;
+    }
+
+    /// The odometer inside.
+    pub fn odometer(&self) -> &Odometer {
+        &self.odometer
+    }
+
+    /// Use new parameters from the next increment on; the pose does not move.
+    pub fn set_params(&mut self, params: OdometryParams) {
+        self.odometer.set_params(params);
+    }
+
+    /// Take a yaw-rate sample.
+    pub fn gyro(&mut self, t_s: f64, gz_rad_s: f64) -> Result<(), InputError> {
+        self.odometer.gyro(t_s, gz_rad_s)
+    }
+
+    /// Take a wheel sample and advance the pose; returns the new pose.
+    pub fn wheels(&mut self, t_s: f64, rl_rev: f64, rr_rev: f64) -> Result<Pose2, InputError> {
+        if let Some(inc) = self.odometer.wheels(t_s, rl_rev, rr_rev)? {
+            self.pose = step(self.pose, inc.ds_m, inc.dyaw_rad, 0.0);
+        }
+        Ok(self.pose)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::two_wheel::TwoWheelParams;
+
+    fn params(c_rl: f64, c_rr: f64, track: f64) -> OdometryParams {
+        OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl,
+                c_rr,
+                track_width: track,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        }
+    }
+
+    fn config(heading: HeadingMode) -> OdometerConfig {
+        OdometerConfig {
+            heading,
+            learn_wheel_offsets: false,
+            ..OdometerConfig::default()
+        }
+    }
+
+    /// A circle of radius `r` at speed `v`, rear wheels with circumference `c`,
+    /// track `t`, wheels and gyro at 100 Hz (gyro offset by 3 ms).
+    struct Circle {
+        r: f64,
+        v: f64,
+        c: f64,
+        t: f64,
+    }
+
+    impl Circle {
+        fn revs(&self, time: f64) -> (f64, f64) {
+            let angle = self.v * time / self.r;
+            (angle * (self.r - self.t / 2.0) / self.c, angle * (self.r + self.t / 2.0) / self.c)
+        }
+        fn yaw_rate(&self) -> f64 {
+            self.v / self.r
+        }
+    }
+
+    #[test]
+    fn wheel_difference_matches_the_two_wheel_model() {
+        let p = params(2.0, 2.0, 1.5);
+        let mut dr = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        dr.wheels(0.0, 0.0, 0.0).unwrap();
+        let pose = dr.wheels(1.0, 5.0, 5.0).unwrap();
+        assert!((pose.x - 10.0).abs() < 1e-12 && pose.y.abs() < 1e-12);
+        let pose = dr.wheels(2.0, 5.0, 5.0 + 1.5 / 2.0 * 0.1).unwrap();
+        assert!((pose.yaw - 0.1).abs() < 1e-12, "{pose:?}");
+    }
+
+    #[test]
+    fn gyro_mode_closes_a_circle_with_a_biased_scaled_gyro() {
+        let circle = Circle {
+            r: 20.0,
+            v: 10.0,
+            c: 2.0,
+            t: 1.5,
+        };
+        let (bias, scale) = (0.01, 0.03);
+        let mut p = params(2.0, 2.0, 1.5);
+        p.gyro_bias_rad_s = bias;
+        p.gyro_scale = scale;
+        let mut dr = DeadReckoner::new(p, config(HeadingMode::Gyro), Pose2::default());
+        let period = std::f64::consts::TAU * circle.r / circle.v;
+        let n = (period * 100.0).round() as usize;
+        let mut pose = Pose2::default();
+        for i in 0..=n {
+            let tw = i as f64 * period / n as f64;
+            // Gyro sample a little after the wheel sample, as delivered in practice.
+            dr.gyro(tw + 0.003, (1.0 + scale) * circle.yaw_rate() + bias).unwrap();
+            let (rl, rr) = circle.revs(tw);
+            pose = dr.wheels(tw, rl, rr).unwrap();
+        }
+        assert_eq!(dr.odometer().stats().gyro_fallbacks, 0);
+        assert!((pose.yaw - std::f64::consts::TAU).abs() < 1e-9, "{pose:?}");
+        assert!(pose.x.abs() < 1e-6 && pose.y.abs() < 1e-6, "{pose:?}");
+    }
+
+    #[test]
+    fn gyro_arriving_late_is_corrected_in_the_next_increment() {
+        // Rate steps from 0 to 1 rad/s at t = 0.5; the sample at 0.5 arrives
+        // only after the wheel sample at 0.55 was processed.
+        let p = params(1.0, 1.0, 1.0);
+        let mut odo = Odometer::new(p, config(HeadingMode::Gyro));
+        odo.gyro(0.0, 0.0).unwrap();
+        odo.wheels(0.0, 0.0, 0.0).unwrap();
+        odo.gyro(0.4, 0.0).unwrap();
+        let a = odo.wheels(0.55, 0.1, 0.1).unwrap().unwrap();
+        assert!(a.dyaw_rad.abs() < 1e-15, "held rate 0 until the new sample arrives");
+        odo.gyro(0.5, 1.0).unwrap();
+        odo.gyro(0.6, 1.0).unwrap();
+        let b = odo.wheels(0.6, 0.2, 0.2).unwrap().unwrap();
+        // Exact integral over [0, 0.6] of the piecewise-linear rate: 0.5*0.1*1 + 0.1*1 = 0.15.
+        assert!((a.dyaw_rad + b.dyaw_rad - 0.15).abs() < 1e-12, "{a:?} {b:?}");
+    }
+
+    #[test]
+    fn gyro_missing_falls_back_to_wheels_and_is_counted() {
+        let p = params(1.0, 1.0, 1.0);
+        let mut odo = Odometer::new(p, config(HeadingMode::Gyro));
+        odo.wheels(0.0, 0.0, 0.0).unwrap();
+        let inc = odo.wheels(0.1, 0.0, 0.1).unwrap().unwrap();
+        assert_eq!(inc.heading_source, HeadingSource::Wheels);
+        assert!((inc.dyaw_rad - 0.1).abs() < 1e-12);
+        odo.gyro(0.15, 0.0).unwrap();
+        // Gyro now fresh at 0.2 but there was none at 0.1: still the wheels.
+        assert_eq!(odo.wheels(0.2, 0.0, 0.2).unwrap().unwrap().heading_source, HeadingSource::Wheels);
+        odo.gyro(0.25, 0.0).unwrap();
+        assert_eq!(odo.wheels(0.3, 0.0, 0.3).unwrap().unwrap().heading_source, HeadingSource::Gyro);
+        // Gyro goes silent for longer than max_gyro_gap_s.
+        assert_eq!(odo.wheels(0.9, 0.0, 0.4).unwrap().unwrap().heading_source, HeadingSource::Wheels);
+        assert_eq!(odo.stats().gyro_fallbacks, 3);
+    }
+
+    #[test]
+    fn estimate_switch_keeps_the_pose_and_changes_the_next_increments() {
+        let mut dr = DeadReckoner::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference), Pose2::default());
+        dr.wheels(0.0, 0.0, 0.0).unwrap();
+        let before = dr.wheels(1.0, 1.0, 1.0).unwrap();
+        dr.set_params(params(2.2, 2.2, 1.5));
+        assert_eq!(dr.pose(), before, "switching moves nothing");
+        let after = dr.wheels(2.0, 2.0, 2.0).unwrap();
+        assert!((after.x - before.x - 2.2).abs() < 1e-12, "{before:?} {after:?}");
+    }
+
+    #[test]
+    fn bad_samples_are_rejected_without_touching_the_state() {
+        let mut dr = DeadReckoner::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference), Pose2::default());
+        dr.wheels(0.0, 0.0, 0.0).unwrap();
+        let err = dr.wheels(0.0, 1.0, 1.0).unwrap_err();
+        assert!(err.to_string().contains("not after"), "{err}");
+        let err = dr.wheels(0.5, f64::NAN, 1.0).unwrap_err();
+        assert!(err.to_string().contains("non-finite"), "{err}");
+        let pose = dr.wheels(1.0, 1.0, 1.0).unwrap();
+        assert!((pose.x - 2.0).abs() < 1e-12);
+        dr.gyro(1.0, 0.0).unwrap();
+        assert!(matches!(dr.gyro(0.9, 0.0), Err(InputError::OutOfOrder { stream: "imu", .. })));
+    }
+
+    #[test]
+    fn wheel_offsets_are_learned_at_standstill_and_removed() {
+        // Offsets 0.001 and 0.003 rev/s on a 2 m wheel, track 1.5 m: 0.004 rad/s of yaw drift.
+        let p = params(2.0, 2.0, 1.5);
+        let offsets = (0.001, 0.003);
+        let cfg = OdometerConfig {
+            heading: HeadingMode::WheelDifference,
+            ..OdometerConfig::default()
+        };
+        let mut dr = DeadReckoner::new(p, cfg, Pose2::default());
+        let mut plain = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        // 3 s standing, then 20 s straight at 10 m/s (5 rev/s).
+        for i in 0..=2300 {
+            let t = i as f64 * 0.01;
+            let moving = (t - 3.0).max(0.0);
+            let (rl, rr) = (5.0 * moving + offsets.0 * t, 5.0 * moving + offsets.1 * t);
+            dr.wheels(t, rl, rr).unwrap();
+            plain.wheels(t, rl, rr).unwrap();
+        }
+        let learned = dr.odometer().wheel_offsets();
+        assert!((learned.rl_rev_s - offsets.0).abs() < 1e-9 && (learned.rr_rev_s - offsets.1).abs() < 1e-9);
+        assert_eq!(dr.odometer().stats().standstills, 1);
+        // Standing increments are zero, moving ones corrected.
+        assert!(dr.pose().yaw.abs() < 1e-9 && dr.pose().y.abs() < 1e-6, "{:?}", dr.pose());
+        assert!((dr.pose().x - 200.0).abs() < 1e-6);
+        // Without learning: 0.002 rev/s * 2 m / 1.5 m = 0.00267 rad/s over 23 s.
+        assert!((plain.pose().yaw - 0.002 * 2.0 / 1.5 * 23.0).abs() < 1e-9, "{:?}", plain.pose());
+    }
+
+    #[test]
+    fn heading_mode_parses_its_names() {
+        assert_eq!("wheels".parse::<HeadingMode>(), Ok(HeadingMode::WheelDifference));
+        assert_eq!("gyro".parse::<HeadingMode>(), Ok(HeadingMode::Gyro));
+        assert!("compass".parse::<HeadingMode>().is_err());
+        assert_eq!(HeadingMode::Gyro.to_string(), "gyro");
+    }
+}

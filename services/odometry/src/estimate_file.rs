@@ -1,0 +1,338 @@
+//! Odometry parameters and where they come from.
+//!
+//! Three sources give the same [`OdometryParams`]:
+//! - the nominal values of `vehicle.toml` ([`OdometryParams::nominal`]): both
+//!   rear circumferences equal to `nominal_circumference_m`, the given track,
+//!   an ideal gyro;
+//! - the JSON that `calibrator calibrate --json` writes ([`Estimate::from_json_str`],
+//!   [`Estimate::load`]): `circumference_m.{rl,rr}`, `track_width_m`, and when
+//!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; every
+//!   other field is ignored;
+//! - the wire type [`CircumferenceEstimate`] ([`Estimate::from_wire`],
+//!   [`Estimate::to_wire`]).
+//!
+//! Gyro convention (the same as the wire type): the gyro measures
+//! `gz = (1 + gyro_scale) * w + gyro_bias_rad_s`, so the corrected yaw rate is
+//! `w = (gz - gyro_bias_rad_s) / (1 + gyro_scale)`.
+
+use crate::two_wheel::TwoWheelParams;
+use interfaces::drive::VehicleParams;
+use interfaces::wire::{CircumferenceEstimate, Header};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Everything the dead-reckoner needs to turn wheel revolutions and gyro
+/// readings into motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryParams {
+    /// Rear circumferences and effective track of the 2W model.
+    pub two_wheel: TwoWheelParams,
+    /// Yaw-rate gyro bias, rad/s (subtracted from the measurement).
+    pub gyro_bias_rad_s: f64,
+    /// Yaw-rate gyro scale error s in `gz = (1 + s) w + bias`.
+    pub gyro_scale: f64,
+}
+
+impl OdometryParams {
+    /// The values a user starts from: `vehicle.toml`'s nominal circumference on
+    /// both rear wheels, its track width, and a gyro taken as ideal.
+    pub fn nominal(vehicle: &VehicleParams) -> OdometryParams {
+        OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: vehicle.nominal_circumference_m,
+                c_rr: vehicle.nominal_circumference_m,
+                track_width: vehicle.track_width_m,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        }
+    }
+
+    /// The yaw rate, rad/s, that a raw gyro reading stands for.
+    pub fn corrected_yaw_rate(&self, gz_rad_s: f64) -> f64 {
+        (gz_rad_s - self.gyro_bias_rad_s) / (1.0 + self.gyro_scale)
+    }
+
+    /// Check that every value is usable; `source` names where they came from.
+    pub fn validate(&self, source: &str) -> Result<(), ParamsError> {
+        let positive = |field: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(ParamsError::Invalid {
+                    source_name: source.to_string(),
+                    field,
+                    value,
+                    reason: "must be a positive finite number",
+                })
+            }
+        };
+        positive("circumference_m.rl", self.two_wheel.c_rl)?;
+        positive("circumference_m.rr", self.two_wheel.c_rr)?;
+        positive("track_width_m", self.two_wheel.track_width)?;
+        if !self.gyro_bias_rad_s.is_finite() {
+            return Err(ParamsError::Invalid {
+                source_name: source.to_string(),
+                field: "gyro_bias_rad_s",
+                value: self.gyro_bias_rad_s,
+                reason: "must be finite",
+            });
+        }
+        // A scale error beyond +-50 % is a broken gyro or a unit mix-up.
+        if !(self.gyro_scale.is_finite() && self.gyro_scale.abs() < 0.5) {
+            return Err(ParamsError::Invalid {
+                source_name: source.to_string(),
+                field: "gyro_scale",
+                value: self.gyro_scale,
+                reason: "must be finite and within (-0.5, 0.5)",
+            });
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for OdometryParams {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "c_rl={:.5} m c_rr={:.5} m track={:.4} m gyro_bias={:.6} rad/s gyro_scale={:.5}",
+            self.two_wheel.c_rl,
+            self.two_wheel.c_rr,
+            self.two_wheel.track_width,
+            self.gyro_bias_rad_s,
+            self.gyro_scale
+        )
+    }
+}
+
+/// A calibration result: the parameters plus what is known about their quality.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// The parameters.
+    pub params: OdometryParams,
+    /// 1-sigma of the rear-left and rear-right circumferences, m, when known.
+    pub sigma_m: Option<(f64, f64)>,
+    /// Mean dead-reckoning error on held-out data, m, when known.
+    pub quality_m: Option<f64>,
+}
+
+/// Why parameters could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ParamsError {
+    /// The estimate file could not be read.
+    #[error("cannot read estimate file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The JSON is malformed or misses a required field.
+    #[error("{source_name}: line {line}, column {column}: {message}")]
+    Json {
+        /// File name or other description of the input.
+        source_name: String,
+        /// 1-based line of the error.
+        line: usize,
+        /// 1-based column of the error.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("{source_name}: {field} = {value} {reason}")]
+    Invalid {
+        /// File name or other description of the input.
+        source_name: String,
+        /// The offending field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+/// A rear-wheel pair as the calibrator's JSON writes it.
+#[derive(Debug, Deserialize)]
+struct RearPair {
+    rl: f64,
+    rr: f64,
+}
+
+/// The fields of `calibrator calibrate --json` that the odometry uses.
+#[derive(Debug, Deserialize)]
+struct EstimateJson {
+    circumference_m: RearPair,
+    track_width_m: f64,
+    #[serde(default)]
+    gyro_bias_rad_s: Option<f64>,
+    #[serde(default)]
+    gyro_scale: Option<f64>,
+    #[serde(default)]
+    sigma_m: Option<RearPair>,
+}
+
+impl Estimate {
+    /// Parse the calibrator's JSON; `source` names the input in errors.
+    /// A gyro bias or scale that is absent (or `null`) means an ideal gyro.
+    pub fn from_json_str(text: &str, source: &str) -> Result<Estimate, ParamsError> {
+        let parsed: EstimateJson = serde_json::from_str(text).map_err(|e| ParamsError::Json {
+            source_name: source.to_string(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        let params = OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: parsed.circumference_m.rl,
+                c_rr: parsed.circumference_m.rr,
+                track_width: parsed.track_width_m,
+            },
+            gyro_bias_rad_s: parsed.gyro_bias_rad_s.unwrap_or(0.0),
+            gyro_scale: parsed.gyro_scale.unwrap_or(0.0),
+        };
+        params.validate(source)?;
+        Ok(Estimate {
+            params,
+            sigma_m: parsed.sigma_m.map(|s| (s.rl, s.rr)),
+            quality_m: None,
+        })
+    }
+
+    /// Read and parse an estimate file written by `calibrator calibrate --json`.
+    pub fn load(path: &Path) -> Result<Estimate, ParamsError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ParamsError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Estimate::from_json_str(&text, &path.display().to_string())
+    }
+
+    /// The estimate received on the wire, validated.
+    pub fn from_wire(wire: &CircumferenceEstimate) -> Result<Estimate, ParamsError> {
+        let params = OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: wire.c_rl_m,
+                c_rr: wire.c_rr_m,
+                track_width: wire.track_width_m,
+            },
+            gyro_bias_rad_s: wire.gyro_bias_rad_s,
+            gyro_scale: wire.gyro_scale,
+        };
+        params.validate(&format!("estimate version {} on the wire", wire.version))?;
+        Ok(Estimate {
+            params,
+            sigma_m: Some((wire.sigma_rl_m, wire.sigma_rr_m)),
+            quality_m: Some(wire.quality_m),
+        })
+    }
+
+    /// The estimate as the wire type, without model extensions. Unknown sigmas
+    /// and quality are sent as 0 (the wire type has no validity flag for them).
+    pub fn to_wire(&self, header: Header, version: u64) -> CircumferenceEstimate {
+        let (sigma_rl_m, sigma_rr_m) = self.sigma_m.unwrap_or((0.0, 0.0));
+        CircumferenceEstimate {
+            header,
+            version,
+            c_rl_m: self.params.two_wheel.c_rl,
+            c_rr_m: self.params.two_wheel.c_rr,
+            sigma_rl_m,
+            sigma_rr_m,
+            track_width_m: self.params.two_wheel.track_width,
+            gyro_bias_rad_s: self.params.gyro_bias_rad_s,
+            gyro_scale: self.params.gyro_scale,
+            quality_m: self.quality_m.unwrap_or(0.0),
+            ..CircumferenceEstimate::default()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use interfaces::drive::GnssAntenna;
+
+    const CALIBRATOR_JSON: &str = r#"{
+        "circumference_m": {"rl": 2.1631, "rr": 2.1597},
+        "sigma_m": {"rl": 0.0004, "rr": 0.0005},
+        "track_width_m": 1.52,
+        "gyro_bias_rad_s": 0.0004,
+        "method": "paper",
+        "selected_iteration": 4,
+        "iterations": [ {"n": 1, "circumference_m": {"rl": 2.2, "rr": 2.2},
+                         "dr_error_mean_m": 3.0, "dr_error_max_m": 9.0} ],
+        "warnings": []
+    }"#;
+
+    #[test]
+    fn calibrator_json_is_read_and_extra_fields_ignored() {
+        let e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        assert_eq!(e.params.two_wheel.c_rl, 2.1631);
+        assert_eq!(e.params.two_wheel.c_rr, 2.1597);
+        assert_eq!(e.params.two_wheel.track_width, 1.52);
+        assert_eq!(e.params.gyro_bias_rad_s, 0.0004);
+        assert_eq!(e.params.gyro_scale, 0.0, "absent scale means an ideal gyro");
+        assert_eq!(e.sigma_m, Some((0.0004, 0.0005)));
+    }
+
+    #[test]
+    fn missing_field_names_source_and_line() {
+        let err = Estimate::from_json_str("{\n \"circumference_m\": {\"rl\": 2.0, \"rr\": 2.0}\n}", "cal.json")
+            .unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains("cal.json") && msg.contains("track_width_m") && msg.contains("line 3"), "{msg}");
+    }
+
+    #[test]
+    fn nonsense_values_are_rejected_with_the_field() {
+        let text = r#"{"circumference_m": {"rl": -2.0, "rr": 2.0}, "track_width_m": 1.5}"#;
+        let msg = Estimate::from_json_str(text, "x.json").unwrap_err().to_string();
+        assert!(msg.contains("circumference_m.rl") && msg.contains("-2"), "{msg}");
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5, "gyro_scale": 3.0}"#;
+        let msg = Estimate::from_json_str(text, "x.json").unwrap_err().to_string();
+        assert!(msg.contains("gyro_scale"), "{msg}");
+    }
+
+    #[test]
+    fn unreadable_file_names_the_path() {
+        let msg = Estimate::load(Path::new("/nonexistent/est.json")).unwrap_err().to_string();
+        assert!(msg.contains("/nonexistent/est.json"), "{msg}");
+    }
+
+    #[test]
+    fn wire_round_trip_keeps_every_value() {
+        let mut e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        e.params.gyro_scale = -0.012;
+        e.quality_m = Some(0.7);
+        let wire = e.to_wire(Header::from_seconds(12.5, 3), 7);
+        assert_eq!(wire.version, 7);
+        assert_eq!(wire.header.seq, 3);
+        assert_eq!(Estimate::from_wire(&wire).unwrap(), e);
+        let mut broken = wire;
+        broken.track_width_m = f64::NAN;
+        let msg = Estimate::from_wire(&broken).unwrap_err().to_string();
+        assert!(msg.contains("version 7") && msg.contains("track_width_m"), "{msg}");
+    }
+
+    #[test]
+    fn nominal_uses_vehicle_toml_and_gyro_correction_inverts_the_model() {
+        let vehicle = VehicleParams {
+            name: None,
+            track_width_m: 1.45,
+            nominal_circumference_m: 1.85,
+            wheelbase_m: None,
+            ticks_per_rev: None,
+            gnss: GnssAntenna::default(),
+        };
+        let p = OdometryParams::nominal(&vehicle);
+        assert_eq!((p.two_wheel.c_rl, p.two_wheel.c_rr, p.two_wheel.track_width), (1.85, 1.85, 1.45));
+        let p = OdometryParams {
+            gyro_bias_rad_s: 0.01,
+            gyro_scale: 0.02,
+            ..p
+        };
+        let w = 0.3;
+        assert!((p.corrected_yaw_rate((1.0 + 0.02) * w + 0.01) - w).abs() < 1e-15);
+    }
+}

@@ -1,0 +1,897 @@
+//! Offline evaluation: dead-reckoning through simulated GNSS outages.
+//!
+//! Outages of a given length start every `spacing_s` (10 s) from the first
+//! instant covered by both wheels and `truth.csv`, as long as they end inside
+//! that coverage. At each outage start the pose is taken from the truth
+//! (`start_yaw_source` in the report says which yaw rule applied):
+//! - position: `truth.csv` interpolated linearly in time;
+//! - yaw, `truth_yaw`: `yaw_rad` of `truth.csv` interpolated (shortest way
+//!   round) when the two rows around the start have it;
+//! - yaw, `truth_track_alignment` (truth without yaw): the rotation that best
+//!   lays the dead-reckoned track of the last `align_distance_m` (30 m) of
+//!   driving before the start (at most `align_max_s` back) onto the truth
+//!   positions of the same stretch (2-D Procrustes: least squares over
+//!   rotation and translation), applied to the dead-reckoned yaw at the start.
+//!   This is what a filter fusing GNSS with this odometry knows when the GNSS
+//!   drops out; it uses only data from before the outage, and it averages the
+//!   truth's own noise over a long baseline (a course from a few truth points
+//!   is off by several hundredths of a radian on the WID drives, metres after
+//!   30 s);
+//! - yaw, `truth_course` (when the truth has not moved 30 m before the start,
+//!   e.g. at the start of a drive): the course of the truth track at the
+//!   start, see [`course_at`]: a least-squares cubic fit x(u), y(u) of the
+//!   truth positions against their arc length u within `course_half_window_m`
+//!   either side of the start point, yaw = atan2(y'(0), x'(0)), fitted only on
+//!   the points where the arc length grew; the window is doubled, up to four
+//!   times, where it holds too few points. A cubic, not a quadratic: with the
+//!   curvature changing along the window, a quadratic's slope is biased by a
+//!   few mrad. The arc length grows only when the track has moved more than
+//!   [`ARC_DEADBAND_M`] from its last counted point, so GNSS jitter while
+//!   standing adds nothing; a car that stands at the start therefore gets the
+//!   course of its departure, which is its heading (a car does not turn on
+//!   the spot).
+//!
+//! The odometer (the same [`DeadReckoner`] as the service's) runs through the
+//! whole drive as the service would, so that at each outage start it has what
+//! it learned before (wheel offsets at standstill, gyro history); a copy of
+//! it is put at the truth pose and dead-reckons to the outage end on the
+//! wheels (and gyro). GNSS and heading samples are never read. The score is the distance between the dead-reckoned
+//! and the true position at the outage end. `distance_m` is the truth arc
+//! length driven during the outage (same dead band), `error_pct` the error in
+//! percent of it, given for outages of at least `min_distance_for_pct_m`.
+//!
+//! Percentiles: the median of an even count is the mean of the two middle
+//! values; the 90th percentile interpolates linearly between order statistics
+//! (rank 0.9 (n - 1), as numpy's default).
+
+use crate::dead_reckoning::{DeadReckoner, HeadingMode, InputError, OdometerConfig};
+use crate::estimate_file::OdometryParams;
+use crate::inputs::{drive_inputs, Input};
+use crate::two_wheel::{wrap_angle, Pose2};
+use interfaces::drive::{Drive, TruthSample, WheelConversionError, WheelRevs};
+use nalgebra::{Matrix4, Vector4};
+use serde::Serialize;
+
+/// Track movement below this does not add to the arc length, m.
+pub const ARC_DEADBAND_M: f64 = 0.25;
+
+/// Settings of an evaluation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EvaluateConfig {
+    /// Length of each outage, s.
+    pub outage_s: f64,
+    /// Time between the starts of two outages, s.
+    pub spacing_s: f64,
+    /// Heading mode and gyro settings of the dead-reckoner.
+    pub odometer: OdometerConfig,
+    /// Half length of the truth track used to fit the course, m.
+    pub course_half_window_m: f64,
+    /// Largest gap between truth rows to interpolate across, s.
+    pub max_truth_gap_s: f64,
+    /// Outages shorter than this (truth arc length) get no `error_pct`, m.
+    pub min_distance_for_pct_m: f64,
+    /// Truth track length before the outage that the start yaw is aligned on, m.
+    pub align_distance_m: f64,
+    /// Longest time before the outage the alignment may reach back, s.
+    pub align_max_s: f64,
+}
+
+impl Default for EvaluateConfig {
+    fn default() -> Self {
+        EvaluateConfig {
+            outage_s: 30.0,
+            spacing_s: 10.0,
+            odometer: OdometerConfig::default(),
+            course_half_window_m: 5.0,
+            max_truth_gap_s: 2.0,
+            min_distance_for_pct_m: 5.0,
+            align_distance_m: 30.0,
+            align_max_s: 30.0,
+        }
+    }
+}
+
+/// The result of one simulated outage.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutageResult {
+    /// Start of the outage, s.
+    pub t_start_s: f64,
+    /// Length, s.
+    pub length_s: f64,
+    /// Truth arc length driven during the outage, m.
+    pub distance_m: f64,
+    /// Position error at the outage end, m.
+    pub error_m: f64,
+    /// `error_m` in percent of `distance_m` (absent for short distances).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error_pct: Option<f64>,
+    /// Yaw the dead-reckoning started from, rad.
+    pub start_yaw_rad: f64,
+    /// Where that yaw came from: `truth_yaw` or `truth_course`.
+    pub start_yaw_source: &'static str,
+    /// Dead-reckoned position at the outage end, m (east, north).
+    pub end_m: [f64; 2],
+    /// True position at the outage end, m (east, north).
+    pub truth_end_m: [f64; 2],
+    /// Increments that fell back to the wheel difference in gyro mode.
+    pub gyro_fallbacks: u64,
+}
+
+/// The parameters an evaluation used, as written to JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ParamsReport {
+    /// Rear-left circumference, m.
+    pub c_rl_m: f64,
+    /// Rear-right circumference, m.
+    pub c_rr_m: f64,
+    /// Track width, m.
+    pub track_width_m: f64,
+    /// Gyro bias, rad/s.
+    pub gyro_bias_rad_s: f64,
+    /// Gyro scale error.
+    pub gyro_scale: f64,
+}
+
+impl From<&OdometryParams> for ParamsReport {
+    fn from(p: &OdometryParams) -> Self {
+        ParamsReport {
+            c_rl_m: p.two_wheel.c_rl,
+            c_rr_m: p.two_wheel.c_rr,
+            track_width_m: p.two_wheel.track_width,
+            gyro_bias_rad_s: p.gyro_bias_rad_s,
+            gyro_scale: p.gyro_scale,
+        }
+    }
+}
+
+/// Everything an evaluation found; serialises to the `--json` output.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EvaluationReport {
+    /// One entry per outage, in time order.
+    pub outages: Vec<OutageResult>,
+    /// Median of `error_m`, m.
+    pub median_error_m: f64,
+    /// 90th percentile of `error_m`, m.
+    pub p90_error_m: f64,
+    /// Median of `error_pct` over the outages that have one (`null` if none).
+    pub median_error_pct: Option<f64>,
+    /// Heading mode: `wheels` or `gyro`.
+    pub heading: &'static str,
+    /// Parameters used.
+    pub params: ParamsReport,
+    /// What was skipped and why.
+    pub warnings: Vec<String>,
+}
+
+/// Why an evaluation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum EvaluateError {
+    /// The drive has no `truth.csv`.
+    #[error("the drive has no truth.csv: outages cannot be scored")]
+    NoTruth,
+    /// Gyro heading asked for a drive without `imu.csv`.
+    #[error("heading mode gyro needs imu.csv, which the drive does not have (use --heading wheels)")]
+    NoImu,
+    /// Wheel values cannot be converted to revolutions.
+    #[error(transparent)]
+    Wheels(#[from] WheelConversionError),
+    /// Not even one outage fits in the drive.
+    #[error("no {outage_s} s outage fits: wheels and truth overlap only from {from_s} s to {to_s} s")]
+    TooShort {
+        /// Requested outage length, s.
+        outage_s: f64,
+        /// Start of the overlap, s.
+        from_s: f64,
+        /// End of the overlap, s.
+        to_s: f64,
+    },
+    /// Every outage was skipped.
+    #[error("every outage was skipped: {0}")]
+    NothingScored(String),
+    /// A setting is out of range.
+    #[error("invalid setting: {0}")]
+    Config(String),
+}
+
+/// The truth track with its dead-banded arc length.
+struct TruthTrack<'a> {
+    rows: &'a [TruthSample],
+    arc_m: Vec<f64>,
+    max_gap_s: f64,
+}
+
+impl<'a> TruthTrack<'a> {
+    fn new(rows: &'a [TruthSample], max_gap_s: f64) -> TruthTrack<'a> {
+        TruthTrack {
+            rows,
+            arc_m: dead_banded_arc_length(rows),
+            max_gap_s,
+        }
+    }
+
+    /// Index i with rows[i].t <= t <= rows[i+1].t, when the gap there is small enough.
+    fn bracket(&self, t_s: f64) -> Option<(usize, f64)> {
+        let n = self.rows.len();
+        if n == 0 || t_s < self.rows[0].t_s || t_s > self.rows[n - 1].t_s {
+            return None;
+        }
+        if n == 1 {
+            return Some((0, 0.0));
+        }
+        let i = self.rows.partition_point(|r| r.t_s <= t_s).clamp(1, n - 1) - 1;
+        let (a, b) = (&self.rows[i], &self.rows[i + 1]);
+        let gap = b.t_s - a.t_s;
+        if gap > self.max_gap_s {
+            return None;
+        }
+        Some((i, ((t_s - a.t_s) / gap).clamp(0.0, 1.0)))
+    }
+
+    fn position_at(&self, t_s: f64) -> Option<[f64; 2]> {
+        let (i, f) = self.bracket(t_s)?;
+        let a = &self.rows[i];
+        let Some(b) = self.rows.get(i + 1) else {
+            return Some([a.x_m, a.y_m]);
+        };
+        Some([a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m)])
+    }
+
+    fn arc_at(&self, t_s: f64) -> Option<f64> {
+        let (i, f) = self.bracket(t_s)?;
+        let a = self.arc_m[i];
+        Some(self.arc_m.get(i + 1).map_or(a, |b| a + f * (b - a)))
+    }
+
+    fn yaw_at(&self, t_s: f64) -> Option<f64> {
+        let (i, f) = self.bracket(t_s)?;
+        let a = self.rows[i].yaw_rad?;
+        let Some(b) = self.rows.get(i + 1) else {
+            return Some(a);
+        };
+        let b = b.yaw_rad?;
+        Some(wrap_angle(a + f * wrap_angle(b - a)))
+    }
+}
+
+/// Arc length of a track, counting a move only once it is more than
+/// [`ARC_DEADBAND_M`] from the last counted point.
+fn dead_banded_arc_length(rows: &[TruthSample]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(rows.len());
+    let mut anchor: Option<(f64, f64)> = None;
+    let mut s = 0.0;
+    for r in rows {
+        match anchor {
+            None => anchor = Some((r.x_m, r.y_m)),
+            Some((ax, ay)) => {
+                let d = (r.x_m - ax).hypot(r.y_m - ay);
+                if d > ARC_DEADBAND_M {
+                    s += d;
+                    anchor = Some((r.x_m, r.y_m));
+                }
+            }
+        }
+        out.push(s);
+    }
+    out
+}
+
+/// The course of a track at arc length `s0_m` (see the module docs): a
+/// least-squares cubic fit of x and y against arc length over
+/// `s0_m +- half_window_m`, using only the points where the dead-banded arc
+/// length grew (and the first), so that GNSS jitter while standing does not
+/// weigh in. `None` when fewer than five points or less than
+/// two metres of track lie in the window, or the fit is singular.
+pub fn course_at(rows: &[TruthSample], arc_m: &[f64], s0_m: f64, half_window_m: f64) -> Option<f64> {
+    let mut normal = Matrix4::<f64>::zeros();
+    let mut rhs_x = Vector4::<f64>::zeros();
+    let mut rhs_y = Vector4::<f64>::zeros();
+    let (mut count, mut u_min, mut u_max) = (0usize, f64::INFINITY, f64::NEG_INFINITY);
+    let mut previous_s = f64::NEG_INFINITY;
+    for (r, &s) in rows.iter().zip(arc_m) {
+        // Only the points that moved the arc length on (standing jitter skipped).
+        if s <= previous_s {
+            continue;
+        }
+        previous_s = s;
+        let u = s - s0_m;
+        if u.abs() > half_window_m {
+            continue;
+        }
+        let basis = Vector4::new(1.0, u, u * u, u * u * u);
+        normal += basis * basis.transpose();
+        rhs_x += basis * r.x_m;
+        rhs_y += basis * r.y_m;
+        count += 1;
+        u_min = u_min.min(u);
+        u_max = u_max.max(u);
+    }
+    if count < 5 || u_max - u_min < 2.0 {
+        return None;
+    }
+    let chol = normal.cholesky()?;
+    let cx = chol.solve(&rhs_x);
+    let cy = chol.solve(&rhs_y);
+    let (dx, dy) = (cx[1], cy[1]);
+    if !(dx.is_finite() && dy.is_finite()) || dx.hypot(dy) < 1e-6 {
+        return None;
+    }
+    Some(dy.atan2(dx))
+}
+
+/// Median and linearly interpolated percentile of unsorted values.
+pub fn percentile(values: &[f64], p: f64) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let rank = p.clamp(0.0, 1.0) * (v.len() - 1) as f64;
+    let lo = rank.floor() as usize;
+    let hi = rank.ceil() as usize;
+    Some(v[lo] + (rank - lo as f64) * (v[hi] - v[lo]))
+}
+
+/// Rear-wheel revolutions interpolated linearly at `t_s` (inside the series).
+fn revs_at(revs: &[WheelRevs], t_s: f64) -> Option<(f64, f64)> {
+    let n = revs.len();
+    if n == 0 || t_s < revs[0].t_s || t_s > revs[n - 1].t_s {
+        return None;
+    }
+    if n == 1 {
+        return Some((revs[0].rl, revs[0].rr));
+    }
+    let i = revs.partition_point(|r| r.t_s <= t_s).clamp(1, n - 1) - 1;
+    let (a, b) = (&revs[i], &revs[i + 1]);
+    let f = ((t_s - a.t_s) / (b.t_s - a.t_s)).clamp(0.0, 1.0);
+    Some((a.rl + f * (b.rl - a.rl), a.rr + f * (b.rr - a.rr)))
+}
+
+/// Run the outage evaluation of `drive` with `params`.
+pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig) -> Result<EvaluationReport, EvaluateError> {
+    if !(config.outage_s > 0.0 && config.spacing_s > 0.0) {
+        return Err(EvaluateError::Config(format!(
+            "outage ({} s) and spacing ({} s) must be positive",
+            config.outage_s, config.spacing_s
+        )));
+    }
+    params
+        .validate("odometry parameters")
+        .map_err(|e| EvaluateError::Config(e.to_string()))?;
+    let truth_rows = drive.truth.as_deref().filter(|t| !t.is_empty()).ok_or(EvaluateError::NoTruth)?;
+    if config.odometer.heading == HeadingMode::Gyro && drive.imu.as_ref().is_none_or(Vec::is_empty) {
+        return Err(EvaluateError::NoImu);
+    }
+    let revs = drive.wheel_revolutions()?;
+    let inputs = drive_inputs(drive)?;
+    let truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
+
+    let (Some(w0), Some(w1)) = (revs.first(), revs.last()) else {
+        return Err(EvaluateError::TooShort {
+            outage_s: config.outage_s,
+            from_s: 0.0,
+            to_s: 0.0,
+        });
+    };
+    let t_from = w0.t_s.max(truth_rows[0].t_s);
+    let t_to = w1.t_s.min(truth_rows[truth_rows.len() - 1].t_s);
+    if t_from + config.outage_s > t_to {
+        return Err(EvaluateError::TooShort {
+            outage_s: config.outage_s,
+            from_s: t_from,
+            to_s: t_to,
+        });
+    }
+    let mut windows = Vec::new();
+    for k in 0u32.. {
+        let t0 = t_from + f64::from(k) * config.spacing_s;
+        let t1 = t0 + config.outage_s;
+        if t1 > t_to + 1e-9 {
+            break;
+        }
+        let align_from = if truth.yaw_at(t0).is_some() {
+            None
+        } else {
+            truth.arc_at(t0).and_then(|s0| alignment_start(&truth, config, t0, s0))
+        };
+        windows.push((t0, t1, align_from));
+    }
+
+    // One pass of the odometer over the whole drive, as the service runs it;
+    // every outage (and alignment) starts from a copy of it.
+    let mut starts: Vec<f64> = windows.iter().flat_map(|w| std::iter::once(w.0).chain(w.2)).collect();
+    starts.sort_by(f64::total_cmp);
+    starts.dedup();
+    let (snapshots, background_skipped) = snapshots(&revs, &inputs, params, config.odometer, &starts);
+    let snapshot_at = |t: f64| -> Result<&Snapshot, String> {
+        let i = starts.partition_point(|s| *s < t);
+        match snapshots.get(i) {
+            Some(Ok(snap)) if starts[i] == t => Ok(snap),
+            Some(Err(e)) => Err(e.clone()),
+            _ => Err(format!("no odometer state at {t} s")),
+        }
+    };
+
+    let mut outages = Vec::new();
+    let mut warnings = Vec::new();
+    if background_skipped > 0 {
+        warnings.push(format!(
+            "{background_skipped} wheel or IMU samples with bad values or times skipped"
+        ));
+    }
+    for &(t0, t1, align_from) in &windows {
+        let scored = snapshot_at(t0).and_then(|start| {
+            let aligned = align_from.and_then(|ta| {
+                let from = snapshot_at(ta).ok()?;
+                aligned_yaw(&truth, &revs, &inputs, from, ta, t0)
+            });
+            run_outage(&truth, &revs, &inputs, config, start, aligned, t0, t1)
+        });
+        match scored {
+            Ok(result) => outages.push(result),
+            Err(reason) => warnings.push(format!("outage at {t0:.2} s skipped: {reason}")),
+        }
+    }
+    if outages.is_empty() {
+        return Err(EvaluateError::NothingScored(warnings.join("; ")));
+    }
+    let errors: Vec<f64> = outages.iter().map(|o| o.error_m).collect();
+    let pcts: Vec<f64> = outages.iter().filter_map(|o| o.error_pct).collect();
+    Ok(EvaluationReport {
+        median_error_m: percentile(&errors, 0.5).unwrap_or(f64::NAN),
+        p90_error_m: percentile(&errors, 0.9).unwrap_or(f64::NAN),
+        median_error_pct: percentile(&pcts, 0.5),
+        outages,
+        heading: config.odometer.heading.name(),
+        params: ParamsReport::from(params),
+        warnings,
+    })
+}
+
+/// The odometer as it was at one instant: fed every input before it, and the
+/// wheel revolutions interpolated at the instant itself.
+#[derive(Debug, Clone)]
+struct Snapshot {
+    dr: DeadReckoner,
+    /// Index of the first input after the instant.
+    next: usize,
+}
+
+/// Run one odometer through the inputs and copy it at each of `times`
+/// (sorted). Returns the copies and the number of inputs it had to skip.
+fn snapshots(
+    revs: &[WheelRevs],
+    inputs: &[Input],
+    params: &OdometryParams,
+    odometer: OdometerConfig,
+    times: &[f64],
+) -> (Vec<Result<Snapshot, String>>, usize) {
+    let mut background = DeadReckoner::new(*params, odometer, Pose2::default());
+    let mut skipped = 0usize;
+    let mut i = 0usize;
+    let mut out = Vec::with_capacity(times.len());
+    for &t in times {
+        // Everything strictly before t, and the IMU at t (wheels come last at a time).
+        while let Some(input) = inputs.get(i) {
+            let ti = input.t_s();
+            if ti > t || (ti == t && matches!(input, Input::Wheels { .. })) {
+                break;
+            }
+            if feed(&mut background, input, odometer.heading).is_err() {
+                skipped += 1;
+            }
+            i += 1;
+        }
+        let mut dr = background.clone();
+        let result = match revs_at(revs, t) {
+            Some((rl, rr)) => dr.wheels(t, rl, rr).map_err(|e| e.to_string()).map(|_| {
+                // Skip a wheel sample exactly at t: the copy has it already.
+                let next = i + inputs[i..].partition_point(|x| x.t_s() <= t);
+                Snapshot { dr, next }
+            }),
+            None => Err(format!("no wheel data at {t} s")),
+        };
+        out.push(result);
+    }
+    (out, skipped)
+}
+
+/// Feed one input to a dead-reckoner (GNSS, heading and estimates are not its business).
+fn feed(dr: &mut DeadReckoner, input: &Input, heading: HeadingMode) -> Result<(), InputError> {
+    match *input {
+        Input::Imu { t_s, gz_rad_s } if heading == HeadingMode::Gyro => dr.gyro(t_s, gz_rad_s),
+        Input::Wheels { t_s, rl_rev, rr_rev } => dr.wheels(t_s, rl_rev, rr_rev).map(|_| ()),
+        _ => Ok(()),
+    }
+}
+
+/// Dead-reckoning from a snapshot at `t0` to `t1`, starting at `pose0`.
+struct Span {
+    /// Pose at every wheel sample (the ends included), with its time.
+    track: Vec<(f64, Pose2)>,
+    /// Input samples skipped as unusable.
+    skipped: usize,
+    /// Increments in the span that fell back to the wheel difference in gyro mode.
+    gyro_fallbacks: u64,
+}
+
+fn dead_reckon_span(revs: &[WheelRevs], inputs: &[Input], start: &Snapshot, pose0: Pose2, t0: f64, t1: f64) -> Result<Span, String> {
+    let wheels_end = revs_at(revs, t1).ok_or("no wheel data at the end")?;
+    let mut dr = start.dr.clone();
+    dr.set_pose(pose0);
+    let heading = dr.odometer().config().heading;
+    let fallbacks_before = dr.odometer().stats().gyro_fallbacks;
+    let mut track = vec![(t0, pose0)];
+    let mut skipped = 0usize;
+    for input in &inputs[start.next.min(inputs.len())..] {
+        let t = input.t_s();
+        if t > t1 || (t == t1 && matches!(input, Input::Wheels { .. })) {
+            break;
+        }
+        if feed(&mut dr, input, heading).is_err() {
+            skipped += 1;
+        } else if matches!(input, Input::Wheels { .. }) {
+            track.push((t, dr.pose()));
+        }
+    }
+    let pose = dr.wheels(t1, wheels_end.0, wheels_end.1).map_err(|e| e.to_string())?;
+    track.push((t1, pose));
+    Ok(Span {
+        track,
+        skipped,
+        gyro_fallbacks: dr.odometer().stats().gyro_fallbacks - fallbacks_before,
+    })
+}
+
+/// Position of a dead-reckoned track at `t_s`, interpolated linearly.
+fn track_position_at(track: &[(f64, Pose2)], t_s: f64) -> Option<[f64; 2]> {
+    let n = track.len();
+    if n == 0 || t_s < track[0].0 || t_s > track[n - 1].0 {
+        return None;
+    }
+    if n == 1 {
+        return Some([track[0].1.x, track[0].1.y]);
+    }
+    let i = track.partition_point(|(t, _)| *t <= t_s).clamp(1, n - 1) - 1;
+    let ((ta, a), (tb, b)) = (track[i], track[i + 1]);
+    let f = if tb > ta { (t_s - ta) / (tb - ta) } else { 0.0 };
+    Some([a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)])
+}
+
+/// Start of the alignment window before `t0`: the time of the last truth row
+/// at least `align_distance_m` of track back, within `align_max_s`, with no
+/// truth gap longer than `max_truth_gap_s` in between.
+fn alignment_start(truth: &TruthTrack<'_>, config: &EvaluateConfig, t0: f64, s0: f64) -> Option<f64> {
+    let first_row = truth.rows.partition_point(|r| r.t_s < t0 - config.align_max_s);
+    let window_start = (first_row..truth.rows.len())
+        .take_while(|&i| truth.rows[i].t_s <= t0)
+        .filter(|&i| s0 - truth.arc_m[i] >= config.align_distance_m)
+        .last()?;
+    let gap = truth.rows[window_start..]
+        .windows(2)
+        .take_while(|w| w[0].t_s < t0)
+        .any(|w| w[1].t_s - w[0].t_s > config.max_truth_gap_s);
+    (!gap).then_some(truth.rows[window_start].t_s)
+}
+
+/// The yaw at `t0` that best lays the dead-reckoned track from `ta` to `t0`
+/// onto the truth of the same stretch (see the module docs).
+fn aligned_yaw(truth: &TruthTrack<'_>, revs: &[WheelRevs], inputs: &[Input], from: &Snapshot, ta: f64, t0: f64) -> Option<f64> {
+    let span = dead_reckon_span(revs, inputs, from, Pose2::default(), ta, t0).ok()?;
+    let first = truth.rows.partition_point(|r| r.t_s < ta);
+    let mut pairs = Vec::new();
+    for r in truth.rows[first..].iter().take_while(|r| r.t_s <= t0) {
+        if let Some(d) = track_position_at(&span.track, r.t_s) {
+            pairs.push((d, [r.x_m, r.y_m]));
+        }
+    }
+    if pairs.len() < 3 {
+        return None;
+    }
+    // 2-D Procrustes: the rotation of the centred dead-reckoned points onto the centred truth.
+    let n = pairs.len() as f64;
+    let (mut dm, mut gm) = ([0.0; 2], [0.0; 2]);
+    for (d, g) in &pairs {
+        for j in 0..2 {
+            dm[j] += d[j] / n;
+            gm[j] += g[j] / n;
+        }
+    }
+    let (mut dot, mut cross) = (0.0, 0.0);
+    for (d, g) in &pairs {
+        let (dx, dy, gx, gy) = (d[0] - dm[0], d[1] - dm[1], g[0] - gm[0], g[1] - gm[1]);
+        dot += dx * gx + dy * gy;
+        cross += dx * gy - dy * gx;
+    }
+    let rotation = cross.atan2(dot);
+    let end_yaw = span.track.last()?.1.yaw;
+    rotation.is_finite().then(|| wrap_angle(end_yaw + rotation))
+}
+
+/// One outage from `t0` to `t1`, or why it cannot be scored.
+#[allow(clippy::too_many_arguments)]
+fn run_outage(
+    truth: &TruthTrack<'_>,
+    revs: &[WheelRevs],
+    inputs: &[Input],
+    config: &EvaluateConfig,
+    start_state: &Snapshot,
+    aligned: Option<f64>,
+    t0: f64,
+    t1: f64,
+) -> Result<OutageResult, String> {
+    let start = truth
+        .position_at(t0)
+        .ok_or("no truth around the start (gap longer than max_truth_gap_s)")?;
+    let end = truth
+        .position_at(t1)
+        .ok_or("no truth around the end (gap longer than max_truth_gap_s)")?;
+    let (s0, s1) = match (truth.arc_at(t0), truth.arc_at(t1)) {
+        (Some(a), Some(b)) => (a, b),
+        _ => return Err("no truth arc length".into()),
+    };
+    let (yaw, yaw_source) = if let Some(y) = truth.yaw_at(t0) {
+        (y, "truth_yaw")
+    } else if let Some(y) = aligned {
+        (y, "truth_track_alignment")
+    } else {
+        (
+            // Widen the window where the truth is sparse (e.g. at a drive's start).
+            [1.0, 2.0, 4.0]
+                .iter()
+                .find_map(|k| course_at(truth.rows, &truth.arc_m, s0, k * config.course_half_window_m))
+                .ok_or("the truth track does not move enough around the start to give a course")?,
+            "truth_course",
+        )
+    };
+    let pose0 = Pose2 {
+        x: start[0],
+        y: start[1],
+        yaw,
+    };
+    let span = dead_reckon_span(revs, inputs, start_state, pose0, t0, t1)?;
+    if span.skipped > 0 {
+        return Err(format!("{} wheel or IMU samples inside it are unusable", span.skipped));
+    }
+    let pose = span.track.last().map(|(_, p)| *p).ok_or("empty dead-reckoning")?;
+    let error_m = (pose.x - end[0]).hypot(pose.y - end[1]);
+    let distance_m = s1 - s0;
+    Ok(OutageResult {
+        t_start_s: t0,
+        length_s: t1 - t0,
+        distance_m,
+        error_m,
+        error_pct: (distance_m >= config.min_distance_for_pct_m).then(|| 100.0 * error_m / distance_m),
+        start_yaw_rad: yaw,
+        start_yaw_source: yaw_source,
+        end_m: [pose.x, pose.y],
+        truth_end_m: end,
+        gyro_fallbacks: span.gyro_fallbacks,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::two_wheel::TwoWheelParams;
+    use interfaces::drive::{GnssAntenna, ImuSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits};
+
+    const C_RL: f64 = 1.83;
+    const C_RR: f64 = 1.84;
+    const TRACK: f64 = 1.42;
+
+    /// A synthetic drive on a winding path at 8 m/s: true wheels with
+    /// circumferences C_RL, C_RR and track TRACK, a perfect gyro, truth at
+    /// 5 Hz without yaw.
+    fn winding_drive(seconds: f64) -> Drive {
+        let dt = 0.01;
+        let n = (seconds / dt).round() as usize;
+        let v = 8.0;
+        let yaw_rate = |t: f64| 0.25 * (0.2 * t).sin();
+        let (mut x, mut y, mut yaw, mut rl, mut rr) = (0.0, 0.0, 0.3, 0.0, 0.0);
+        let mut wheels = Vec::new();
+        let mut imu = Vec::new();
+        let mut truth = Vec::new();
+        for i in 0..=n {
+            let t = i as f64 * dt;
+            if i > 0 {
+                let w = yaw_rate(t - dt / 2.0);
+                let ds = v * dt;
+                let dyaw = w * dt;
+                x += ds * (yaw + dyaw / 2.0).cos();
+                y += ds * (yaw + dyaw / 2.0).sin();
+                yaw += dyaw;
+                rl += (ds - dyaw * TRACK / 2.0) / C_RL;
+                rr += (ds + dyaw * TRACK / 2.0) / C_RR;
+            }
+            wheels.push(WheelSample {
+                t_s: t,
+                rl,
+                rr,
+                fl: None,
+                fr: None,
+            });
+            imu.push(ImuSample {
+                t_s: t,
+                gz_rad_s: yaw_rate(t),
+                ax_m_s2: None,
+                ay_m_s2: None,
+                az_m_s2: None,
+                gx_rad_s: None,
+                gy_rad_s: None,
+            });
+            if i % 20 == 0 {
+                truth.push(TruthSample {
+                    t_s: t,
+                    x_m: x,
+                    y_m: y,
+                    yaw_rad: None,
+                });
+            }
+        }
+        Drive {
+            vehicle: VehicleParams {
+                name: None,
+                track_width_m: 1.45,
+                nominal_circumference_m: 1.85,
+                wheelbase_m: None,
+                ticks_per_rev: None,
+                gnss: GnssAntenna::default(),
+            },
+            wheels: WheelSeries {
+                units: WheelUnits::rear(WheelUnit::Rev),
+                samples: wheels,
+            },
+            gnss: None,
+            imu: Some(imu),
+            heading: None,
+            truth: Some(truth),
+            truth_params: None,
+        }
+    }
+
+    fn true_params() -> OdometryParams {
+        OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: C_RL,
+                c_rr: C_RR,
+                track_width: TRACK,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        }
+    }
+
+    fn config(heading: HeadingMode, outage_s: f64) -> EvaluateConfig {
+        EvaluateConfig {
+            outage_s,
+            odometer: OdometerConfig {
+                heading,
+                ..OdometerConfig::default()
+            },
+            ..EvaluateConfig::default()
+        }
+    }
+
+    #[test]
+    fn true_parameters_give_small_errors_in_both_heading_modes() {
+        let drive = winding_drive(100.0);
+        for heading in [HeadingMode::WheelDifference, HeadingMode::Gyro] {
+            let report = evaluate(&drive, &true_params(), &config(heading, 30.0)).unwrap();
+            // Starts 0, 10, ..., 70: eight outages of 240 m each.
+            assert_eq!(report.outages.len(), 8, "{heading}");
+            assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+            for o in &report.outages {
+                // No driving before the first outage: the course fit; then the alignment.
+                let expected = if o.t_start_s == 0.0 { "truth_course" } else { "truth_track_alignment" };
+                assert_eq!(o.start_yaw_source, expected);
+                assert!((o.distance_m - 240.0).abs() < 1.0, "{o:?}");
+                assert_eq!(o.gyro_fallbacks, 0);
+            }
+            // Only the course fit and discretisation separate the model from the truth.
+            assert!(report.p90_error_m < 0.05, "{heading}: {report:?}");
+        }
+    }
+
+    #[test]
+    fn wrong_circumferences_are_worse_than_right_ones() {
+        let drive = winding_drive(70.0);
+        let good = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        let nominal = OdometryParams::nominal(&drive.vehicle);
+        let bad = evaluate(&drive, &nominal, &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        // 1 % scale error alone is 2.4 m after 240 m.
+        assert!(bad.median_error_m > 2.0, "{bad:?}");
+        assert!(bad.median_error_m > 10.0 * good.median_error_m, "{good:?} {bad:?}");
+        let pct = bad.median_error_pct.unwrap();
+        assert!((pct - 100.0 * bad.median_error_m / 240.0).abs() < 0.5, "{pct}");
+    }
+
+    #[test]
+    fn truth_yaw_is_used_when_present() {
+        let mut drive = winding_drive(40.0);
+        for r in drive.truth.as_mut().unwrap() {
+            r.yaw_rad = Some(1.0);
+        }
+        let report = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        assert_eq!(report.outages[0].start_yaw_source, "truth_yaw");
+        assert_eq!(report.outages[0].start_yaw_rad, 1.0);
+    }
+
+    #[test]
+    fn course_fit_follows_a_circle() {
+        // Truth on a circle of radius 15 m, counter-clockwise, points every 0.8 m.
+        let r = 15.0;
+        let rows: Vec<TruthSample> = (0..200)
+            .map(|i| {
+                let a = i as f64 * 0.8 / r;
+                TruthSample {
+                    t_s: i as f64,
+                    x_m: r * a.sin(),
+                    y_m: r * (1.0 - a.cos()),
+                    yaw_rad: None,
+                }
+            })
+            .collect();
+        let arc = dead_banded_arc_length(&rows);
+        let s0 = arc[50];
+        let course = course_at(&rows, &arc, s0, 5.0).unwrap();
+        let expected = 50.0 * 0.8 / r;
+        // Arc length is measured along chords, so u is slightly off: a few mrad at most.
+        assert!((wrap_angle(course - expected)).abs() < 2e-3, "{course} vs {expected}");
+        assert!(course_at(&rows[..2], &arc[..2], 0.0, 5.0).is_none());
+    }
+
+    #[test]
+    fn standing_jitter_does_not_add_distance() {
+        let rows: Vec<TruthSample> = (0..100)
+            .map(|i| TruthSample {
+                t_s: i as f64,
+                x_m: 0.02 * ((i % 3) as f64 - 1.0),
+                y_m: 0.0,
+                yaw_rad: None,
+            })
+            .collect();
+        assert_eq!(dead_banded_arc_length(&rows).last(), Some(&0.0));
+    }
+
+    #[test]
+    fn missing_truth_imu_or_length_are_clear_errors() {
+        let mut drive = winding_drive(20.0);
+        let msg = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 30.0))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("no 30 s outage fits"), "{msg}");
+        drive.imu = None;
+        let msg = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 10.0))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("imu.csv"), "{msg}");
+        drive.truth = None;
+        let msg = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 10.0))
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("truth.csv"), "{msg}");
+    }
+
+    #[test]
+    fn truth_gap_skips_the_outage_with_a_warning() {
+        let mut drive = winding_drive(70.0);
+        // Remove truth between 48 s and 52 s: the outage 20-50 s loses its end.
+        drive
+            .truth
+            .as_mut()
+            .unwrap()
+            .retain(|r| !(r.t_s > 48.0 && r.t_s < 52.0));
+        let report = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        assert_eq!(report.outages.len(), 4, "{report:?}");
+        assert_eq!(report.warnings.len(), 1);
+        assert!(report.warnings[0].contains("20.00 s") && report.warnings[0].contains("end"), "{:?}", report.warnings);
+    }
+
+    #[test]
+    fn percentiles_interpolate() {
+        assert_eq!(percentile(&[3.0, 1.0, 2.0, 4.0], 0.5), Some(2.5));
+        let p90 = percentile(&(1..=11).map(f64::from).collect::<Vec<_>>(), 0.9).unwrap();
+        assert!((p90 - 10.0).abs() < 1e-12);
+        assert_eq!(percentile(&[], 0.5), None);
+    }
+}

@@ -1,0 +1,1088 @@
+//! The pose filter of the odometry service: an EKF on the 2W model.
+//!
+//! State: position x, y of the rear-axle centre (ENU, m), yaw (rad), and a
+//! residual yaw-rate gyro bias b (rad/s) on top of the calibrated one.
+//!
+//! - Prediction: the increments of the same [`Odometer`] that `odometry
+//!   evaluate` dead-reckons with (distance from the calibrated rear wheels,
+//!   heading from the wheel difference or the calibrated gyro), stepped with
+//!   the 2W model's eq. (1); in gyro heading the residual bias is subtracted
+//!   and slowly random-walks. Without updates the mean is exactly the
+//!   dead-reckoned pose.
+//! - Updates: GNSS positions of the antenna (lever arm from `vehicle.toml`'s
+//!   `[gnss] antenna_x_m/antenna_y_m`, rotated by the yaw), and absolute
+//!   headings. Each innovation is tested against a chi-square gate (2 and 1
+//!   degrees of freedom, 99.9 %); a measurement outside it is rejected.
+//! - Measurements are applied at their own time: a fix between two wheel
+//!   samples waits for the later one, the wheel revolutions are interpolated
+//!   at the fix time, the filter predicts to it, updates, and predicts on.
+//!
+//! Modes ([`PoseMode`]):
+//! - `NoFix` until the filter is initialised, and again after the inputs went
+//!   stale ([`Fusion::mark_stale`], or a gap between wheel samples longer than
+//!   [`FusionConfig::stale_after_s`]): nothing is claimed about the pose.
+//! - `Fused` while the last accepted fix is at most
+//!   [`FusionConfig::gnss_timeout_s`] old.
+//! - `DeadReckoning` otherwise: no fix for that long, or every fix gated out.
+//!
+//! Initialisation: at the first fix when an absolute heading at most 1 s old
+//! is known; otherwise the filter dead-reckons in a local frame from the first
+//! fix until the GNSS track has moved [`FusionConfig::init_baseline_m`], and
+//! takes the rotation between the local and the GNSS displacement as the yaw
+//! (exact on any path when the odometry is right; no standing-still heading
+//! is guessed).
+//!
+//! Fixes rejected for longer than [`FusionConfig::reset_after_rejected_s`]
+//! (with at least three in a row) mean the filter has lost itself: the
+//! position is reset to the fix, with its covariance inflated.
+//!
+//! Pure: no clock, no I/O; numerical failure is a [`FusionError`].
+
+use crate::dead_reckoning::{HeadingMode, HeadingSource, Increment, InputError, Odometer, OdometerConfig};
+use crate::estimate_file::OdometryParams;
+use crate::inputs::Input;
+use crate::two_wheel::{wrap_angle, Pose2};
+use interfaces::wire::PoseMode;
+use nalgebra::{SMatrix, SVector};
+
+type Mat4 = SMatrix<f64, 4, 4>;
+type Vec4 = SVector<f64, 4>;
+
+/// 99.9 % quantile of chi-square with 2 degrees of freedom.
+pub const CHI2_2DOF_999: f64 = 13.816;
+/// 99.9 % quantile of chi-square with 1 degree of freedom.
+pub const CHI2_1DOF_999: f64 = 10.828;
+
+/// Tuning of the filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusionConfig {
+    /// Dead-reckoning heading source and gyro settings.
+    pub odometer: OdometerConfig,
+    /// GNSS antenna in the body frame from the rear-axle centre (x forward, y left), m.
+    pub lever_arm_m: [f64; 2],
+    /// Without an accepted fix for longer than this, the mode is DeadReckoning, s.
+    pub gnss_timeout_s: f64,
+    /// GNSS 1-sigma used when a fix gives none, m.
+    pub default_gnss_sigma_m: f64,
+    /// Smallest GNSS 1-sigma believed, m: time offsets and lever-arm errors the
+    /// filter does not model are of this size even with an RTK fix.
+    pub min_gnss_sigma_m: f64,
+    /// Heading 1-sigma used when a heading sample gives none, rad.
+    pub default_heading_sigma_rad: f64,
+    /// Chi-square gate of GNSS innovations (2 degrees of freedom).
+    pub gnss_gate: f64,
+    /// Chi-square gate of heading innovations (1 degree of freedom).
+    pub heading_gate: f64,
+    /// A gap between wheel samples longer than this makes the inputs stale, s.
+    pub stale_after_s: f64,
+    /// GNSS displacement needed to initialise the yaw without a heading, m.
+    pub init_baseline_m: f64,
+    /// Reset the position after fixes were rejected for this long, s.
+    pub reset_after_rejected_s: f64,
+    /// Measurements older than the filter by more than this are dropped, s.
+    pub max_measurement_delay_s: f64,
+    /// Wheel distance noise, fraction of the distance (1-sigma).
+    pub distance_noise_frac: f64,
+    /// Wheel-difference heading noise, rad per metre driven (1-sigma).
+    pub wheel_yaw_noise_rad_per_m: f64,
+    /// Gyro angle random walk, rad/sqrt(s).
+    pub gyro_noise_rad_per_sqrt_s: f64,
+    /// Random walk of the residual gyro bias, rad/s/sqrt(s).
+    pub gyro_bias_walk: f64,
+    /// Initial 1-sigma of the residual gyro bias, rad/s.
+    pub initial_gyro_bias_sigma: f64,
+}
+
+impl Default for FusionConfig {
+    fn default() -> Self {
+        FusionConfig {
+            odometer: OdometerConfig::default(),
+            lever_arm_m: [0.0, 0.0],
+            gnss_timeout_s: 1.0,
+            default_gnss_sigma_m: 2.0,
+            min_gnss_sigma_m: 0.2,
+            default_heading_sigma_rad: 0.05,
+            gnss_gate: CHI2_2DOF_999,
+            heading_gate: CHI2_1DOF_999,
+            stale_after_s: 0.5,
+            init_baseline_m: 5.0,
+            reset_after_rejected_s: 10.0,
+            max_measurement_delay_s: 0.2,
+            distance_noise_frac: 0.005,
+            wheel_yaw_noise_rad_per_m: 0.003,
+            gyro_noise_rad_per_sqrt_s: 0.002,
+            gyro_bias_walk: 2e-5,
+            initial_gyro_bias_sigma: 1e-3,
+        }
+    }
+}
+
+/// A numerical failure of the filter.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum FusionError {
+    /// An innovation covariance that cannot be inverted.
+    #[error("{what} innovation covariance at t = {t_s} s is not positive definite")]
+    NotPositiveDefinite {
+        /// `gnss` or `heading`.
+        what: &'static str,
+        /// Time of the measurement.
+        t_s: f64,
+    },
+    /// The state or covariance became NaN or infinite.
+    #[error("filter state became non-finite at t = {t_s} s after {after}")]
+    NonFinite {
+        /// Time.
+        t_s: f64,
+        /// The step that produced it.
+        after: &'static str,
+    },
+}
+
+/// What [`Fusion::process`] reports.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ProcessError {
+    /// The sample is unusable and was skipped; the filter is unchanged.
+    #[error(transparent)]
+    Input(#[from] InputError),
+    /// The filter failed numerically and has been reset to `NoFix`.
+    #[error("{0}; the filter was reset")]
+    Numerical(#[from] FusionError),
+}
+
+/// The filter's pose at a wheel sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusedPose {
+    /// Time of the wheel sample, s.
+    pub t_s: f64,
+    /// The pose (meaningless in `NoFix`, then all zero).
+    pub pose: Pose2,
+    /// Covariance of (x, y, yaw), row-major (all zero in `NoFix`).
+    pub covariance: [f64; 9],
+    /// What the pose stands on.
+    pub mode: PoseMode,
+    /// Version of the estimate in use (0 = nominal).
+    pub estimate_version: u64,
+}
+
+/// Counters of what the filter did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FusionStats {
+    /// Fixes accepted.
+    pub gnss_accepted: u64,
+    /// Fixes rejected by the gate.
+    pub gnss_rejected: u64,
+    /// Headings accepted.
+    pub heading_accepted: u64,
+    /// Headings rejected by the gate.
+    pub heading_rejected: u64,
+    /// Measurements dropped because they came too late.
+    pub dropped_late: u64,
+    /// Times the filter was initialised.
+    pub initialisations: u64,
+    /// Times the position was reset after persistent rejections.
+    pub position_resets: u64,
+    /// Times the inputs went stale.
+    pub stale: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Measurement {
+    Gnss { t_s: f64, x_m: f64, y_m: f64, sigma_m: f64 },
+    Heading { t_s: f64, yaw_rad: f64, sigma_rad: f64 },
+}
+
+impl Measurement {
+    fn t_s(&self) -> f64 {
+        match *self {
+            Measurement::Gnss { t_s, .. } | Measurement::Heading { t_s, .. } => t_s,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum State {
+    /// Waiting for a first fix (and a baseline to get the yaw).
+    Uninitialised {
+        /// First fix (x, y, t) and the local dead-reckoned pose at that time.
+        anchor: Option<([f64; 3], Pose2)>,
+        /// Dead-reckoned pose in a local frame.
+        local: Pose2,
+    },
+    /// Running.
+    Running { x: Vec4, p: Mat4 },
+}
+
+/// The EKF with its mode logic. Feed every [`Input`] in processing order
+/// (see [`crate::inputs`]); a pose comes out at every wheel sample.
+#[derive(Debug, Clone)]
+pub struct Fusion {
+    config: FusionConfig,
+    odometer: Odometer,
+    estimate_version: u64,
+    state: State,
+    pending: Vec<Measurement>,
+    /// Last wheel sample (t, rl, rr).
+    last_wheels: Option<(f64, f64, f64)>,
+    last_heading: Option<(f64, f64, f64)>,
+    last_accepted_fix_s: Option<f64>,
+    first_rejected_fix_s: Option<f64>,
+    rejected_in_a_row: u32,
+    stats: FusionStats,
+}
+
+impl Fusion {
+    /// A filter in `NoFix`, using `params` (estimate `estimate_version`, 0 = nominal).
+    pub fn new(params: OdometryParams, estimate_version: u64, config: FusionConfig) -> Fusion {
+        Fusion {
+            config,
+            odometer: Odometer::new(params, config.odometer),
+            estimate_version,
+            state: State::Uninitialised {
+                anchor: None,
+                local: Pose2::default(),
+            },
+            pending: Vec::new(),
+            last_wheels: None,
+            last_heading: None,
+            last_accepted_fix_s: None,
+            first_rejected_fix_s: None,
+            rejected_in_a_row: 0,
+            stats: FusionStats::default(),
+        }
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &OdometryParams {
+        self.odometer.params()
+    }
+
+    /// Version of the estimate in use.
+    pub fn estimate_version(&self) -> u64 {
+        self.estimate_version
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> FusionStats {
+        self.stats
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FusionConfig {
+        &self.config
+    }
+
+    /// Switch to a new estimate between two samples: the pose does not move,
+    /// the next increments use the new parameters, and the residual gyro bias
+    /// starts again from zero (the new estimate carries its own bias).
+    /// Returns the parameters replaced.
+    pub fn set_estimate(&mut self, params: OdometryParams, version: u64) -> OdometryParams {
+        let old = *self.odometer.params();
+        self.odometer.set_params(params);
+        self.estimate_version = version;
+        if let State::Running { x, p } = &mut self.state {
+            x[3] = 0.0;
+            for i in 0..4 {
+                p[(i, 3)] = 0.0;
+                p[(3, i)] = 0.0;
+            }
+            p[(3, 3)] = self.config.initial_gyro_bias_sigma.powi(2);
+        }
+        old
+    }
+
+    /// The inputs went stale (the service saw no wheel sample for too long):
+    /// forget the pose; `NoFix` until the filter is initialised again.
+    pub fn mark_stale(&mut self) {
+        self.stats.stale += 1;
+        self.reset();
+    }
+
+    /// Back to `NoFix`, keeping the parameters and counters.
+    pub fn reset(&mut self) {
+        self.state = State::Uninitialised {
+            anchor: None,
+            local: Pose2::default(),
+        };
+        self.odometer.restart();
+        self.pending.clear();
+        self.last_wheels = None;
+        self.last_accepted_fix_s = None;
+        self.first_rejected_fix_s = None;
+        self.rejected_in_a_row = 0;
+    }
+
+    /// The mode the filter is in at time `t_s`.
+    pub fn mode_at(&self, t_s: f64) -> PoseMode {
+        match self.state {
+            State::Uninitialised { .. } => PoseMode::NoFix,
+            State::Running { .. } => match self.last_accepted_fix_s {
+                Some(tf) if t_s - tf <= self.config.gnss_timeout_s => PoseMode::Fused,
+                _ => PoseMode::DeadReckoning,
+            },
+        }
+    }
+
+    /// Take one input. Returns the pose after a wheel sample, `None` otherwise.
+    /// An [`Input::Estimate`] switches the estimate as [`Fusion::set_estimate`].
+    pub fn process(&mut self, input: &Input) -> Result<Option<FusedPose>, ProcessError> {
+        match *input {
+            Input::Imu { t_s, gz_rad_s } => {
+                self.odometer.gyro(t_s, gz_rad_s)?;
+                Ok(None)
+            }
+            Input::Gnss { t_s, x_m, y_m, sigma_m } => {
+                if !(t_s.is_finite() && x_m.is_finite() && y_m.is_finite()) {
+                    return Err(InputError::NonFinite { stream: "gnss", t_s }.into());
+                }
+                let sigma = sigma_m
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .unwrap_or(self.config.default_gnss_sigma_m)
+                    .max(self.config.min_gnss_sigma_m);
+                self.pending.push(Measurement::Gnss {
+                    t_s,
+                    x_m,
+                    y_m,
+                    sigma_m: sigma,
+                });
+                Ok(None)
+            }
+            Input::Heading { t_s, yaw_rad, sigma_rad } => {
+                if !(t_s.is_finite() && yaw_rad.is_finite()) {
+                    return Err(InputError::NonFinite { stream: "heading", t_s }.into());
+                }
+                let sigma = sigma_rad
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .unwrap_or(self.config.default_heading_sigma_rad);
+                self.last_heading = Some((t_s, yaw_rad, sigma));
+                self.pending.push(Measurement::Heading { t_s, yaw_rad, sigma_rad: sigma });
+                Ok(None)
+            }
+            Input::Estimate { version, estimate, .. } => {
+                self.set_estimate(estimate.params, version);
+                Ok(None)
+            }
+            Input::Wheels { t_s, rl_rev, rr_rev } => match self.wheels(t_s, rl_rev, rr_rev) {
+                Ok(pose) => Ok(Some(pose)),
+                Err(ProcessError::Numerical(e)) => {
+                    self.reset();
+                    Err(ProcessError::Numerical(e))
+                }
+                Err(e) => Err(e),
+            },
+        }
+    }
+
+    fn wheels(&mut self, t1: f64, rl1: f64, rr1: f64) -> Result<FusedPose, ProcessError> {
+        if !(t1.is_finite() && rl1.is_finite() && rr1.is_finite()) {
+            return Err(InputError::NonFinite { stream: "wheels", t_s: t1 }.into());
+        }
+        if let Some((t0, _, _)) = self.last_wheels {
+            if t1 <= t0 {
+                return Err(InputError::OutOfOrder {
+                    stream: "wheels",
+                    t_s: t1,
+                    previous_t_s: t0,
+                }
+                .into());
+            }
+            if t1 - t0 > self.config.stale_after_s {
+                // The wheels stopped for a while: what happened in between is unknown.
+                self.stats.stale += 1;
+                self.reset();
+            }
+        }
+        // Measurements up to t1, in time order, each at its own time.
+        self.pending.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+        let due = self.pending.partition_point(|m| m.t_s() <= t1);
+        let measurements: Vec<Measurement> = self.pending.drain(..due).collect();
+        for m in measurements {
+            let tm = m.t_s();
+            match self.last_wheels {
+                Some((t0, rl0, rr0)) if tm > t0 => {
+                    let f = (tm - t0) / (t1 - t0);
+                    if tm < t1 {
+                        self.advance(tm, rl0 + f * (rl1 - rl0), rr0 + f * (rr1 - rr0))?;
+                    } else {
+                        self.advance(t1, rl1, rr1)?;
+                    }
+                }
+                Some((t0, _, _)) if t0 - tm > self.config.max_measurement_delay_s => {
+                    self.stats.dropped_late += 1;
+                    continue;
+                }
+                None if t1 - tm > self.config.max_measurement_delay_s => {
+                    self.stats.dropped_late += 1;
+                    continue;
+                }
+                None => self.advance(t1, rl1, rr1)?,
+                Some(_) => {}
+            }
+            self.measure(&m)?;
+        }
+        if self.last_wheels.is_none_or(|(t0, _, _)| t0 < t1) {
+            self.advance(t1, rl1, rr1)?;
+        }
+        Ok(self.output(t1))
+    }
+
+    /// Feed a wheel sample to the odometer and predict with its increment.
+    fn advance(&mut self, t_s: f64, rl: f64, rr: f64) -> Result<(), ProcessError> {
+        let increment = self.odometer.wheels(t_s, rl, rr)?;
+        self.last_wheels = Some((t_s, rl, rr));
+        if let Some(inc) = increment {
+            self.predict(&inc)?;
+        }
+        Ok(())
+    }
+
+    fn predict(&mut self, inc: &Increment) -> Result<(), FusionError> {
+        let config = self.config;
+        let scale = 1.0 + self.odometer.params().gyro_scale;
+        match &mut self.state {
+            State::Uninitialised { local, .. } => {
+                *local = crate::two_wheel::step(*local, inc.ds_m, inc.dyaw_rad, 0.0);
+                Ok(())
+            }
+            State::Running { x, p } => {
+                let dt = inc.t1_s - inc.t0_s;
+                let gyro = inc.heading_source == HeadingSource::Gyro;
+                // d(dyaw)/d(b): the residual bias is subtracted from gyro increments only.
+                let dyaw_db = if gyro { -dt / scale } else { 0.0 };
+                let dyaw = inc.dyaw_rad + dyaw_db * x[3];
+                let course = x[2] + 0.5 * dyaw;
+                let (s, c) = course.sin_cos();
+                let ds = inc.ds_m;
+                x[0] += ds * c;
+                x[1] += ds * s;
+                x[2] += dyaw;
+                let mut f = Mat4::identity();
+                f[(0, 2)] = -ds * s;
+                f[(1, 2)] = ds * c;
+                f[(0, 3)] = -ds * s * 0.5 * dyaw_db;
+                f[(1, 3)] = ds * c * 0.5 * dyaw_db;
+                f[(2, 3)] = dyaw_db;
+                // Noise of (ds, dyaw) mapped into the state, plus the bias walk.
+                let sigma_ds = config.distance_noise_frac * ds.abs();
+                let sigma_dyaw = if gyro {
+                    config.gyro_noise_rad_per_sqrt_s * dt.max(0.0).sqrt()
+                } else {
+                    config.wheel_yaw_noise_rad_per_m * ds.abs()
+                };
+                let mut g = SMatrix::<f64, 4, 2>::zeros();
+                g[(0, 0)] = c;
+                g[(1, 0)] = s;
+                g[(0, 1)] = -0.5 * ds * s;
+                g[(1, 1)] = 0.5 * ds * c;
+                g[(2, 1)] = 1.0;
+                let q_in = SMatrix::<f64, 2, 2>::from_diagonal(&SVector::<f64, 2>::new(
+                    sigma_ds * sigma_ds,
+                    sigma_dyaw * sigma_dyaw,
+                ));
+                let mut q = g * q_in * g.transpose();
+                if config.odometer.heading == HeadingMode::Gyro {
+                    q[(3, 3)] = config.gyro_bias_walk.powi(2) * dt.max(0.0);
+                }
+                *p = f * *p * f.transpose() + q;
+                symmetrise(p);
+                if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
+                    return Err(FusionError::NonFinite {
+                        t_s: inc.t1_s,
+                        after: "prediction",
+                    });
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn lever_arm_world(&self, yaw: f64) -> [f64; 2] {
+        let [lx, ly] = self.config.lever_arm_m;
+        let (s, c) = yaw.sin_cos();
+        [lx * c - ly * s, lx * s + ly * c]
+    }
+
+    fn measure(&mut self, m: &Measurement) -> Result<(), FusionError> {
+        match (*m, self.state) {
+            (Measurement::Gnss { t_s, x_m, y_m, sigma_m }, State::Uninitialised { anchor, local }) => {
+                self.initialise_from_fix(t_s, x_m, y_m, sigma_m, anchor, local);
+                Ok(())
+            }
+            (Measurement::Heading { .. }, State::Uninitialised { .. }) => Ok(()),
+            (Measurement::Gnss { t_s, x_m, y_m, sigma_m }, State::Running { .. }) => {
+                self.update_gnss(t_s, x_m, y_m, sigma_m)
+            }
+            (Measurement::Heading { t_s, yaw_rad, sigma_rad }, State::Running { .. }) => {
+                self.update_heading(t_s, yaw_rad, sigma_rad)
+            }
+        }
+    }
+
+    fn initialise_from_fix(
+        &mut self,
+        t_s: f64,
+        x_m: f64,
+        y_m: f64,
+        sigma_m: f64,
+        anchor: Option<([f64; 3], Pose2)>,
+        local: Pose2,
+    ) {
+        let lever = self.config.lever_arm_m[0].hypot(self.config.lever_arm_m[1]);
+        // With a recent absolute heading, start at once.
+        let heading = self
+            .last_heading
+            .filter(|(th, _, _)| (t_s - th).abs() <= 1.0)
+            .map(|(_, yaw, sigma)| (yaw, sigma));
+        let yaw_and_sigma = match (heading, anchor) {
+            (Some(h), _) => Some(h),
+            (None, Some((a, local_a))) => {
+                let (gx, gy) = (x_m - a[0], y_m - a[1]);
+                let (lx, ly) = (local.x - local_a.x, local.y - local_a.y);
+                let baseline = gx.hypot(gy);
+                if t_s - a[2] > self.config.reset_after_rejected_s {
+                    // Too long since the anchor: start the baseline again.
+                    self.state = State::Uninitialised {
+                        anchor: Some(([x_m, y_m, t_s], local)),
+                        local,
+                    };
+                    return;
+                }
+                if baseline >= self.config.init_baseline_m && lx.hypot(ly) >= 0.5 * self.config.init_baseline_m {
+                    let rotation = gy.atan2(gx) - ly.atan2(lx);
+                    let sigma = 2.0 * (sigma_m + lever) / baseline + 0.02;
+                    Some((wrap_angle(local.yaw + rotation), sigma))
+                } else {
+                    None
+                }
+            }
+            (None, None) => {
+                self.state = State::Uninitialised {
+                    anchor: Some(([x_m, y_m, t_s], local)),
+                    local,
+                };
+                return;
+            }
+        };
+        let Some((yaw, sigma_yaw)) = yaw_and_sigma else {
+            return;
+        };
+        let arm = self.lever_arm_world(yaw);
+        let x = Vec4::new(x_m - arm[0], y_m - arm[1], yaw, 0.0);
+        let sigma_pos = sigma_m + 0.5 * lever;
+        let p = Mat4::from_diagonal(&Vec4::new(
+            sigma_pos * sigma_pos,
+            sigma_pos * sigma_pos,
+            sigma_yaw * sigma_yaw,
+            self.config.initial_gyro_bias_sigma.powi(2),
+        ));
+        self.state = State::Running { x, p };
+        self.stats.initialisations += 1;
+        self.accept_fix(t_s);
+    }
+
+    fn accept_fix(&mut self, t_s: f64) {
+        self.last_accepted_fix_s = Some(t_s);
+        self.first_rejected_fix_s = None;
+        self.rejected_in_a_row = 0;
+    }
+
+    fn update_gnss(&mut self, t_s: f64, x_m: f64, y_m: f64, sigma_m: f64) -> Result<(), FusionError> {
+        let State::Running { x, p } = self.state else {
+            return Ok(());
+        };
+        let [lx, ly] = self.config.lever_arm_m;
+        let (s, c) = x[2].sin_cos();
+        let predicted = [x[0] + lx * c - ly * s, x[1] + lx * s + ly * c];
+        let nu = SVector::<f64, 2>::new(x_m - predicted[0], y_m - predicted[1]);
+        let mut h = SMatrix::<f64, 2, 4>::zeros();
+        h[(0, 0)] = 1.0;
+        h[(1, 1)] = 1.0;
+        h[(0, 2)] = -lx * s - ly * c;
+        h[(1, 2)] = lx * c - ly * s;
+        let r = SMatrix::<f64, 2, 2>::identity() * sigma_m * sigma_m;
+        let s_mat = h * p * h.transpose() + r;
+        let chol = s_mat
+            .cholesky()
+            .ok_or(FusionError::NotPositiveDefinite { what: "gnss", t_s })?;
+        let nis = nu.dot(&chol.solve(&nu));
+        if !nis.is_finite() {
+            return Err(FusionError::NonFinite {
+                t_s,
+                after: "gnss innovation",
+            });
+        }
+        if nis > self.config.gnss_gate {
+            self.stats.gnss_rejected += 1;
+            self.rejected_in_a_row += 1;
+            let first = *self.first_rejected_fix_s.get_or_insert(t_s);
+            if self.rejected_in_a_row >= 3 && t_s - first >= self.config.reset_after_rejected_s {
+                self.reset_position(t_s, x_m, y_m, sigma_m);
+            }
+            return Ok(());
+        }
+        let gain = p * h.transpose() * chol.inverse();
+        let (x, p) = joseph_update(x, p, &gain, &h, &r, &nu);
+        self.set_running(x, p, t_s, "gnss update")?;
+        self.stats.gnss_accepted += 1;
+        self.accept_fix(t_s);
+        Ok(())
+    }
+
+    fn reset_position(&mut self, t_s: f64, x_m: f64, y_m: f64, sigma_m: f64) {
+        if let State::Running { x, p } = &mut self.state {
+            let [lx, ly] = self.config.lever_arm_m;
+            let (s, c) = x[2].sin_cos();
+            x[0] = x_m - (lx * c - ly * s);
+            x[1] = y_m - (lx * s + ly * c);
+            let var = (sigma_m + 0.5 * lx.hypot(ly)).powi(2);
+            for i in 0..4 {
+                for j in 0..2 {
+                    p[(i, j)] = 0.0;
+                    p[(j, i)] = 0.0;
+                }
+            }
+            p[(0, 0)] = var;
+            p[(1, 1)] = var;
+            p[(2, 2)] = p[(2, 2)].max(0.1f64.powi(2));
+            self.stats.position_resets += 1;
+            self.accept_fix(t_s);
+        }
+    }
+
+    fn update_heading(&mut self, t_s: f64, yaw_rad: f64, sigma_rad: f64) -> Result<(), FusionError> {
+        let State::Running { x, p } = self.state else {
+            return Ok(());
+        };
+        let nu = SVector::<f64, 1>::new(wrap_angle(yaw_rad - x[2]));
+        let mut h = SMatrix::<f64, 1, 4>::zeros();
+        h[(0, 2)] = 1.0;
+        let r = SMatrix::<f64, 1, 1>::new(sigma_rad * sigma_rad);
+        let s_mat = h * p * h.transpose() + r;
+        let s = s_mat[(0, 0)];
+        if !(s.is_finite() && s > 0.0) {
+            return Err(FusionError::NotPositiveDefinite { what: "heading", t_s });
+        }
+        if nu[0] * nu[0] / s > self.config.heading_gate {
+            self.stats.heading_rejected += 1;
+            return Ok(());
+        }
+        let gain = p * h.transpose() / s;
+        let (x, p) = joseph_update(x, p, &gain, &h, &r, &nu);
+        self.set_running(x, p, t_s, "heading update")?;
+        self.stats.heading_accepted += 1;
+        Ok(())
+    }
+
+    fn set_running(&mut self, x: Vec4, mut p: Mat4, t_s: f64, after: &'static str) -> Result<(), FusionError> {
+        symmetrise(&mut p);
+        if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
+            return Err(FusionError::NonFinite { t_s, after });
+        }
+        self.state = State::Running { x, p };
+        Ok(())
+    }
+
+    fn output(&self, t_s: f64) -> FusedPose {
+        let mode = self.mode_at(t_s);
+        let (pose, covariance) = match self.state {
+            State::Running { x, p } => {
+                let mut cov = [0.0; 9];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        cov[3 * i + j] = p[(i, j)];
+                    }
+                }
+                (
+                    Pose2 {
+                        x: x[0],
+                        y: x[1],
+                        yaw: wrap_angle(x[2]),
+                    },
+                    cov,
+                )
+            }
+            State::Uninitialised { .. } => (Pose2::default(), [0.0; 9]),
+        };
+        FusedPose {
+            t_s,
+            pose,
+            covariance,
+            mode,
+            estimate_version: self.estimate_version,
+        }
+    }
+}
+
+fn symmetrise(p: &mut Mat4) {
+    let t = p.transpose();
+    *p = (*p + t) * 0.5;
+}
+
+/// Kalman update in Joseph form (stays symmetric positive semi-definite).
+fn joseph_update<const M: usize>(
+    x: Vec4,
+    p: Mat4,
+    gain: &SMatrix<f64, 4, M>,
+    h: &SMatrix<f64, M, 4>,
+    r: &SMatrix<f64, M, M>,
+    nu: &SVector<f64, M>,
+) -> (Vec4, Mat4) {
+    let x = x + gain * nu;
+    let i_kh = Mat4::identity() - gain * h;
+    let p = i_kh * p * i_kh.transpose() + gain * r * gain.transpose();
+    (x, p)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::two_wheel::TwoWheelParams;
+
+    const C: f64 = 2.0;
+    const TRACK: f64 = 1.5;
+
+    fn params() -> OdometryParams {
+        OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: C,
+                c_rr: C,
+                track_width: TRACK,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        }
+    }
+
+    fn config(heading: HeadingMode) -> FusionConfig {
+        FusionConfig {
+            odometer: OdometerConfig {
+                heading,
+                ..OdometerConfig::default()
+            },
+            ..FusionConfig::default()
+        }
+    }
+
+    /// Inputs of a drive on a gentle left curve at 10 m/s: wheels and gyro at
+    /// 100 Hz, GNSS at 5 Hz from `gnss_from` to `gnss_to` (s), truth returned too.
+    struct Sim {
+        inputs: Vec<Input>,
+        truth: Vec<(f64, Pose2)>,
+    }
+
+    fn simulate(seconds: f64, gnss: &dyn Fn(f64) -> bool, gyro_bias: f64, yaw0: f64) -> Sim {
+        let dt = 0.01;
+        let v = 10.0;
+        let w = |t: f64| 0.1 * (0.3 * t).sin();
+        let mut pose = Pose2 {
+            x: 100.0,
+            y: -50.0,
+            yaw: yaw0,
+        };
+        let (mut rl, mut rr) = (0.0, 0.0);
+        let mut inputs = Vec::new();
+        let mut truth = Vec::new();
+        let n = (seconds / dt).round() as usize;
+        for i in 0..=n {
+            let t = i as f64 * dt;
+            if i > 0 {
+                let dyaw = w(t - dt / 2.0) * dt;
+                let ds = v * dt;
+                pose = crate::two_wheel::step(pose, ds, dyaw, 0.0);
+                rl += (ds - dyaw * TRACK / 2.0) / C;
+                rr += (ds + dyaw * TRACK / 2.0) / C;
+            }
+            inputs.push(Input::Imu {
+                t_s: t,
+                gz_rad_s: w(t) + gyro_bias,
+            });
+            // Fixes at 5 Hz, stamped 5 ms after the wheel instant.
+            if i % 20 == 0 && gnss(t) {
+                inputs.push(Input::Gnss {
+                    t_s: t + 0.005,
+                    x_m: pose.x + 0.005 * v * pose.yaw.cos(),
+                    y_m: pose.y + 0.005 * v * pose.yaw.sin(),
+                    sigma_m: Some(0.3),
+                });
+            }
+            inputs.push(Input::Wheels {
+                t_s: t,
+                rl_rev: rl,
+                rr_rev: rr,
+            });
+            truth.push((t, pose));
+        }
+        crate::inputs::sort_inputs(&mut inputs);
+        Sim { inputs, truth }
+    }
+
+    fn run(fusion: &mut Fusion, inputs: &[Input]) -> Vec<FusedPose> {
+        inputs
+            .iter()
+            .filter_map(|i| fusion.process(i).expect("input accepted"))
+            .collect()
+    }
+
+    #[test]
+    fn no_fix_then_fused_then_dead_reckoning_through_an_outage() {
+        let sim = simulate(60.0, &|t| !(30.0..45.0).contains(&t), 0.0, 0.7);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let poses = run(&mut fusion, &sim.inputs);
+        assert_eq!(poses.len(), sim.truth.len());
+        assert_eq!(poses[0].mode, PoseMode::NoFix);
+        let at = |t: f64| ((t / 0.01).round()) as usize;
+        // Initialised once the GNSS track moved the baseline (5 m at 10 m/s).
+        assert_eq!(poses[at(5.0)].mode, PoseMode::Fused);
+        assert_eq!(poses[at(29.0)].mode, PoseMode::Fused);
+        assert_eq!(poses[at(31.5)].mode, PoseMode::DeadReckoning);
+        assert_eq!(poses[at(44.9)].mode, PoseMode::DeadReckoning);
+        assert_eq!(poses[at(46.0)].mode, PoseMode::Fused);
+        for &t in &[10.0, 29.0, 44.9, 59.0] {
+            let (p, truth) = (poses[at(t)].pose, sim.truth[at(t)].1);
+            let err = (p.x - truth.x).hypot(p.y - truth.y);
+            assert!(err < 0.5, "t = {t}: error {err} m, {p:?} vs {truth:?}");
+            assert!(wrap_angle(p.yaw - truth.yaw).abs() < 0.02, "t = {t}");
+        }
+        // The covariance grows through the outage and shrinks after it.
+        let var = |t: f64| poses[at(t)].covariance[0] + poses[at(t)].covariance[4];
+        assert!(var(44.9) > 5.0 * var(29.0), "{} vs {}", var(44.9), var(29.0));
+        assert!(var(59.0) < var(44.9));
+        let s = fusion.stats();
+        assert_eq!(s.initialisations, 1);
+        assert_eq!(s.gnss_rejected, 0, "{s:?}");
+    }
+
+    #[test]
+    fn dead_reckoning_mean_equals_the_dead_reckoner() {
+        // Fixes only for the first 10 s; afterwards the filter mean must follow
+        // exactly the dead-reckoner started from the same pose.
+        let sim = simulate(40.0, &|t| t < 10.0, 0.0, 0.2);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let split = sim.inputs.iter().position(|i| i.t_s() > 12.0).unwrap();
+        let poses = run(&mut fusion, &sim.inputs[..split]);
+        let start = poses.last().unwrap();
+        let mut dr =
+            crate::dead_reckoning::DeadReckoner::new(params(), config(HeadingMode::WheelDifference).odometer, start.pose);
+        // Re-feed the gyro history so that both start from the same state.
+        for i in &sim.inputs[..split] {
+            match *i {
+                Input::Imu { t_s, gz_rad_s } if t_s > 11.0 => dr.gyro(t_s, gz_rad_s).unwrap(),
+                Input::Wheels { t_s, rl_rev, rr_rev } if t_s == start.t_s => {
+                    dr.wheels(t_s, rl_rev, rr_rev).unwrap();
+                }
+                _ => {}
+            }
+        }
+        for i in &sim.inputs[split..] {
+            let out = fusion.process(i).unwrap();
+            let dr_pose = match *i {
+                Input::Imu { t_s, gz_rad_s } => {
+                    dr.gyro(t_s, gz_rad_s).unwrap();
+                    None
+                }
+                Input::Wheels { t_s, rl_rev, rr_rev } => Some(dr.wheels(t_s, rl_rev, rr_rev).unwrap()),
+                _ => None,
+            };
+            if let (Some(f), Some(d)) = (out, dr_pose) {
+                assert_eq!(f.mode, PoseMode::DeadReckoning);
+                assert!((f.pose.x - d.x).hypot(f.pose.y - d.y) < 1e-6, "{f:?} vs {d:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn residual_gyro_bias_is_learned_while_fused() {
+        let bias = 0.004;
+        let sim = simulate(90.0, &|t| t < 60.0, bias, 0.0);
+        let mut with = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        let poses = run(&mut with, &sim.inputs);
+        let end = poses.last().unwrap();
+        let truth = sim.truth.last().unwrap().1;
+        let err = (end.pose.x - truth.x).hypot(end.pose.y - truth.y);
+        // Unlearned, 0.004 rad/s over 30 s at 10 m/s is about 18 m off.
+        assert!(err < 3.0, "error after a 30 s outage with a learned bias: {err} m");
+        let State::Running { x, .. } = with.state else {
+            panic!("not running")
+        };
+        assert!((x[3] - bias).abs() < 0.001, "residual bias {}", x[3]);
+    }
+
+    #[test]
+    fn outlier_fixes_are_gated_and_a_lost_filter_resets() {
+        let mut sim = simulate(40.0, &|_| true, 0.0, 0.0);
+        // One wild fix at 15 s.
+        for i in sim.inputs.iter_mut() {
+            if let Input::Gnss { t_s, x_m, .. } = i {
+                if (*t_s - 15.005).abs() < 1e-9 {
+                    *x_m += 50.0;
+                }
+            }
+        }
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let poses = run(&mut fusion, &sim.inputs);
+        assert_eq!(fusion.stats().gnss_rejected, 1);
+        assert!(poses.iter().all(|p| p.mode != PoseMode::DeadReckoning));
+        // Now every fix after 20 s is shifted 30 m: gated at first, then a reset.
+        let mut shifted = simulate(50.0, &|_| true, 0.0, 0.0);
+        for i in shifted.inputs.iter_mut() {
+            if let Input::Gnss { t_s, y_m, .. } = i {
+                if *t_s > 20.0 {
+                    *y_m += 30.0;
+                }
+            }
+        }
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let poses = run(&mut fusion, &shifted.inputs);
+        let s = fusion.stats();
+        assert_eq!(s.position_resets, 1, "{s:?}");
+        assert!(poses[2500].mode == PoseMode::DeadReckoning, "fixes gated out: dead-reckoning");
+        let last = poses.last().unwrap();
+        let truth = shifted.truth.last().unwrap().1;
+        assert!((last.pose.y - truth.y - 30.0).abs() < 0.5, "follows the fixes after the reset");
+        assert_eq!(last.mode, PoseMode::Fused);
+    }
+
+    #[test]
+    fn heading_initialises_at_the_first_fix_and_wrong_headings_are_gated() {
+        let mut sim = simulate(20.0, &|_| true, 0.0, 2.5);
+        let heading_at = |t: f64, sim: &Sim| sim.truth[(t / 0.01).round() as usize].1.yaw;
+        let mut headings: Vec<Input> = (0..200)
+            .map(|k| {
+                let t = k as f64 * 0.1;
+                let wrong = if k == 100 { 1.0 } else { 0.0 };
+                Input::Heading {
+                    t_s: t,
+                    yaw_rad: wrap_angle(heading_at(t, &sim) + wrong),
+                    sigma_rad: Some(0.02),
+                }
+            })
+            .collect();
+        sim.inputs.append(&mut headings);
+        crate::inputs::sort_inputs(&mut sim.inputs);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let poses = run(&mut fusion, &sim.inputs);
+        assert_eq!(poses[0].mode, PoseMode::NoFix, "before the first fix");
+        assert_eq!(poses[1].mode, PoseMode::Fused, "heading + fix: initialised at the first fix");
+        assert_eq!(fusion.stats().heading_rejected, 1);
+        assert!(fusion.stats().heading_accepted > 150);
+    }
+
+    #[test]
+    fn estimate_switch_does_not_move_the_pose() {
+        let sim = simulate(20.0, &|t| t < 10.0, 0.0, 0.0);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let split = sim.inputs.iter().position(|i| i.t_s() > 15.0).unwrap();
+        let before = *run(&mut fusion, &sim.inputs[..split]).last().unwrap();
+        let mut new = params();
+        new.two_wheel.c_rl = 2.02;
+        new.two_wheel.c_rr = 2.02;
+        let old = fusion.set_estimate(new, 3);
+        assert_eq!(old, params());
+        let after = run(&mut fusion, &sim.inputs[split..split + 3]);
+        let first = after[0];
+        assert_eq!(first.estimate_version, 3);
+        // One wheel step at 10 m/s with 1 % longer circumferences: 0.101 m.
+        let step = (first.pose.x - before.pose.x).hypot(first.pose.y - before.pose.y);
+        assert!((step - 0.101).abs() < 1e-6, "{step}");
+    }
+
+    #[test]
+    fn stale_wheels_go_back_to_no_fix() {
+        let sim = simulate(20.0, &|_| true, 0.0, 0.0);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let poses = run(&mut fusion, &sim.inputs[..sim.inputs.len() / 2]);
+        assert_eq!(poses.last().unwrap().mode, PoseMode::Fused);
+        fusion.mark_stale();
+        assert_eq!(fusion.mode_at(10.0), PoseMode::NoFix);
+        assert_eq!(fusion.stats().stale, 1);
+        // A gap in the wheel samples longer than stale_after_s does the same.
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let gap: Vec<Input> = sim
+            .inputs
+            .iter()
+            .copied()
+            .filter(|i| !(matches!(i, Input::Wheels { .. }) && (8.0..9.0).contains(&i.t_s())))
+            .collect();
+        let poses = run(&mut fusion, &gap);
+        let after_gap = poses.iter().find(|p| p.t_s >= 9.0).unwrap();
+        assert_eq!(after_gap.mode, PoseMode::NoFix);
+        assert_eq!(poses.last().unwrap().mode, PoseMode::Fused, "initialises again");
+    }
+
+    #[test]
+    fn lever_arm_is_taken_into_account() {
+        // Antenna 1.2 m ahead of the rear axle: fixes are of the antenna.
+        let sim = simulate(30.0, &|_| true, 0.0, 0.0);
+        let arm = 1.2;
+        let inputs: Vec<Input> = sim
+            .inputs
+            .iter()
+            .map(|i| match *i {
+                Input::Gnss { t_s, x_m, y_m, sigma_m } => {
+                    let k = ((t_s - 0.005) / 0.01).round() as usize;
+                    let yaw = sim.truth[k].1.yaw;
+                    Input::Gnss {
+                        t_s,
+                        x_m: x_m + arm * yaw.cos(),
+                        y_m: y_m + arm * yaw.sin(),
+                        sigma_m,
+                    }
+                }
+                other => other,
+            })
+            .collect();
+        let mut cfg = config(HeadingMode::WheelDifference);
+        cfg.lever_arm_m = [arm, 0.0];
+        let mut fusion = Fusion::new(params(), 0, cfg);
+        let poses = run(&mut fusion, &inputs);
+        let (p, truth) = (poses.last().unwrap().pose, sim.truth.last().unwrap().1);
+        assert!((p.x - truth.x).hypot(p.y - truth.y) < 0.2, "{p:?} vs {truth:?}");
+    }
+
+    #[test]
+    fn non_finite_inputs_are_rejected_without_harm() {
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        let err = fusion
+            .process(&Input::Gnss {
+                t_s: 0.0,
+                x_m: f64::NAN,
+                y_m: 0.0,
+                sigma_m: None,
+            })
+            .unwrap_err();
+        assert!(err.to_string().contains("gnss") && err.to_string().contains("non-finite"), "{err}");
+        assert!(matches!(
+            fusion.process(&Input::Wheels {
+                t_s: 0.0,
+                rl_rev: f64::INFINITY,
+                rr_rev: 0.0
+            }),
+            Err(ProcessError::Input(_))
+        ));
+    }
+
+    #[test]
+    fn broken_covariance_is_a_typed_error_not_a_panic() {
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        fusion.state = State::Running {
+            x: Vec4::zeros(),
+            p: Mat4::from_element(f64::NAN),
+        };
+        fusion
+            .process(&Input::Gnss {
+                t_s: 0.0,
+                x_m: 0.0,
+                y_m: 0.0,
+                sigma_m: None,
+            })
+            .unwrap();
+        let err = fusion
+            .process(&Input::Wheels {
+                t_s: 0.0,
+                rl_rev: 0.0,
+                rr_rev: 0.0,
+            })
+            .unwrap_err();
+        assert!(matches!(err, ProcessError::Numerical(_)), "{err}");
+        assert_eq!(fusion.mode_at(0.0), PoseMode::NoFix, "reset after the failure");
+    }
+}

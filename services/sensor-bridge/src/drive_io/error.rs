@@ -1,0 +1,183 @@
+//! The one error type of drive input and output.
+
+use super::LoadedDrive;
+use std::path::PathBuf;
+
+/// Why a drive could not be read or written.
+///
+/// Every variant names the file, and the line/column or the MCAP channel,
+/// so that a user can find the fault without a debugger.
+#[derive(Debug, thiserror::Error)]
+pub enum DriveError {
+    /// A file or folder could not be read, written or created.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A required file of the drive folder is absent.
+    #[error("{}: required file is missing", path.display())]
+    MissingFile {
+        /// The file that should exist.
+        path: PathBuf,
+    },
+    /// The path is neither a drive folder nor an MCAP recording.
+    #[error("{}: not a drive folder or an MCAP file ({reason})", path.display())]
+    UnknownFormat {
+        /// The path given.
+        path: PathBuf,
+        /// What was found instead.
+        reason: String,
+    },
+    /// A TOML file (`vehicle.toml`, `truth.toml`) is malformed or lacks a key.
+    #[error("{}: {message}", path.display())]
+    Toml {
+        /// The TOML file (or the MCAP metadata record holding it).
+        path: PathBuf,
+        /// The parser's message (it names the key, line and column).
+        message: String,
+    },
+    /// A CSV header lacks a required column.
+    #[error("{}:{line}: missing required column `{column}`", path.display())]
+    MissingColumn {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the header (1-based).
+        line: usize,
+        /// The column that is required (or the alternatives, for wheels).
+        column: String,
+    },
+    /// `wheels.csv` has a column that looks like a wheel column but is not one
+    /// of `rl|rr|fl|fr` + `_rev|_ticks|_rad_s|_m_s`.
+    #[error(
+        "{}:{line}: unknown wheel column `{column}` (wheel columns are rl|rr|fl|fr followed by _rev, _ticks, _rad_s or _m_s)",
+        path.display()
+    )]
+    UnknownWheelColumn {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the header (1-based).
+        line: usize,
+        /// The offending column name.
+        column: String,
+    },
+    /// A CSV header is malformed (duplicate column, two units for one wheel,
+    /// both x/y and lat/lon, ...).
+    #[error("{}:{line}: {message}", path.display())]
+    BadHeader {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the header (1-based).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A CSV cell is not a finite number.
+    #[error("{}:{line}: column `{column}`: {reason}: `{cell}`", path.display())]
+    BadCell {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the row (1-based).
+        line: usize,
+        /// The column name.
+        column: String,
+        /// The cell's text.
+        cell: Box<str>,
+        /// Why it was refused ("not a number", "NaN or infinite values are not allowed").
+        reason: &'static str,
+    },
+    /// A required cell is empty.
+    #[error("{}:{line}: column `{column}`: required value is empty", path.display())]
+    MissingValue {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the row (1-based).
+        line: usize,
+        /// The column name.
+        column: String,
+    },
+    /// A row has a different number of cells than the header.
+    #[error("{}:{line}: {found} cells, but the header has {expected} columns", path.display())]
+    CellCount {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the row (1-based).
+        line: usize,
+        /// Cells in the header.
+        expected: usize,
+        /// Cells in the row.
+        found: usize,
+    },
+    /// `t_s` does not strictly increase.
+    #[error(
+        "{}:{line}: t_s = {t_s} does not increase (previous row has t_s = {previous_t_s}); times must strictly increase",
+        path.display()
+    )]
+    TimeNotIncreasing {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line of the offending row (1-based).
+        line: usize,
+        /// Its time.
+        t_s: f64,
+        /// The time of the row before it.
+        previous_t_s: f64,
+    },
+    /// The MCAP file is malformed (not truncated: wrong magic, bad record,
+    /// missing drive metadata, bad message on a channel).
+    #[error("{}: {location}: {message}", path.display())]
+    Mcap {
+        /// The MCAP file.
+        path: PathBuf,
+        /// Where: a byte offset, a channel and message number, or a metadata record.
+        location: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// The MCAP file ends in the middle of its data. `partial` holds
+    /// everything read before the damage.
+    #[error(
+        "{}: truncated ({file_len} bytes): {record}; read {messages_read} messages before the damage at byte {offset}",
+        path.display()
+    )]
+    TruncatedMcap {
+        /// The MCAP file.
+        path: PathBuf,
+        /// Byte offset where the damaged (incomplete) record starts, or the
+        /// file length when the file ends between records without a footer.
+        offset: u64,
+        /// Length of the file in bytes.
+        file_len: u64,
+        /// Which record is damaged and how.
+        record: String,
+        /// Messages recovered.
+        messages_read: usize,
+        /// The drive as far as it could be read (its warnings name the
+        /// damage); `None` when even the drive metadata was lost.
+        partial: Option<Box<LoadedDrive>>,
+    },
+    /// An in-memory drive cannot be written because it breaks the format's
+    /// rules (a non-finite value, times not increasing, ticks without
+    /// `ticks_per_rev`).
+    #[error("cannot write drive: {stream}[{index}]: {message}")]
+    InvalidDrive {
+        /// The stream (`wheels`, `gnss`, ... or `vehicle`).
+        stream: String,
+        /// Sample index within the stream.
+        index: usize,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+impl DriveError {
+    /// An [`DriveError::Io`] for `path`.
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> DriveError {
+        DriveError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

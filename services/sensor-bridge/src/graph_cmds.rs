@@ -1,0 +1,153 @@
+//! The `replay` and `record` subcommands: thin wrappers around
+//! [`sensor_bridge::replay`] and [`sensor_bridge::record`].
+//!
+//! Both join the graph named by `WHEELCAL_IOX_PREFIX` / `WHEELCAL_IOX_ROOT`
+//! (unset: iceoryx2's defaults).
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use interfaces::bus::Bus;
+use interfaces::drive::VehicleParams;
+use sensor_bridge::record::{record, RecordOptions};
+use sensor_bridge::replay::{replay, to_wire, Pacing, ReplayOptions};
+use sensor_bridge::{read_drive, write_drive, DriveError};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Arguments of `sensor-bridge replay`.
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// A drive folder or an .mcap recording.
+    pub drive: PathBuf,
+    /// Pace at FACTOR times real time.
+    #[arg(
+        long,
+        value_name = "FACTOR",
+        default_value_t = 1.0,
+        conflicts_with = "max"
+    )]
+    pub speed: f64,
+    /// As fast as the subscribers take the samples, losing none.
+    #[arg(long)]
+    pub max: bool,
+    /// Wait until every published topic has N subscribers before the first
+    /// sample (default: 1 with --max, 0 otherwise).
+    #[arg(long, value_name = "N")]
+    pub wait_subscribers: Option<usize>,
+    /// Give up waiting for subscribers after SECONDS (default: wait until Ctrl-C).
+    #[arg(long, value_name = "SECONDS")]
+    pub wait_timeout: Option<f64>,
+    /// Wait SECONDS between announcing the publishers and the first sample,
+    /// so that every subscriber attaches.
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.3)]
+    pub settle: f64,
+    /// Keep the publishers alive SECONDS after the last sample.
+    #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+    pub linger: f64,
+    /// Log progress every SECONDS of drive time (0: never).
+    #[arg(long, value_name = "SECONDS", default_value_t = 30.0)]
+    pub progress: f64,
+}
+
+/// Arguments of `sensor-bridge record`.
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    /// Output: an .mcap file (or a folder, written as a drive folder).
+    pub out: PathBuf,
+    /// Vehicle parameters for the recording: a vehicle.toml, or a drive
+    /// (folder or .mcap) to take them from. The bus does not carry them.
+    #[arg(long, value_name = "PATH")]
+    pub vehicle: PathBuf,
+    /// Stop when the publisher announces the end of its stream (default: at Ctrl-C).
+    #[arg(long)]
+    pub until_end: bool,
+}
+
+fn positive_seconds(name: &str, v: f64) -> Result<Duration> {
+    if !(v.is_finite() && v >= 0.0) {
+        bail!("--{name} {v} is not a non-negative number of seconds");
+    }
+    Ok(Duration::from_secs_f64(v))
+}
+
+/// `sensor-bridge replay`.
+pub fn run_replay(args: &ReplayArgs) -> Result<()> {
+    let loaded = match read_drive(&args.drive) {
+        Ok(l) => l,
+        Err(e) => return Err(e).with_context(|| format!("reading {}", args.drive.display())),
+    };
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+    let wire =
+        to_wire(&loaded.drive).with_context(|| format!("converting {}", args.drive.display()))?;
+    for w in &wire.warnings {
+        tracing::warn!("{w}");
+    }
+    let opts = ReplayOptions {
+        pacing: if args.max {
+            Pacing::Max
+        } else {
+            Pacing::Speed(args.speed)
+        },
+        wait_subscribers: args.wait_subscribers.unwrap_or(usize::from(args.max)),
+        wait_timeout: args
+            .wait_timeout
+            .map(|s| positive_seconds("wait-timeout", s))
+            .transpose()?,
+        settle: positive_seconds("settle", args.settle)?,
+        linger: positive_seconds("linger", args.linger)?,
+        progress_every_s: args.progress,
+    };
+    let bus = Bus::from_env("sensor-bridge").context("joining the iceoryx2 graph")?;
+    let stats = replay(&bus, &wire, &opts).context("replaying")?;
+    if stats.interrupted {
+        tracing::info!("replay interrupted after {} samples", stats.total());
+    }
+    Ok(())
+}
+
+/// Vehicle parameters from a vehicle.toml or a drive.
+fn load_vehicle(path: &Path) -> Result<VehicleParams> {
+    if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        return toml::from_str(&text).with_context(|| format!("parsing {}", path.display()));
+    }
+    match read_drive(path) {
+        Ok(l) => Ok(l.drive.vehicle),
+        Err(DriveError::TruncatedMcap {
+            partial: Some(p), ..
+        }) => Ok(p.drive.vehicle),
+        Err(e) => {
+            Err(e).with_context(|| format!("reading vehicle parameters from {}", path.display()))
+        }
+    }
+}
+
+/// `sensor-bridge record`.
+pub fn run_record(args: &RecordArgs) -> Result<()> {
+    let vehicle = load_vehicle(&args.vehicle)?;
+    let bus = Bus::from_env("sensor-bridge-record").context("joining the iceoryx2 graph")?;
+    let rec = record(
+        &bus,
+        &RecordOptions {
+            vehicle,
+            until_end_of_stream: args.until_end,
+            progress_every: Duration::from_secs(10),
+        },
+    )
+    .context("recording")?;
+    for w in &rec.warnings {
+        tracing::warn!("{w}");
+    }
+    write_drive(&rec.drive, &args.out)
+        .with_context(|| format!("writing {}", args.out.display()))?;
+    let [w, g, i, h] = rec.received;
+    tracing::info!(
+        "wrote {}: received {w} wheel, {g} GNSS, {i} IMU, {h} heading samples; lost {} (by sequence numbers)",
+        args.out.display(),
+        rec.lost.iter().sum::<u64>()
+    );
+    Ok(())
+}

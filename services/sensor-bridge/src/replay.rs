@@ -1,0 +1,599 @@
+//! Publishing a drive over iceoryx2: every stream on its service, with the
+//! recorded timestamps, in time order.
+//!
+//! [`to_wire`] turns a [`Drive`] into wire samples (pure); [`replay`] publishes
+//! them paced at a multiple of real time, or as fast as the subscribers take
+//! them ([`Pacing::Max`]: the sensor topics never overflow, the publisher waits
+//! for the slowest subscriber, so nothing is lost).
+//!
+//! Order: by time; at equal times IMU, GNSS, heading, then wheels, so a wheel
+//! sample comes after every other sample of its instant (the order the
+//! odometry processes its inputs in).
+
+use interfaces::bus::{self, Bus, BusError, TopicPublisher};
+use interfaces::drive::{Drive, WheelConversionError};
+use interfaces::wire::{GnssFix, Header, Heading, Imu, WheelRotations};
+use std::time::{Duration, Instant};
+
+/// How fast to publish.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pacing {
+    /// `factor` times real time (1.0 = as recorded).
+    Speed(f64),
+    /// As fast as the subscribers take the samples, losing none.
+    Max,
+}
+
+/// Options of [`replay`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayOptions {
+    /// Pace.
+    pub pacing: Pacing,
+    /// Before the first sample, wait until every topic the drive has counts at
+    /// least this many subscribers (so that none misses the start).
+    pub wait_subscribers: usize,
+    /// Give up waiting for subscribers after this long (`None`: wait forever,
+    /// until Ctrl-C).
+    pub wait_timeout: Option<Duration>,
+    /// After announcing the publishers, wait this long before the first
+    /// sample, so that every subscriber attaches (see `interfaces::bus`).
+    pub settle: Duration,
+    /// After the last sample, keep the publishers alive this long so that
+    /// slow subscribers can still take what is in their buffers.
+    pub linger: Duration,
+    /// Log progress every this many seconds of drive time (0 = never).
+    pub progress_every_s: f64,
+}
+
+impl Default for ReplayOptions {
+    fn default() -> Self {
+        ReplayOptions {
+            pacing: Pacing::Speed(1.0),
+            wait_subscribers: 0,
+            wait_timeout: None,
+            settle: Duration::from_millis(300),
+            linger: Duration::from_secs(1),
+            progress_every_s: 30.0,
+        }
+    }
+}
+
+/// Why a replay failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// The wheel values cannot be turned into revolutions.
+    #[error("wheels: {0}")]
+    Wheels(#[from] WheelConversionError),
+    /// The drive has no wheel sample to publish.
+    #[error("the drive has no wheel samples")]
+    NoWheels,
+    /// A speed factor that is not a positive number.
+    #[error("--speed {0} is not a positive number")]
+    BadSpeed(f64),
+    /// An iceoryx2 operation failed.
+    #[error(transparent)]
+    Bus(#[from] BusError),
+}
+
+/// A drive as wire samples, one vector per topic (sequence numbers are set
+/// when published).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WireDrive {
+    /// Rear (and front) wheels as cumulative revolutions.
+    pub wheels: Vec<WheelRotations>,
+    /// GNSS fixes (all with `fix = 1`: a drive's outage is a stretch without rows).
+    pub gnss: Vec<GnssFix>,
+    /// IMU samples.
+    pub imu: Vec<Imu>,
+    /// Absolute headings.
+    pub heading: Vec<Heading>,
+    /// What could not be put on the wire, and why.
+    pub warnings: Vec<String>,
+}
+
+/// Which topic a merged sample belongs to, in the order of equal-time ties.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Stream {
+    /// [`Imu`].
+    Imu,
+    /// [`GnssFix`].
+    Gnss,
+    /// [`Heading`].
+    Heading,
+    /// [`WheelRotations`].
+    Wheels,
+}
+
+impl WireDrive {
+    /// Every sample as `(stream, index)` in publishing order: by time, ties
+    /// broken IMU, GNSS, heading, wheels.
+    pub fn merged(&self) -> Vec<(Stream, usize)> {
+        let streams: [(Stream, Vec<i64>); 4] = [
+            (Stream::Imu, self.imu.iter().map(|s| s.header.t_ns).collect()),
+            (Stream::Gnss, self.gnss.iter().map(|s| s.header.t_ns).collect()),
+            (Stream::Heading, self.heading.iter().map(|s| s.header.t_ns).collect()),
+            (Stream::Wheels, self.wheels.iter().map(|s| s.header.t_ns).collect()),
+        ];
+        let total = streams.iter().map(|(_, t)| t.len()).sum();
+        let mut out = Vec::with_capacity(total);
+        let mut cursor = [0usize; 4];
+        loop {
+            let mut best: Option<(i64, usize)> = None;
+            for (k, (_, times)) in streams.iter().enumerate() {
+                if let Some(&t) = times.get(cursor[k]) {
+                    // Strict `<` keeps the earlier stream (the tie order) on ties.
+                    if best.is_none_or(|(bt, _)| t < bt) {
+                        best = Some((t, k));
+                    }
+                }
+            }
+            let Some((_, k)) = best else { break };
+            out.push((streams[k].0, cursor[k]));
+            cursor[k] += 1;
+        }
+        out
+    }
+
+    /// Time of the first and last sample of any stream, ns.
+    pub fn time_span_ns(&self) -> Option<(i64, i64)> {
+        let firsts = [
+            self.wheels.first().map(|s| s.header.t_ns),
+            self.gnss.first().map(|s| s.header.t_ns),
+            self.imu.first().map(|s| s.header.t_ns),
+            self.heading.first().map(|s| s.header.t_ns),
+        ];
+        let lasts = [
+            self.wheels.last().map(|s| s.header.t_ns),
+            self.gnss.last().map(|s| s.header.t_ns),
+            self.imu.last().map(|s| s.header.t_ns),
+            self.heading.last().map(|s| s.header.t_ns),
+        ];
+        Some((firsts.into_iter().flatten().min()?, lasts.into_iter().flatten().max()?))
+    }
+}
+
+/// Convert a drive into wire samples. Values that the wire types cannot carry
+/// are listed in [`WireDrive::warnings`] (never dropped silently).
+pub fn to_wire(drive: &Drive) -> Result<WireDrive, ReplayError> {
+    let mut out = WireDrive::default();
+    let revs = drive.wheel_revolutions()?;
+    if revs.is_empty() {
+        return Err(ReplayError::NoWheels);
+    }
+    let mut skipped_wheels = 0usize;
+    let mut partial_front = 0usize;
+    for r in &revs {
+        if !(r.rl.is_finite() && r.rr.is_finite()) {
+            skipped_wheels += 1;
+            continue;
+        }
+        let (front, fl, fr) = match (r.fl, r.fr) {
+            (Some(fl), Some(fr)) if fl.is_finite() && fr.is_finite() => {
+                (WheelRotations::FRONT_VALID, fl, fr)
+            }
+            (None, None) => (0, 0.0, 0.0),
+            _ => {
+                partial_front += 1;
+                (0, 0.0, 0.0)
+            }
+        };
+        out.wheels.push(WheelRotations {
+            header: Header::from_seconds(r.t_s, 0),
+            rl_rev: r.rl,
+            rr_rev: r.rr,
+            fl_rev: fl,
+            fr_rev: fr,
+            valid: front,
+            _pad: 0,
+        });
+    }
+    if skipped_wheels > 0 {
+        out.warnings.push(format!(
+            "wheels.csv: {skipped_wheels} rows without a finite rear-wheel value were not published"
+        ));
+    }
+    if partial_front > 0 {
+        out.warnings.push(format!(
+            "wheels.csv: {partial_front} rows with only one front wheel: their front values were not \
+             published (the wire carries both front wheels or none)"
+        ));
+    }
+    if let Some(gnss) = &drive.gnss {
+        out.gnss = gnss
+            .iter()
+            .map(|g| GnssFix {
+                header: Header::from_seconds(g.t_s, 0),
+                x_m: g.x_m,
+                y_m: g.y_m,
+                sigma_m: g.sigma_m.unwrap_or(0.0),
+                fix: 1,
+                _pad: [0; 7],
+            })
+            .collect();
+    }
+    if let Some(imu) = &drive.imu {
+        let mut partial_accel = 0usize;
+        let mut partial_rates = 0usize;
+        for s in imu {
+            let mut m = Imu {
+                header: Header::from_seconds(s.t_s, 0),
+                gz_rad_s: s.gz_rad_s,
+                ..Imu::default()
+            };
+            match (s.ax_m_s2, s.ay_m_s2, s.az_m_s2) {
+                (Some(ax), Some(ay), Some(az)) => {
+                    m.ax_m_s2 = ax;
+                    m.ay_m_s2 = ay;
+                    m.az_m_s2 = az;
+                    m.valid |= Imu::ACCEL_VALID;
+                }
+                (None, None, None) => {}
+                _ => partial_accel += 1,
+            }
+            match (s.gx_rad_s, s.gy_rad_s) {
+                (Some(gx), Some(gy)) => {
+                    m.gx_rad_s = gx;
+                    m.gy_rad_s = gy;
+                    m.valid |= Imu::ROLL_PITCH_RATE_VALID;
+                }
+                (None, None) => {}
+                _ => partial_rates += 1,
+            }
+            out.imu.push(m);
+        }
+        if partial_accel > 0 {
+            out.warnings.push(format!(
+                "imu.csv: {partial_accel} rows with some but not all of ax, ay, az: their \
+                 accelerations were not published (the wire carries all three or none)"
+            ));
+        }
+        if partial_rates > 0 {
+            out.warnings.push(format!(
+                "imu.csv: {partial_rates} rows with only one of gx, gy: their roll/pitch rates \
+                 were not published"
+            ));
+        }
+    }
+    if let Some(heading) = &drive.heading {
+        out.heading = heading
+            .iter()
+            .map(|h| Heading {
+                header: Header::from_seconds(h.t_s, 0),
+                yaw_rad: h.yaw_rad,
+                sigma_rad: h.sigma_rad.unwrap_or(0.0),
+            })
+            .collect();
+    }
+    if drive.truth.is_some() {
+        out.warnings.push(
+            "truth.csv is not published (scoring only: no estimator may read it)".to_string(),
+        );
+    }
+    Ok(out)
+}
+
+/// What a replay published.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReplayStats {
+    /// Wheel samples published.
+    pub wheels: u64,
+    /// GNSS fixes published.
+    pub gnss: u64,
+    /// IMU samples published.
+    pub imu: u64,
+    /// Headings published.
+    pub heading: u64,
+    /// Wall-clock seconds from the first to the last sample.
+    pub wall_s: f64,
+    /// Drive seconds from the first to the last sample.
+    pub drive_s: f64,
+    /// Stopped early by Ctrl-C / SIGTERM.
+    pub interrupted: bool,
+}
+
+impl ReplayStats {
+    /// Samples published, all topics.
+    pub fn total(&self) -> u64 {
+        self.wheels + self.gnss + self.imu + self.heading
+    }
+}
+
+/// GNSS gaps longer than this are announced in the log as outages.
+const OUTAGE_LOG_S: f64 = 2.0;
+
+/// Publish `wire` on `bus` (see the module doc). Returns early, with
+/// `interrupted` set, on Ctrl-C or SIGTERM.
+pub fn replay(bus: &Bus, wire: &WireDrive, opts: &ReplayOptions) -> Result<ReplayStats, ReplayError> {
+    if let Pacing::Speed(f) = opts.pacing {
+        if !(f.is_finite() && f > 0.0) {
+            return Err(ReplayError::BadSpeed(f));
+        }
+    }
+    if wire.wheels.is_empty() {
+        return Err(ReplayError::NoWheels);
+    }
+    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher()?;
+    let mut gnss = open_if(bus, !wire.gnss.is_empty())?;
+    let mut imu = open_if(bus, !wire.imu.is_empty())?;
+    let mut heading = open_if(bus, !wire.heading.is_empty())?;
+
+    if opts.wait_subscribers > 0 {
+        let want = opts.wait_subscribers;
+        tracing::info!("waiting for {want} subscriber(s) on every published topic");
+        bus::wait_until(
+            || {
+                let mut v = vec![(wheels.service_name(), wheels.subscriber_count(), want)];
+                let mut add = |name: &'static str, count: Option<usize>| {
+                    if let Some(c) = count {
+                        v.push((name, c, want));
+                    }
+                };
+                add(
+                    interfaces::wire::GNSS_SERVICE,
+                    gnss.as_ref().map(|p| p.subscriber_count()),
+                );
+                add(
+                    interfaces::wire::IMU_SERVICE,
+                    imu.as_ref().map(|p| p.subscriber_count()),
+                );
+                add(
+                    interfaces::wire::HEADING_SERVICE,
+                    heading.as_ref().map(|p| p.subscriber_count()),
+                );
+                v
+            },
+            opts.wait_timeout,
+        )?;
+    }
+
+    wheels.announce()?;
+    for r in [
+        gnss.as_ref().map(|p| p.announce()),
+        imu.as_ref().map(|p| p.announce()),
+        heading.as_ref().map(|p| p.announce()),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        r?;
+    }
+    if !bus::sleep_unless_shutdown(opts.settle) {
+        return Ok(ReplayStats {
+            interrupted: true,
+            ..ReplayStats::default()
+        });
+    }
+
+    let order = wire.merged();
+    let (t0, t_end) = wire.time_span_ns().ok_or(ReplayError::NoWheels)?;
+    let mut stats = ReplayStats {
+        drive_s: (t_end - t0) as f64 * 1e-9,
+        ..ReplayStats::default()
+    };
+    tracing::info!(
+        "replaying {:.1} s of drive: {} wheel, {} GNSS, {} IMU, {} heading samples, {}",
+        stats.drive_s,
+        wire.wheels.len(),
+        wire.gnss.len(),
+        wire.imu.len(),
+        wire.heading.len(),
+        match opts.pacing {
+            Pacing::Speed(f) => format!("at {f}x real time"),
+            Pacing::Max => "as fast as the subscribers take it".to_string(),
+        }
+    );
+    let start = Instant::now();
+    let mut next_progress_s = opts.progress_every_s;
+    let mut last_gnss_ns: Option<i64> = None;
+    let mut in_outage = false;
+    for (stream, i) in order {
+        let t_ns = match stream {
+            Stream::Wheels => wire.wheels[i].header.t_ns,
+            Stream::Gnss => wire.gnss[i].header.t_ns,
+            Stream::Imu => wire.imu[i].header.t_ns,
+            Stream::Heading => wire.heading[i].header.t_ns,
+        };
+        let drive_elapsed_s = (t_ns - t0) as f64 * 1e-9;
+        if let Pacing::Speed(f) = opts.pacing {
+            let due = Duration::from_secs_f64(drive_elapsed_s / f);
+            let now = start.elapsed();
+            if due > now && !bus::sleep_unless_shutdown(due - now) {
+                stats.interrupted = true;
+                break;
+            }
+        }
+        if bus::shutdown_requested() {
+            stats.interrupted = true;
+            break;
+        }
+        match stream {
+            Stream::Wheels => {
+                wheels.publish(wire.wheels[i])?;
+                stats.wheels += 1;
+                // GNSS silence is announced when the wheels pass the gap.
+                if let Some(last) = last_gnss_ns {
+                    let silent_s = (t_ns - last) as f64 * 1e-9;
+                    if !in_outage && silent_s > OUTAGE_LOG_S && !wire.gnss.is_empty() {
+                        in_outage = true;
+                        tracing::info!(
+                            "bridge: t = {:.1} s: GNSS silent for {:.1} s (outage in the drive)",
+                            t_ns as f64 * 1e-9,
+                            silent_s
+                        );
+                    }
+                }
+            }
+            Stream::Gnss => {
+                if let Some(p) = gnss.as_mut() {
+                    p.publish(wire.gnss[i])?;
+                    stats.gnss += 1;
+                }
+                if in_outage {
+                    in_outage = false;
+                    tracing::info!(
+                        "bridge: t = {:.1} s: GNSS back after {:.1} s",
+                        t_ns as f64 * 1e-9,
+                        last_gnss_ns.map_or(0.0, |l| (t_ns - l) as f64 * 1e-9)
+                    );
+                }
+                last_gnss_ns = Some(t_ns);
+            }
+            Stream::Imu => {
+                if let Some(p) = imu.as_mut() {
+                    p.publish(wire.imu[i])?;
+                    stats.imu += 1;
+                }
+            }
+            Stream::Heading => {
+                if let Some(p) = heading.as_mut() {
+                    p.publish(wire.heading[i])?;
+                    stats.heading += 1;
+                }
+            }
+        }
+        if opts.progress_every_s > 0.0 && drive_elapsed_s >= next_progress_s {
+            next_progress_s += opts.progress_every_s;
+            tracing::info!(
+                "bridge: t = {:.0} s of {:.0} s, {} samples published, {} subscriber(s) on wheels",
+                drive_elapsed_s,
+                stats.drive_s,
+                stats.total(),
+                wheels.subscriber_count()
+            );
+        }
+    }
+    stats.wall_s = start.elapsed().as_secs_f64();
+    if !stats.interrupted {
+        wheels.end_of_stream()?;
+        if let Some(p) = &gnss {
+            p.end_of_stream()?;
+        }
+        if let Some(p) = &imu {
+            p.end_of_stream()?;
+        }
+        if let Some(p) = &heading {
+            p.end_of_stream()?;
+        }
+        tracing::info!(
+            "bridge: published {} samples in {:.2} s ({:.0} samples/s); end of stream",
+            stats.total(),
+            stats.wall_s,
+            stats.total() as f64 / stats.wall_s.max(1e-9)
+        );
+        bus::sleep_unless_shutdown(opts.linger);
+    }
+    Ok(stats)
+}
+
+fn open_if<T: bus::Topic>(bus: &Bus, wanted: bool) -> Result<Option<TopicPublisher<T>>, BusError> {
+    if wanted {
+        bus.publisher::<T>().map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use interfaces::drive::{
+        GnssAntenna, GnssSample, ImuSample, VehicleParams, WheelSample, WheelSeries, WheelUnit,
+        WheelUnits,
+    };
+
+    fn drive() -> Drive {
+        Drive {
+            vehicle: VehicleParams {
+                name: None,
+                track_width_m: 1.5,
+                nominal_circumference_m: 2.0,
+                wheelbase_m: None,
+                ticks_per_rev: None,
+                gnss: GnssAntenna::default(),
+            },
+            wheels: WheelSeries {
+                units: WheelUnits::rear(WheelUnit::Rev),
+                samples: (0..5)
+                    .map(|i| WheelSample {
+                        t_s: i as f64 * 0.1,
+                        rl: i as f64,
+                        rr: 2.0 * i as f64,
+                        fl: None,
+                        fr: None,
+                    })
+                    .collect(),
+            },
+            gnss: Some(vec![
+                GnssSample {
+                    t_s: 0.0,
+                    x_m: 1.0,
+                    y_m: 2.0,
+                    sigma_m: None,
+                },
+                GnssSample {
+                    t_s: 0.2,
+                    x_m: 3.0,
+                    y_m: 4.0,
+                    sigma_m: Some(0.5),
+                },
+            ]),
+            imu: Some(vec![ImuSample {
+                t_s: 0.2,
+                gz_rad_s: 0.1,
+                ax_m_s2: Some(1.0),
+                ay_m_s2: None,
+                az_m_s2: None,
+                gx_rad_s: None,
+                gy_rad_s: None,
+            }]),
+            heading: None,
+            truth: None,
+            truth_params: None,
+        }
+    }
+
+    #[test]
+    fn samples_convert_and_merge_in_time_order_with_wheels_last_on_ties() {
+        let w = to_wire(&drive()).unwrap();
+        assert_eq!(w.wheels.len(), 5);
+        assert_eq!(w.wheels[3].rr_rev, 6.0);
+        assert_eq!(w.gnss[0].sigma_m, 0.0);
+        assert_eq!(w.gnss[1].sigma_m, 0.5);
+        assert_eq!(w.gnss[1].fix, 1);
+        assert_eq!(w.imu[0].valid, 0, "partial accelerations are not flagged valid");
+        assert!(w.warnings.iter().any(|m| m.contains("ax, ay, az")), "{:?}", w.warnings);
+        let order = w.merged();
+        assert_eq!(order.len(), 8);
+        // t = 0: GNSS before wheels; t = 0.2: IMU, GNSS, wheels.
+        assert_eq!(order[0], (Stream::Gnss, 0));
+        assert_eq!(order[1], (Stream::Wheels, 0));
+        assert_eq!(order[2], (Stream::Wheels, 1));
+        assert_eq!(&order[3..6], &[(Stream::Imu, 0), (Stream::Gnss, 1), (Stream::Wheels, 2)]);
+        let times: Vec<i64> = order
+            .iter()
+            .map(|&(s, i)| match s {
+                Stream::Wheels => w.wheels[i].header.t_ns,
+                Stream::Gnss => w.gnss[i].header.t_ns,
+                Stream::Imu => w.imu[i].header.t_ns,
+                Stream::Heading => w.heading[i].header.t_ns,
+            })
+            .collect();
+        assert!(times.windows(2).all(|p| p[0] <= p[1]));
+    }
+
+    #[test]
+    fn a_bad_speed_is_refused_before_anything_is_opened() {
+        let root = tempfile::tempdir().unwrap();
+        let settings = interfaces::bus::BusSettings::isolated("badspeed", root.path());
+        let bus = Bus::open(&settings, "t").unwrap();
+        let w = to_wire(&drive()).unwrap();
+        let opts = ReplayOptions {
+            pacing: Pacing::Speed(0.0),
+            ..ReplayOptions::default()
+        };
+        let err = replay(&bus, &w, &opts).unwrap_err();
+        assert!(err.to_string().contains("--speed 0"), "{err}");
+        drop(bus);
+        settings.remove_leftovers();
+    }
+}

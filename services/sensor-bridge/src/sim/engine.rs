@@ -1,0 +1,774 @@
+//! The simulation loop: driver, vehicle, wheels and sensors at a fixed step.
+
+use super::route::{PathPoint, Route};
+use super::scenarios::{self, ScenarioRoute};
+use super::sensors::{gauss, GaussMarkov};
+use super::vehicle::{self, VehicleSpec, G};
+use super::{SimConfig, SimError};
+use interfaces::drive::{
+    toml_value::Value, Drive, GnssAntenna, GnssSample, HeadingSample, ImuSample, TruthParams, TruthSample,
+    VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
+};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::collections::BTreeMap;
+use std::f64::consts::{PI, TAU};
+
+/// The driver acts at 100 Hz.
+const DRIVER_RATE_HZ: f64 = 100.0;
+/// Lag of the longitudinal force (powertrain and brakes), s.
+const FORCE_LAG_S: f64 = 0.12;
+/// Lag of the accelerations behind the load transfer (suspension), s.
+const SUSPENSION_LAG_S: f64 = 0.1;
+/// Below this speed the single-track model blends into the kinematic one, m/s.
+const BLEND_LOW_M_S: f64 = 1.5;
+/// Above this speed it is fully dynamic, m/s.
+const BLEND_HIGH_M_S: f64 = 3.0;
+/// Relaxation of the lateral states towards the kinematic ones at low speed, s.
+const KINEMATIC_RELAXATION_S: f64 = 0.02;
+/// Longest drive without an explicit duration, s.
+const DEFAULT_TIME_LIMIT_S: f64 = 7200.0;
+/// Longest drive with an explicit duration, s (100 h).
+const MAX_DURATION_S: f64 = 360_000.0;
+
+/// Vehicle constants derived from the spec and the effect knobs.
+struct Model {
+    spec: VehicleSpec,
+    a: f64,
+    b: f64,
+    l: f64,
+    m: f64,
+    track_rear_true: f64,
+    c_static: [f64; 4],
+    fz0_front: f64,
+    fz0_rear: f64,
+    /// Per-wheel cornering stiffness at static load (front, rear), N/rad;
+    /// `None`: no side-slip (kinematic single-track model).
+    cornering: Option<(f64, f64)>,
+    /// Per-wheel longitudinal slip stiffness, N per unit slip; `None`: no slip.
+    slip_stiffness: Option<f64>,
+    /// Relative radius change per relative lateral load change.
+    radius_load_coeff: f64,
+    k_v: f64,
+    drift: Option<(f64, f64)>,
+}
+
+/// Wheel order in arrays: rl, rr, fl, fr.
+const RL: usize = 0;
+const RR: usize = 1;
+const FL: usize = 2;
+const FR: usize = 3;
+
+#[derive(Debug, Clone, Copy, Default)]
+struct State {
+    x: f64,
+    y: f64,
+    psi: f64,
+    vx: f64,
+    vy: f64,
+    r: f64,
+    delta: f64,
+    force: f64,
+    /// Filtered body accelerations for the load transfer.
+    ax_f: f64,
+    ay_f: f64,
+    /// Last body accelerations (for the IMU).
+    ax: f64,
+    ay: f64,
+    revs: [f64; 4],
+}
+
+impl Model {
+    fn new(config: &SimConfig) -> Model {
+        let spec = config.vehicle.spec();
+        let (a, l, m) = (spec.cg_to_front_m, spec.wheelbase_m, spec.mass_kg);
+        let b = spec.cg_to_rear_m();
+        let c = config.true_circumferences();
+        let e = &config.effects;
+        // Rear-axle slip angle = m a_y a / (L C_r) in the linear range, so
+        // C_r = m a / (L k_beta); the front follows from the understeer gradient.
+        let cornering = e.side_slip.map(|s| {
+            let c_rear = m * a / (l * s.k_beta);
+            let c_front = m * b / (l * (s.k_beta + spec.understeer_rad_per_m_s2));
+            (0.5 * c_front, 0.5 * c_rear)
+        });
+        // Driven-axle slip = m a_x / C_x (both wheels) = k_s a_x.
+        let slip_stiffness = e.longitudinal_slip.map(|s| 0.5 * m / s.k_s);
+        let radius_load_coeff = e
+            .load_transfer_radius
+            .map_or(0.0, |k| k.k_z / spec.rear_load_gain());
+        Model {
+            a,
+            b,
+            l,
+            m,
+            track_rear_true: config.true_track_width(),
+            c_static: [c.rl, c.rr, c.fl, c.fr],
+            fz0_front: spec.static_load_front(),
+            fz0_rear: spec.static_load_rear(),
+            cornering,
+            slip_stiffness,
+            radius_load_coeff,
+            k_v: e.speed_radius_growth.map_or(0.0, |g| g.k_v),
+            drift: e.radius_drift.map(|d| (d.d, d.time_constant_s)),
+            spec,
+        }
+    }
+
+    /// One integration step of `dt` with steering and force commands.
+    fn step(&self, st: &mut State, t: f64, delta_cmd: f64, force_cmd: f64, grade: f64, dt: f64) {
+        let spec = &self.spec;
+        // Actuators: steering rate limit, force lag.
+        let max_d = spec.max_steer_rate_rad_s * dt;
+        st.delta = (st.delta + (delta_cmd - st.delta).clamp(-max_d, max_d)).clamp(-spec.max_steer_rad, spec.max_steer_rad);
+        st.force += (force_cmd - st.force) * dt / FORCE_LAG_S;
+
+        // Vertical loads: static, longitudinal and lateral transfer.
+        let h = spec.cg_height_m;
+        let d_long = self.m * st.ax_f * h / self.l / 2.0;
+        let d_lat_f = self.m * st.ay_f * h * (1.0 - spec.rear_roll_share) / spec.track_front_m;
+        let d_lat_r = self.m * st.ay_f * h * spec.rear_roll_share / spec.track_rear_m;
+        let fz = [
+            (self.fz0_rear + d_long - d_lat_r).max(0.0),
+            (self.fz0_rear + d_long + d_lat_r).max(0.0),
+            (self.fz0_front - d_long - d_lat_f).max(0.0),
+            (self.fz0_front - d_long + d_lat_f).max(0.0),
+        ];
+
+        // Longitudinal force: traction on the driven axle, braking split.
+        let f = st.force;
+        let (mut fx_front, mut fx_rear) = if f >= 0.0 {
+            if spec.rear_wheel_drive {
+                (0.0, f)
+            } else {
+                (f, 0.0)
+            }
+        } else {
+            (f * (1.0 - spec.rear_brake_share), f * spec.rear_brake_share)
+        };
+        let cap_f = 0.9 * spec.mu * (fz[FL] + fz[FR]);
+        let cap_r = 0.9 * spec.mu * (fz[RL] + fz[RR]);
+        fx_front = fx_front.clamp(-cap_f, cap_f);
+        fx_rear = fx_rear.clamp(-cap_r, cap_r);
+
+        let sec = (1.0 + grade * grade).sqrt();
+        let sin_g = grade / sec;
+        let resist = spec.resistance_n(st.vx) + self.m * G * sin_g;
+        let (sd, cd) = st.delta.sin_cos();
+        let (vx0, vy0, r0) = (st.vx, st.vy, st.r);
+
+        // Kinematic single-track derivatives (rear axle rolls without side-slip).
+        let dvx_kin = (fx_front * cd + fx_rear - resist) / self.m;
+        match self.cornering {
+            None => {
+                st.vx = (vx0 + dvx_kin * dt).max(0.0);
+                st.r = st.vx * st.delta.tan() / self.l;
+                st.vy = self.b * st.r;
+            }
+            Some((cf, cr)) => {
+                let r_kin = vx0 * st.delta.tan() / self.l;
+                let dvy_kin = (self.b * r_kin - vy0) / KINEMATIC_RELAXATION_S;
+                let dr_kin = (r_kin - r0) / KINEMATIC_RELAXATION_S;
+                let w = ((vx0 - BLEND_LOW_M_S) / (BLEND_HIGH_M_S - BLEND_LOW_M_S)).clamp(0.0, 1.0);
+                let lambda = w * w * (3.0 - 2.0 * w);
+                let (dvx, dvy, dr) = if lambda > 0.0 {
+                    let vx_eff = vx0.max(0.5);
+                    let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
+                    let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
+                    let mu = spec.mu;
+                    let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
+                        vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+                    };
+                    let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front) + fy(alpha_f, fz[FR], cf, self.fz0_front);
+                    let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear) + fy(alpha_r, fz[RR], cr, self.fz0_rear);
+                    let front_lat = fyf * cd + fx_front * sd;
+                    let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
+                    let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
+                    let dr_dyn = (self.a * front_lat - self.b * fyr) / spec.yaw_inertia_kg_m2;
+                    (
+                        lambda * dvx_dyn + (1.0 - lambda) * dvx_kin,
+                        lambda * dvy_dyn + (1.0 - lambda) * dvy_kin,
+                        lambda * dr_dyn + (1.0 - lambda) * dr_kin,
+                    )
+                } else {
+                    (dvx_kin, dvy_kin, dr_kin)
+                };
+                st.vx = vx0 + dvx * dt;
+                st.vy = vy0 + dvy * dt;
+                st.r = r0 + dr * dt;
+                if st.vx <= 0.0 {
+                    st.vx = 0.0;
+                    st.vy = 0.0;
+                    st.r = 0.0;
+                }
+            }
+        }
+        // Body accelerations of the CG.
+        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
+        st.ay = (st.vy - vy0) / dt + st.vx * st.r;
+        st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
+        st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
+
+        // Wheels: longitudinal speed of each contact point along its wheel.
+        let (vx, vy, r) = (st.vx, st.vy, st.r);
+        let half_r = 0.5 * self.track_rear_true;
+        let half_f = 0.5 * spec.track_front_m;
+        let tan_d = st.delta.tan();
+        let front_dir = |offset: f64| {
+            // Ackermann: tan(delta_i) = L tan(delta) / (L - offset tan(delta)).
+            let t = self.l * tan_d / (self.l - offset * tan_d);
+            let c = 1.0 / (1.0 + t * t).sqrt();
+            (c, t * c)
+        };
+        let (cl, sl) = front_dir(half_f);
+        let (cr_, sr) = front_dir(-half_f);
+        let v_front_lat = vy + self.a * r;
+        let v_long = [
+            vx - r * half_r,
+            vx + r * half_r,
+            (vx - r * half_f) * cl + v_front_lat * sl,
+            (vx + r * half_f) * cr_ + v_front_lat * sr,
+        ];
+        // Wheels roll along the slope (sec of the grade); the tyre grows with
+        // speed and warms up over time (a larger circumference turns less).
+        let mut growth = 1.0 + self.k_v * vx * vx;
+        if let Some((d, tc)) = self.drift {
+            growth *= 1.0 + d * (1.0 - (-t / tc).exp());
+        }
+        let common = sec / growth;
+        // Lateral load change of each wheel relative to its static load.
+        let q = [
+            -d_lat_r / self.fz0_rear,
+            d_lat_r / self.fz0_rear,
+            -d_lat_f / self.fz0_front,
+            d_lat_f / self.fz0_front,
+        ];
+        for i in 0..4 {
+            let slip = match self.slip_stiffness {
+                Some(cx) if v_long[i] > 0.0 => {
+                    let fx_wheel = 0.5 * if i < 2 { fx_rear } else { fx_front };
+                    vehicle::longitudinal_slip_for_force(fx_wheel, fz[i], spec.mu, cx)
+                }
+                _ => 0.0,
+            };
+            let c = self.c_static[i] * (1.0 - self.radius_load_coeff * q[i]);
+            st.revs[i] += v_long[i] * (1.0 + slip) * common / c * dt;
+        }
+
+        // Rear-axle pose (midpoint heading, as eq. (1)).
+        let v_rear_lat = vy - self.b * r;
+        let psi_mid = st.psi + 0.5 * r * dt;
+        let (s, c) = psi_mid.sin_cos();
+        st.x += (vx * c - v_rear_lat * s) * dt;
+        st.y += (vx * s + v_rear_lat * c) * dt;
+        st.psi += r * dt;
+    }
+}
+
+/// Steps between samples of a sensor at `rate_hz`.
+fn period_steps(name: &str, rate_hz: f64, dt: f64) -> Result<u64, SimError> {
+    let p = 1.0 / (rate_hz * dt);
+    let n = p.round();
+    if !(n >= 1.0 && (p - n).abs() < 1e-6) {
+        return Err(SimError::InvalidConfig(format!(
+            "{name} rate {rate_hz} Hz does not divide into the {:.4} s step",
+            dt
+        )));
+    }
+    Ok(n as u64)
+}
+
+fn validate(config: &SimConfig) -> Result<(), SimError> {
+    let bad = |s: String| Err(SimError::InvalidConfig(s));
+    if !(1e-4..=0.01).contains(&config.step_s) {
+        return bad(format!("step_s = {} must lie within [0.0001, 0.01]", config.step_s));
+    }
+    if let Some(d) = config.duration_s {
+        if !(d > 0.0 && d <= MAX_DURATION_S) {
+            return bad(format!("duration {d} s must lie within (0, {MAX_DURATION_S}]"));
+        }
+    }
+    let c = config.true_circumferences();
+    for (name, v) in [("rl", c.rl), ("rr", c.rr), ("fl", c.fl), ("fr", c.fr)] {
+        if !(v.is_finite() && (0.5..=5.0).contains(&v)) {
+            return bad(format!("true circumference of {name} = {v} m is out of range (check wear and unworn circumference)"));
+        }
+    }
+    let nominal = config.nominal_circumference();
+    if !(nominal.is_finite() && (0.5..=5.0).contains(&nominal)) {
+        return bad(format!("nominal circumference {nominal} m is out of range"));
+    }
+    let e = &config.effects;
+    let check = |id: &str, v: f64, lo: f64, hi: f64| -> Result<(), SimError> {
+        if v.is_finite() && (lo..=hi).contains(&v) {
+            Ok(())
+        } else {
+            Err(SimError::InvalidEffect {
+                spec: format!("{id}={v}"),
+                reason: format!("must lie within [{lo}, {hi}] (switch the effect off for none)"),
+            })
+        }
+    };
+    if let Some(s) = e.side_slip {
+        check("side_slip", s.k_beta, 0.001, 0.05)?;
+    }
+    if let Some(s) = e.longitudinal_slip {
+        check("longitudinal_slip", s.k_s, 1e-5, 0.05)?;
+    }
+    if let Some(k) = e.load_transfer_radius {
+        check("load_transfer_radius", k.k_z, 0.0, 0.01)?;
+    }
+    if let Some(k) = e.speed_radius_growth {
+        check("speed_radius_growth", k.k_v, -1e-4, 1e-4)?;
+    }
+    if let Some(d) = e.radius_drift {
+        check("radius_drift", d.d, -0.1, 0.1)?;
+        check("radius_drift.time_constant_s", d.time_constant_s, 1.0, 1e6)?;
+    }
+    if let Some(g) = e.road_grade {
+        check("road_grade", g.grade, 0.0, 0.3)?;
+    }
+    if let Some(t) = e.gnss_latency {
+        check("gnss_latency", t.tau_s, 0.0, 5.0)?;
+    }
+    let s = &config.sensors;
+    for (name, v) in [
+        ("gnss.white_sigma_m", s.gnss.white_sigma_m),
+        ("gnss.gm_sigma_m", s.gnss.gm_sigma_m),
+        ("gnss.outage_rate_per_h", s.gnss.outage_rate_per_h),
+        ("imu.gz_sigma_rad_s", s.imu.gz_sigma_rad_s),
+        ("imu.accel_sigma_m_s2", s.imu.accel_sigma_m_s2),
+        ("heading.sigma_deg", s.heading.sigma_deg),
+    ] {
+        if !(v.is_finite() && v >= 0.0) {
+            return bad(format!("sensor setting {name} = {v} must be finite and non-negative"));
+        }
+    }
+    for (name, v) in [("gnss.gm_tau_s", s.gnss.gm_tau_s), ("gnss.outage_mean_s", s.gnss.outage_mean_s)] {
+        if !(v.is_finite() && v > 0.0) {
+            return bad(format!("sensor setting {name} = {v} must be positive"));
+        }
+    }
+    Ok(())
+}
+
+/// Random GNSS outages (Poisson starts, exponential lengths), generated lazily.
+struct Outages {
+    rate_per_s: f64,
+    mean_s: f64,
+    start: f64,
+    end: f64,
+}
+
+impl Outages {
+    fn new(rate_per_h: f64, mean_s: f64, rng: &mut ChaCha8Rng) -> Outages {
+        let mut o = Outages {
+            rate_per_s: rate_per_h / 3600.0,
+            mean_s,
+            start: f64::INFINITY,
+            end: f64::INFINITY,
+        };
+        if o.rate_per_s > 0.0 {
+            o.schedule(0.0, rng);
+        }
+        o
+    }
+
+    fn schedule(&mut self, after: f64, rng: &mut ChaCha8Rng) {
+        let exp = |rng: &mut ChaCha8Rng, mean: f64| -mean * (1.0 - rng.random::<f64>()).ln();
+        self.start = after + exp(rng, 1.0 / self.rate_per_s);
+        self.end = self.start + exp(rng, self.mean_s);
+    }
+
+    fn active(&mut self, t: f64, rng: &mut ChaCha8Rng) -> bool {
+        while t >= self.end {
+            let end = self.end;
+            self.schedule(end, rng);
+        }
+        t >= self.start
+    }
+}
+
+fn rng_stream(seed: u64, stream: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(stream);
+    rng
+}
+
+fn wrap(a: f64) -> f64 {
+    let w = a.rem_euclid(TAU);
+    if w > PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+/// Which stop comes next (counting over laps) and the standstill at it.
+struct Stops {
+    next: usize,
+    standing_s: f64,
+}
+
+impl Stops {
+    /// Position (unwrapped arc length) and dwell of the `next` stop.
+    fn upcoming(&self, route: &Route) -> Option<(f64, f64)> {
+        let stops = route.stops();
+        if stops.is_empty() {
+            return None;
+        }
+        let (lap, i) = (self.next / stops.len(), self.next % stops.len());
+        if !route.is_closed() && lap > 0 {
+            return None;
+        }
+        let stop = stops[i];
+        Some((stop.s + lap as f64 * route.length(), stop.dwell_s))
+    }
+}
+
+struct Driver {
+    s_along: f64,
+    delta_cmd: f64,
+    force_cmd: f64,
+    parked: bool,
+}
+
+impl Driver {
+    /// Steering (pure pursuit on the rear axle with understeer feed-forward)
+    /// and the longitudinal force for the speed profile and stops.
+    fn act(&mut self, model: &Model, st: &State, route: &Route, stops: &mut Stops, dt_driver: f64) -> PathPoint {
+        let spec = &model.spec;
+        self.s_along = route.nearest_s(st.x, st.y, self.s_along, 12.0);
+        let here = route.at(self.s_along);
+        let lookahead = (3.0 + 0.45 * st.vx).clamp(3.0, 25.0);
+        let target = route.at(self.s_along + lookahead);
+        let (dx, dy) = (target.x - st.x, target.y - st.y);
+        let dist = dx.hypot(dy).max(0.5);
+        let alpha = dy.atan2(dx) - st.psi;
+        let kappa = 2.0 * alpha.sin() / dist;
+        let understeer = if model.cornering.is_some() {
+            spec.understeer_rad_per_m_s2 * st.vx * st.vx * kappa
+        } else {
+            0.0
+        };
+        self.delta_cmd = (model.l * kappa).atan() + understeer;
+
+        // Speed: the profile, or the approach to the next stop.
+        let mut v_ref = here.v_ref;
+        let mut a_ff = (st.vx * here.dv_ds).clamp(-here.attrs.decel, here.attrs.accel);
+        let mut hold = self.parked;
+        if let Some((s_stop, dwell)) = stops.upcoming(route) {
+            let to_go = s_stop - self.s_along;
+            let decel = here.attrs.decel;
+            let v_stop = (2.0 * decel * (to_go - 0.3).max(0.0)).sqrt();
+            if v_stop < v_ref {
+                v_ref = v_stop;
+                a_ff = if to_go > 0.3 { -decel } else { 0.0 };
+            }
+            if to_go < -2.0 {
+                // Overshot: the stop is behind us.
+                stops.next += 1;
+                stops.standing_s = 0.0;
+            } else if to_go < 1.5 && st.vx < 0.05 {
+                hold = true;
+                stops.standing_s += dt_driver;
+                if stops.standing_s >= dwell {
+                    stops.next += 1;
+                    stops.standing_s = 0.0;
+                    if !route.is_closed() && stops.upcoming(route).is_none() {
+                        self.parked = true;
+                    } else {
+                        hold = false;
+                    }
+                }
+            }
+        }
+        let grade_force = model.m * G * here.grade / (1.0 + here.grade * here.grade).sqrt();
+        let resist = spec.resistance_n(st.vx) + grade_force;
+        self.force_cmd = if hold {
+            -0.3 * model.m * G
+        } else {
+            let a_cmd = (0.8 * (v_ref - st.vx) + a_ff).clamp(-1.5 * here.attrs.decel.max(2.0), here.attrs.accel);
+            let f = model.m * a_cmd + resist;
+            f.min(model.m * spec.max_drive_accel_m_s2 + resist)
+        };
+        here
+    }
+}
+
+/// Run one simulation.
+pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
+    validate(config)?;
+    let grade_mag = config.effects.road_grade.map_or(0.0, |g| g.grade);
+    let ScenarioRoute {
+        route,
+        start_moving,
+        default_duration_s,
+    } = scenarios::build(config.scenario, grade_mag)?;
+    let model = Model::new(config);
+    let dt = config.step_s;
+    let sensors = &config.sensors;
+    let wheel_period = period_steps("wheel", sensors.wheels.rate_hz, dt)?;
+    let gnss_period = period_steps("GNSS", sensors.gnss.rate_hz, dt)?;
+    let imu_period = period_steps("IMU", sensors.imu.rate_hz, dt)?;
+    let heading_period = period_steps("heading", sensors.heading.rate_hz, dt)?;
+    let driver_period = period_steps("driver", DRIVER_RATE_HZ, dt)?;
+    let duration = config.duration_s.or(default_duration_s);
+    let end_step = duration.map(|d| (d / dt).round() as u64);
+    let limit_steps = (DEFAULT_TIME_LIMIT_S / dt) as u64;
+
+    let mut enc_rng = rng_stream(config.seed, 1);
+    let mut gnss_rng = rng_stream(config.seed, 2);
+    let mut gm_rng = rng_stream(config.seed, 3);
+    let mut outage_rng = rng_stream(config.seed, 4);
+    let mut imu_rng = rng_stream(config.seed, 5);
+    let mut heading_rng = rng_stream(config.seed, 6);
+    let phase: [f64; 4] = std::array::from_fn(|_| enc_rng.random::<f64>());
+    let gnss_dt = 1.0 / sensors.gnss.rate_hz;
+    let mut gm = [
+        GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
+        GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
+    ];
+    let mut outages = Outages::new(sensors.gnss.outage_rate_per_h, sensors.gnss.outage_mean_s, &mut outage_rng);
+
+    let e = &config.effects;
+    let gyro_bias = e.gyro_bias.map_or(0.0, |b| b.b_deg_h.to_radians() / 3600.0);
+    let gyro_scale = e.gyro_scale.map_or(0.0, |s| s.s);
+    let latency = e.gnss_latency.map_or(0.0, |l| l.tau_s);
+    let lever = e.gnss_lever_arm.map_or((0.0, 0.0), |l| (l.x_m, l.y_m));
+
+    let start = route.at(0.0);
+    let mut st = State {
+        x: start.x,
+        y: start.y,
+        psi: route.start_heading(),
+        ..State::default()
+    };
+    let mut driver = Driver {
+        s_along: 0.0,
+        delta_cmd: 0.0,
+        force_cmd: 0.0,
+        parked: false,
+    };
+    if start_moving {
+        st.vx = start.v_ref;
+        st.vy = 0.0;
+        st.force = model.spec.resistance_n(st.vx);
+    }
+    let mut stops = Stops {
+        next: 0,
+        standing_s: 0.0,
+    };
+
+    let capacity = |period: u64| {
+        let steps = end_step.unwrap_or(300_000);
+        (steps / period + 2) as usize
+    };
+    let mut wheels = Vec::with_capacity(capacity(wheel_period));
+    let mut truth = Vec::with_capacity(capacity(wheel_period));
+    let mut gnss = Vec::with_capacity(capacity(gnss_period));
+    let mut imu = Vec::with_capacity(capacity(imu_period));
+    let mut heading = Vec::with_capacity(capacity(heading_period));
+    let ticks = sensors.wheels.ticks_per_rev.map(f64::from);
+    let mut here = route.at(0.0);
+
+    let mut k: u64 = 0;
+    loop {
+        let t = k as f64 * dt;
+        if k % driver_period == 0 {
+            here = driver.act(&model, &st, &route, &mut stops, driver_period as f64 * dt);
+        }
+        if k % wheel_period == 0 {
+            if !(st.x.is_finite() && st.y.is_finite() && st.psi.is_finite() && st.vx.is_finite()) {
+                return Err(SimError::Numerical {
+                    t_s: t,
+                    what: "vehicle state".into(),
+                });
+            }
+            let value = |i: usize| match ticks {
+                Some(n) => (st.revs[i] * n + phase[i]).floor(),
+                None => st.revs[i],
+            };
+            wheels.push(WheelSample {
+                t_s: t,
+                rl: value(RL),
+                rr: value(RR),
+                fl: Some(value(FL)),
+                fr: Some(value(FR)),
+            });
+            truth.push(TruthSample {
+                t_s: t,
+                x_m: st.x,
+                y_m: st.y,
+                yaw_rad: Some(wrap(st.psi)),
+            });
+            let done = match end_step {
+                Some(end) => k >= end,
+                None => {
+                    if route.is_closed() && route.stops().last().is_none_or(|s| s.s < route.length() - 1.0) {
+                        driver.s_along >= route.length()
+                    } else {
+                        // Ends at its final stop once the dwell is over.
+                        let n = route.stops().len();
+                        n > 0 && stops.next >= n
+                    }
+                }
+            };
+            if done {
+                break;
+            }
+            if end_step.is_none() && k >= limit_steps {
+                return Err(SimError::Stuck {
+                    scenario: config.scenario.name().to_string(),
+                    limit_s: DEFAULT_TIME_LIMIT_S,
+                    s_m: driver.s_along,
+                });
+            }
+        }
+        if sensors.imu.enabled && k % imu_period == 0 {
+            let sigma = sensors.imu.gz_sigma_rad_s;
+            let sa = sensors.imu.accel_sigma_m_s2;
+            let pitch = here.grade.atan();
+            let pitch_rate = here.dgrade_ds * st.vx / (1.0 + here.grade * here.grade);
+            imu.push(ImuSample {
+                t_s: t,
+                gz_rad_s: (1.0 + gyro_scale) * st.r + gyro_bias + sigma * gauss(&mut imu_rng),
+                ax_m_s2: Some(st.ax + G * pitch.sin() + sa * gauss(&mut imu_rng)),
+                ay_m_s2: Some(st.ay + sa * gauss(&mut imu_rng)),
+                az_m_s2: Some(G * pitch.cos() + sa * gauss(&mut imu_rng)),
+                gx_rad_s: None,
+                gy_rad_s: Some(pitch_rate + sigma * gauss(&mut imu_rng)),
+            });
+        }
+        if sensors.gnss.enabled && k % gnss_period == 0 {
+            let noise = [gm[0].step(gnss_dt, &mut gm_rng), gm[1].step(gnss_dt, &mut gm_rng)];
+            let white = sensors.gnss.white_sigma_m;
+            let wx = white * gauss(&mut gnss_rng);
+            let wy = white * gauss(&mut gnss_rng);
+            let out = outages.active(t, &mut outage_rng);
+            if !here.attrs.gnss_denied && !out {
+                let (s, c) = st.psi.sin_cos();
+                let sigma = sensors.gnss.sigma_m();
+                gnss.push(GnssSample {
+                    t_s: t + latency,
+                    x_m: st.x + c * lever.0 - s * lever.1 + noise[0] + wx,
+                    y_m: st.y + s * lever.0 + c * lever.1 + noise[1] + wy,
+                    sigma_m: (sigma > 0.0).then_some(sigma),
+                });
+            }
+        }
+        if sensors.heading.enabled && k % heading_period == 0 {
+            let sigma = sensors.heading.sigma_deg.to_radians();
+            let bias = e.heading_bias.map_or(0.0, |h| h.error_rad(st.psi));
+            heading.push(HeadingSample {
+                t_s: t,
+                yaw_rad: wrap(st.psi + bias + sigma * gauss(&mut heading_rng)),
+                sigma_rad: (sigma > 0.0).then_some(sigma),
+            });
+        }
+        model.step(&mut st, t, driver.delta_cmd, driver.force_cmd, here.grade, dt);
+        k += 1;
+    }
+
+    let t_end = wheels.last().map_or(0.0, |w| w.t_s);
+    // A late-stamped fix after the recording stopped would not be in the log.
+    gnss.retain(|g| g.t_s <= t_end + 1e-9);
+    imu.retain(|s| s.t_s <= t_end + 1e-9);
+    heading.retain(|s| s.t_s <= t_end + 1e-9);
+
+    let spec = &model.spec;
+    let unit = if ticks.is_some() { WheelUnit::Ticks } else { WheelUnit::Rev };
+    let truth_params = TruthParams {
+        track_width_m: config.true_track_width(),
+        circumference_m: config.true_circumferences(),
+        effects: config.effects.to_truth_map(),
+        extra: extra_keys(config, &route, t_end),
+    };
+    Ok(Drive {
+        vehicle: VehicleParams {
+            name: Some(format!("simulated {} ({} scenario)", config.vehicle.name(), config.scenario.name())),
+            track_width_m: spec.track_rear_m,
+            nominal_circumference_m: config.nominal_circumference(),
+            wheelbase_m: Some(spec.wheelbase_m),
+            ticks_per_rev: ticks,
+            gnss: GnssAntenna::default(),
+        },
+        wheels: WheelSeries {
+            units: WheelUnits::all(unit),
+            samples: wheels,
+        },
+        gnss: sensors.gnss.enabled.then_some(gnss),
+        imu: sensors.imu.enabled.then_some(imu),
+        heading: sensors.heading.enabled.then_some(heading),
+        truth: Some(truth),
+        truth_params: Some(truth_params),
+    })
+}
+
+fn extra_keys(config: &SimConfig, route: &Route, t_end: f64) -> BTreeMap<String, Value> {
+    let f = Value::Float;
+    let table = |pairs: Vec<(&str, Value)>| Value::Table(pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect());
+    let s = &config.sensors;
+    let w = &config.wear_mm;
+    let spec = config.vehicle.spec();
+    let mut extra = BTreeMap::new();
+    extra.insert("scenario".into(), Value::String(config.scenario.name().into()));
+    extra.insert(
+        "seed".into(),
+        i64::try_from(config.seed).map_or_else(|_| Value::String(config.seed.to_string()), Value::Integer),
+    );
+    extra.insert("vehicle".into(), Value::String(config.vehicle.name().into()));
+    extra.insert("duration_s".into(), f(t_end));
+    extra.insert("route_length_m".into(), f(route.length()));
+    extra.insert("step_s".into(), f(config.step_s));
+    extra.insert("unworn_circumference_m".into(), f(config.unworn_circumference()));
+    extra.insert("nominal_track_width_m".into(), f(spec.track_rear_m));
+    extra.insert(
+        "driven_axle".into(),
+        Value::String(if spec.rear_wheel_drive { "rear" } else { "front" }.into()),
+    );
+    extra.insert(
+        "wear_mm".into(),
+        table(vec![("rl", f(w.rl)), ("rr", f(w.rr)), ("fl", f(w.fl)), ("fr", f(w.fr))]),
+    );
+    let mut wheels = vec![("rate_hz", f(s.wheels.rate_hz))];
+    if let Some(t) = s.wheels.ticks_per_rev {
+        wheels.push(("ticks_per_rev", Value::Integer(i64::from(t))));
+    }
+    extra.insert(
+        "sensors".into(),
+        table(vec![
+            ("wheels", table(wheels)),
+            (
+                "gnss",
+                table(vec![
+                    ("enabled", Value::Bool(s.gnss.enabled)),
+                    ("rate_hz", f(s.gnss.rate_hz)),
+                    ("white_sigma_m", f(s.gnss.white_sigma_m)),
+                    ("gm_sigma_m", f(s.gnss.gm_sigma_m)),
+                    ("gm_tau_s", f(s.gnss.gm_tau_s)),
+                    ("outage_rate_per_h", f(s.gnss.outage_rate_per_h)),
+                    ("outage_mean_s", f(s.gnss.outage_mean_s)),
+                ]),
+            ),
+            (
+                "imu",
+                table(vec![
+                    ("enabled", Value::Bool(s.imu.enabled)),
+                    ("rate_hz", f(s.imu.rate_hz)),
+                    ("gz_sigma_rad_s", f(s.imu.gz_sigma_rad_s)),
+                    ("accel_sigma_m_s2", f(s.imu.accel_sigma_m_s2)),
+                ]),
+            ),
+            (
+                "heading",
+                table(vec![
+                    ("enabled", Value::Bool(s.heading.enabled)),
+                    ("rate_hz", f(s.heading.rate_hz)),
+                    ("sigma_deg", f(s.heading.sigma_deg)),
+                ]),
+            ),
+        ]),
+    );
+    extra
+}
