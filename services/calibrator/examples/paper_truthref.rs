@@ -1,5 +1,5 @@
 //! The paper loop with the truth as the reference (isolates layers 2-3 from layer 1).
-use calibrator::{prep, reference::Reference, CalibrationConfig};
+use calibrator::{prep, CalibrationConfig};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 fn main() -> anyhow::Result<()> {
     let seed: u64 = std::env::args().nth(1).and_then(|s| s.parse().ok()).unwrap_or(1);
@@ -9,7 +9,7 @@ fn main() -> anyhow::Result<()> {
     let config = CalibrationConfig { time_offset: calibrator::TimeOffsetMode::Off, ..CalibrationConfig::default() };
     let mut w = Vec::new();
     let p = prep::prepare(&drive, &config, &mut w)?;
-    let mut r = calibrator::reference::build(&p, &config, &mut w)?;
+    let mut r = calibrator::reference::build(&p, &drive, &config, &mut w)?;
     let truth = drive.truth.as_ref().unwrap();
     let mut dev = (0.0, 0.0, 0.0);
     for k in 0..p.len() {
@@ -30,7 +30,7 @@ fn main() -> anyhow::Result<()> {
             r.valid[k] = true;
         }
     }
-    let res = calibrator::paper::run(&p, &r, &config, &mut |_| {})?;
+    let res = calibrator::paper::run(&p, &r, &config, &mut w, &mut |_| {})?;
     for it in &res.iterations {
         println!("{} {:.5} {:.5} {:.2}", it.n, it.circumference_m.rl, it.circumference_m.rr, it.dr_error_mean_m);
     }

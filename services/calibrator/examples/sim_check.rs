@@ -11,7 +11,22 @@ fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let seed: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1);
     let scenario = args.get(4).map_or(Ok(Scenario::Paper), |s| Scenario::from_name(s))?;
-    let drive = simulate(&SimConfig::new(scenario, seed))?;
+    let mut sim = SimConfig::new(scenario, seed);
+    for kv in args.iter().skip(5) {
+        if kv == "noiseless" {
+            sim.sensors = sensor_bridge::sim::SensorSettings::noiseless();
+        }
+        if let Some(e) = kv.strip_prefix("effect=") {
+            sim.effects.apply_spec(e)?;
+        }
+        if let Some(e) = kv.strip_prefix("sensor=") {
+            sim.sensors.apply_spec(e)?;
+        }
+        if let Some(e) = kv.strip_prefix("duration=") {
+            sim.duration_s = Some(e.parse()?);
+        }
+    }
+    let drive = simulate(&sim)?;
     let truth = drive.truth_params.clone().ok_or_else(|| anyhow::anyhow!("no truth"))?;
     let mut config = CalibrationConfig {
         compare: true,
@@ -32,6 +47,8 @@ fn main() -> anyhow::Result<()> {
             "iter" => config.iterations = v.parse()?,
             "noaccel" => config.use_imu_acceleration = false,
             "track" => config.track_width = calibrator::TrackWidthMode::Estimate,
+            "fixedtrack" => config.track_width = calibrator::TrackWidthMode::Fixed,
+            "noiseless" | "effect" | "sensor" | "duration" => {}
             _ => anyhow::bail!("unknown option {k}"),
         }
     }

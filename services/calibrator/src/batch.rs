@@ -37,7 +37,10 @@ use crate::report::{IterationRecord, MethodResult, RearPair, Warning, WarningCod
 use crate::uncertainty::{jackknife_covariance, Sigmas, NO_TURN_DEG};
 use crate::{CalibrationConfig, CalibrationError, Method, TrackWidthMode};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
-use odometry::two_wheel::{step, Pose2, TwoWheelParams};
+use odometry::two_wheel::{Pose2, TwoWheelParams};
+
+/// Drive time (s) the early, short-segment stages look at.
+const EARLY_STAGE_S: f64 = 600.0;
 
 /// Largest number of global parameters of any model.
 pub const MAX_GLOBAL: usize = 4;
@@ -255,6 +258,21 @@ struct EvalSettings {
 
 const HUBER_K: f64 = 3.0;
 
+/// sin and cos of a small angle by their series (exact to ~1e-13 below
+/// 0.05 rad), the library functions above that.
+#[inline]
+fn small_sin_cos(a: f64) -> (f64, f64) {
+    if a.abs() < 0.05 {
+        let a2 = a * a;
+        (
+            a * (1.0 - a2 / 6.0 * (1.0 - a2 / 20.0)),
+            1.0 - a2 / 2.0 * (1.0 - a2 / 12.0 * (1.0 - a2 / 30.0)),
+        )
+    } else {
+        a.sin_cos()
+    }
+}
+
 fn huber(u: f64) -> (f64, f64) {
     // (cost, IRLS weight)
     if u <= HUBER_K {
@@ -287,6 +305,8 @@ fn eval_segment(
         y: pose0[1],
         yaw: pose0[2],
     };
+    // The heading as a unit vector, turned step by step (no sin/cos per step).
+    let (mut sh, mut ch) = pose0[2].sin_cos();
     // Derivatives of x, y, yaw by the global parameters.
     let mut dx = [0.0; MAX_GLOBAL];
     let mut dy = [0.0; MAX_GLOBAL];
@@ -294,6 +314,11 @@ fn eval_segment(
     let mut prev = (pose, dx, dy, dth);
     let mut fi = seg.fixes.start;
     let slip = model.slip();
+    let (gain, gain_index) = match slip {
+        SlipGain::Off => (0.0, None),
+        SlipGain::Fixed(v) => (v, None),
+        SlipGain::Parameter(i) => (g[i], Some(i)),
+    };
     let (mut d_ds, mut d_dyaw) = ([0.0; MAX_GLOBAL], [0.0; MAX_GLOBAL]);
     let [lx, ly] = s.lever;
     for k in seg.k0..seg.k1 {
@@ -301,29 +326,33 @@ fn eval_segment(
             let Some((ds, dyaw)) = model.increments(k, g, &mut d_ds, &mut d_dyaw) else {
                 break;
             };
-            let dt = (p.t[k] - p.t[k - 1]).max(1e-6);
-            let (gain, gain_index) = match slip {
-                SlipGain::Off => (0.0, None),
-                SlipGain::Fixed(v) => (v, None),
-                SlipGain::Parameter(i) => (g[i], Some(i)),
-            };
-            let ay = ds * dyaw / (dt * dt);
+            // a_y is data here (smoothed, nominal values), so beta depends on
+            // the parameters only through the gain.
+            let ay = p.lateral_accel[k];
             let beta = -gain * ay;
-            let course = pose.yaw + 0.5 * dyaw + beta;
-            let (sc, cc) = course.sin_cos();
+            // Eq. (1): course = theta + dtheta/2 + beta.
+            let (sa, ca) = small_sin_cos(0.5 * dyaw + beta);
+            let (sc, cc) = (sh * ca + ch * sa, ch * ca - sh * sa);
             if s.jacobian {
                 for j in 0..ng {
-                    let mut dbeta = -gain * (d_ds[j] * dyaw + ds * d_dyaw[j]) / (dt * dt);
-                    if gain_index == Some(j) {
-                        dbeta += -ay;
-                    }
+                    let dbeta = if gain_index == Some(j) { -ay } else { 0.0 };
                     let dcourse = dth[j] + 0.5 * d_dyaw[j] + dbeta;
                     dx[j] += d_ds[j] * cc - ds * sc * dcourse;
                     dy[j] += d_ds[j] * sc + ds * cc * dcourse;
                     dth[j] += d_dyaw[j];
                 }
             }
-            pose = step(pose, ds, dyaw, beta);
+            pose = Pose2 {
+                x: pose.x + ds * cc,
+                y: pose.y + ds * sc,
+                yaw: pose.yaw + dyaw,
+            };
+            let (sd, cd) = small_sin_cos(dyaw);
+            (sh, ch) = (sh * cd + ch * sd, ch * cd - sh * sd);
+            if (k - seg.k0) % 64 == 0 {
+                let norm = (sh * sh + ch * ch).sqrt();
+                (sh, ch) = (sh / norm, ch / norm);
+            }
         }
         // Fixes in (t[k-1], t[k]] (or exactly at t[k0]).
         while fi < seg.fixes.end && fixes[fi].t <= p.t[k] {
@@ -497,12 +526,20 @@ pub fn fit(
     let mut steps = Vec::new();
     let mut last: Option<(Vec<Segment>, Vec<[f64; 3]>, usize, f64)> = None;
     for (stage, &len) in stage_lengths.iter().enumerate() {
-        let (segs, dropped) = make_segments(p, &fixes, len, breaks);
+        let last_stage = stage + 1 == stage_lengths.len();
+        let (mut segs, dropped) = make_segments(p, &fixes, len, breaks);
         if segs.is_empty() {
             return Err(CalibrationError::TooShort {
                 distance_m: r.distance_m,
                 needed_m: 50.0,
             });
+        }
+        if !last_stage {
+            // The early stages only bring the parameters near: on a long drive
+            // about 10 minutes of segments, spread over it, are enough.
+            let total: f64 = segs.iter().map(|s| p.t[s.k1 - 1] - p.t[s.k0]).sum();
+            let every = (total / EARLY_STAGE_S).ceil().max(1.0) as usize;
+            segs = segs.into_iter().step_by(every).collect();
         }
         let mut poses: Vec<[f64; 3]> = segs.iter().map(|s| [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]]).collect();
         let mut settings = EvalSettings {
@@ -511,7 +548,6 @@ pub fn fit(
             jacobian: false,
             block_fixes: 0,
         };
-        // First fit the poses alone would be cheap, but LM copes: go.
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
             let mut total = 0.0;
@@ -526,11 +562,11 @@ pub fn fit(
         };
         // Robust scale from the residuals at the start of the stage.
         settings.scale = robust_scale(&eval_all(&g, &poses, &settings).1);
+        settings.jacobian = true;
+        let tolerance = if last_stage { 1e-8 } else { 1e-5 };
+        let (mut cost, mut evals) = eval_all(&g, &poses, &settings);
         for it in 0..40 {
-            settings.jacobian = true;
-            let (cost, evals) = eval_all(&g, &poses, &settings);
-            settings.jacobian = false;
-            let accs: Vec<Acc> = evals.into_iter().filter_map(|e| e.acc).collect();
+            let accs: Vec<Acc> = evals.iter().filter_map(|e| e.acc.clone()).collect();
             let mut accepted = false;
             let mut converged = false;
             while lambda < 1e10 {
@@ -544,15 +580,17 @@ pub fn fit(
                     .zip(&dl)
                     .map(|(q, d)| [q[0] + d[0], q[1] + d[1], q[2] + d[2]])
                     .collect();
-                let (cost_new, _) = eval_all(&g_new, &poses_new, &settings);
+                // The trial carries its Jacobian: accepted, it is the next linearisation.
+                let (cost_new, evals_new) = eval_all(&g_new, &poses_new, &settings);
                 if cost_new.is_finite() && cost_new <= cost {
                     let rel = (cost - cost_new) / cost.max(1e-300);
-                    let small = dg.iter().zip(&g).all(|(d, v)| d.abs() <= 1e-9 * v.abs().max(1e-3));
                     g = g_new;
                     poses = poses_new;
+                    cost = cost_new;
+                    evals = evals_new;
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
-                    converged = rel < 1e-10 || small;
+                    converged = rel < tolerance;
                     break;
                 }
                 lambda *= 5.0;
@@ -562,7 +600,8 @@ pub fn fit(
             }
             if it % 4 == 3 {
                 // Re-estimate the robust scale as the fit improves.
-                settings.scale = robust_scale(&eval_all(&g, &poses, &settings).1);
+                settings.scale = robust_scale(&evals);
+                (cost, evals) = eval_all(&g, &poses, &settings);
             }
         }
         if !g.iter().all(|v| v.is_finite()) {
@@ -725,13 +764,13 @@ impl Fit {
     }
 }
 
-/// Stage lengths: from short segments up to `final_len`.
+/// Stage lengths: from 10 s segments, four times longer each stage, up to `final_len`.
 pub fn stages(final_len: f64) -> Vec<f64> {
     let mut out = Vec::new();
     let mut l = 10.0;
-    while l < final_len {
+    while l * 1.5 < final_len {
         out.push(l);
-        l *= 3.0;
+        l *= 4.0;
     }
     out.push(final_len);
     out
@@ -814,7 +853,7 @@ pub fn run(
             detail: format!("track width {track:.3} m, more than 50 % from the nominal {:.3} m", p.track),
         });
     }
-    let slip = slip_value.map_or(Slip::None, Slip::Gain);
+    let slip = slip_value.map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
     let params = |g: &[f64]| TwoWheelParams {
         c_rl: g[0],
         c_rr: g[1],
@@ -829,7 +868,9 @@ pub fn run(
         dr_error_max_m: before.max_m,
     }];
     for (i, (_, g)) in fit.steps.iter().enumerate() {
-        let s = slip_gain.then(|| g[g.len() - 1]).map_or(Slip::None, Slip::Gain);
+        let s = slip_gain
+            .then(|| g[g.len() - 1])
+            .map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
         let d = dr_deviation(p, r, &params(g), s, 0);
         iterations.push(IterationRecord {
             n: i + 1,

@@ -137,11 +137,16 @@ pub fn solve2(a: &Matrix2<f64>, b: &Vector2<f64>) -> Option<Vector2<f64>> {
 ///
 /// With `estimate_track` the heading row, bilinear in `(c, t_R)`, is
 /// linearised at the current values: `h(c, t) ~ Phi_theta c - (h0 / t0) t + h0`,
-/// so the row becomes `[-n_RL/t0, n_RR/t0, -h0/t0]` with `Y_theta - h0`.
+/// so the row becomes `[-n_RL/t0, n_RR/t0, -h0/t0]` with `Y_theta - h0`
+/// (with the reference's heading change standing in for h0 in the regressor).
+///
+/// The filter steps along `grid` (indices of wheel samples, see [`grid`]):
+/// `n_{i,k}` are the revolutions between consecutive grid samples.
 #[allow(clippy::too_many_arguments)]
 pub fn run_pass(
     p: &Prepared,
     r: &Reference,
+    grid: &[usize],
     c: [f64; 2],
     track: f64,
     cov: &Covariances,
@@ -149,7 +154,7 @@ pub fn run_pass(
     estimate_track: bool,
     n_blocks: usize,
 ) -> Result<EkfPass, CalibrationError> {
-    let n = p.len();
+    let n = grid.len();
     let params = TwoWheelParams {
         c_rl: c[0],
         c_rr: c[1],
@@ -161,11 +166,9 @@ pub fn run_pass(
     let block_len = n.div_ceil(n_blocks.max(1)).max(1);
     let mut blocks = vec![NormalBlock::default(); n.div_ceil(block_len)];
     let mut x: Option<(Pose2, Matrix3<f64>)> = None;
-    let mut pieces = p.piece_starts.iter().peekable();
-    for k in 0..n {
-        let piece_start = pieces.peek().is_some_and(|&&s| s == k);
-        if piece_start {
-            pieces.next();
+    for j in 0..n {
+        let k = grid[j];
+        if j == 0 || p.is_piece_start(k) {
             x = None;
         }
         let Some((pose, sigma)) = x else {
@@ -181,14 +184,26 @@ pub fn run_pass(
             }
             continue;
         };
-        let (n_rl, n_rr) = (p.dn_rl[k], p.dn_rr[k]);
+        let k_prev = grid[j - 1];
+        let (mut n_rl, mut n_rr) = (0.0, 0.0);
+        for i in k_prev + 1..=k {
+            n_rl += p.dn_rl[i];
+            n_rr += p.dn_rr[i];
+        }
         let beta = if side_slip { r.beta[k] } else { 0.0 };
         if r.valid[k] {
             // Eq. (8): one row block per sample.
             let dir = pose.yaw + beta;
             let (s, co) = dir.sin_cos();
             let h0 = (n_rr * c[1] - n_rl * c[0]) / track;
-            let third = if estimate_track { -h0 / track } else { 0.0 };
+            // The track column uses the reference's heading change in place of
+            // h0 (equal at the solution): built from the noisy wheel increments
+            // it would be an errors-in-variables regressor and bias t_R.
+            let third = if estimate_track {
+                -(r.yaw[k] - r.yaw[k_prev]) / track
+            } else {
+                0.0
+            };
             let phi = [
                 [0.5 * n_rl * co, 0.5 * n_rr * co, 0.0],
                 [0.5 * n_rl * s, 0.5 * n_rr * s, 0.0],
@@ -198,7 +213,7 @@ pub fn run_pass(
             if estimate_track {
                 yv[2] -= h0;
             }
-            let blk = &mut blocks[k / block_len];
+            let blk = &mut blocks[j / block_len];
             for row in 0..3 {
                 let wy = w[row] * yv[row];
                 for i in 0..3 {
@@ -268,6 +283,35 @@ pub fn run_pass(
     })
 }
 
+/// The sample grid of the paper's filter: about one wheel sample per
+/// `1 / rate_hz` seconds, plus the last sample before and the first of every
+/// piece of wheel data.
+///
+/// The paper leaves the sampling time open. At the wheel rate (100 Hz) the
+/// per-step increments of a quantised encoder (e.g. 96 ticks per
+/// revolution) carry a noise as large as their left/right difference in a
+/// bend, and the heading row of eq. (8) (weight 10) then turns into an
+/// errors-in-variables regression that shrinks both circumferences by
+/// several percent. At 10 Hz that noise is 100 times smaller relative to the
+/// increments.
+pub fn grid(p: &Prepared, rate_hz: f64) -> Vec<usize> {
+    let stride = ((1.0 / rate_hz) / p.wheel_dt).round().max(1.0) as usize;
+    let mut out = Vec::with_capacity(p.len() / stride + p.piece_starts.len() * 2 + 1);
+    let mut last: Option<usize> = None;
+    for k in 0..p.len() {
+        let next_is_start = k + 1 < p.len() && p.is_piece_start(k + 1);
+        let take = match last {
+            None => true,
+            Some(l) => k - l >= stride || p.is_piece_start(k) || next_is_start || k + 1 == p.len(),
+        };
+        if take {
+            out.push(k);
+            last = Some(k);
+        }
+    }
+    out
+}
+
 /// Side-slip used when dead-reckoning.
 #[derive(Debug, Clone, Copy)]
 pub enum Slip<'a> {
@@ -275,23 +319,18 @@ pub enum Slip<'a> {
     None,
     /// beta_k given per wheel sample (the layer-1 estimate).
     Series(&'a [f64]),
-    /// beta = -k a_y with a_y = v omega from the wheels.
-    Gain(f64),
+    /// beta = -k a_y with a_y = v omega from the wheels
+    /// ([`Prepared::lateral_accel`]).
+    Gain(f64, &'a [f64]),
 }
 
 impl Slip<'_> {
-    /// beta at sample k for the step (ds, dyaw) over dt.
-    pub fn at(&self, k: usize, ds: f64, dyaw: f64, dt: f64) -> f64 {
+    /// beta at sample k.
+    pub fn at(&self, k: usize) -> f64 {
         match self {
             Slip::None => 0.0,
             Slip::Series(b) => b[k],
-            Slip::Gain(g) => {
-                if dt > 0.0 {
-                    -g * ds * dyaw / (dt * dt)
-                } else {
-                    0.0
-                }
-            }
+            Slip::Gain(g, ay) => -g * ay[k],
         }
     }
 }
@@ -338,12 +377,13 @@ pub fn dr_deviation(p: &Prepared, r: &Reference, params: &TwoWheelParams, slip: 
             }
             Some(prev) => {
                 let (ds, dyaw) = params.increments(p.dn_rl[k], p.dn_rr[k]);
-                let beta = slip.at(k, ds, dyaw, p.t[k] - p.t[k - 1]);
+                let beta = slip.at(k);
                 step(prev, ds, dyaw, beta)
             }
         };
         if r.valid[k] {
-            let d = (cur.x - r.x[k]).hypot(cur.y - r.y[k]);
+            let (ex, ey) = (cur.x - r.x[k], cur.y - r.y[k]);
+            let d = (ex * ex + ey * ey).sqrt();
             sum += d;
             max = max.max(d);
             count += 1;

@@ -11,7 +11,7 @@
 //! when the drive has some, enters as a prior on the bias. Without enough
 //! turning the scale is held at 0 (and a warning says so).
 
-use crate::batch::{fit, stages, SlipGain, StepModel, MAX_GLOBAL};
+use crate::batch::{fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::prep::Prepared;
 use crate::reference::{standstill_gyro_bias, Reference};
 use crate::report::{Warning, WarningCode};
@@ -99,7 +99,7 @@ pub fn estimate(
     segment_length_s: f64,
     warnings: &mut Vec<Warning>,
 ) -> Result<Option<GyroEstimate>, CalibrationError> {
-    let (Some(gyro), Some(_)) = (p.gyro_at_wheel.as_deref(), p.gyro.as_ref()) else {
+    let Some(gyro) = p.gyro.as_deref() else {
         return Ok(None);
     };
     let standstill = standstill_gyro_bias(p);
@@ -124,7 +124,10 @@ pub fn estimate(
         .or(r.heading_filter_gyro_bias)
         .unwrap_or(0.0);
     let breaks = |k: usize| k > 0 && !(gyro[k] - gyro[k - 1]).is_finite();
-    let result = fit(&model, p, r, &[b0, 0.0], &stages(segment_length_s), &breaks, &mut |_| {});
+    // The gyro starts near its answer (bias from standstill, scale 0): two stages do.
+    let lengths = [30.0f64.min(segment_length_s), segment_length_s];
+    let lengths = if lengths[0] >= lengths[1] { &lengths[1..] } else { &lengths[..] };
+    let result = fit(&model, p, r, &[b0, 0.0], lengths, &breaks, &mut |_| {});
     let f = match result {
         Ok(f) => f,
         Err(e) => {

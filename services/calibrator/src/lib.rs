@@ -121,6 +121,9 @@ pub struct CalibrationConfig {
     pub q_m: f64,
     /// q_P of eq. (10b), `0.2 <= q_P <= 0.7` in the paper.
     pub q_p: f64,
+    /// Step rate of the paper's filter and least squares (its 1/dt), Hz; the
+    /// wheel increments are summed over each step (see [`ekf::grid`]).
+    pub paper_rate_hz: f64,
     /// Effective track width handling.
     pub track_width: TrackWidthMode,
     /// Estimate the yaw-rate gyro's bias and scale beside the circumferences.
@@ -151,6 +154,7 @@ impl Default for CalibrationConfig {
             alpha: 0.5,
             q_m: 1.25,
             q_p: 0.45,
+            paper_rate_hz: 10.0,
             track_width: TrackWidthMode::Auto,
             estimate_gyro: true,
             time_offset: TimeOffsetMode::Compensate,
@@ -175,6 +179,9 @@ impl CalibrationConfig {
         }
         if !(self.q_m.is_finite() && self.q_m >= 1.0) {
             return bad("q_m", format!("{} must be >= 1 (eq. 10a)", self.q_m));
+        }
+        if !(self.paper_rate_hz.is_finite() && self.paper_rate_hz > 0.0 && self.paper_rate_hz <= 1000.0) {
+            return bad("paper_rate_hz", format!("{} is not in (0, 1000] Hz", self.paper_rate_hz));
         }
         if !(self.q_p.is_finite() && self.q_p >= 0.0) {
             return bad("q_p", format!("{} must be >= 0 (eq. 10b)", self.q_p));
@@ -352,7 +359,7 @@ pub fn calibrate_with_progress(
         stage: Stage::Reference,
         fraction: 0.1,
     });
-    let reference = reference::build(&prepared, config, &mut warnings)?;
+    let reference = reference::build(&prepared, drive, config, &mut warnings)?;
     let (paper_share, batch_share) = match (config.method, config.compare) {
         (_, true) => (0.35, 0.35),
         (Method::Paper, false) => (0.7, 0.0),

@@ -59,10 +59,11 @@ pub fn run(
         dr_error_mean_m: dev0.mean_m,
         dr_error_max_m: dev0.max_m,
     }];
+    let grid = crate::ekf::grid(p, config.paper_rate_hz);
     let mut best: Option<(usize, [f64; 2], f64, f64, Sigmas, Vec<[f64; 2]>)> = None;
     for i in 1..=config.iterations {
         let cov = schedule(i, config.q_m, config.q_p);
-        let pass = run_pass(p, r, c, track, &cov, side_slip, estimate_track, JACKKNIFE_BLOCKS)?;
+        let pass = run_pass(p, r, &grid, c, track, &cov, side_slip, estimate_track, JACKKNIFE_BLOCKS)?;
         let opt = pass.solve()?;
         // Eq. (11).
         let next = [c[0] + config.alpha * (opt[0] - c[0]), c[1] + config.alpha * (opt[1] - c[1])];

@@ -5,13 +5,20 @@
 //!   become revolution increments per wheel sample; a gap in the wheel stream
 //!   breaks it into pieces (the models restart after a break).
 //! - GNSS: non-finite rows skipped (warning). No GNSS is an error.
-//! - IMU: the yaw rate is integrated to a cumulative angle (gaps noted), the
-//!   accelerations kept when both horizontal axes are given.
+//! - IMU: the yaw rate is integrated to a cumulative angle, kept at the wheel
+//!   times (NaN across pauses of the IMU stream). The accelerations are not
+//!   copied: the reference reads them from the drive.
 //! - Streams that stop early or pause are named in warnings.
+//!
+//! Memory: a 1 h drive at 100 Hz has 360 000 wheel rows; everything here is
+//! a handful of `f64` per wheel sample, built in one pass over the drive.
+//! The wheel conversion is therefore done here, streaming, with the same
+//! rules as [`Drive::wheel_revolutions`] (which materialises 56 bytes per
+//! row); a unit test checks that the two agree.
 
 use crate::report::{Warning, WarningCode};
 use crate::{CalibrationConfig, CalibrationError};
-use interfaces::drive::{Drive, HeadingSample, WheelSeries};
+use interfaces::drive::{Drive, HeadingSample, WheelConversionError, WheelSample, WheelUnit};
 
 /// A GNSS fix in local ENU (antenna position).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -24,54 +31,6 @@ pub struct Fix {
     pub y: f64,
     /// 1-sigma from the data, when given.
     pub sigma: Option<f64>,
-}
-
-/// The yaw-rate gyro as a cumulative angle.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Gyro {
-    /// Sample times, s.
-    pub t: Vec<f64>,
-    /// Trapezoidal integral of the yaw rate from the first sample, rad.
-    pub cum: Vec<f64>,
-    /// Stretches (start, end) without IMU data longer than the gap threshold;
-    /// the integral across them is not trusted.
-    pub gaps: Vec<(f64, f64)>,
-}
-
-impl Gyro {
-    /// The cumulative angle at `t`, `None` outside the data or in a gap.
-    pub fn cum_at(&self, t: f64) -> Option<f64> {
-        let n = self.t.len();
-        if n < 2 || !(t >= self.t[0] && t <= self.t[n - 1]) {
-            return None;
-        }
-        if self.gaps.iter().any(|&(a, b)| t > a && t < b) {
-            return None;
-        }
-        let i = self.t.partition_point(|&s| s <= t).clamp(1, n - 1);
-        let (t0, t1) = (self.t[i - 1], self.t[i]);
-        let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        Some(self.cum[i - 1] + f * (self.cum[i] - self.cum[i - 1]))
-    }
-
-    /// Mean yaw rate between `t0` and `t1`, `None` when not covered.
-    pub fn mean_rate(&self, t0: f64, t1: f64) -> Option<f64> {
-        if t1 <= t0 || self.gaps.iter().any(|&(a, b)| a < t1 && b > t0) {
-            return None;
-        }
-        Some((self.cum_at(t1)? - self.cum_at(t0)?) / (t1 - t0))
-    }
-}
-
-/// A horizontal body-frame acceleration sample.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Accel {
-    /// Time, s.
-    pub t: f64,
-    /// Longitudinal, m/s^2.
-    pub ax: f64,
-    /// Lateral, m/s^2.
-    pub ay: f64,
 }
 
 /// The drive in the form the layers use.
@@ -89,12 +48,11 @@ pub struct Prepared {
     pub wheel_dt: f64,
     /// Finite GNSS fixes in time order.
     pub fixes: Vec<Fix>,
-    /// The yaw-rate gyro, when the drive has an IMU.
-    pub gyro: Option<Gyro>,
-    /// The gyro's cumulative angle at each wheel time (NaN where not covered).
-    pub gyro_at_wheel: Option<Vec<f64>>,
-    /// Horizontal accelerations (empty when the IMU has none).
-    pub accel: Vec<Accel>,
+    /// The yaw-rate gyro's trapezoidal integral at each wheel time, rad (NaN
+    /// where the IMU does not cover it); `None` without a usable IMU.
+    pub gyro: Option<Vec<f64>>,
+    /// True when the IMU has both horizontal accelerations.
+    pub has_accel: bool,
     /// Finite absolute headings.
     pub headings: Vec<HeadingSample>,
     /// GNSS antenna position in the body frame (x forward, y left) from the rear-axle centre, m.
@@ -105,6 +63,10 @@ pub struct Prepared {
     pub track: f64,
     /// Standstill intervals (start, end), s, at least 1 s long.
     pub standstill: Vec<(f64, f64)>,
+    /// Lateral acceleration `v omega` from the wheels with the nominal
+    /// values, averaged over 0.5 s (per-step increments of a quantised
+    /// encoder are far too noisy for a side-slip model), m/s^2.
+    pub lateral_accel: Vec<f64>,
 }
 
 impl Prepared {
@@ -121,6 +83,35 @@ impl Prepared {
     /// True when there is no wheel sample.
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
+    }
+
+    /// The gyro's cumulative angle at `t` (linear between wheel times),
+    /// `None` without gyro, outside the data or across an IMU pause.
+    pub fn gyro_cum_at(&self, t: f64) -> Option<f64> {
+        let g = self.gyro.as_ref()?;
+        let n = self.t.len();
+        if n < 2 || !(t >= self.t[0] && t <= self.t[n - 1]) {
+            return None;
+        }
+        let i = self.t.partition_point(|&s| s <= t).clamp(1, n - 1);
+        let (t0, t1) = (self.t[i - 1], self.t[i]);
+        let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+        let v = g[i - 1] + f * (g[i] - g[i - 1]);
+        v.is_finite().then_some(v)
+    }
+
+    /// Mean gyro rate between `t0` and `t1`, `None` when not covered.
+    pub fn gyro_mean_rate(&self, t0: f64, t1: f64) -> Option<f64> {
+        if t1 <= t0 {
+            return None;
+        }
+        let g = self.gyro.as_ref()?;
+        let i0 = self.t.partition_point(|&s| s < t0);
+        let i1 = self.t.partition_point(|&s| s <= t1);
+        if g[i0.min(g.len() - 1)..i1.min(g.len())].iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        Some((self.gyro_cum_at(t1)? - self.gyro_cum_at(t0)?) / (t1 - t0))
     }
 }
 
@@ -168,35 +159,12 @@ pub fn prepare(
 
     let (t, dn_rl, dn_rr, piece_starts, wheel_dt) = wheels(drive, warnings)?;
     let fixes = gnss(drive, warnings)?;
-    let (gyro, accel) = imu(drive, warnings);
+    let (gyro, has_accel, imu_end) = imu(drive, &t, warnings);
     let headings = heading(drive, warnings);
-    check_stream_ends(&t, &fixes, gyro.as_ref(), warnings);
-
-    let gyro_at_wheel = gyro.as_ref().map(|g| {
-        let mut out = Vec::with_capacity(t.len());
-        let mut gap = 0usize;
-        let mut i = 1usize;
-        let n = g.t.len();
-        for &tk in &t {
-            while gap < g.gaps.len() && g.gaps[gap].1 <= tk {
-                gap += 1;
-            }
-            let in_gap = gap < g.gaps.len() && tk > g.gaps[gap].0 && tk < g.gaps[gap].1;
-            if n < 2 || tk < g.t[0] || tk > g.t[n - 1] || in_gap {
-                out.push(f64::NAN);
-                continue;
-            }
-            while i < n - 1 && g.t[i] < tk {
-                i += 1;
-            }
-            let (t0, t1) = (g.t[i - 1], g.t[i]);
-            let f = if t1 > t0 { ((tk - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
-            out.push(g.cum[i - 1] + f * (g.cum[i] - g.cum[i - 1]));
-        }
-        out
-    });
+    check_stream_ends(&t, &fixes, imu_end, warnings);
 
     let standstill = standstill_intervals(&t, &dn_rl, &dn_rr, vehicle.nominal_circumference_m);
+    let lateral_accel = lateral_accel(&t, &dn_rl, &dn_rr, vehicle.nominal_circumference_m, vehicle.track_width_m);
 
     Ok(Prepared {
         t,
@@ -206,14 +174,45 @@ pub fn prepare(
         wheel_dt,
         fixes,
         gyro,
-        gyro_at_wheel,
-        accel,
+        has_accel,
         headings,
         lever_arm,
         nominal_c: vehicle.nominal_circumference_m,
         track: vehicle.track_width_m,
         standstill,
+        lateral_accel,
     })
+}
+
+/// `v omega` over a centred window of 0.5 s, from the wheels (running
+/// window sums, no extra arrays).
+fn lateral_accel(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64, track: f64) -> Vec<f64> {
+    let n = t.len();
+    let mut out = Vec::with_capacity(n);
+    // Window (j0, j1]: the increments after j0 up to j1.
+    let (mut j0, mut j1) = (0usize, 0usize);
+    let (mut l, mut r) = (0.0, 0.0);
+    for k in 0..n {
+        while j1 + 1 < n && t[j1 + 1] - t[k] <= 0.25 {
+            j1 += 1;
+            l += dn_rl[j1];
+            r += dn_rr[j1];
+        }
+        while t[k] - t[j0] > 0.25 {
+            j0 += 1;
+            l -= dn_rl[j0];
+            r -= dn_rr[j0];
+        }
+        let dt = t[j1] - t[j0];
+        if dt <= 0.0 {
+            out.push(0.0);
+            continue;
+        }
+        let v = 0.5 * c * (l + r) / dt;
+        let w = c * (r - l) / (track * dt);
+        out.push(v * w);
+    }
+    out
 }
 
 type WheelArrays = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>, f64);
@@ -237,50 +236,30 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             count: samples.len(),
         });
     }
-    let bad: Vec<usize> = samples
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| !(s.rl.is_finite() && s.rr.is_finite() && s.t_s.is_finite()))
-        .map(|(i, _)| i)
-        .collect();
-    // Revolutions from the drive's own conversion; rows with a non-finite rear
-    // value are removed first so that a NaN rate cannot poison the integral.
-    let revs = if bad.is_empty() {
-        drive.wheel_revolutions()?
-    } else {
-        let first = samples[bad[0]].t_s;
-        warnings.push(Warning::new(
-            WarningCode::NonFiniteSamples,
-            format!(
-                "wheels: {} of {} rows have a non-finite rl/rr value and were skipped (first at t = {:.3} s)",
-                bad.len(),
-                samples.len(),
-                first
-            ),
-        ));
-        let clean = Drive {
-            vehicle: drive.vehicle.clone(),
-            wheels: WheelSeries {
-                units: drive.wheels.units,
-                samples: samples
-                    .iter()
-                    .filter(|s| s.rl.is_finite() && s.rr.is_finite() && s.t_s.is_finite())
-                    .copied()
-                    .collect(),
+    let units = drive.wheels.units;
+    let scale = |unit: WheelUnit| -> Result<f64, CalibrationError> {
+        Ok(match unit {
+            WheelUnit::Rev => 1.0,
+            WheelUnit::Ticks => match drive.vehicle.ticks_per_rev {
+                Some(tpr) if tpr > 0.0 => 1.0 / tpr,
+                _ => return Err(WheelConversionError::MissingTicksPerRev.into()),
             },
-            gnss: None,
-            imu: None,
-            heading: None,
-            truth: None,
-            truth_params: None,
-        };
-        clean.wheel_revolutions()?
+            WheelUnit::RadS => 1.0 / std::f64::consts::TAU,
+            WheelUnit::MS => 1.0 / drive.vehicle.nominal_circumference_m,
+        })
     };
-    let n = revs.len();
-    let mut dts: Vec<f64> = revs.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+    let (k_rl, k_rr) = (scale(units.rl)?, scale(units.rr)?);
+    // Median sample interval from the first rows (enough to set the gap threshold).
+    let mut dts: Vec<f64> = samples
+        .windows(2)
+        .take(10_000)
+        .map(|w| w[1].t_s - w[0].t_s)
+        .filter(|d| d.is_finite() && *d > 0.0)
+        .collect();
     let wheel_dt = median(&mut dts).unwrap_or(0.01).max(1e-4);
     let gap_threshold = (10.0 * wheel_dt).max(0.5);
 
+    let n = samples.len();
     let mut t = Vec::with_capacity(n);
     let mut dn_rl = Vec::with_capacity(n);
     let mut dn_rr = Vec::with_capacity(n);
@@ -288,24 +267,46 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
     let mut gaps = 0usize;
     let mut longest = (0.0f64, 0.0f64);
     let (mut total_rl, mut total_rr) = (0.0f64, 0.0f64);
-    for (k, r) in revs.iter().enumerate() {
-        t.push(r.t_s);
-        if k == 0 {
-            dn_rl.push(0.0);
-            dn_rr.push(0.0);
+    let mut skipped = 0usize;
+    let mut first_bad = None;
+    let mut prev: Option<&WheelSample> = None;
+    for s in samples {
+        if !(s.rl.is_finite() && s.rr.is_finite() && s.t_s.is_finite()) {
+            // Skipped: a rate is integrated across it from its neighbours,
+            // as `wheel_revolutions` does on the cleaned rows.
+            skipped += 1;
+            first_bad.get_or_insert(s.t_s);
             continue;
         }
-        let p = &revs[k - 1];
-        let dt = r.t_s - p.t_s;
-        let (a, b) = (r.rl - p.rl, r.rr - p.rr);
-        if dt > gap_threshold || !(a.is_finite() && b.is_finite()) {
-            if dt > gap_threshold {
-                gaps += 1;
-                if dt > longest.0 {
-                    longest = (dt, p.t_s);
-                }
+        let Some(p) = prev else {
+            t.push(s.t_s);
+            dn_rl.push(0.0);
+            dn_rr.push(0.0);
+            prev = Some(s);
+            continue;
+        };
+        let dt = s.t_s - p.t_s;
+        if !(dt > 0.0) {
+            skipped += 1;
+            first_bad.get_or_insert(s.t_s);
+            continue;
+        }
+        let inc = |unit: WheelUnit, k: f64, a: f64, b: f64| {
+            if unit.is_rate() {
+                0.5 * (a + b) * k * dt
+            } else {
+                (b - a) * k
             }
-            piece_starts.push(k);
+        };
+        let a = inc(units.rl, k_rl, p.rl, s.rl);
+        let b = inc(units.rr, k_rr, p.rr, s.rr);
+        t.push(s.t_s);
+        if dt > gap_threshold {
+            gaps += 1;
+            if dt > longest.0 {
+                longest = (dt, p.t_s);
+            }
+            piece_starts.push(t.len() - 1);
             dn_rl.push(0.0);
             dn_rr.push(0.0);
         } else {
@@ -314,6 +315,17 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             dn_rl.push(a);
             dn_rr.push(b);
         }
+        prev = Some(s);
+    }
+    if skipped > 0 {
+        warnings.push(Warning::new(
+            WarningCode::NonFiniteSamples,
+            format!(
+                "wheels: {skipped} of {} rows have a non-finite time or rl/rr value (or break the time order) and were skipped (first at t = {:.3} s)",
+                samples.len(),
+                first_bad.unwrap_or(f64::NAN)
+            ),
+        ));
     }
     if gaps > 0 {
         warnings.push(Warning::new(
@@ -412,7 +424,9 @@ fn gnss(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<Vec<Fix>, Calibrat
     Ok(fixes)
 }
 
-fn imu(drive: &Drive, warnings: &mut Vec<Warning>) -> (Option<Gyro>, Vec<Accel>) {
+/// The gyro integral at the wheel times `t`, whether the IMU has
+/// accelerations, and the IMU's last time.
+fn imu(drive: &Drive, t: &[f64], warnings: &mut Vec<Warning>) -> (Option<Vec<f64>>, bool, Option<f64>) {
     let Some(rows) = drive.imu.as_ref().filter(|r| !r.is_empty()) else {
         warnings.push(Warning::new(
             WarningCode::NoImu,
@@ -420,78 +434,105 @@ fn imu(drive: &Drive, warnings: &mut Vec<Warning>) -> (Option<Gyro>, Vec<Accel>)
              side-slip and gyro calibration are not available"
                 .to_string(),
         ));
-        return (None, Vec::new());
+        return (None, false, None);
     };
-    let mut t = Vec::with_capacity(rows.len());
-    let mut cum = Vec::with_capacity(rows.len());
-    let mut accel = Vec::new();
+    let usable = |r: &&interfaces::drive::ImuSample| r.t_s.is_finite() && r.gz_rad_s.is_finite();
+    let mut dts: Vec<f64> = rows
+        .iter()
+        .filter(usable)
+        .take(10_000)
+        .map(|r| r.t_s)
+        .collect::<Vec<_>>()
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    let threshold = (10.0 * median(&mut dts).unwrap_or(0.01)).max(0.5);
+    let mut out = Vec::with_capacity(t.len());
+    let mut k = 0usize;
+    let mut prev: Option<(f64, f64)> = None; // (time, rate)
+    let mut acc = 0.0;
     let mut skipped = 0usize;
     let mut first_bad = None;
-    let mut prev: Option<(f64, f64)> = None;
-    let mut acc = 0.0;
-    let mut dts = Vec::new();
+    let mut used = 0usize;
+    let mut gaps = 0usize;
+    let mut longest = (0.0f64, 0.0f64);
+    let mut has_accel = false;
+    let mut last_t = None;
     for r in rows {
-        if !(r.t_s.is_finite() && r.gz_rad_s.is_finite()) {
+        if !usable(&r) || prev.is_some_and(|(t0, _)| r.t_s <= t0) {
             skipped += 1;
             first_bad.get_or_insert(r.t_s);
             continue;
         }
-        if let Some((t0, w0)) = prev {
-            if r.t_s <= t0 {
-                skipped += 1;
-                first_bad.get_or_insert(r.t_s);
-                continue;
+        has_accel |= r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite);
+        used += 1;
+        last_t = Some(r.t_s);
+        match prev {
+            None => {
+                // Wheel times before the IMU starts are not covered.
+                while k < t.len() && t[k] < r.t_s {
+                    out.push(f64::NAN);
+                    k += 1;
+                }
+                if k < t.len() && t[k] == r.t_s {
+                    out.push(0.0);
+                    k += 1;
+                }
             }
-            dts.push(r.t_s - t0);
-            acc += 0.5 * (w0 + r.gz_rad_s) * (r.t_s - t0);
+            Some((t0, w0)) => {
+                let dt = r.t_s - t0;
+                let next = acc + 0.5 * (w0 + r.gz_rad_s) * dt;
+                let pause = dt > threshold;
+                if pause {
+                    gaps += 1;
+                    if dt > longest.0 {
+                        longest = (dt, t0);
+                    }
+                }
+                while k < t.len() && t[k] <= r.t_s {
+                    if pause && t[k] > t0 && t[k] < r.t_s {
+                        out.push(f64::NAN);
+                    } else {
+                        let f = (t[k] - t0) / dt;
+                        out.push(acc + f * (next - acc));
+                    }
+                    k += 1;
+                }
+                acc = next;
+            }
         }
         prev = Some((r.t_s, r.gz_rad_s));
-        t.push(r.t_s);
-        cum.push(acc);
-        if let (Some(ax), Some(ay)) = (r.ax_m_s2, r.ay_m_s2) {
-            if ax.is_finite() && ay.is_finite() {
-                accel.push(Accel { t: r.t_s, ax, ay });
-            }
-        }
     }
+    out.resize(t.len(), f64::NAN);
     if skipped > 0 {
         warnings.push(Warning::new(
             WarningCode::NonFiniteSamples,
             format!(
-                "imu: {skipped} of {} rows have a non-finite time or gz_rad_s and were skipped (first at t = {:.3} s)",
+                "imu: {skipped} of {} rows have a non-finite time or gz_rad_s (or break the time order) and were skipped (first at t = {:.3} s)",
                 rows.len(),
                 first_bad.unwrap_or(f64::NAN)
             ),
         ));
     }
-    if t.len() < 10 {
+    if used < 10 {
         warnings.push(Warning::new(
             WarningCode::NoImu,
-            format!("imu: only {} usable yaw-rate samples: the IMU is ignored", t.len()),
+            format!("imu: only {used} usable yaw-rate samples: the IMU is ignored"),
         ));
-        return (None, Vec::new());
+        return (None, false, None);
     }
-    let dt = median(&mut dts).unwrap_or(0.01);
-    let threshold = (10.0 * dt).max(0.5);
-    let mut gaps = Vec::new();
-    for w in t.windows(2) {
-        if w[1] - w[0] > threshold {
-            gaps.push((w[0], w[1]));
-        }
-    }
-    if let Some(longest) = gaps.iter().copied().max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0))) {
+    if gaps > 0 {
         warnings.push(Warning::new(
             WarningCode::StreamGap,
             format!(
-                "imu: the stream pauses {} time(s) for more than {threshold:.2} s (longest {:.1} s at t = {:.2} s); \
+                "imu: the stream pauses {gaps} time(s) for more than {threshold:.2} s (longest {:.1} s at t = {:.2} s); \
                  the gyro is not used across the pauses",
-                gaps.len(),
-                longest.1 - longest.0,
-                longest.0
+                longest.0, longest.1
             ),
         ));
     }
-    (Some(Gyro { t, cum, gaps }), accel)
+    (Some(out), has_accel, last_t)
 }
 
 fn heading(drive: &Drive, warnings: &mut Vec<Warning>) -> Vec<HeadingSample> {
@@ -520,7 +561,7 @@ fn heading(drive: &Drive, warnings: &mut Vec<Warning>) -> Vec<HeadingSample> {
     out
 }
 
-fn check_stream_ends(t: &[f64], fixes: &[Fix], gyro: Option<&Gyro>, warnings: &mut Vec<Warning>) {
+fn check_stream_ends(t: &[f64], fixes: &[Fix], imu_end: Option<f64>, warnings: &mut Vec<Warning>) {
     let (Some(&w0), Some(&w1)) = (t.first(), t.last()) else {
         return;
     };
@@ -575,8 +616,8 @@ fn check_stream_ends(t: &[f64], fixes: &[Fix], gyro: Option<&Gyro>, warnings: &m
             ),
         ));
     }
-    if let Some(g) = gyro {
-        if let Some(&i1) = g.t.last() {
+    {
+        if let Some(i1) = imu_end {
             if i1 < w1 - slack {
                 warnings.push(Warning::new(
                     WarningCode::StreamStops,
@@ -597,28 +638,20 @@ fn standstill_intervals(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64) -> Vec<
     if n < 3 {
         return out;
     }
-    // Speed over a window of about 0.5 s, from the cumulative distance.
-    let mut s = Vec::with_capacity(n);
-    let mut acc = 0.0;
-    for k in 0..n {
-        acc += 0.5 * (dn_rl[k] + dn_rr[k]) * c;
-        s.push(acc);
-    }
+    // Speed over a centred window of about 0.5 s (running sum of increments).
+    let (mut j0, mut j1) = (0usize, 0usize);
+    let mut sum = 0.0;
     let mut start: Option<f64> = None;
-    let mut j0 = 0usize;
-    let mut j1 = 0usize;
     for k in 0..n {
-        while t[k] - t[j0] > 0.25 {
-            j0 += 1;
-        }
         while j1 + 1 < n && t[j1 + 1] - t[k] <= 0.25 {
             j1 += 1;
+            sum += 0.5 * (dn_rl[j1] + dn_rr[j1]) * c;
         }
-        let still = if t[j1] > t[j0] {
-            ((s[j1] - s[j0]) / (t[j1] - t[j0])).abs() < 0.05
-        } else {
-            false
-        };
+        while t[k] - t[j0] > 0.25 {
+            j0 += 1;
+            sum -= 0.5 * (dn_rl[j0] + dn_rr[j0]) * c;
+        }
+        let still = t[j1] > t[j0] && (sum / (t[j1] - t[j0])).abs() < 0.05;
         match (still, start) {
             (true, None) => start = Some(t[k]),
             (false, Some(a)) => {
@@ -641,20 +674,6 @@ fn standstill_intervals(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64) -> Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn gyro_interpolates_and_refuses_gaps() {
-        let g = Gyro {
-            t: vec![0.0, 1.0, 2.0, 10.0, 11.0],
-            cum: vec![0.0, 1.0, 2.0, 3.0, 4.0],
-            gaps: vec![(2.0, 10.0)],
-        };
-        assert!((g.cum_at(0.5).unwrap_or(f64::NAN) - 0.5).abs() < 1e-12);
-        assert!(g.cum_at(5.0).is_none());
-        assert!(g.cum_at(12.0).is_none());
-        assert!(g.mean_rate(1.0, 11.0).is_none());
-        assert!((g.mean_rate(0.0, 2.0).unwrap_or(f64::NAN) - 1.0).abs() < 1e-12);
-    }
 
     #[test]
     fn standstill_is_found() {

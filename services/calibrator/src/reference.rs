@@ -23,6 +23,7 @@
 use crate::prep::{Fix, Prepared};
 use crate::report::{Warning, WarningCode};
 use crate::{CalibrationConfig, CalibrationError, TimeOffsetMode};
+use interfaces::drive::{Drive, ImuSample};
 use odometry::two_wheel::wrap_angle;
 use serde::{Deserialize, Serialize};
 
@@ -350,18 +351,6 @@ fn cumulative_distance(p: &Prepared) -> Vec<f64> {
     s
 }
 
-/// Linear interpolation of a series given at increasing `t`.
-fn interp(t: &[f64], v: &[f64], x: f64) -> Option<f64> {
-    let n = t.len();
-    if n < 2 || !(x >= t[0] && x <= t[n - 1]) {
-        return None;
-    }
-    let i = t.partition_point(|&s| s <= x).clamp(1, n - 1);
-    let (t0, t1) = (t[i - 1], t[i]);
-    let f = if t1 > t0 { (x - t0) / (t1 - t0) } else { 0.0 };
-    Some(v[i - 1] + f * (v[i] - v[i - 1]))
-}
-
 /// Estimate the GNSS latency relative to the wheels from the speeds:
 /// minimise `sum (v_gnss(t) - k v_wheel(t - tau))^2` over `tau` in +-0.5 s
 /// (k absorbs the unknown circumference), refine with a parabola fitted
@@ -373,11 +362,36 @@ fn interp(t: &[f64], v: &[f64], x: f64) -> Option<f64> {
 fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
     let dist = cumulative_distance(p);
     let h = 0.25;
-    let wheel_speed = |t: f64| -> Option<f64> {
-        let a = interp(&p.t, &dist, t - h)?;
-        let b = interp(&p.t, &dist, t + h)?;
-        Some((b - a) / (2.0 * h))
+    // Wheel speed over +-h at every wheel time, then interpolated (a cursor
+    // walks forward because the observation times increase).
+    let n = p.len();
+    let mut speed = Vec::with_capacity(n);
+    let (mut j0, mut j1) = (0usize, 0usize);
+    for k in 0..n {
+        while p.t[k] - p.t[j0] > h {
+            j0 += 1;
+        }
+        while j1 + 1 < n && p.t[j1 + 1] - p.t[k] <= h {
+            j1 += 1;
+        }
+        let dt = p.t[j1] - p.t[j0];
+        speed.push(if dt > 0.0 { (dist[j1] - dist[j0]) / dt } else { 0.0 });
+    }
+    let speed_at = |t: f64, cursor: &mut usize| -> Option<f64> {
+        if !(t >= p.t[0] && t <= p.t[n - 1]) {
+            return None;
+        }
+        while *cursor + 1 < n - 1 && p.t[*cursor + 1] <= t {
+            *cursor += 1;
+        }
+        let i = *cursor;
+        let (t0, t1) = (p.t[i], p.t[i + 1]);
+        let f = if t1 > t0 { ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
+        Some(speed[i] + f * (speed[i + 1] - speed[i]))
     };
+    if n < 3 {
+        return None;
+    }
     let (t_first, t_last) = (p.t[0] + 0.5 + 2.0 * h, p.t[p.len() - 1] - 0.5 - 2.0 * h);
     let mut obs = Vec::new();
     for (j, &t) in track.t.iter().enumerate() {
@@ -399,8 +413,9 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
     let mut gain = 1.0;
     for &lag in &lags {
         let (mut sgw, mut sww, mut sgg) = (0.0, 0.0, 0.0);
+        let mut cursor = 0usize;
         for &(t, vg) in &obs {
-            let vw = wheel_speed(t - lag)?;
+            let vw = speed_at(t - lag, &mut cursor)?;
             sgw += vg * vw;
             sww += vw * vw;
             sgg += vg * vg;
@@ -440,8 +455,9 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
     }
     // Fisher bound.
     let mut sum_a2 = 0.0;
+    let (mut c0, mut c1) = (0usize, 0usize);
     for &(t, _) in &obs {
-        let a = (wheel_speed(t + 0.1)? - wheel_speed(t - 0.1)?) / 0.2;
+        let a = (speed_at(t + 0.1, &mut c1)? - speed_at(t - 0.1, &mut c0)?) / 0.2;
         sum_a2 += a * a;
     }
     let s2 = sse[i_min] / (obs.len() as f64 - 2.0).max(1.0);
@@ -455,6 +471,8 @@ struct HeadingTrack {
     t: Vec<f64>,
     yaw: Vec<f64>,
     bias: Vec<f64>,
+    /// The gyro's cumulative angle at each epoch (NaN where not covered).
+    gyro: Vec<f64>,
 }
 
 /// One heading measurement: time, value (rad), variance (rad^2).
@@ -486,9 +504,8 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
         }
         let tt = meas[j].t - meas[j - 1].t;
         let dg = p
-            .gyro
-            .as_ref()
-            .and_then(|g| Some(g.cum_at(meas[j].t)? - g.cum_at(meas[j - 1].t)?));
+            .gyro_mean_rate(meas[j - 1].t, meas[j].t)
+            .map(|w| w * tt);
         inc.push(dg);
         let a = xf[j - 1];
         let c = pf[j - 1];
@@ -574,13 +591,17 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
         t: meas.iter().map(|m| m.t).collect(),
         yaw: xs.iter().map(|s| s[0]).collect(),
         bias: xs.iter().map(|s| s[1]).collect(),
+        gyro: meas
+            .iter()
+            .map(|m| p.gyro_cum_at(m.t).unwrap_or(f64::NAN))
+            .collect(),
     })
 }
 
 impl HeadingTrack {
     /// Heading at `t` given the gyro's cumulative angle `g_t` there (NaN when
     /// not covered), with the closing error between epochs spread linearly.
-    fn at(&self, t: f64, g_t: f64, gyro: Option<&crate::prep::Gyro>, cursor: &mut usize) -> f64 {
+    fn at(&self, t: f64, g_t: f64, cursor: &mut usize) -> f64 {
         let n = self.t.len();
         if n == 1 {
             return self.yaw[0];
@@ -589,22 +610,22 @@ impl HeadingTrack {
             *cursor += 1;
         }
         let j = *cursor;
-        let g_of = |tt: f64| gyro.and_then(|g| g.cum_at(tt));
+        let g_of = |j: usize| Some(self.gyro[j]).filter(|v| v.is_finite());
         if t <= self.t[0] {
-            return match (g_t.is_finite(), g_of(self.t[0])) {
+            return match (g_t.is_finite(), g_of(0)) {
                 (true, Some(g0)) => self.yaw[0] + (g_t - g0) - self.bias[0] * (t - self.t[0]),
                 _ => self.yaw[0],
             };
         }
         if j + 1 >= n {
-            return match (g_t.is_finite(), g_of(self.t[n - 1])) {
+            return match (g_t.is_finite(), g_of(n - 1)) {
                 (true, Some(g1)) => self.yaw[n - 1] + (g_t - g1) - self.bias[n - 1] * (t - self.t[n - 1]),
                 _ => self.yaw[n - 1],
             };
         }
         let (t0, t1) = (self.t[j], self.t[j + 1]);
         let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        match (g_t.is_finite(), g_of(t0), g_of(t1)) {
+        match (g_t.is_finite(), g_of(j), g_of(j + 1)) {
             (true, Some(g0), Some(g1)) => {
                 let b = self.bias[j];
                 let part = (g_t - g0) - b * (t - t0);
@@ -617,9 +638,11 @@ impl HeadingTrack {
     }
 }
 
-/// Build the reference for the prepared drive.
+/// Build the reference for the prepared drive (`drive` is read only for
+/// the IMU accelerations, which are not copied).
 pub fn build(
     p: &Prepared,
+    drive: &Drive,
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
 ) -> Result<Reference, CalibrationError> {
@@ -728,7 +751,7 @@ pub fn build(
 
     // Heading: gyro + GNSS course (+ absolute heading).
     let gyro = p.gyro.as_ref();
-    let omega_at = |t: f64| gyro.and_then(|g| g.mean_rate(t - 0.1, t + 0.1));
+    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
     let [lx, ly] = p.lever_arm;
     let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
     for j in 0..pass1.t.len() {
@@ -785,8 +808,8 @@ pub fn build(
     let (mut s_aa, mut s_ab) = (0.0, 0.0);
     if gyro.is_some() {
         for (m, v) in &course_meas {
-            let g_t = gyro.and_then(|g| g.cum_at(m.t)).unwrap_or(f64::NAN);
-            let th = heading.at(m.t, g_t, gyro, &mut cursor);
+            let g_t = p.gyro_cum_at(m.t).unwrap_or(f64::NAN);
+            let th = heading.at(m.t, g_t, &mut cursor);
             let b = wrap_angle(m.z - th);
             slip_t.push(m.t);
             slip_z.push(b);
@@ -812,15 +835,15 @@ pub fn build(
     let axle: Vec<[f64; 2]> = fixes
         .iter()
         .map(|f| {
-            let g_t = gyro.and_then(|g| g.cum_at(f.t)).unwrap_or(f64::NAN);
-            let th = heading.at(f.t, g_t, gyro, &mut hcur);
+            let g_t = p.gyro_cum_at(f.t).unwrap_or(f64::NAN);
+            let th = heading.at(f.t, g_t, &mut hcur);
             let (s, c) = th.sin_cos();
             [f.x - (c * lx - s * ly), f.y - (s * lx + c * ly)]
         })
         .collect();
-    let use_accel = config.use_imu_acceleration && p.accel.len() > 10;
+    let use_accel = config.use_imu_acceleration && p.has_accel;
     let inputs = if use_accel {
-        Some(accel_inputs(&fixes, p, &heading))
+        Some(accel_inputs(&fixes, p, drive, &heading))
     } else {
         None
     };
@@ -853,8 +876,8 @@ pub fn build(
         let s = pass2.at(j, t);
         x.push(s[0]);
         y.push(s[1]);
-        let g_t = p.gyro_at_wheel.as_ref().map_or(f64::NAN, |g| g[k]);
-        yaw.push(heading.at(t, g_t, gyro, &mut hc));
+        let g_t = p.gyro.as_ref().map_or(f64::NAN, |g| g[k]);
+        yaw.push(heading.at(t, g_t, &mut hc));
         beta.push(beta_track.as_ref().map_or(0.0, |b| b.at(t, &mut bc)));
         while a + 1 < acc_t.len() && acc_t[a + 1] <= t {
             a += 1;
@@ -938,7 +961,7 @@ fn motion_summary(p: &Prepared, yaw: &[f64], valid: &[bool]) -> (f64, f64) {
 
 /// Mean gyro rate over the standstill intervals: (bias, standard error, seconds).
 pub fn standstill_gyro_bias(p: &Prepared) -> Option<(f64, f64, f64)> {
-    let g = p.gyro.as_ref()?;
+    p.gyro.as_ref()?;
     let (mut sum_angle, mut sum_t) = (0.0, 0.0);
     let mut rates = Vec::new();
     for &(a, b) in &p.standstill {
@@ -947,10 +970,8 @@ pub fn standstill_gyro_bias(p: &Prepared) -> Option<(f64, f64, f64)> {
         if b - a < 0.5 {
             continue;
         }
-        if let (Some(ga), Some(gb)) = (g.cum_at(a), g.cum_at(b)) {
-            if g.gaps.iter().any(|&(s, e)| s < b && e > a) {
-                continue;
-            }
+        if let Some(rate) = p.gyro_mean_rate(a, b) {
+            let (ga, gb) = (0.0, rate * (b - a));
             sum_angle += gb - ga;
             sum_t += b - a;
             rates.push((gb - ga) / (b - a));
@@ -1038,33 +1059,45 @@ fn smooth_side_slip(t: &[f64], z: &[f64], var: &[f64]) -> Option<SlipTrack> {
 }
 
 /// Position/velocity change from the IMU accelerations rotated by the
-/// heading, for each interval ending at fix j (entry 0 unused).
-fn accel_inputs(fixes: &[RefFix], p: &Prepared, heading: &HeadingTrack) -> Vec<Input> {
-    let gyro = p.gyro.as_ref();
+/// heading, for each interval ending at fix j (entry 0 unused). The IMU rows
+/// are read from the drive (rows without finite accelerations skipped).
+fn accel_inputs(fixes: &[RefFix], p: &Prepared, drive: &Drive, heading: &HeadingTrack) -> Vec<Input> {
     let mut out = vec![[0.0; 4]; fixes.len()];
-    let mut i = p.accel.partition_point(|a| a.t < fixes.first().map_or(0.0, |f| f.t));
+    let Some(rows) = drive.imu.as_deref() else {
+        return out;
+    };
+    let usable = |r: &ImuSample| {
+        r.t_s.is_finite() && r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite)
+    };
+    let t_start = fixes.first().map_or(0.0, |f| f.t);
+    let mut i = rows.partition_point(|r| !(r.t_s >= t_start));
     let mut hc = 0usize;
+    let mut gc = 0usize;
     for j in 1..fixes.len() {
         let (t0, t1) = (fixes[j - 1].t, fixes[j].t);
         let (mut dvx, mut dvy, mut dpx, mut dpy) = (0.0, 0.0, 0.0, 0.0);
         let mut tprev = t0;
         let mut aprev: Option<[f64; 2]> = None;
-        while i < p.accel.len() && p.accel[i].t <= t1 {
-            let s = p.accel[i];
-            let g_t = gyro.and_then(|g| g.cum_at(s.t)).unwrap_or(f64::NAN);
-            let th = heading.at(s.t, g_t, gyro, &mut hc);
+        while i < rows.len() && !(rows[i].t_s > t1) {
+            let s = &rows[i];
+            i += 1;
+            if !usable(s) || s.t_s < tprev {
+                continue;
+            }
+            let (ax, ay) = (s.ax_m_s2.unwrap_or(0.0), s.ay_m_s2.unwrap_or(0.0));
+            let g_t = gyro_at_cursor(p, s.t_s, &mut gc);
+            let th = heading.at(s.t_s, g_t, &mut hc);
             let (sn, cs) = th.sin_cos();
-            let a = [cs * s.ax - sn * s.ay, sn * s.ax + cs * s.ay];
+            let a = [cs * ax - sn * ay, sn * ax + cs * ay];
             let a0 = aprev.unwrap_or(a);
-            let h = s.t - tprev;
+            let h = s.t_s - tprev;
             let am = [0.5 * (a0[0] + a[0]), 0.5 * (a0[1] + a[1])];
             dpx += dvx * h + 0.5 * am[0] * h * h;
             dpy += dvy * h + 0.5 * am[1] * h * h;
             dvx += am[0] * h;
             dvy += am[1] * h;
-            tprev = s.t;
+            tprev = s.t_s;
             aprev = Some(a);
-            i += 1;
         }
         if let Some(a) = aprev {
             let h = t1 - tprev;
@@ -1080,6 +1113,24 @@ fn accel_inputs(fixes: &[RefFix], p: &Prepared, heading: &HeadingTrack) -> Vec<I
         out[j] = [dpx, dpy, dvx, dvy];
     }
     out
+}
+
+/// The gyro integral at `t` (increasing between calls), by a forward cursor.
+fn gyro_at_cursor(p: &Prepared, t: f64, cursor: &mut usize) -> f64 {
+    let Some(g) = p.gyro.as_ref() else {
+        return f64::NAN;
+    };
+    let n = p.t.len();
+    if n < 2 || !(t >= p.t[0] && t <= p.t[n - 1]) {
+        return f64::NAN;
+    }
+    while *cursor + 2 < n && p.t[*cursor + 1] <= t {
+        *cursor += 1;
+    }
+    let i = *cursor;
+    let (t0, t1) = (p.t[i], p.t[i + 1]);
+    let f = if t1 > t0 { ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
+    g[i] + f * (g[i + 1] - g[i])
 }
 
 #[cfg(test)]

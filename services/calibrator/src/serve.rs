@@ -79,7 +79,7 @@ impl ServeConfig {
             min_gnss_fixes: 100,
             recalibrate_distance_m: 1500.0,
             holdout_fraction: 0.3,
-            holdout_window_s: 20.0,
+            holdout_window_s: 15.0,
             min_holdout_windows: 3,
             max_sigma_m: 0.005,
             state_file: None,
@@ -369,7 +369,7 @@ pub fn holdout_errors(
 ) -> Result<HoldoutScore, CalibrationError> {
     let mut warnings = Vec::new();
     let p = prepare(held, config, &mut warnings)?;
-    let r = build_reference(&p, config, &mut warnings)?;
+    let r = build_reference(&p, held, config, &mut warnings)?;
     let track = RefTrack::of(&r);
     Ok(score_windows(&p.t, &p.dn_rl, &p.dn_rr, &p.piece_starts, &track, params, window_s))
 }

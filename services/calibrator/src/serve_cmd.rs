@@ -38,7 +38,7 @@ pub struct ServeArgs {
     #[arg(long, value_name = "F", default_value_t = 0.3)]
     pub holdout: f64,
     /// Dead-reckoning window on the held-out data, s.
-    #[arg(long, value_name = "S", default_value_t = 20.0)]
+    #[arg(long, value_name = "S", default_value_t = 15.0)]
     pub holdout_window: f64,
     /// Largest accepted 1-sigma of a circumference, mm.
     #[arg(long, value_name = "MM", default_value_t = 5.0)]

@@ -26,7 +26,7 @@ use std::path::Path;
 
 const REAL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/real");
 
-fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64) -> EvaluateConfig {
+fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) -> EvaluateConfig {
     EvaluateConfig {
         outage_s,
         spacing_s,
@@ -34,13 +34,17 @@ fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64) -> EvaluateConfig
             heading,
             ..OdometerConfig::default()
         },
+        truth_point_m: arm,
+        align_distance_m: std::env::var("ALIGN_M").ok().and_then(|v| v.parse().ok()).unwrap_or(30.0),
         ..EvaluateConfig::default()
     }
 }
 
+type Model = (OdometryParams, [f64; 2]);
+
 /// End-position residuals (x and y per stretch) of `params` on `drive`.
-fn residuals(drive: &interfaces::drive::Drive, params: &OdometryParams, heading: HeadingMode) -> Option<DVector<f64>> {
-    let report = evaluate(drive, params, &config(heading, 20.0, 2.0)).ok()?;
+fn residuals(drive: &interfaces::drive::Drive, model: &Model, heading: HeadingMode) -> Option<DVector<f64>> {
+    let report = evaluate(drive, &model.0, &config(heading, 20.0, 2.0, model.1)).ok()?;
     let mut r = Vec::with_capacity(2 * report.outages.len());
     for o in &report.outages {
         r.push(o.end_m[0] - o.truth_end_m[0]);
@@ -55,7 +59,7 @@ fn fit(
     heading: HeadingMode,
     start: Vec<f64>,
     steps: &[f64],
-    to_params: &dyn Fn(&[f64]) -> OdometryParams,
+    to_params: &dyn Fn(&[f64]) -> Model,
 ) -> Vec<f64> {
     let mut x = start;
     let mut lambda = 1e-3;
@@ -102,42 +106,53 @@ fn fit(
     x
 }
 
-fn fitted_params(drive: &interfaces::drive::Drive) -> OdometryParams {
+fn fitted_model(drive: &interfaces::drive::Drive, fit_arm: bool) -> Model {
     let nominal = OdometryParams::nominal(&drive.vehicle);
-    let wheel_params = |v: &[f64]| OdometryParams {
-        two_wheel: TwoWheelParams {
-            c_rl: v[0],
-            c_rr: v[1],
-            track_width: v[2],
-        },
-        ..nominal
+    let arm = |v: &[f64], k: usize| if fit_arm { [v[k], v[k + 1]] } else { [0.0, 0.0] };
+    let wheel_model = |v: &[f64]| {
+        (
+            OdometryParams {
+                two_wheel: TwoWheelParams {
+                    c_rl: v[0],
+                    c_rr: v[1],
+                    track_width: v[2],
+                },
+                ..nominal
+            },
+            arm(v, 3),
+        )
     };
     let c = nominal.two_wheel.c_rl;
-    let w = fit(
-        drive,
-        HeadingMode::WheelDifference,
-        vec![c, c, nominal.two_wheel.track_width],
-        &[1e-4, 1e-4, 1e-4],
-        &wheel_params,
-    );
+    let mut start = vec![c, c, nominal.two_wheel.track_width];
+    let mut steps = vec![1e-4, 1e-4, 1e-4];
+    if fit_arm {
+        start.extend([0.0, 0.0]);
+        steps.extend([1e-3, 1e-3]);
+    }
+    let w = fit(drive, HeadingMode::WheelDifference, start, &steps, &wheel_model);
     let ratio = w[1] / w[0];
-    let gyro_params = |v: &[f64]| OdometryParams {
-        two_wheel: TwoWheelParams {
-            c_rl: 2.0 * v[0] / (1.0 + ratio),
-            c_rr: 2.0 * v[0] * ratio / (1.0 + ratio),
-            track_width: w[2],
-        },
-        gyro_bias_rad_s: v[1],
-        gyro_scale: v[2],
+    let gyro_model = |v: &[f64]| {
+        (
+            OdometryParams {
+                two_wheel: TwoWheelParams {
+                    c_rl: 2.0 * v[0] / (1.0 + ratio),
+                    c_rr: 2.0 * v[0] * ratio / (1.0 + ratio),
+                    track_width: w[2],
+                },
+                gyro_bias_rad_s: v[1],
+                gyro_scale: v[2],
+            },
+            arm(v, 3),
+        )
     };
-    let g = fit(
-        drive,
-        HeadingMode::Gyro,
-        vec![0.5 * (w[0] + w[1]), 0.0, 0.0],
-        &[1e-4, 1e-6, 1e-4],
-        &gyro_params,
-    );
-    gyro_params(&g)
+    let mut start = vec![0.5 * (w[0] + w[1]), 0.0, 0.0];
+    let mut steps = vec![1e-4, 1e-6, 1e-4];
+    if fit_arm {
+        start.extend([w[3], w[4]]);
+        steps.extend([1e-3, 1e-3]);
+    }
+    let g = fit(drive, HeadingMode::Gyro, start, &steps, &gyro_model);
+    gyro_model(&g)
 }
 
 fn main() {
@@ -157,26 +172,28 @@ fn main() {
         return;
     };
     let trials = [("wid-trial02", &t02), ("wid-trial04", &t04)];
-    let fits: Vec<OdometryParams> = trials.iter().map(|(_, d)| fitted_params(d)).collect();
-    for ((name, _), p) in trials.iter().zip(&fits) {
-        println!("fit on {name}: {p}");
+    // FIT_ARM=1 also fits the truth point (the RTK antenna) in the body frame.
+    let fit_arm = std::env::var("FIT_ARM").is_ok_and(|v| v == "1");
+    let fits: Vec<Model> = trials.iter().map(|(_, d)| fitted_model(d, fit_arm)).collect();
+    for ((name, _), (p, arm)) in trials.iter().zip(&fits) {
+        println!("fit on {name}: {p} truth point {arm:?}");
     }
     println!();
     println!("| fitted on | evaluated on | parameters | heading | outage s | outages | median m | p90 m | median % |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for (i, (eval_name, eval_drive)) in trials.iter().enumerate() {
-        let other = 1 - i;
+        let nominal = (OdometryParams::nominal(&eval_drive.vehicle), [0.0, 0.0]);
         let candidates = [
-            ("nominal", trials[other].0, OdometryParams::nominal(&eval_drive.vehicle)),
-            ("bench fit", trials[other].0, fits[other]),
+            ("nominal", "-", nominal),
+            ("bench fit", trials[1 - i].0, fits[1 - i]),
+            ("bench fit (same trial)", trials[i].0, fits[i]),
         ];
-        for (label, fit_name, params) in candidates {
+        for (label, fit_name, model) in candidates {
             for heading in [HeadingMode::WheelDifference, HeadingMode::Gyro] {
                 for outage in [30.0, 60.0] {
-                    match evaluate(eval_drive, &params, &config(heading, outage, 10.0)) {
+                    match evaluate(eval_drive, &model.0, &config(heading, outage, 10.0, model.1)) {
                         Ok(r) => println!(
-                            "| {} | {eval_name} | {label} | {heading} | {outage} | {} | {:.3} | {:.3} | {} |",
-                            if label == "nominal" { "-" } else { fit_name },
+                            "| {fit_name} | {eval_name} | {label} | {heading} | {outage} | {} | {:.3} | {:.3} | {} |",
                             r.outages.len(),
                             r.median_error_m,
                             r.p90_error_m,

@@ -1,7 +1,7 @@
 //! Reproduce the paper's Fig. 2 table: how tyre wear spoils 2W dead-reckoning.
 //!
 //! ```text
-//! cargo run --release -p odometry --example fig2_tyre_wear [-- --seed N]
+//! cargo run --release -p odometry --example fig2_tyre_wear [-- --seed N] [--swap]
 //! ```
 //!
 //! The simulator's `garage` scenario (about 540 m at 8-20 km/h, GNSS denied
@@ -47,7 +47,10 @@ fn errors(drive: &Drive) -> anyhow::Result<Errors> {
         .truth
         .as_ref()
         .ok_or_else(|| anyhow::anyhow!("the simulated drive has no truth"))?;
-    anyhow::ensure!(truth.len() == revs.len(), "truth and wheels differ in length");
+    anyhow::ensure!(
+        truth.len() == revs.len(),
+        "truth and wheels differ in length"
+    );
     let first = truth[0];
     let start = Pose2 {
         x: first.x_m,
@@ -64,7 +67,9 @@ fn errors(drive: &Drive) -> anyhow::Result<Errors> {
     let (mut pos_sum, mut pos_max, mut yaw_sum, mut yaw_max) = (0.0, 0.0f64, 0.0, 0.0f64);
     for (p, t) in track.iter().zip(truth) {
         let e = (p.x - t.x_m).hypot(p.y - t.y_m);
-        let y = wrap_angle(p.yaw - t.yaw_rad.unwrap_or(0.0)).abs().to_degrees();
+        let y = wrap_angle(p.yaw - t.yaw_rad.unwrap_or(0.0))
+            .abs()
+            .to_degrees();
         pos_sum += e;
         yaw_sum += y;
         pos_max = pos_max.max(e);
@@ -81,16 +86,20 @@ fn errors(drive: &Drive) -> anyhow::Result<Errors> {
 
 fn main() -> anyhow::Result<()> {
     let mut seed = 1u64;
+    let mut swap = false;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
+            "--swap" => swap = true,
             "--seed" => {
                 seed = args
                     .next()
                     .ok_or_else(|| anyhow::anyhow!("--seed needs a value"))?
                     .parse()?
             }
-            other => anyhow::bail!("unknown argument {other}; usage: fig2_tyre_wear [--seed N]"),
+            other => {
+                anyhow::bail!("unknown argument {other}; usage: fig2_tyre_wear [--seed N] [--swap]")
+            }
         }
     }
     let base = SimConfig::new(Scenario::Garage, seed);
@@ -102,10 +111,18 @@ fn main() -> anyhow::Result<()> {
         base.unworn_circumference()
     );
     println!("2W dead-reckoning with the nominal (unworn) circumference; wear = radius lost (mm)");
+    if swap {
+        println!("--swap: the RL and RR wear of each row are exchanged (the mirrored course)");
+    }
     println!();
     println!(
         "{:>7} {:>7} | {:>21} | {:>21} | {:>21} | {:>21}",
-        "", "", "position mean [m]", "position max [m]", "orientation mean [deg]", "orientation max [deg]"
+        "",
+        "",
+        "position mean [m]",
+        "position max [m]",
+        "orientation mean [deg]",
+        "orientation max [deg]"
     );
     println!(
         "{:>7} {:>7} | {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}",
@@ -115,9 +132,12 @@ fn main() -> anyhow::Result<()> {
     let mut rows = Vec::new();
     for (rl, rr, p_mean, p_max, o_mean, o_max) in PAPER {
         let mut config = base.clone();
+        // --swap wears the right tyre more instead: the same as driving the
+        // mirror image of the course.
+        let (w_rl, w_rr) = if swap { (rr, rl) } else { (rl, rr) };
         config.wear_mm = WheelWear {
-            rl,
-            rr,
+            rl: w_rl,
+            rr: w_rr,
             fl: 0.0,
             fr: 0.0,
         };
@@ -131,7 +151,9 @@ fn main() -> anyhow::Result<()> {
         rows.push(e);
     }
     // The shape, as measured: symmetric wear rows 0-3, left/right rows 4-6.
-    let rising = |idx: &[usize], f: &dyn Fn(&Errors) -> f64| idx.windows(2).all(|w| f(&rows[w[1]]) > f(&rows[w[0]]));
+    let rising = |idx: &[usize], f: &dyn Fn(&Errors) -> f64| {
+        idx.windows(2).all(|w| f(&rows[w[1]]) > f(&rows[w[0]]))
+    };
     let pos = |e: &Errors| e.pos_mean;
     let yaw = |e: &Errors| e.yaw_mean_deg;
     println!();

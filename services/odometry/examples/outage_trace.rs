@@ -1,11 +1,12 @@
-//! Dead-reckon one outage and print the track beside the truth, as CSV.
+//! Dead-reckon the outages of `odometry evaluate` and print their tracks
+//! beside the truth, as CSV (a diagnosis aid).
 //!
 //! ```text
-//! cargo run --release -p odometry --example outage_trace -- DRIVE T_START LENGTH [gyro|wheels] [EST.json]
+//! cargo run --release -p odometry --example outage_trace -- DRIVE OUTAGE_S [gyro|wheels] [EST.json] [T_START]
 //! ```
 //!
-//! Columns: t_s, dead-reckoned x, y, yaw, truth x, y (interpolated), distance
-//! between them. A diagnosis aid for `odometry evaluate`.
+//! Columns: outage start, t_s, dead-reckoned x, y, truth x, y, error. With
+//! T_START only the outage starting there.
 
 use anyhow::{bail, Context, Result};
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
@@ -15,52 +16,48 @@ use std::path::PathBuf;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if args.len() < 3 {
-        bail!("usage: outage_trace DRIVE T_START LENGTH [gyro|wheels] [EST.json]");
+    if args.len() < 2 {
+        bail!("usage: outage_trace DRIVE OUTAGE_S [gyro|wheels] [EST.json] [T_START]");
     }
     let drive = sensor_bridge::read_drive(&PathBuf::from(&args[0]))?.drive;
-    let t_start: f64 = args[1].parse().context("T_START")?;
-    let length: f64 = args[2].parse().context("LENGTH")?;
-    let heading: HeadingMode = match args.get(3) {
+    let outage_s: f64 = args[1].parse().context("OUTAGE_S")?;
+    let heading: HeadingMode = match args.get(2) {
         Some(h) => h.parse().map_err(anyhow::Error::msg)?,
         None => HeadingMode::Gyro,
     };
-    let params = match args.get(4) {
+    let params = match args.get(3).filter(|p| p.as_str() != "-") {
         Some(p) => Estimate::load(&PathBuf::from(p))?.params,
         None => OdometryParams::nominal(&drive.vehicle),
     };
-    // Shift the drive so that the evaluation's first outage starts at T_START,
-    // then trace with growing outage lengths.
-    let mut cut = drive.clone();
-    cut.wheels.samples.retain(|s| s.t_s >= t_start);
-    if let Some(t) = cut.truth.as_mut() {
-        t.retain(|s| s.t_s >= t_start - 10.0);
-    }
-    println!("t_s,dr_x,dr_y,truth_x,truth_y,error_m,start_yaw");
-    let steps = (length / 0.5).round() as usize;
-    for k in 1..=steps {
-        let outage = k as f64 * 0.5;
-        let config = EvaluateConfig {
-            outage_s: outage,
-            spacing_s: 1e9,
-            odometer: OdometerConfig {
-                heading,
-                ..OdometerConfig::default()
-            },
-            ..EvaluateConfig::default()
-        };
-        let report = evaluate(&cut, &params, &config)?;
-        let o = &report.outages[0];
-        println!(
-            "{:.2},{:.3},{:.3},{:.3},{:.3},{:.3},{:.4}",
-            o.t_start_s + outage,
-            o.end_m[0],
-            o.end_m[1],
-            o.truth_end_m[0],
-            o.truth_end_m[1],
-            o.error_m,
-            o.start_yaw_rad
-        );
+    let only: Option<f64> = args.get(4).map(|t| t.parse()).transpose().context("T_START")?;
+    let config = EvaluateConfig {
+        outage_s,
+        odometer: OdometerConfig {
+            heading,
+            ..OdometerConfig::default()
+        },
+        keep_tracks: true,
+        ..EvaluateConfig::default()
+    };
+    let report = evaluate(&drive, &params, &config)?;
+    println!("t_start_s,t_s,dr_x,dr_y,truth_x,truth_y,error_m,yaw_source");
+    for o in &report.outages {
+        if only.is_some_and(|t| (t - o.t_start_s).abs() > 0.5) {
+            continue;
+        }
+        for p in &o.track {
+            println!(
+                "{:.2},{:.2},{:.3},{:.3},{:.3},{:.3},{:.3},{}",
+                o.t_start_s,
+                p.t_s,
+                p.dead_reckoned_m[0],
+                p.dead_reckoned_m[1],
+                p.truth_m[0],
+                p.truth_m[1],
+                (p.dead_reckoned_m[0] - p.truth_m[0]).hypot(p.dead_reckoned_m[1] - p.truth_m[1]),
+                o.start_yaw_source
+            );
+        }
     }
     Ok(())
 }

@@ -348,11 +348,15 @@ impl Odometer {
         self.last_wheels.map(|(t, _, _)| t)
     }
 
-    /// Forget the wheel reference (after inputs went stale): the next wheel
-    /// sample starts afresh and yields no increment.
+    /// Forget the wheel reference and the gyro history (after the inputs went
+    /// stale, or a publisher restarted): the next samples start afresh, even
+    /// with earlier times, and the next wheel sample yields no increment. The
+    /// learned wheel offsets are kept.
     pub fn restart(&mut self) {
         self.last_wheels = None;
         self.gyro_mark = None;
+        self.gyro = GyroIntegral::default();
+        self.standstill = Standstill::default();
     }
 
     /// Take a yaw-rate sample (raw, as measured).

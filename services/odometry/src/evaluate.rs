@@ -2,34 +2,37 @@
 //!
 //! Outages of a given length start every `spacing_s` (10 s) from the first
 //! instant covered by both wheels and `truth.csv`, as long as they end inside
-//! that coverage. At each outage start the pose is taken from the truth
-//! (`start_yaw_source` in the report says which yaw rule applied):
-//! - position: `truth.csv` interpolated linearly in time;
-//! - yaw, `truth_yaw`: `yaw_rad` of `truth.csv` interpolated (shortest way
-//!   round) when the two rows around the start have it;
-//! - yaw, `truth_track_alignment` (truth without yaw): the rotation that best
-//!   lays the dead-reckoned track of the last `align_distance_m` (30 m) of
-//!   driving before the start (at most `align_max_s` back) onto the truth
-//!   positions of the same stretch (2-D Procrustes: least squares over
-//!   rotation and translation), applied to the dead-reckoned yaw at the start.
+//! that coverage. At each outage start the pose is taken from the truth;
+//! `start_yaw_source` in the report says which rule applied:
+//! - `truth_yaw`: `truth.csv` has `yaw_rad` around the start: position and
+//!   yaw interpolated (yaw the shortest way round);
+//! - `truth_track_alignment` (truth without yaw, the usual case of a GNSS
+//!   truth): the dead-reckoned track of the last `align_distance_m` (30 m) of
+//!   driving before the start is laid onto the truth positions of the same
+//!   stretch by the rotation and translation that fit best (2-D Procrustes,
+//!   refitted once without truth points more than three times the median
+//!   residual off); the start pose is the laid track's pose at the start.
 //!   This is what a filter fusing GNSS with this odometry knows when the GNSS
-//!   drops out; it uses only data from before the outage, and it averages the
-//!   truth's own noise over a long baseline (a course from a few truth points
-//!   is off by several hundredths of a radian on the WID drives, metres after
-//!   30 s);
-//! - yaw, `truth_course` (when the truth has not moved 30 m before the start,
-//!   e.g. at the start of a drive): the course of the truth track at the
-//!   start, see [`course_at`]: a least-squares cubic fit x(u), y(u) of the
-//!   truth positions against their arc length u within `course_half_window_m`
+//!   drops out: it uses only data from before the outage, and it averages the
+//!   truth's own noise over a long baseline. On the WID drives the RTK truth
+//!   jumps by decimetres now and then, and a course from a few truth points is
+//!   off by several hundredths of a radian: metres after 30 s;
+//! - `truth_track_alignment_after`: the same on the first 30 m after the
+//!   start, when the vehicle has not driven 30 m before it (the start of a
+//!   drive: it stands, so its heading is the heading it departs with);
+//! - `truth_course` (neither window within `align_max_s`): position
+//!   interpolated, yaw the course of the truth track at the start, see
+//!   [`course_at`]: a least-squares cubic fit x(u), y(u) of the truth
+//!   positions against their arc length u within `course_half_window_m`
 //!   either side of the start point, yaw = atan2(y'(0), x'(0)), fitted only on
 //!   the points where the arc length grew; the window is doubled, up to four
 //!   times, where it holds too few points. A cubic, not a quadratic: with the
 //!   curvature changing along the window, a quadratic's slope is biased by a
-//!   few mrad. The arc length grows only when the track has moved more than
-//!   [`ARC_DEADBAND_M`] from its last counted point, so GNSS jitter while
-//!   standing adds nothing; a car that stands at the start therefore gets the
-//!   course of its departure, which is its heading (a car does not turn on
-//!   the spot).
+//!   few mrad.
+//!
+//! The arc length of the truth track grows only when the track has moved more
+//! than [`ARC_DEADBAND_M`] from its last counted point, so GNSS jitter while
+//! standing adds nothing.
 //!
 //! The odometer (the same [`DeadReckoner`] as the service's) runs through the
 //! whole drive as the service would, so that at each outage start it has what
@@ -74,6 +77,13 @@ pub struct EvaluateConfig {
     pub align_distance_m: f64,
     /// Longest time before the outage the alignment may reach back, s.
     pub align_max_s: f64,
+    /// Body-frame position (x forward, y left) of the point `truth.csv`
+    /// follows, from the rear-axle centre, m. The drive format says truth is
+    /// the rear-axle centre ([0, 0]); real recordings whose truth is a GNSS
+    /// antenna set the antenna's position here.
+    pub truth_point_m: [f64; 2],
+    /// Keep the dead-reckoned track of every outage in the report.
+    pub keep_tracks: bool,
 }
 
 impl Default for EvaluateConfig {
@@ -87,6 +97,8 @@ impl Default for EvaluateConfig {
             min_distance_for_pct_m: 5.0,
             align_distance_m: 30.0,
             align_max_s: 30.0,
+            truth_point_m: [0.0, 0.0],
+            keep_tracks: false,
         }
     }
 }
@@ -107,14 +119,30 @@ pub struct OutageResult {
     pub error_pct: Option<f64>,
     /// Yaw the dead-reckoning started from, rad.
     pub start_yaw_rad: f64,
-    /// Where that yaw came from: `truth_yaw` or `truth_course`.
+    /// Where the start pose came from: `truth_yaw`, `truth_track_alignment`,
+    /// `truth_track_alignment_after` or `truth_course` (see the module docs).
     pub start_yaw_source: &'static str,
-    /// Dead-reckoned position at the outage end, m (east, north).
+    /// Dead-reckoned position of the truth point at the outage end, m (east, north).
     pub end_m: [f64; 2],
     /// True position at the outage end, m (east, north).
     pub truth_end_m: [f64; 2],
     /// Increments that fell back to the wheel difference in gyro mode.
     pub gyro_fallbacks: u64,
+    /// With `keep_tracks`: at every truth row inside the outage, its time,
+    /// the dead-reckoned truth point and the truth (east, north).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub track: Vec<TrackPoint>,
+}
+
+/// One point of an outage's track.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TrackPoint {
+    /// Time, s.
+    pub t_s: f64,
+    /// Dead-reckoned position of the truth point, m.
+    pub dead_reckoned_m: [f64; 2],
+    /// True position, m.
+    pub truth_m: [f64; 2],
 }
 
 /// The parameters an evaluation used, as written to JSON.
@@ -388,17 +416,20 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
         if t1 > t_to + 1e-9 {
             break;
         }
-        let align_from = if truth.yaw_at(t0).is_some() {
+        let align = if truth.yaw_at(t0).is_some() {
             None
         } else {
-            truth.arc_at(t0).and_then(|s0| alignment_start(&truth, config, t0, s0))
+            truth.arc_at(t0).and_then(|s0| alignment_window(&truth, config, t0, s0))
         };
-        windows.push((t0, t1, align_from));
+        windows.push((t0, t1, align));
     }
 
     // One pass of the odometer over the whole drive, as the service runs it;
     // every outage (and alignment) starts from a copy of it.
-    let mut starts: Vec<f64> = windows.iter().flat_map(|w| std::iter::once(w.0).chain(w.2)).collect();
+    let mut starts: Vec<f64> = windows
+        .iter()
+        .flat_map(|w| std::iter::once(w.0).chain(w.2.map(|a| a.0)))
+        .collect();
     starts.sort_by(f64::total_cmp);
     starts.dedup();
     let (snapshots, background_skipped) = snapshots(&revs, &inputs, params, config.odometer, &starts);
@@ -418,11 +449,11 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
             "{background_skipped} wheel or IMU samples with bad values or times skipped"
         ));
     }
-    for &(t0, t1, align_from) in &windows {
+    for &(t0, t1, align) in &windows {
         let scored = snapshot_at(t0).and_then(|start| {
-            let aligned = align_from.and_then(|ta| {
+            let aligned = align.and_then(|(ta, tb)| {
                 let from = snapshot_at(ta).ok()?;
-                aligned_yaw(&truth, &revs, &inputs, from, ta, t0)
+                aligned_start(&truth, &revs, &inputs, from, config.truth_point_m, ta, tb, t0)
             });
             run_outage(&truth, &revs, &inputs, config, start, aligned, t0, t1)
         });
@@ -542,69 +573,128 @@ fn dead_reckon_span(revs: &[WheelRevs], inputs: &[Input], start: &Snapshot, pose
     })
 }
 
+/// Where the truth point is for a rear-axle pose.
+fn truth_point(pose: &Pose2, arm: [f64; 2]) -> [f64; 2] {
+    let (s, c) = pose.yaw.sin_cos();
+    [pose.x + arm[0] * c - arm[1] * s, pose.y + arm[0] * s + arm[1] * c]
+}
+
 /// Position of a dead-reckoned track at `t_s`, interpolated linearly.
-fn track_position_at(track: &[(f64, Pose2)], t_s: f64) -> Option<[f64; 2]> {
+fn track_position_at(track: &[(f64, Pose2)], t_s: f64, arm: [f64; 2]) -> Option<[f64; 2]> {
     let n = track.len();
     if n == 0 || t_s < track[0].0 || t_s > track[n - 1].0 {
         return None;
     }
     if n == 1 {
-        return Some([track[0].1.x, track[0].1.y]);
+        return Some(truth_point(&track[0].1, arm));
     }
     let i = track.partition_point(|(t, _)| *t <= t_s).clamp(1, n - 1) - 1;
     let ((ta, a), (tb, b)) = (track[i], track[i + 1]);
+    let (a, b) = (truth_point(&a, arm), truth_point(&b, arm));
     let f = if tb > ta { (t_s - ta) / (tb - ta) } else { 0.0 };
-    Some([a.x + f * (b.x - a.x), a.y + f * (b.y - a.y)])
+    Some([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])
 }
 
-/// Start of the alignment window before `t0`: the time of the last truth row
-/// at least `align_distance_m` of track back, within `align_max_s`, with no
-/// truth gap longer than `max_truth_gap_s` in between.
-fn alignment_start(truth: &TruthTrack<'_>, config: &EvaluateConfig, t0: f64, s0: f64) -> Option<f64> {
-    let first_row = truth.rows.partition_point(|r| r.t_s < t0 - config.align_max_s);
-    let window_start = (first_row..truth.rows.len())
-        .take_while(|&i| truth.rows[i].t_s <= t0)
-        .filter(|&i| s0 - truth.arc_m[i] >= config.align_distance_m)
-        .last()?;
-    let gap = truth.rows[window_start..]
-        .windows(2)
-        .take_while(|w| w[0].t_s < t0)
-        .any(|w| w[1].t_s - w[0].t_s > config.max_truth_gap_s);
-    (!gap).then_some(truth.rows[window_start].t_s)
+/// The alignment window `(ta, tb)` for an outage starting at `t0`: the last
+/// `align_distance_m` of truth track before `t0` (`tb = t0`), or, when the
+/// vehicle has not driven that far before `t0` (a drive's start), the first
+/// `align_distance_m` after it (`ta = t0`); within `align_max_s` and without
+/// truth gaps longer than `max_truth_gap_s`.
+fn alignment_window(truth: &TruthTrack<'_>, config: &EvaluateConfig, t0: f64, s0: f64) -> Option<(f64, f64)> {
+    let rows = truth.rows;
+    let no_gap = |from: usize, to: usize| {
+        rows[from..=to]
+            .windows(2)
+            .all(|w| w[1].t_s - w[0].t_s <= config.max_truth_gap_s)
+    };
+    let first = rows.partition_point(|r| r.t_s < t0 - config.align_max_s);
+    let after_t0 = rows.partition_point(|r| r.t_s <= t0);
+    if let Some(i) = (first..after_t0)
+        .rev()
+        .find(|&i| s0 - truth.arc_m[i] >= config.align_distance_m)
+    {
+        return (after_t0 > 0 && no_gap(i, after_t0.min(rows.len() - 1))).then_some((rows[i].t_s, t0));
+    }
+    let last = rows.partition_point(|r| r.t_s <= t0 + config.align_max_s);
+    let j = (after_t0..last).find(|&j| truth.arc_m[j] - s0 >= config.align_distance_m)?;
+    (after_t0 > 0 && no_gap(after_t0 - 1, j)).then_some((t0, rows[j].t_s))
 }
 
-/// The yaw at `t0` that best lays the dead-reckoned track from `ta` to `t0`
-/// onto the truth of the same stretch (see the module docs).
-fn aligned_yaw(truth: &TruthTrack<'_>, revs: &[WheelRevs], inputs: &[Input], from: &Snapshot, ta: f64, t0: f64) -> Option<f64> {
-    let span = dead_reckon_span(revs, inputs, from, Pose2::default(), ta, t0).ok()?;
+/// The start pose (truth-point position and yaw at `t0`) that best lays the
+/// dead-reckoned track from `ta` to `tb` onto the truth of the same stretch
+/// (see the module docs). 2-D Procrustes, refitted once without the truth
+/// points more than three times the median residual (and 0.1 m) off.
+#[allow(clippy::too_many_arguments)]
+fn aligned_start(
+    truth: &TruthTrack<'_>,
+    revs: &[WheelRevs],
+    inputs: &[Input],
+    from: &Snapshot,
+    arm: [f64; 2],
+    ta: f64,
+    tb: f64,
+    t0: f64,
+) -> Option<([f64; 2], f64)> {
+    let span = dead_reckon_span(revs, inputs, from, Pose2::default(), ta, tb).ok()?;
     let first = truth.rows.partition_point(|r| r.t_s < ta);
     let mut pairs = Vec::new();
-    for r in truth.rows[first..].iter().take_while(|r| r.t_s <= t0) {
-        if let Some(d) = track_position_at(&span.track, r.t_s) {
+    for r in truth.rows[first..].iter().take_while(|r| r.t_s <= tb) {
+        if let Some(d) = track_position_at(&span.track, r.t_s, arm) {
             pairs.push((d, [r.x_m, r.y_m]));
         }
     }
+    let (mut rotation, mut dm, mut gm) = procrustes(&pairs)?;
+    let residual = |rotation: f64, dm: [f64; 2], gm: [f64; 2], d: [f64; 2], g: [f64; 2]| {
+        let (s, c) = rotation.sin_cos();
+        let (dx, dy) = (d[0] - dm[0], d[1] - dm[1]);
+        (gm[0] + c * dx - s * dy - g[0]).hypot(gm[1] + s * dx + c * dy - g[1])
+    };
+    let residuals: Vec<f64> = pairs.iter().map(|(d, g)| residual(rotation, dm, gm, *d, *g)).collect();
+    let limit = (3.0 * percentile(&residuals, 0.5)?).max(0.1);
+    let kept: Vec<_> = pairs
+        .iter()
+        .zip(&residuals)
+        .filter(|(_, r)| **r <= limit)
+        .map(|(p, _)| *p)
+        .collect();
+    if kept.len() < pairs.len() {
+        (rotation, dm, gm) = procrustes(&kept)?;
+    }
+    let (t_end, end) = if t0 == ta { span.track.first()? } else { span.track.last()? };
+    debug_assert!(*t_end == t0);
+    let d0 = truth_point(end, arm);
+    let (s, c) = rotation.sin_cos();
+    let (dx, dy) = (d0[0] - dm[0], d0[1] - dm[1]);
+    let position = [gm[0] + c * dx - s * dy, gm[1] + s * dx + c * dy];
+    Some((position, wrap_angle(end.yaw + rotation)))
+}
+
+/// Rotation and centroids laying points `d` onto points `g` (least squares).
+fn procrustes(pairs: &[([f64; 2], [f64; 2])]) -> Option<(f64, [f64; 2], [f64; 2])> {
     if pairs.len() < 3 {
         return None;
     }
-    // 2-D Procrustes: the rotation of the centred dead-reckoned points onto the centred truth.
     let n = pairs.len() as f64;
     let (mut dm, mut gm) = ([0.0; 2], [0.0; 2]);
-    for (d, g) in &pairs {
+    for (d, g) in pairs {
         for j in 0..2 {
             dm[j] += d[j] / n;
             gm[j] += g[j] / n;
         }
     }
-    let (mut dot, mut cross) = (0.0, 0.0);
-    for (d, g) in &pairs {
+    let (mut dot, mut cross, mut spread) = (0.0, 0.0, 0.0);
+    for (d, g) in pairs {
         let (dx, dy, gx, gy) = (d[0] - dm[0], d[1] - dm[1], g[0] - gm[0], g[1] - gm[1]);
         dot += dx * gx + dy * gy;
         cross += dx * gy - dy * gx;
+        spread += dx * dx + dy * dy;
+    }
+    // A track that did not move has no direction.
+    if spread < 1.0 {
+        return None;
     }
     let rotation = cross.atan2(dot);
-    let end_yaw = span.track.last()?.1.yaw;
-    rotation.is_finite().then(|| wrap_angle(end_yaw + rotation))
+    rotation.is_finite().then_some((rotation, dm, gm))
 }
 
 /// One outage from `t0` to `t1`, or why it cannot be scored.
@@ -615,7 +705,7 @@ fn run_outage(
     inputs: &[Input],
     config: &EvaluateConfig,
     start_state: &Snapshot,
-    aligned: Option<f64>,
+    aligned: Option<([f64; 2], f64)>,
     t0: f64,
     t1: f64,
 ) -> Result<OutageResult, String> {
@@ -629,12 +719,17 @@ fn run_outage(
         (Some(a), Some(b)) => (a, b),
         _ => return Err("no truth arc length".into()),
     };
-    let (yaw, yaw_source) = if let Some(y) = truth.yaw_at(t0) {
-        (y, "truth_yaw")
-    } else if let Some(y) = aligned {
-        (y, "truth_track_alignment")
+    let (start, yaw, yaw_source) = if let Some(y) = truth.yaw_at(t0) {
+        (start, y, "truth_yaw")
+    } else if let Some((position, y)) = aligned {
+        let after = truth.arc_at(t0).is_some_and(|s0| {
+            alignment_window(truth, config, t0, s0).is_some_and(|(ta, _)| ta == t0)
+        });
+        let source = if after { "truth_track_alignment_after" } else { "truth_track_alignment" };
+        (position, y, source)
     } else {
         (
+            start,
             // Widen the window where the truth is sparse (e.g. at a drive's start).
             [1.0, 2.0, 4.0]
                 .iter()
@@ -643,9 +738,18 @@ fn run_outage(
             "truth_course",
         )
     };
+    // The rear-axle pose whose truth point is at the truth.
+    let arm = truth_point(
+        &Pose2 {
+            x: 0.0,
+            y: 0.0,
+            yaw,
+        },
+        config.truth_point_m,
+    );
     let pose0 = Pose2 {
-        x: start[0],
-        y: start[1],
+        x: start[0] - arm[0],
+        y: start[1] - arm[1],
         yaw,
     };
     let span = dead_reckon_span(revs, inputs, start_state, pose0, t0, t1)?;
@@ -653,7 +757,21 @@ fn run_outage(
         return Err(format!("{} wheel or IMU samples inside it are unusable", span.skipped));
     }
     let pose = span.track.last().map(|(_, p)| *p).ok_or("empty dead-reckoning")?;
-    let error_m = (pose.x - end[0]).hypot(pose.y - end[1]);
+    let end_point = truth_point(&pose, config.truth_point_m);
+    let mut track = Vec::new();
+    if config.keep_tracks {
+        let first = truth.rows.partition_point(|r| r.t_s < t0);
+        for r in truth.rows[first..].iter().take_while(|r| r.t_s <= t1) {
+            if let Some(d) = track_position_at(&span.track, r.t_s, config.truth_point_m) {
+                track.push(TrackPoint {
+                    t_s: r.t_s,
+                    dead_reckoned_m: d,
+                    truth_m: [r.x_m, r.y_m],
+                });
+            }
+        }
+    }
+    let error_m = (end_point[0] - end[0]).hypot(end_point[1] - end[1]);
     let distance_m = s1 - s0;
     Ok(OutageResult {
         t_start_s: t0,
@@ -663,9 +781,10 @@ fn run_outage(
         error_pct: (distance_m >= config.min_distance_for_pct_m).then(|| 100.0 * error_m / distance_m),
         start_yaw_rad: yaw,
         start_yaw_source: yaw_source,
-        end_m: [pose.x, pose.y],
+        end_m: end_point,
         truth_end_m: end,
         gyro_fallbacks: span.gyro_fallbacks,
+        track,
     })
 }
 
@@ -781,8 +900,12 @@ mod tests {
             assert_eq!(report.outages.len(), 8, "{heading}");
             assert!(report.warnings.is_empty(), "{:?}", report.warnings);
             for o in &report.outages {
-                // No driving before the first outage: the course fit; then the alignment.
-                let expected = if o.t_start_s == 0.0 { "truth_course" } else { "truth_track_alignment" };
+                // No driving before the first outage: aligned on the track after its start.
+                let expected = if o.t_start_s == 0.0 {
+                    "truth_track_alignment_after"
+                } else {
+                    "truth_track_alignment"
+                };
                 assert_eq!(o.start_yaw_source, expected);
                 assert!((o.distance_m - 240.0).abs() < 1.0, "{o:?}");
                 assert_eq!(o.gyro_fallbacks, 0);

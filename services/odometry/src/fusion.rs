@@ -48,6 +48,9 @@ use nalgebra::{SMatrix, SVector};
 type Mat4 = SMatrix<f64, 4, 4>;
 type Vec4 = SVector<f64, 4>;
 
+/// Measurements waiting for a wheel sample, at most.
+pub const MAX_PENDING: usize = 256;
+
 /// 99.9 % quantile of chi-square with 2 degrees of freedom.
 pub const CHI2_2DOF_999: f64 = 13.816;
 /// 99.9 % quantile of chi-square with 1 degree of freedom.
@@ -100,7 +103,7 @@ impl Default for FusionConfig {
             lever_arm_m: [0.0, 0.0],
             gnss_timeout_s: 1.0,
             default_gnss_sigma_m: 2.0,
-            min_gnss_sigma_m: 0.2,
+            min_gnss_sigma_m: 0.15,
             default_heading_sigma_rad: 0.05,
             gnss_gate: CHI2_2DOF_999,
             heading_gate: CHI2_1DOF_999,
@@ -108,7 +111,7 @@ impl Default for FusionConfig {
             init_baseline_m: 5.0,
             reset_after_rejected_s: 10.0,
             max_measurement_delay_s: 0.2,
-            distance_noise_frac: 0.005,
+            distance_noise_frac: 0.02,
             wheel_yaw_noise_rad_per_m: 0.003,
             gyro_noise_rad_per_sqrt_s: 0.002,
             gyro_bias_walk: 2e-5,
@@ -175,7 +178,8 @@ pub struct FusionStats {
     pub heading_accepted: u64,
     /// Headings rejected by the gate.
     pub heading_rejected: u64,
-    /// Measurements dropped because they came too late.
+    /// Measurements dropped because they came too late (or waited too long
+    /// for a wheel sample).
     pub dropped_late: u64,
     /// Times the filter was initialised.
     pub initialisations: u64,
@@ -338,7 +342,7 @@ impl Fusion {
                     .filter(|s| s.is_finite() && *s > 0.0)
                     .unwrap_or(self.config.default_gnss_sigma_m)
                     .max(self.config.min_gnss_sigma_m);
-                self.pending.push(Measurement::Gnss {
+                self.push_pending(Measurement::Gnss {
                     t_s,
                     x_m,
                     y_m,
@@ -354,7 +358,7 @@ impl Fusion {
                     .filter(|s| s.is_finite() && *s > 0.0)
                     .unwrap_or(self.config.default_heading_sigma_rad);
                 self.last_heading = Some((t_s, yaw_rad, sigma));
-                self.pending.push(Measurement::Heading { t_s, yaw_rad, sigma_rad: sigma });
+                self.push_pending(Measurement::Heading { t_s, yaw_rad, sigma_rad: sigma });
                 Ok(None)
             }
             Input::Estimate { version, estimate, .. } => {
@@ -370,6 +374,16 @@ impl Fusion {
                 Err(e) => Err(e),
             },
         }
+    }
+
+    /// Queue a measurement until the wheel sample after it; without wheel
+    /// samples the queue keeps only the newest [`MAX_PENDING`].
+    fn push_pending(&mut self, m: Measurement) {
+        if self.pending.len() >= MAX_PENDING {
+            self.pending.remove(0);
+            self.stats.dropped_late += 1;
+        }
+        self.pending.push(m);
     }
 
     fn wheels(&mut self, t1: f64, rl1: f64, rr1: f64) -> Result<FusedPose, ProcessError> {

@@ -6,4 +6,5 @@ pub mod estimate_file;
 pub mod evaluate;
 pub mod fusion;
 pub mod inputs;
+pub mod serve;
 pub mod two_wheel;

@@ -20,6 +20,9 @@ enum Command {
     /// drive, the pose taken from truth.csv at each outage start, and score
     /// the position at each outage end.
     Evaluate(EvaluateArgs),
+    /// Run the pose service over iceoryx2: subscribe to wheels, IMU, GNSS,
+    /// heading and the estimate; publish a pose per wheel sample.
+    Serve(odometry::serve::ServeArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -49,6 +52,10 @@ fn main() -> Result<()> {
     interfaces::logging::init();
     match cli.command {
         Command::Evaluate(args) => run_evaluate(&args),
+        Command::Serve(args) => {
+            odometry::serve::run(&args, &odometry::serve::Shutdown::new()).context("odometry serve")?;
+            Ok(())
+        }
     }
 }
 

@@ -14,14 +14,25 @@ use sensor_bridge::sim::{simulate, EffectSettings, Scenario, SimConfig};
 use std::time::Instant;
 
 fn main() -> anyhow::Result<()> {
-    println!("{:<34} {:>10} {:>12} {:>10} {:>10} {:>12}", "case", "drive_s", "wheel_rows", "min_s", "max_s", "x_realtime");
+    println!(
+        "{:<34} {:>10} {:>12} {:>10} {:>10} {:>12}",
+        "case", "drive_s", "wheel_rows", "min_s", "max_s", "x_realtime"
+    );
     let mut all = EffectSettings::none();
     for e in Effect::ALL {
         all.switch_on(e);
     }
     let cases = [
-        ("long 10 min, default effects", 600.0, EffectSettings::default()),
-        ("long 1 h, default effects", 3600.0, EffectSettings::default()),
+        (
+            "long 10 min, default effects",
+            600.0,
+            EffectSettings::default(),
+        ),
+        (
+            "long 1 h, default effects",
+            3600.0,
+            EffectSettings::default(),
+        ),
         ("long 1 h, every effect on", 3600.0, all),
     ];
     for (name, duration, effects) in cases {
@@ -39,7 +50,10 @@ fn main() -> anyhow::Result<()> {
         }
         let min = times.iter().copied().fold(f64::INFINITY, f64::min);
         let max = times.iter().copied().fold(0.0, f64::max);
-        println!("{name:<34} {duration:>10.0} {rows:>12} {min:>10.3} {max:>10.3} {:>12.0}", duration / min);
+        println!(
+            "{name:<34} {duration:>10.0} {rows:>12} {min:>10.3} {max:>10.3} {:>12.0}",
+            duration / min
+        );
     }
     Ok(())
 }

@@ -44,8 +44,17 @@ pub fn dr_error_vs_truth(drive: &Drive, params: &TwoWheelParams) -> Option<(f64,
 
 /// Peak resident memory of this process so far (VmHWM), MB.
 pub fn peak_memory_mb() -> Option<f64> {
+    status_mb("VmHWM:")
+}
+
+/// Resident memory of this process now (VmRSS), MB.
+pub fn resident_memory_mb() -> Option<f64> {
+    status_mb("VmRSS:")
+}
+
+fn status_mb(key: &str) -> Option<f64> {
     let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = s.lines().find(|l| l.starts_with(key))?;
     let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb / 1024.0)
 }

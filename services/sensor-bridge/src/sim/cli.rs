@@ -81,7 +81,8 @@ impl SimulateArgs {
         }
         c.duration_s = self.duration;
         if let Some(w) = &self.wear {
-            let parts: Result<Vec<f64>, _> = w.split(',').map(|p| p.trim().parse::<f64>()).collect();
+            let parts: Result<Vec<f64>, _> =
+                w.split(',').map(|p| p.trim().parse::<f64>()).collect();
             match parts.as_deref() {
                 Ok([rl, rr, fl, fr]) => {
                     c.wear_mm = WheelWear {
@@ -165,15 +166,22 @@ mod tests {
             "30",
         ]);
         let c = cli.args.config().unwrap();
-        assert_eq!((c.scenario, c.seed, c.vehicle), (Scenario::Garage, 7, VehicleKind::Van));
+        assert_eq!(
+            (c.scenario, c.seed, c.vehicle),
+            (Scenario::Garage, 7, VehicleKind::Van)
+        );
         assert_eq!(c.effects.gnss_latency.map(|l| l.tau_s), Some(0.05));
         assert!(c.effects.side_slip.is_none() && c.effects.longitudinal_slip.is_some());
         assert_eq!(c.sensors.gnss.rate_hz, 5.0);
         assert_eq!(c.wear_mm.rl, 3.5);
         assert_eq!(c.duration_s, Some(30.0));
-        let bad = Cli::parse_from(["x", "--scenario", "moon", "--out", "o"]).args.config();
+        let bad = Cli::parse_from(["x", "--scenario", "moon", "--out", "o"])
+            .args
+            .config();
         assert!(matches!(bad, Err(SimError::UnknownScenario(_))));
-        let bad = Cli::parse_from(["x", "--scenario", "paper", "--out", "o", "--wear", "1,2"]).args.config();
+        let bad = Cli::parse_from(["x", "--scenario", "paper", "--out", "o", "--wear", "1,2"])
+            .args
+            .config();
         assert!(bad.is_err());
     }
 }

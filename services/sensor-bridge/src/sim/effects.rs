@@ -253,7 +253,11 @@ impl EffectSettings {
         }
         let t = |p: &str| typical_value(effect, p);
         match effect {
-            Effect::SideSlip => self.side_slip = Some(SideSlip { k_beta: t("k_beta") }),
+            Effect::SideSlip => {
+                self.side_slip = Some(SideSlip {
+                    k_beta: t("k_beta"),
+                })
+            }
             Effect::LoadTransferRadius => {
                 self.load_transfer_radius = Some(LoadTransferRadius { k_z: t("k_z") })
             }
@@ -264,7 +268,11 @@ impl EffectSettings {
                 self.longitudinal_slip = Some(LongitudinalSlip { k_s: t("k_s") })
             }
             Effect::TrackWidth => self.track_width = Some(TrackWidth { rel: t("rel") }),
-            Effect::GyroBias => self.gyro_bias = Some(GyroBias { b_deg_h: t("b_deg_h") }),
+            Effect::GyroBias => {
+                self.gyro_bias = Some(GyroBias {
+                    b_deg_h: t("b_deg_h"),
+                })
+            }
             Effect::GyroScale => self.gyro_scale = Some(GyroScale { s: t("s") }),
             Effect::GnssLatency => self.gnss_latency = Some(GnssLatency { tau_s: t("tau_s") }),
             Effect::GnssLeverArm => {
@@ -339,7 +347,11 @@ impl EffectSettings {
     /// first if it was off). `param = None` sets the effect's main parameter.
     pub fn set(&mut self, effect: Effect, param: Option<&str>, value: f64) -> Result<(), SimError> {
         let bad = |reason: String| SimError::InvalidEffect {
-            spec: format!("{}{}={value}", effect.id(), param.map(|p| format!(".{p}")).unwrap_or_default()),
+            spec: format!(
+                "{}{}={value}",
+                effect.id(),
+                param.map(|p| format!(".{p}")).unwrap_or_default()
+            ),
             reason,
         };
         if !value.is_finite() {
@@ -349,7 +361,10 @@ impl EffectSettings {
         let param = param.unwrap_or(main);
         if !typical(effect).iter().any(|(p, _)| *p == param) {
             let known: Vec<&str> = typical(effect).iter().map(|(p, _)| *p).collect();
-            return Err(bad(format!("unknown parameter `{param}`; known: {}", known.join(", "))));
+            return Err(bad(format!(
+                "unknown parameter `{param}`; known: {}",
+                known.join(", ")
+            )));
         }
         let non_negative = |v: f64| -> Result<f64, SimError> {
             if v < 0.0 {
@@ -509,7 +524,10 @@ mod tests {
     fn defaults_are_the_vehicle_physics() {
         let e = EffectSettings::default();
         let on: Vec<String> = e.to_truth_map().into_keys().collect();
-        assert_eq!(on, ["load_transfer_radius", "longitudinal_slip", "side_slip"]);
+        assert_eq!(
+            on,
+            ["load_transfer_radius", "longitudinal_slip", "side_slip"]
+        );
         assert!(EffectSettings::none().to_truth_map().is_empty());
     }
 
@@ -525,7 +543,14 @@ mod tests {
         e.apply_spec("side_slip=off").unwrap();
         e.apply_spec("gnss_latency=0").unwrap();
         assert!(!e.is_on(Effect::SideSlip) && !e.is_on(Effect::GnssLatency));
-        for bad in ["warp=1", "side_slip", "side_slip=abc", "side_slip.k=1", "side_slip=-1", "gnss_latency=9"] {
+        for bad in [
+            "warp=1",
+            "side_slip",
+            "side_slip=abc",
+            "side_slip.k=1",
+            "side_slip=-1",
+            "gnss_latency=9",
+        ] {
             let err = e.apply_spec(bad).unwrap_err().to_string();
             assert!(err.contains(bad.split('=').next().unwrap()), "{bad}: {err}");
         }

@@ -6,8 +6,8 @@ use super::sensors::{gauss, GaussMarkov};
 use super::vehicle::{self, VehicleSpec, G};
 use super::{SimConfig, SimError};
 use interfaces::drive::{
-    toml_value::Value, Drive, GnssAntenna, GnssSample, HeadingSample, ImuSample, TruthParams, TruthSample,
-    VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
+    toml_value::Value, Drive, GnssAntenna, GnssSample, HeadingSample, ImuSample, TruthParams,
+    TruthSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -120,7 +120,8 @@ impl Model {
         let spec = &self.spec;
         // Actuators: steering rate limit, force lag.
         let max_d = spec.max_steer_rate_rad_s * dt;
-        st.delta = (st.delta + (delta_cmd - st.delta).clamp(-max_d, max_d)).clamp(-spec.max_steer_rad, spec.max_steer_rad);
+        st.delta = (st.delta + (delta_cmd - st.delta).clamp(-max_d, max_d))
+            .clamp(-spec.max_steer_rad, spec.max_steer_rad);
         st.force += (force_cmd - st.force) * dt / FORCE_LAG_S;
 
         // Vertical loads: static, longitudinal and lateral transfer.
@@ -177,10 +178,17 @@ impl Model {
                     let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
                     let mu = spec.mu;
                     let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
-                        vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+                        vehicle::lateral_force(
+                            alpha,
+                            fz,
+                            mu,
+                            vehicle::cornering_stiffness(c, fz, fz0),
+                        )
                     };
-                    let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front) + fy(alpha_f, fz[FR], cf, self.fz0_front);
-                    let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear) + fy(alpha_r, fz[RR], cr, self.fz0_rear);
+                    let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front)
+                        + fy(alpha_f, fz[FR], cf, self.fz0_front);
+                    let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear)
+                        + fy(alpha_r, fz[RR], cr, self.fz0_rear);
                     let front_lat = fyf * cd + fx_front * sd;
                     let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
                     let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
@@ -281,11 +289,16 @@ fn period_steps(name: &str, rate_hz: f64, dt: f64) -> Result<u64, SimError> {
 fn validate(config: &SimConfig) -> Result<(), SimError> {
     let bad = |s: String| Err(SimError::InvalidConfig(s));
     if !(1e-4..=0.01).contains(&config.step_s) {
-        return bad(format!("step_s = {} must lie within [0.0001, 0.01]", config.step_s));
+        return bad(format!(
+            "step_s = {} must lie within [0.0001, 0.01]",
+            config.step_s
+        ));
     }
     if let Some(d) = config.duration_s {
         if !(d > 0.0 && d <= MAX_DURATION_S) {
-            return bad(format!("duration {d} s must lie within (0, {MAX_DURATION_S}]"));
+            return bad(format!(
+                "duration {d} s must lie within (0, {MAX_DURATION_S}]"
+            ));
         }
     }
     let c = config.true_circumferences();
@@ -341,10 +354,15 @@ fn validate(config: &SimConfig) -> Result<(), SimError> {
         ("heading.sigma_deg", s.heading.sigma_deg),
     ] {
         if !(v.is_finite() && v >= 0.0) {
-            return bad(format!("sensor setting {name} = {v} must be finite and non-negative"));
+            return bad(format!(
+                "sensor setting {name} = {v} must be finite and non-negative"
+            ));
         }
     }
-    for (name, v) in [("gnss.gm_tau_s", s.gnss.gm_tau_s), ("gnss.outage_mean_s", s.gnss.outage_mean_s)] {
+    for (name, v) in [
+        ("gnss.gm_tau_s", s.gnss.gm_tau_s),
+        ("gnss.outage_mean_s", s.gnss.outage_mean_s),
+    ] {
         if !(v.is_finite() && v > 0.0) {
             return bad(format!("sensor setting {name} = {v} must be positive"));
         }
@@ -436,7 +454,14 @@ struct Driver {
 impl Driver {
     /// Steering (pure pursuit on the rear axle with understeer feed-forward)
     /// and the longitudinal force for the speed profile and stops.
-    fn act(&mut self, model: &Model, st: &State, route: &Route, stops: &mut Stops, dt_driver: f64) -> PathPoint {
+    fn act(
+        &mut self,
+        model: &Model,
+        st: &State,
+        route: &Route,
+        stops: &mut Stops,
+        dt_driver: f64,
+    ) -> PathPoint {
         let spec = &model.spec;
         self.s_along = route.nearest_s(st.x, st.y, self.s_along, 12.0);
         let here = route.at(self.s_along);
@@ -488,7 +513,8 @@ impl Driver {
         self.force_cmd = if hold {
             -0.3 * model.m * G
         } else {
-            let a_cmd = (0.8 * (v_ref - st.vx) + a_ff).clamp(-1.5 * here.attrs.decel.max(2.0), here.attrs.accel);
+            let a_cmd = (0.8 * (v_ref - st.vx) + a_ff)
+                .clamp(-1.5 * here.attrs.decel.max(2.0), here.attrs.accel);
             let f = model.m * a_cmd + resist;
             f.min(model.m * spec.max_drive_accel_m_s2 + resist)
         };
@@ -529,7 +555,11 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
         GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
         GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
     ];
-    let mut outages = Outages::new(sensors.gnss.outage_rate_per_h, sensors.gnss.outage_mean_s, &mut outage_rng);
+    let mut outages = Outages::new(
+        sensors.gnss.outage_rate_per_h,
+        sensors.gnss.outage_mean_s,
+        &mut outage_rng,
+    );
 
     let e = &config.effects;
     let gyro_bias = e.gyro_bias.map_or(0.0, |b| b.b_deg_h.to_radians() / 3600.0);
@@ -575,10 +605,11 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
     let mut k: u64 = 0;
     loop {
         let t = k as f64 * dt;
-        if k % driver_period == 0 {
+        let mut done = false;
+        if k.is_multiple_of(driver_period) {
             here = driver.act(&model, &st, &route, &mut stops, driver_period as f64 * dt);
         }
-        if k % wheel_period == 0 {
+        if k.is_multiple_of(wheel_period) {
             if !(st.x.is_finite() && st.y.is_finite() && st.psi.is_finite() && st.vx.is_finite()) {
                 return Err(SimError::Numerical {
                     t_s: t,
@@ -602,10 +633,15 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 y_m: st.y,
                 yaw_rad: Some(wrap(st.psi)),
             });
-            let done = match end_step {
+            done = match end_step {
                 Some(end) => k >= end,
                 None => {
-                    if route.is_closed() && route.stops().last().is_none_or(|s| s.s < route.length() - 1.0) {
+                    if route.is_closed()
+                        && route
+                            .stops()
+                            .last()
+                            .is_none_or(|s| s.s < route.length() - 1.0)
+                    {
                         driver.s_along >= route.length()
                     } else {
                         // Ends at its final stop once the dwell is over.
@@ -614,10 +650,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                     }
                 }
             };
-            if done {
-                break;
-            }
-            if end_step.is_none() && k >= limit_steps {
+            if !done && end_step.is_none() && k >= limit_steps {
                 return Err(SimError::Stuck {
                     scenario: config.scenario.name().to_string(),
                     limit_s: DEFAULT_TIME_LIMIT_S,
@@ -625,7 +658,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 });
             }
         }
-        if sensors.imu.enabled && k % imu_period == 0 {
+        if sensors.imu.enabled && k.is_multiple_of(imu_period) {
             let sigma = sensors.imu.gz_sigma_rad_s;
             let sa = sensors.imu.accel_sigma_m_s2;
             let pitch = here.grade.atan();
@@ -640,8 +673,11 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 gy_rad_s: Some(pitch_rate + sigma * gauss(&mut imu_rng)),
             });
         }
-        if sensors.gnss.enabled && k % gnss_period == 0 {
-            let noise = [gm[0].step(gnss_dt, &mut gm_rng), gm[1].step(gnss_dt, &mut gm_rng)];
+        if sensors.gnss.enabled && k.is_multiple_of(gnss_period) {
+            let noise = [
+                gm[0].step(gnss_dt, &mut gm_rng),
+                gm[1].step(gnss_dt, &mut gm_rng),
+            ];
             let white = sensors.gnss.white_sigma_m;
             let wx = white * gauss(&mut gnss_rng);
             let wy = white * gauss(&mut gnss_rng);
@@ -657,7 +693,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 });
             }
         }
-        if sensors.heading.enabled && k % heading_period == 0 {
+        if sensors.heading.enabled && k.is_multiple_of(heading_period) {
             let sigma = sensors.heading.sigma_deg.to_radians();
             let bias = e.heading_bias.map_or(0.0, |h| h.error_rad(st.psi));
             heading.push(HeadingSample {
@@ -666,7 +702,18 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 sigma_rad: (sigma > 0.0).then_some(sigma),
             });
         }
-        model.step(&mut st, t, driver.delta_cmd, driver.force_cmd, here.grade, dt);
+        if done {
+            // Every sensor has sampled the final instant too.
+            break;
+        }
+        model.step(
+            &mut st,
+            t,
+            driver.delta_cmd,
+            driver.force_cmd,
+            here.grade,
+            dt,
+        );
         k += 1;
     }
 
@@ -677,7 +724,11 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
     heading.retain(|s| s.t_s <= t_end + 1e-9);
 
     let spec = &model.spec;
-    let unit = if ticks.is_some() { WheelUnit::Ticks } else { WheelUnit::Rev };
+    let unit = if ticks.is_some() {
+        WheelUnit::Ticks
+    } else {
+        WheelUnit::Rev
+    };
     let truth_params = TruthParams {
         track_width_m: config.true_track_width(),
         circumference_m: config.true_circumferences(),
@@ -686,7 +737,11 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
     };
     Ok(Drive {
         vehicle: VehicleParams {
-            name: Some(format!("simulated {} ({} scenario)", config.vehicle.name(), config.scenario.name())),
+            name: Some(format!(
+                "simulated {} ({} scenario)",
+                config.vehicle.name(),
+                config.scenario.name()
+            )),
             track_width_m: spec.track_rear_m,
             nominal_circumference_m: config.nominal_circumference(),
             wheelbase_m: Some(spec.wheelbase_m),
@@ -707,29 +762,53 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
 
 fn extra_keys(config: &SimConfig, route: &Route, t_end: f64) -> BTreeMap<String, Value> {
     let f = Value::Float;
-    let table = |pairs: Vec<(&str, Value)>| Value::Table(pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect());
+    let table = |pairs: Vec<(&str, Value)>| {
+        Value::Table(pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect())
+    };
     let s = &config.sensors;
     let w = &config.wear_mm;
     let spec = config.vehicle.spec();
     let mut extra = BTreeMap::new();
-    extra.insert("scenario".into(), Value::String(config.scenario.name().into()));
+    extra.insert(
+        "scenario".into(),
+        Value::String(config.scenario.name().into()),
+    );
     extra.insert(
         "seed".into(),
-        i64::try_from(config.seed).map_or_else(|_| Value::String(config.seed.to_string()), Value::Integer),
+        i64::try_from(config.seed)
+            .map_or_else(|_| Value::String(config.seed.to_string()), Value::Integer),
     );
-    extra.insert("vehicle".into(), Value::String(config.vehicle.name().into()));
+    extra.insert(
+        "vehicle".into(),
+        Value::String(config.vehicle.name().into()),
+    );
     extra.insert("duration_s".into(), f(t_end));
     extra.insert("route_length_m".into(), f(route.length()));
     extra.insert("step_s".into(), f(config.step_s));
-    extra.insert("unworn_circumference_m".into(), f(config.unworn_circumference()));
+    extra.insert(
+        "unworn_circumference_m".into(),
+        f(config.unworn_circumference()),
+    );
     extra.insert("nominal_track_width_m".into(), f(spec.track_rear_m));
     extra.insert(
         "driven_axle".into(),
-        Value::String(if spec.rear_wheel_drive { "rear" } else { "front" }.into()),
+        Value::String(
+            if spec.rear_wheel_drive {
+                "rear"
+            } else {
+                "front"
+            }
+            .into(),
+        ),
     );
     extra.insert(
         "wear_mm".into(),
-        table(vec![("rl", f(w.rl)), ("rr", f(w.rr)), ("fl", f(w.fl)), ("fr", f(w.fr))]),
+        table(vec![
+            ("rl", f(w.rl)),
+            ("rr", f(w.rr)),
+            ("fl", f(w.fl)),
+            ("fr", f(w.fr)),
+        ]),
     );
     let mut wheels = vec![("rate_hz", f(s.wheels.rate_hz))];
     if let Some(t) = s.wheels.ticks_per_rev {
@@ -771,4 +850,54 @@ fn extra_keys(config: &SimConfig, route: &Route, t_end: f64) -> BTreeMap<String,
         ]),
     );
     extra
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{EffectSettings, Scenario, SimConfig};
+    use super::*;
+
+    #[test]
+    fn bad_configurations_are_typed_errors() {
+        let base = SimConfig::new(Scenario::Paper, 1);
+        let mut c = base.clone();
+        c.step_s = 0.05;
+        assert!(matches!(run(&c), Err(SimError::InvalidConfig(_))));
+        let mut c = base.clone();
+        c.sensors.gnss.rate_hz = 3.0;
+        let err = run(&c).unwrap_err().to_string();
+        assert!(err.contains("GNSS rate 3 Hz"), "{err}");
+        let mut c = base.clone();
+        c.effects.apply_spec("side_slip=0.0005").unwrap();
+        assert!(matches!(run(&c), Err(SimError::InvalidEffect { .. })));
+        let mut c = base.clone();
+        c.wear_mm.rl = 400.0;
+        assert!(run(&c).unwrap_err().to_string().contains("rl"));
+        let mut c = base;
+        c.duration_s = Some(-1.0);
+        assert!(run(&c).is_err());
+    }
+
+    #[test]
+    fn a_short_drive_has_every_stream_on_one_clock() {
+        let mut c = SimConfig::new(Scenario::Mixed, 2);
+        c.duration_s = Some(5.0);
+        c.effects = EffectSettings::none();
+        c.effects.apply_spec("gnss_latency=0.05").unwrap();
+        let d = run(&c).unwrap();
+        assert_eq!(d.wheels.samples.len(), 501);
+        assert_eq!(d.truth.as_ref().map(Vec::len), Some(501));
+        let gnss = d.gnss.as_ref().unwrap();
+        assert_eq!(
+            gnss.len(),
+            50,
+            "10 Hz, the last fix stamped after 5 s is not logged"
+        );
+        assert!((gnss[0].t_s - 0.05).abs() < 1e-12);
+        assert_eq!(d.imu.as_ref().map(Vec::len), Some(501));
+        assert_eq!(d.heading.as_ref().map(Vec::len), Some(51));
+        let tp = d.truth_params.unwrap();
+        assert_eq!(tp.effects.len(), 1);
+        assert_eq!(tp.extra.get("seed"), Some(&Value::Integer(2)));
+    }
 }

@@ -34,8 +34,9 @@ mod sensors;
 mod vehicle;
 
 pub use effects::{
-    typical as typical_effect, EffectSettings, GnssLatency, GnssLeverArm, GyroBias, GyroScale, HeadingBias,
-    LoadTransferRadius, LongitudinalSlip, RadiusDrift, RoadGrade, SideSlip, SpeedRadiusGrowth, TrackWidth,
+    typical as typical_effect, EffectSettings, GnssLatency, GnssLeverArm, GyroBias, GyroScale,
+    HeadingBias, LoadTransferRadius, LongitudinalSlip, RadiusDrift, RoadGrade, SideSlip,
+    SpeedRadiusGrowth, TrackWidth,
 };
 pub use sensors::{
     GnssSettings, HeadingSettings, ImuSettings, SensorSettings, WheelEncoderSettings, SENSOR_KEYS,
@@ -119,7 +120,12 @@ pub enum Scenario {
 
 impl Scenario {
     /// Every scenario.
-    pub const ALL: [Scenario; 4] = [Scenario::Paper, Scenario::Garage, Scenario::Mixed, Scenario::Long];
+    pub const ALL: [Scenario; 4] = [
+        Scenario::Paper,
+        Scenario::Garage,
+        Scenario::Mixed,
+        Scenario::Long,
+    ];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {

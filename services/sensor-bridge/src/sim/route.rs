@@ -176,7 +176,9 @@ impl RouteBuilder {
             let ((gx, gy, h), free) = RouteBuilder::trace(&pieces);
             let turns = h / TAU;
             if (turns - turns.round()).abs() > 1e-9 || turns.round() == 0.0 {
-                return Err(bad(format!("a closed route must turn whole circles, it turns {turns}")));
+                return Err(bad(format!(
+                    "a closed route must turn whole circles, it turns {turns}"
+                )));
             }
             let (Some(h0), Some(h1)) = (free[0], free[1]) else {
                 return Err(bad("a closed route needs free straights 0 and 1".into()));
@@ -198,7 +200,11 @@ impl RouteBuilder {
                 }
             }
             for p in pieces.iter_mut() {
-                if let Prim::Straight { len, free: Some(id) } = &mut p.prim {
+                if let Prim::Straight {
+                    len,
+                    free: Some(id),
+                } = &mut p.prim
+                {
                     *len = if *id == 0 { l0 } else { l1 };
                 }
             }
@@ -314,7 +320,10 @@ impl Route {
             }
             s_end += len;
             if let Some(dwell) = p.stop_after_s {
-                stops.push(Stop { s: s_end, dwell_s: dwell });
+                stops.push(Stop {
+                    s: s_end,
+                    dwell_s: dwell,
+                });
             }
         }
         if total < 2.0 || !total.is_finite() {
@@ -492,7 +501,8 @@ impl Route {
         for (k0, k1) in [(k, k + 1), (k - 1, k)] {
             if let (Some(i0), Some(i1)) = (idx(k0), idx(k1)) {
                 let (ex, ey) = (self.x[i1] - self.x[i0], self.y[i1] - self.y[i0]);
-                let t = ((x - self.x[i0]) * ex + (y - self.y[i0]) * ey) / (ex * ex + ey * ey).max(1e-12);
+                let t = ((x - self.x[i0]) * ex + (y - self.y[i0]) * ey)
+                    / (ex * ex + ey * ey).max(1e-12);
                 if (0.0..=1.0).contains(&t) {
                     s = (k0 as f64 + t) * self.ds;
                     break;
@@ -534,10 +544,17 @@ mod tests {
         let r = b.build("test", true, 0.0).unwrap();
         let end = r.at(r.length() - 1e-9);
         let start = r.at(0.0);
-        assert!((end.x - start.x).abs() < 0.01 && (end.y - start.y).abs() < 0.01, "{end:?}");
+        assert!(
+            (end.x - start.x).abs() < 0.01 && (end.y - start.y).abs() < 0.01,
+            "{end:?}"
+        );
         // Straights 100, 40, 100, 40 plus four quarter circles.
         let expect = 280.0 + TAU * 20.0;
-        assert!((r.length() - expect).abs() < 0.3, "{} vs {expect}", r.length());
+        assert!(
+            (r.length() - expect).abs() < 0.3,
+            "{} vs {expect}",
+            r.length()
+        );
         let p = r.at(50.0);
         assert!((p.x - 50.0).abs() < 1e-9 && p.y.abs() < 1e-9);
         let s = r.nearest_s(50.3, 1.0, 45.0, 10.0);
@@ -553,7 +570,10 @@ mod tests {
         b.straight(100.0).turn(90.0, 20.0);
         assert!(b.build("t", true, 0.0).is_err());
         let mut b = RouteBuilder::new(50.0);
-        b.free_straight(0, 0.0).turn(180.0, 10.0).free_straight(1, 0.0).turn(180.0, 10.0);
+        b.free_straight(0, 0.0)
+            .turn(180.0, 10.0)
+            .free_straight(1, 0.0)
+            .turn(180.0, 10.0);
         assert!(b.build("t", true, 0.0).is_err());
     }
 }

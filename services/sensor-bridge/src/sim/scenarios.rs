@@ -198,7 +198,11 @@ mod tests {
         let paper = build(Scenario::Paper, 0.0).unwrap().route;
         assert!((paper.length() - 2232.0).abs() < 5.0, "{}", paper.length());
         let garage = build(Scenario::Garage, 0.05).unwrap().route;
-        assert!((garage.length() - 542.0).abs() < 10.0, "{}", garage.length());
+        assert!(
+            (garage.length() - 542.0).abs() < 10.0,
+            "{}",
+            garage.length()
+        );
         let mixed = build(Scenario::Mixed, 0.0).unwrap().route;
         assert!((mixed.length() - 9186.0).abs() < 10.0, "{}", mixed.length());
         assert_eq!(mixed.stops().len(), 4);

@@ -176,7 +176,9 @@ impl SensorSettings {
             _ => Err(bad("expected 0/1, true/false or on/off".into())),
         };
         let number = || -> Result<f64, SimError> {
-            let v: f64 = value.parse().map_err(|_| bad("the value is not a number".into()))?;
+            let v: f64 = value
+                .parse()
+                .map_err(|_| bad("the value is not a number".into()))?;
             if v.is_finite() && v >= 0.0 {
                 Ok(v)
             } else {
@@ -214,7 +216,12 @@ impl SensorSettings {
             "heading.enabled" => self.heading.enabled = flag()?,
             "heading.rate_hz" => self.heading.rate_hz = positive()?,
             "heading.sigma_deg" => self.heading.sigma_deg = number()?,
-            _ => return Err(bad(format!("unknown key; known: {}", SENSOR_KEYS.join(", ")))),
+            _ => {
+                return Err(bad(format!(
+                    "unknown key; known: {}",
+                    SENSOR_KEYS.join(", ")
+                )))
+            }
         }
         Ok(())
     }
@@ -267,7 +274,12 @@ mod tests {
         assert_eq!(s.gnss.rate_hz, 5.0);
         assert_eq!(s.wheels.ticks_per_rev, None);
         assert!(!s.heading.enabled);
-        for bad in ["gnss.rate_hz=0", "gnss.rate=5", "imu.enabled=maybe", "wheels.ticks_per_rev=4.5"] {
+        for bad in [
+            "gnss.rate_hz=0",
+            "gnss.rate=5",
+            "imu.enabled=maybe",
+            "wheels.ticks_per_rev=4.5",
+        ] {
             assert!(s.apply_spec(bad).is_err(), "{bad}");
         }
         for key in SENSOR_KEYS {

@@ -171,12 +171,16 @@ impl VehicleSpec {
 
     /// Relative load change of a rear wheel per m/s^2 of lateral acceleration.
     pub fn rear_load_gain(&self) -> f64 {
-        self.mass_kg * self.cg_height_m * self.rear_roll_share / self.track_rear_m / self.static_load_rear()
+        self.mass_kg * self.cg_height_m * self.rear_roll_share
+            / self.track_rear_m
+            / self.static_load_rear()
     }
 
     /// Relative load change of a front wheel per m/s^2 of lateral acceleration.
     pub fn front_load_gain(&self) -> f64 {
-        self.mass_kg * self.cg_height_m * (1.0 - self.rear_roll_share) / self.track_front_m / self.static_load_front()
+        self.mass_kg * self.cg_height_m * (1.0 - self.rear_roll_share)
+            / self.track_front_m
+            / self.static_load_front()
     }
 
     /// Aerodynamic drag plus rolling resistance at speed `v`, N (resisting motion).

@@ -1,0 +1,572 @@
+//! `odometry serve`: the pose service of the process graph.
+//!
+//! Subscribes to the wheels, IMU, GNSS, heading and estimate topics
+//! (`interfaces::wire` names them, `interfaces::bus` opens them the same way
+//! in every process) and publishes a [`Pose`] on `wheelcal/odometry/pose` for
+//! every wheel sample, from the [`Fusion`] filter.
+//!
+//! - Blocking wakeups: one WaitSet with the listener of every input topic
+//!   (each publish-subscribe service has an event service of the same name
+//!   that its publishers notify per sample) and an interval that checks for
+//!   stale inputs and termination. No polling loop.
+//! - Every wakeup drains all subscribers into one batch and processes it in
+//!   time order, wheels last at equal times ([`crate::inputs`]): the same
+//!   order as `odometry evaluate` and the bridge's replay, so a replayed
+//!   drive gives the same poses however the processes are scheduled.
+//! - A new estimate is taken between two samples: the pose stays where it is,
+//!   the next increments use the new values; the switch is logged with the
+//!   old and new values.
+//! - Stale inputs: when no wheel sample arrived for `stale_after` (wall
+//!   clock), a warning says so, the filter forgets its pose, and one pose with
+//!   mode `NoFix` (zeros, zero covariance) is published at the last wheel time
+//!   so that subscribers learn at once. Nothing else is published until
+//!   wheel samples come again; the filter then starts over (`NoFix` until its
+//!   next GNSS initialisation). A pose is never published for an instant it
+//!   cannot stand behind.
+//! - Poses in mode `NoFix` (before the first initialisation) are published at
+//!   wheel rate with zero position and covariance: they carry no position.
+//! - SIGINT/SIGTERM end the WaitSet loop; [`Shutdown`] does the same for a
+//!   caller in the same process (tests).
+
+use crate::dead_reckoning::{HeadingMode, OdometerConfig};
+use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
+use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
+use crate::inputs::{sort_inputs, Input};
+use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
+use interfaces::drive::VehicleParams;
+use interfaces::wire::{CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, PoseMode, WheelRotations};
+use iceoryx2::prelude::CallbackProgression;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Arguments of `odometry serve`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ServeArgs {
+    /// Vehicle parameters: a vehicle.toml, or a drive (folder or .mcap) to take
+    /// them from (nominal circumference, track, GNSS antenna position).
+    #[arg(long, value_name = "PATH")]
+    pub vehicle: PathBuf,
+    /// Start from this estimate (`calibrator calibrate --json`) instead of the
+    /// nominal values; an estimate on the bus still replaces it.
+    #[arg(long, value_name = "EST.json")]
+    pub estimate: Option<PathBuf>,
+    /// Ignore estimates on the bus (keep the nominal or --estimate values).
+    #[arg(long)]
+    pub no_bus_estimate: bool,
+    /// Heading source while dead-reckoning: `gyro` (default, see the README for
+    /// why) or `wheels` (the paper's 2W model).
+    #[arg(long, default_value = "gyro")]
+    pub heading: HeadingMode,
+    /// Without an accepted GNSS fix for this long, the mode is DeadReckoning, s.
+    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    pub gnss_timeout: f64,
+    /// Without a wheel sample for this long (wall clock), the inputs are stale, s.
+    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    pub stale_after: f64,
+    /// Log a status line every this many seconds of drive time (0 = never).
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    pub status_every: f64,
+    /// Stop when the wheel stream ends (its publisher says so) instead of
+    /// waiting for more.
+    #[arg(long)]
+    pub exit_on_end: bool,
+    /// iceoryx2 prefix of the graph (default: $WHEELCAL_IOX_PREFIX, else iceoryx2's).
+    #[arg(long, value_name = "PREFIX")]
+    pub iox_prefix: Option<String>,
+    /// iceoryx2 root path of the graph (default: $WHEELCAL_IOX_ROOT, else iceoryx2's).
+    #[arg(long, value_name = "DIR")]
+    pub iox_root: Option<PathBuf>,
+}
+
+/// Everything the service runs with, files already read.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// Where the graph's iceoryx2 resources live.
+    pub bus: BusSettings,
+    /// The vehicle (nominal parameters, antenna).
+    pub vehicle: VehicleParams,
+    /// The estimate to start from (`None`: nominal), version 0.
+    pub initial: Option<Estimate>,
+    /// Take estimates from the bus.
+    pub bus_estimates: bool,
+    /// Filter settings.
+    pub fusion: FusionConfig,
+    /// Wall-clock time without wheel samples after which the inputs are stale.
+    pub stale_after: Duration,
+    /// Drive-time period of the status line, s (0 = none).
+    pub status_every_s: f64,
+    /// Stop when the wheel stream ends.
+    pub exit_on_end: bool,
+}
+
+impl ServeConfig {
+    /// The settings of `args`, reading the vehicle and estimate files.
+    pub fn from_args(args: &ServeArgs) -> Result<ServeConfig, ServeError> {
+        let vehicle = load_vehicle(&args.vehicle)?;
+        let initial = args.estimate.as_deref().map(Estimate::load).transpose()?;
+        let positive = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(ServeError::Config(format!("{name} {v} must be a positive number of seconds")))
+            }
+        };
+        let mut settings = BusSettings::from_env();
+        if let Some(p) = &args.iox_prefix {
+            settings.prefix = Some(p.clone());
+        }
+        if let Some(r) = &args.iox_root {
+            settings.root = Some(r.clone());
+        }
+        let fusion = FusionConfig {
+            odometer: OdometerConfig {
+                heading: args.heading,
+                ..OdometerConfig::default()
+            },
+            lever_arm_m: [
+                vehicle.gnss.antenna_x_m.unwrap_or(0.0),
+                vehicle.gnss.antenna_y_m.unwrap_or(0.0),
+            ],
+            gnss_timeout_s: positive("--gnss-timeout", args.gnss_timeout)?,
+            ..FusionConfig::default()
+        };
+        Ok(ServeConfig {
+            bus: settings,
+            vehicle,
+            initial,
+            bus_estimates: !args.no_bus_estimate,
+            fusion,
+            stale_after: Duration::from_secs_f64(positive("--stale-after", args.stale_after)?),
+            status_every_s: args.status_every.max(0.0),
+            exit_on_end: args.exit_on_end,
+        })
+    }
+}
+
+/// Read vehicle parameters from a vehicle.toml or a drive.
+pub fn load_vehicle(path: &Path) -> Result<VehicleParams, ServeError> {
+    let vehicle_error = |detail: String| ServeError::Vehicle {
+        path: path.to_path_buf(),
+        detail,
+    };
+    if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
+        let text = std::fs::read_to_string(path).map_err(|e| vehicle_error(e.to_string()))?;
+        return toml::from_str(&text).map_err(|e| vehicle_error(e.to_string()));
+    }
+    sensor_bridge::read_drive(path)
+        .map(|loaded| loaded.drive.vehicle)
+        .map_err(|e| vehicle_error(e.to_string()))
+}
+
+/// Why the service could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// An iceoryx2 operation failed.
+    #[error(transparent)]
+    Bus(#[from] BusError),
+    /// The vehicle parameters could not be read.
+    #[error("vehicle parameters from {path}: {detail}")]
+    Vehicle {
+        /// The file or drive.
+        path: PathBuf,
+        /// What went wrong.
+        detail: String,
+    },
+    /// The initial estimate could not be read.
+    #[error(transparent)]
+    Estimate(#[from] ParamsError),
+    /// A setting is out of range.
+    #[error("invalid setting: {0}")]
+    Config(String),
+}
+
+/// A stop request from the same process (a test, or another thread); signals
+/// are handled by the WaitSet.
+#[derive(Debug, Clone, Default)]
+pub struct Shutdown(Arc<AtomicBool>);
+
+impl Shutdown {
+    /// Not requested yet.
+    pub fn new() -> Shutdown {
+        Shutdown::default()
+    }
+
+    /// Ask the service loop to end (it notices within its tick, 100 ms at most).
+    pub fn request(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    /// True once requested.
+    pub fn is_requested(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+}
+
+/// What a service run did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ServeSummary {
+    /// Wheel samples processed.
+    pub wheel_samples: u64,
+    /// Poses published.
+    pub poses: u64,
+    /// Estimates switched to.
+    pub estimate_switches: u64,
+    /// Times the inputs went stale.
+    pub stale_events: u64,
+    /// Samples missing in the sequence numbers, per input topic
+    /// (wheels, gnss, imu, heading, estimate).
+    pub lost: [u64; 5],
+    /// Input samples skipped as unusable (each logged).
+    pub skipped: u64,
+    /// Version of the estimate in use at the end.
+    pub estimate_version: u64,
+}
+
+/// `odometry serve`: read the files, join the graph, run until stopped.
+pub fn run(args: &ServeArgs, shutdown: &Shutdown) -> Result<ServeSummary, ServeError> {
+    let config = ServeConfig::from_args(args)?;
+    let bus = Bus::open(&config.bus, "odometry")?;
+    serve(&bus, &config, shutdown)
+}
+
+struct Inputs {
+    wheels: TopicSubscriber<WheelRotations>,
+    gnss: TopicSubscriber<GnssFix>,
+    imu: TopicSubscriber<Imu>,
+    heading: TopicSubscriber<Heading>,
+    estimate: TopicSubscriber<CircumferenceEstimate>,
+}
+
+/// What one drain of the subscribers found besides the samples.
+#[derive(Debug, Default)]
+struct Drained {
+    wheels_ended: bool,
+    skipped: u64,
+}
+
+impl Inputs {
+    fn open(bus: &Bus) -> Result<Inputs, BusError> {
+        Ok(Inputs {
+            wheels: bus.subscriber()?,
+            gnss: bus.subscriber()?,
+            imu: bus.subscriber()?,
+            heading: bus.subscriber()?,
+            estimate: bus.subscriber()?,
+        })
+    }
+
+    fn lost(&self) -> [u64; 5] {
+        [
+            self.wheels.lost(),
+            self.gnss.lost(),
+            self.imu.lost(),
+            self.heading.lost(),
+            self.estimate.lost(),
+        ]
+    }
+
+    /// Consume every notification and every sample waiting, into `batch`.
+    fn drain(&self, batch: &mut Vec<Input>, bus_estimates: bool) -> Result<Drained, BusError> {
+        let mut out = Drained::default();
+        out.wheels_ended = self.wheels.take_events()?.end_of_stream;
+        self.gnss.take_events()?;
+        self.imu.take_events()?;
+        self.heading.take_events()?;
+        self.estimate.take_events()?;
+        while let Some(s) = self.imu.receive()? {
+            batch.push(Input::Imu {
+                t_s: s.header.t_s(),
+                gz_rad_s: s.gz_rad_s,
+            });
+        }
+        while let Some(s) = self.gnss.receive()? {
+            if s.fix == 0 {
+                continue; // "no fix": the position is not usable (wire contract)
+            }
+            batch.push(Input::Gnss {
+                t_s: s.header.t_s(),
+                x_m: s.x_m,
+                y_m: s.y_m,
+                sigma_m: (s.sigma_m > 0.0).then_some(s.sigma_m),
+            });
+        }
+        while let Some(s) = self.heading.receive()? {
+            batch.push(Input::Heading {
+                t_s: s.header.t_s(),
+                yaw_rad: s.yaw_rad,
+                sigma_rad: (s.sigma_rad > 0.0).then_some(s.sigma_rad),
+            });
+        }
+        while let Some(s) = self.estimate.receive()? {
+            if !bus_estimates {
+                tracing::info!("odometry: estimate v{} on the bus ignored (--no-bus-estimate)", s.version);
+                continue;
+            }
+            match Estimate::from_wire(&s) {
+                // Taken between two samples: sorted before the wheels of this batch.
+                Ok(estimate) => batch.push(Input::Estimate {
+                    t_s: f64::NEG_INFINITY,
+                    version: s.version,
+                    estimate,
+                }),
+                Err(e) => {
+                    out.skipped += 1;
+                    tracing::warn!("odometry: estimate rejected: {e}");
+                }
+            }
+        }
+        while let Some(s) = self.wheels.receive()? {
+            batch.push(Input::Wheels {
+                t_s: s.header.t_s(),
+                rl_rev: s.rl_rev,
+                rr_rev: s.rr_rev,
+            });
+        }
+        Ok(out)
+    }
+}
+
+fn mode_name(mode: PoseMode) -> &'static str {
+    match mode {
+        PoseMode::NoFix => "NoFix",
+        PoseMode::Fused => "Fused",
+        PoseMode::DeadReckoning => "DeadReckoning",
+    }
+}
+
+fn to_wire(pose: &FusedPose) -> Pose {
+    Pose {
+        header: Header::from_seconds(pose.t_s, 0),
+        x_m: pose.pose.x,
+        y_m: pose.pose.y,
+        yaw_rad: pose.pose.yaw,
+        covariance: pose.covariance,
+        estimate_version: pose.estimate_version,
+        mode: pose.mode as u8,
+        _pad: [0; 7],
+    }
+}
+
+fn describe_switch(old: &OdometryParams, new: &OdometryParams) -> String {
+    format!(
+        "c_rl {:.5} -> {:.5} m, c_rr {:.5} -> {:.5} m, track {:.4} -> {:.4} m, gyro bias {:.6} -> {:.6} rad/s, \
+         gyro scale {:.5} -> {:.5}",
+        old.two_wheel.c_rl,
+        new.two_wheel.c_rl,
+        old.two_wheel.c_rr,
+        new.two_wheel.c_rr,
+        old.two_wheel.track_width,
+        new.two_wheel.track_width,
+        old.gyro_bias_rad_s,
+        new.gyro_bias_rad_s,
+        old.gyro_scale,
+        new.gyro_scale
+    )
+}
+
+/// The service loop on an open bus; returns when stopped (signal, `shutdown`,
+/// or the end of the wheel stream with `exit_on_end`).
+pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<ServeSummary, ServeError> {
+    let params = config
+        .initial
+        .map_or_else(|| OdometryParams::nominal(&config.vehicle), |e| e.params);
+    params.validate("vehicle parameters")?;
+    let mut fusion = Fusion::new(params, 0, config.fusion);
+    let inputs = Inputs::open(bus)?;
+    let mut poses: TopicPublisher<Pose> = bus.publisher()?;
+    tracing::info!(
+        "odometry: serving poses on {} ({} heading, {} parameters: {params})",
+        poses.service_name(),
+        config.fusion.odometer.heading,
+        if config.initial.is_some() { "initial estimate" } else { "nominal" },
+    );
+
+    let waitset = bus.waitset()?;
+    let ws_err = |action: &'static str, e: &dyn std::fmt::Debug| BusError::Service {
+        service: "waitset".to_string(),
+        action,
+        detail: format!("{e:?}"),
+    };
+    let _g_wheels = waitset
+        .attach_notification(inputs.wheels.listener())
+        .map_err(|e| ws_err("attach wheels", &e))?;
+    let _g_gnss = waitset
+        .attach_notification(inputs.gnss.listener())
+        .map_err(|e| ws_err("attach gnss", &e))?;
+    let _g_imu = waitset
+        .attach_notification(inputs.imu.listener())
+        .map_err(|e| ws_err("attach imu", &e))?;
+    let _g_heading = waitset
+        .attach_notification(inputs.heading.listener())
+        .map_err(|e| ws_err("attach heading", &e))?;
+    let _g_estimate = waitset
+        .attach_notification(inputs.estimate.listener())
+        .map_err(|e| ws_err("attach estimate", &e))?;
+    // The tick notices stale inputs and stop requests; it does no work otherwise.
+    let tick = config.stale_after.div_f64(4.0).min(Duration::from_millis(100));
+    let _g_tick = waitset
+        .attach_interval(tick)
+        .map_err(|e| ws_err("attach interval", &e))?;
+
+    let mut summary = ServeSummary::default();
+    let mut batch: Vec<Input> = Vec::with_capacity(4096);
+    let mut last_wheel_wall: Option<Instant> = None;
+    let mut last_wheel_t: Option<f64> = None;
+    let mut stale = false;
+    let mut mode = PoseMode::NoFix;
+    let mut next_status_t: Option<f64> = None;
+    let mut wheels_ended = false;
+
+    loop {
+        let result = waitset
+            .wait_and_process_once(|_| CallbackProgression::Continue)
+            .map_err(|e| ws_err("wait", &e))?;
+        batch.clear();
+        let drained = inputs.drain(&mut batch, config.bus_estimates)?;
+        summary.skipped += drained.skipped;
+        sort_inputs(&mut batch);
+        for input in &batch {
+            if let Input::Estimate { version, estimate, .. } = input {
+                let old = *fusion.params();
+                let old_version = fusion.estimate_version();
+                if *version == old_version && estimate.params == old {
+                    continue; // the same estimate again (history on a reconnect)
+                }
+                tracing::info!(
+                    "odometry: switching estimate v{old_version} -> v{version} between two samples: {}",
+                    describe_switch(&old, &estimate.params)
+                );
+                summary.estimate_switches += 1;
+            }
+            if let Input::Wheels { t_s, .. } = input {
+                if stale {
+                    stale = false;
+                    tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
+                }
+                last_wheel_wall = Some(Instant::now());
+                summary.wheel_samples += 1;
+            }
+            match fusion.process(input) {
+                Ok(Some(pose)) => {
+                    if pose.mode != mode {
+                        log_mode_change(mode, &pose);
+                        mode = pose.mode;
+                    }
+                    poses.publish(to_wire(&pose))?;
+                    summary.poses += 1;
+                    last_wheel_t = Some(pose.t_s);
+                    if config.status_every_s > 0.0 {
+                        let due = next_status_t.get_or_insert(pose.t_s);
+                        if pose.t_s >= *due {
+                            *due = pose.t_s + config.status_every_s;
+                            log_status(&pose, &fusion, &inputs);
+                        }
+                    }
+                }
+                Ok(None) => {}
+                Err(ProcessError::Input(e)) => {
+                    summary.skipped += 1;
+                    tracing::warn!("odometry: {e}");
+                }
+                Err(e @ ProcessError::Numerical(_)) => {
+                    summary.skipped += 1;
+                    tracing::error!("odometry: {e}");
+                }
+            }
+        }
+        wheels_ended |= drained.wheels_ended;
+
+        // Stale inputs: the wheels stopped coming.
+        if let (Some(seen), false) = (last_wheel_wall, stale) {
+            let quiet = seen.elapsed();
+            if quiet >= config.stale_after && !wheels_ended {
+                stale = true;
+                summary.stale_events += 1;
+                tracing::warn!(
+                    "odometry: inputs stale: no wheel sample for {:.1} s (last at t = {:.2} s); \
+                     the pose is withheld until wheel samples come again",
+                    quiet.as_secs_f64(),
+                    last_wheel_t.unwrap_or(f64::NAN)
+                );
+                fusion.mark_stale();
+                mode = PoseMode::NoFix;
+                if let Some(t) = last_wheel_t {
+                    let marker = FusedPose {
+                        t_s: t,
+                        pose: Default::default(),
+                        covariance: [0.0; 9],
+                        mode: PoseMode::NoFix,
+                        estimate_version: fusion.estimate_version(),
+                    };
+                    poses.publish(to_wire(&marker))?;
+                    summary.poses += 1;
+                }
+            }
+        }
+
+        if bus::stop_requested_by(result) || shutdown.is_requested() {
+            tracing::info!("odometry: stop requested");
+            break;
+        }
+        if config.exit_on_end && wheels_ended {
+            // Take what is still buffered, then stop.
+            tracing::info!("odometry: the wheel stream ended");
+            break;
+        }
+    }
+    summary.lost = inputs.lost();
+    summary.estimate_version = fusion.estimate_version();
+    let stats = fusion.stats();
+    tracing::info!(
+        "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
+         GNSS {} accepted / {} gated out, headings {} / {}",
+        summary.wheel_samples,
+        summary.poses,
+        summary.estimate_switches,
+        summary.lost.iter().sum::<u64>(),
+        stats.gnss_accepted,
+        stats.gnss_rejected,
+        stats.heading_accepted,
+        stats.heading_rejected
+    );
+    Ok(summary)
+}
+
+fn log_mode_change(from: PoseMode, pose: &FusedPose) {
+    let t = pose.t_s;
+    match (from, pose.mode) {
+        (_, PoseMode::Fused) => tracing::info!(
+            "odometry: t = {t:.2} s: {} -> Fused (GNSS good) at ({:.1}, {:.1}) m",
+            mode_name(from),
+            pose.pose.x,
+            pose.pose.y
+        ),
+        (_, PoseMode::DeadReckoning) => tracing::info!(
+            "odometry: t = {t:.2} s: {} -> DeadReckoning (no usable GNSS fix): dead-reckoning with estimate v{}",
+            mode_name(from),
+            pose.estimate_version
+        ),
+        (_, PoseMode::NoFix) => tracing::info!("odometry: t = {t:.2} s: {} -> NoFix", mode_name(from)),
+    }
+}
+
+fn log_status(pose: &FusedPose, fusion: &Fusion, inputs: &Inputs) {
+    let sigma = (pose.covariance[0] + pose.covariance[4]).max(0.0).sqrt();
+    let stats = fusion.stats();
+    tracing::info!(
+        "odometry: t = {:.1} s {} pose ({:.1}, {:.1}) m yaw {:.1} deg, sigma {:.2} m, estimate v{}; \
+         received {} wheel, {} IMU, {} GNSS samples",
+        pose.t_s,
+        mode_name(pose.mode),
+        pose.pose.x,
+        pose.pose.y,
+        pose.pose.yaw.to_degrees(),
+        sigma,
+        pose.estimate_version,
+        inputs.wheels.received(),
+        inputs.imu.received(),
+        stats.gnss_accepted + stats.gnss_rejected,
+    );
+}

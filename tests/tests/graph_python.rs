@@ -1,0 +1,167 @@
+//! The Python example subscriber (`examples/python/pose_subscriber.py`, with
+//! the `iceoryx2` package from PyPI) reads poses published from Rust: the
+//! wire types hold across languages.
+//!
+//! Python is looked for in `WHEELCAL_PYTHON`, then
+//! `target/python-venv/bin/python`, then `python3`; the test skips (with the
+//! reason printed) when none of them can `import iceoryx2`.
+
+use integration_tests::graph::{wait_until, Graph, WATCHDOG};
+use interfaces::bus::Bus;
+use interfaces::wire::{Header, Pose, PoseMode};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const COUNT: u64 = 5;
+
+fn python_with_iceoryx2() -> Result<PathBuf, String> {
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut candidates: Vec<PathBuf> = Vec::new();
+    if let Ok(p) = std::env::var("WHEELCAL_PYTHON") {
+        candidates.push(PathBuf::from(p));
+    }
+    candidates.push(workspace.join("target/python-venv/bin/python"));
+    candidates.push(PathBuf::from("python3"));
+    let mut reasons = Vec::new();
+    for c in candidates {
+        match Command::new(&c)
+            .args(["-c", "import iceoryx2"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+        {
+            Ok(s) if s.success() => return Ok(c),
+            Ok(_) => reasons.push(format!("{}: cannot import iceoryx2", c.display())),
+            Err(e) => reasons.push(format!("{}: {e}", c.display())),
+        }
+    }
+    Err(reasons.join("; "))
+}
+
+fn pose(i: u64) -> Pose {
+    let mut covariance = [0.0; 9];
+    for (j, c) in covariance.iter_mut().enumerate() {
+        *c = 0.01 * (j as f64 + 1.0) + i as f64;
+    }
+    Pose {
+        header: Header {
+            t_ns: 1_000_000_000 * i as i64 - 5,
+            seq: 0,
+        },
+        x_m: 10.5 + i as f64,
+        y_m: -3.25,
+        yaw_rad: 0.125 * i as f64,
+        covariance,
+        estimate_version: 2,
+        mode: if i % 2 == 0 {
+            PoseMode::Fused as u8
+        } else {
+            PoseMode::DeadReckoning as u8
+        },
+        _pad: [0; 7],
+    }
+}
+
+#[test]
+fn python_subscriber_reads_poses_published_from_rust() {
+    let python = match python_with_iceoryx2() {
+        Ok(p) => p,
+        Err(why) => {
+            eprintln!("SKIPPED: no Python with the iceoryx2 package ({why})");
+            return;
+        }
+    };
+    let g = Graph::new("py");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/pose_subscriber.py");
+    let bus: Bus = g.bus("rust-publisher");
+    let mut publisher = bus.publisher::<Pose>().expect("pose publisher");
+
+    let mut cmd = Command::new(&python);
+    cmd.arg(&script)
+        .args(["--json", "--count", &COUNT.to_string()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for (k, v) in g.settings.env() {
+        cmd.env(k, v);
+    }
+    let mut child = cmd.spawn().expect("start python");
+    struct Reap(std::process::Child);
+    impl Drop for Reap {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let stdout = child.stdout.take().expect("stdout");
+    let mut child = Reap(child);
+
+    // Publish once the Python subscriber exists (and has attached).
+    wait_until("the Python subscriber", || publisher.subscriber_count() > 0);
+    publisher.announce().expect("announce");
+    std::thread::sleep(Duration::from_millis(300));
+    for i in 0..COUNT {
+        publisher.publish(pose(i)).expect("publish");
+    }
+
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let start = Instant::now();
+    let mut lines = Vec::new();
+    while lines.len() < COUNT as usize {
+        let left = WATCHDOG.saturating_sub(start.elapsed());
+        match rx.recv_timeout(left) {
+            Ok(l) => lines.push(l),
+            Err(_) => {
+                let _ = child.0.kill();
+                let out = child.0.wait_with_output_lossy();
+                panic!("watchdog/EOF: got {} of {COUNT} lines; stderr: {out}", lines.len());
+            }
+        }
+    }
+    for (i, line) in lines.iter().enumerate() {
+        let v: serde_json::Value = serde_json::from_str(line).expect("json line");
+        let p = pose(i as u64);
+        assert_eq!(v["seq"], i as u64, "{line}");
+        assert_eq!(v["t_ns"], p.header.t_ns);
+        assert_eq!(v["x_m"].as_f64(), Some(p.x_m));
+        assert_eq!(v["y_m"].as_f64(), Some(p.y_m));
+        assert_eq!(v["yaw_rad"].as_f64(), Some(p.yaw_rad));
+        let cov: Vec<f64> = v["covariance"]
+            .as_array()
+            .expect("covariance")
+            .iter()
+            .map(|c| c.as_f64().expect("number"))
+            .collect();
+        assert_eq!(cov, p.covariance.to_vec());
+        assert_eq!(v["estimate_version"], 2);
+        let mode = if i % 2 == 0 { "fused" } else { "dead_reckoning" };
+        assert_eq!(v["mode"], mode);
+    }
+    let status = child.0.wait().expect("wait python");
+    assert!(status.success(), "python exited with {status}");
+}
+
+trait WaitLossy {
+    fn wait_with_output_lossy(&mut self) -> String;
+}
+
+impl WaitLossy for std::process::Child {
+    fn wait_with_output_lossy(&mut self) -> String {
+        use std::io::Read;
+        let mut s = String::new();
+        if let Some(mut e) = self.stderr.take() {
+            let _ = e.read_to_string(&mut s);
+        }
+        let _ = self.wait();
+        s
+    }
+}

@@ -1,0 +1,72 @@
+//! `sensor-bridge replay` into `sensor-bridge record`, as real processes over
+//! iceoryx2: the recording holds every sample of the drive, value for value.
+
+use integration_tests::graph::{Bin, Graph};
+use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use sensor_bridge::{read_drive, write_drive};
+
+#[test]
+fn replay_at_max_speed_into_record_loses_nothing() {
+    let mut g = Graph::new("reprec");
+    let drive = simulate(&SimConfig::new(Scenario::Paper, 3)).expect("simulate");
+    let folder = g.path("drive");
+    write_drive(&drive, &folder).expect("write drive");
+    let out = g.path("recording.mcap");
+    let folder_s = folder.to_str().expect("utf-8 path");
+    let out_s = out.to_str().expect("utf-8 path");
+
+    let record = g.spawn(
+        "record",
+        Bin::SensorBridge,
+        &["record", out_s, "--vehicle", folder_s, "--until-end"],
+    );
+    g.wait_log(record, "recording every sensor topic");
+    let replay = g.spawn(
+        "replay",
+        Bin::SensorBridge,
+        &["replay", folder_s, "--max", "--wait-subscribers", "1", "--linger", "0.2"],
+    );
+    assert!(g.wait_exit(replay).success(), "replay failed:\n{}", g.log(replay));
+    assert!(g.wait_exit(record).success(), "record failed:\n{}", g.log(record));
+    let log = g.log(record);
+    assert!(log.contains("lost 0 (by sequence numbers)"), "{log}");
+
+    let rec = read_drive(&out).expect("read recording").drive;
+    assert_eq!(rec.vehicle, drive.vehicle);
+    // Wheels: recorded as cumulative revolutions, exactly the drive's.
+    let revs = drive.wheel_revolutions().expect("revolutions");
+    assert_eq!(rec.wheels.samples.len(), revs.len());
+    for (r, w) in rec.wheels.samples.iter().zip(&revs) {
+        assert!((r.t_s - w.t_s).abs() < 1e-9, "{} vs {}", r.t_s, w.t_s);
+        assert_eq!((r.rl, r.rr), (w.rl, w.rr));
+        assert_eq!((r.fl, r.fr), (w.fl, w.fr));
+    }
+    let gnss = drive.gnss.as_ref().expect("gnss");
+    let rg = rec.gnss.as_ref().expect("recorded gnss");
+    assert_eq!(rg.len(), gnss.len());
+    for (r, s) in rg.iter().zip(gnss) {
+        assert!((r.t_s - s.t_s).abs() < 1e-9);
+        assert_eq!((r.x_m, r.y_m, r.sigma_m), (s.x_m, s.y_m, s.sigma_m));
+    }
+    let imu = drive.imu.as_ref().expect("imu");
+    let ri = rec.imu.as_ref().expect("recorded imu");
+    assert_eq!(ri.len(), imu.len());
+    for (r, s) in ri.iter().zip(imu) {
+        assert!((r.t_s - s.t_s).abs() < 1e-9);
+        assert_eq!(
+            (r.gz_rad_s, r.ax_m_s2, r.ay_m_s2, r.az_m_s2),
+            (s.gz_rad_s, s.ax_m_s2, s.ay_m_s2, s.az_m_s2)
+        );
+    }
+    match (&drive.heading, &rec.heading) {
+        (Some(h), Some(rh)) => {
+            assert_eq!(h.len(), rh.len());
+            for (r, s) in rh.iter().zip(h) {
+                assert_eq!((r.yaw_rad, r.sigma_rad), (s.yaw_rad, s.sigma_rad));
+            }
+        }
+        (None, None) => {}
+        (a, b) => panic!("heading: drive {} vs recording {}", a.is_some(), b.is_some()),
+    }
+    assert!(rec.truth.is_none(), "truth is never on the bus");
+}
