@@ -343,12 +343,11 @@ impl BusSettings {
             if !text_slash.ends_with('/') {
                 text_slash.push('/');
             }
-            let path =
-                Path::new(text_slash.as_bytes()).map_err(|e| BusError::InvalidSetting {
-                    setting: ENV_ROOT,
-                    value: text.clone(),
-                    detail: format!("{e:?}"),
-                })?;
+            let path = Path::new(text_slash.as_bytes()).map_err(|e| BusError::InvalidSetting {
+                setting: ENV_ROOT,
+                value: text.clone(),
+                detail: format!("{e:?}"),
+            })?;
             config.global.set_root_path(&path);
         }
         Ok(config)
@@ -360,7 +359,10 @@ impl BusSettings {
     /// for the default prefix (other graphs may share it). Returns the number
     /// of shared-memory files removed.
     pub fn remove_leftovers(&self) -> usize {
-        let Some(prefix) = self.prefix.as_deref().filter(|p| !p.is_empty() && *p != "iox2_")
+        let Some(prefix) = self
+            .prefix
+            .as_deref()
+            .filter(|p| !p.is_empty() && *p != "iox2_")
         else {
             return 0;
         };
@@ -385,6 +387,9 @@ impl BusSettings {
         self.stall_timeout.unwrap_or(Duration::from_secs(10))
     }
 }
+
+/// The publish-subscribe service of a topic and its event service.
+type TopicServices<T> = (PubSubFactory<Ipc, T, ()>, EventFactory<Ipc>);
 
 /// One process's connection to the graph: an iceoryx2 node with the graph's
 /// settings. Open topics with [`Bus::publisher`] and [`Bus::subscriber`].
@@ -464,7 +469,7 @@ impl Bus {
 
     fn open_services<T: Topic>(
         &self,
-    ) -> Result<(PubSubFactory<Ipc, T, ()>, EventFactory<Ipc>), BusError> {
+    ) -> Result<TopicServices<T>, BusError> {
         let name = ServiceName::new(T::SERVICE).map_err(|e| service_err(T::SERVICE, "name", e))?;
         let (overflow, buffer, history) = match T::DELIVERY {
             Delivery::Lossless { buffer } => (false, buffer, 0),
@@ -509,7 +514,10 @@ impl Bus {
             match r {
                 Ok(s) => break s,
                 Err(e) if Instant::now() < deadline => {
-                    tracing::debug!(service = T::SERVICE, "event open_or_create: {e:?}, retrying");
+                    tracing::debug!(
+                        service = T::SERVICE,
+                        "event open_or_create: {e:?}, retrying"
+                    );
                     std::thread::sleep(Duration::from_millis(20));
                 }
                 Err(e) => return Err(service_err(T::SERVICE, "open event", e)),
@@ -929,6 +937,10 @@ mod tests {
         assert_eq!(env[1].1, format!("/tmp/x/{prefix}"));
         let config = s.iceoryx_config().unwrap();
         assert_eq!(config.global.prefix.as_bytes(), prefix.as_bytes());
-        assert!(config.global.root_path().as_bytes().starts_with(b"/tmp/x/wc"));
+        assert!(config
+            .global
+            .root_path()
+            .as_bytes()
+            .starts_with(b"/tmp/x/wc"));
     }
 }

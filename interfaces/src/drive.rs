@@ -75,7 +75,12 @@ pub enum WheelUnit {
 
 impl WheelUnit {
     /// Every unit.
-    pub const ALL: [WheelUnit; 4] = [WheelUnit::Rev, WheelUnit::Ticks, WheelUnit::RadS, WheelUnit::MS];
+    pub const ALL: [WheelUnit; 4] = [
+        WheelUnit::Rev,
+        WheelUnit::Ticks,
+        WheelUnit::RadS,
+        WheelUnit::MS,
+    ];
 
     /// Column suffix in `wheels.csv`, e.g. `"rad_s"` for `rl_rad_s`.
     pub fn suffix(self) -> &'static str {
@@ -465,7 +470,11 @@ mod tests {
         let tau = std::f64::consts::TAU;
         let d = drive(
             WheelUnits::rear(WheelUnit::RadS),
-            vec![row(0.0, tau, 2.0 * tau), row(1.0, tau, 2.0 * tau), row(3.0, tau, 2.0 * tau)],
+            vec![
+                row(0.0, tau, 2.0 * tau),
+                row(1.0, tau, 2.0 * tau),
+                row(3.0, tau, 2.0 * tau),
+            ],
         );
         let revs = d.wheel_revolutions().unwrap();
         assert!((revs[2].rl - 3.0).abs() < 1e-12);
@@ -474,9 +483,15 @@ mod tests {
 
     #[test]
     fn speeds_use_the_nominal_circumference_and_ticks_their_count() {
-        let d = drive(WheelUnits::rear(WheelUnit::MS), vec![row(0.0, 4.0, 4.0), row(1.0, 4.0, 4.0)]);
+        let d = drive(
+            WheelUnits::rear(WheelUnit::MS),
+            vec![row(0.0, 4.0, 4.0), row(1.0, 4.0, 4.0)],
+        );
         assert!((d.wheel_revolutions().unwrap()[1].rl - 2.0).abs() < 1e-12);
-        let mut d = drive(WheelUnits::rear(WheelUnit::Ticks), vec![row(0.0, 50.0, 0.0)]);
+        let mut d = drive(
+            WheelUnits::rear(WheelUnit::Ticks),
+            vec![row(0.0, 50.0, 0.0)],
+        );
         assert!((d.wheel_revolutions().unwrap()[0].rl - 0.5).abs() < 1e-12);
         d.vehicle.ticks_per_rev = None;
         let err = d.wheel_revolutions().unwrap_err();

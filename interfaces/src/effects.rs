@@ -105,7 +105,10 @@ mod tests {
         for e in Effect::ALL {
             assert_eq!(Effect::from_id(e.id()), Some(e));
             assert_eq!(Effect::from_code(e.code()), Some(e));
-            assert_eq!(serde_json::to_string(&e).unwrap(), format!("\"{}\"", e.id()));
+            assert_eq!(
+                serde_json::to_string(&e).unwrap(),
+                format!("\"{}\"", e.id())
+            );
         }
         assert_eq!(Effect::from_code(0), None);
         assert_eq!(Effect::from_id("flux_capacitor"), None);

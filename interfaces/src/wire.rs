@@ -7,6 +7,11 @@
 //!
 //! Optional fields are flagged in a `valid` bit mask rather than encoded as NaN,
 //! so that a NaN on the wire is always a fault, never a convention.
+//!
+//! Wakeups: each publish-subscribe service `NAME` below has an iceoryx2 event
+//! service with the same `NAME`, which its publishers notify after every
+//! sample, so that subscribers block in a WaitSet instead of polling
+//! (event ids and details in [`crate::bus`]).
 
 use iceoryx2::prelude::ZeroCopySend;
 

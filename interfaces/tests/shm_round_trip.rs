@@ -153,11 +153,16 @@ impl Drop for ChildGuard {
 fn spawn_child(kind: &str, settings: &BusSettings, late: bool) -> ChildGuard {
     let exe = std::env::current_exe().expect("current exe");
     let mut cmd = Command::new(exe);
-    cmd.args(["child_process", "--exact", "--nocapture", "--test-threads=1"])
-        .env(CHILD_ENV, kind)
-        .env("WHEELCAL_RT_LATE", if late { "1" } else { "0" })
-        .stdin(Stdio::piped())
-        .stdout(if late { Stdio::piped() } else { Stdio::null() });
+    cmd.args([
+        "child_process",
+        "--exact",
+        "--nocapture",
+        "--test-threads=1",
+    ])
+    .env(CHILD_ENV, kind)
+    .env("WHEELCAL_RT_LATE", if late { "1" } else { "0" })
+    .stdin(Stdio::piped())
+    .stdout(if late { Stdio::piped() } else { Stdio::null() });
     for (k, v) in settings.env() {
         cmd.env(k, v);
     }
@@ -257,7 +262,11 @@ fn late_estimate_subscriber_gets_the_latest() {
     let bus = Bus::open(&settings, "late_subscriber_test").expect("bus");
     let mut child = spawn_child("estimate", &settings, true);
     // The child says when it has published everything; only then subscribe.
-    let stdout = child.0.as_mut().and_then(|c| c.stdout.take()).expect("stdout");
+    let stdout = child
+        .0
+        .as_mut()
+        .and_then(|c| c.stdout.take())
+        .expect("stdout");
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
         use std::io::BufRead;
@@ -300,7 +309,10 @@ fn lossless_stream_loses_nothing_to_a_slow_subscriber() {
     let mut next = 0u64;
     let mut exited = false;
     while next < FLOOD {
-        assert!(start.elapsed() < 4 * WATCHDOG, "watchdog: got {next} of {FLOOD}");
+        assert!(
+            start.elapsed() < 4 * WATCHDOG,
+            "watchdog: got {next} of {FLOOD}"
+        );
         sub.wait_events(Duration::from_millis(50)).expect("wait");
         let mut batch = 0;
         while let Some(s) = sub.receive().expect("receive") {

@@ -73,8 +73,13 @@ fn build_all_once() {
         if let Some(target) = profile_dir.parent() {
             cmd.env("CARGO_TARGET_DIR", target);
         }
-        let status = cmd.status().expect("run cargo build for the graph binaries");
-        assert!(status.success(), "cargo build of the graph binaries failed: {status}");
+        let status = cmd
+            .status()
+            .expect("run cargo build for the graph binaries");
+        assert!(
+            status.success(),
+            "cargo build of the graph binaries failed: {status}"
+        );
     });
 }
 
@@ -138,10 +143,15 @@ impl Graph {
 
     /// Start `b` with `args`; its stdout and stderr go to a log file.
     pub fn spawn(&mut self, label: &str, b: Bin, args: &[&str]) -> ProcId {
+        self.spawn_exe(label, &bin(b), args)
+    }
+
+    /// Start any executable in the graph (e.g. a benchmark re-running itself).
+    pub fn spawn_exe(&mut self, label: &str, exe: &Path, args: &[&str]) -> ProcId {
         let log = self.path(&format!("{label}-{}.log", self.procs.len()));
         let out = std::fs::File::create(&log).expect("log file");
         let err = out.try_clone().expect("log file");
-        let mut cmd = Command::new(bin(b));
+        let mut cmd = Command::new(exe);
         cmd.args(args)
             .stdin(Stdio::null())
             .stdout(out)
@@ -155,7 +165,7 @@ impl Graph {
         }
         let child = cmd
             .spawn()
-            .unwrap_or_else(|e| panic!("cannot start {}: {e}", b.name()));
+            .unwrap_or_else(|e| panic!("cannot start {}: {e}", exe.display()));
         self.procs.push(Proc {
             label: label.to_string(),
             child: Some(child),
@@ -228,6 +238,24 @@ impl Graph {
         self.procs[id.0].status.expect("exit status")
     }
 
+    /// [`Graph::wait_exit`], calling `between` every millisecond meanwhile
+    /// (to drain subscribers, so that a lossless publisher never waits on the test).
+    pub fn wait_exit_with(&mut self, id: ProcId, mut between: impl FnMut()) -> ExitStatus {
+        let start = Instant::now();
+        while self.is_running(id) {
+            assert!(
+                start.elapsed() < WATCHDOG,
+                "watchdog: {} did not exit\n{}",
+                self.procs[id.0].label,
+                self.log(id)
+            );
+            between();
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        between();
+        self.procs[id.0].status.expect("exit status")
+    }
+
     /// Wait (watchdog) until `needle` appears in the child's log; returns the log.
     pub fn wait_log(&mut self, id: ProcId, needle: &str) -> String {
         let start = Instant::now();
@@ -277,7 +305,10 @@ impl Drop for Graph {
 pub fn wait_until(what: &str, mut cond: impl FnMut() -> bool) {
     let start = Instant::now();
     while !cond() {
-        assert!(start.elapsed() < WATCHDOG, "watchdog: waited in vain for {what}");
+        assert!(
+            start.elapsed() < WATCHDOG,
+            "watchdog: waited in vain for {what}"
+        );
         std::thread::sleep(Duration::from_millis(10));
     }
 }

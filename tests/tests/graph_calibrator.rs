@@ -43,7 +43,15 @@ fn calibrator_publishes_a_gated_estimate_and_restarts_from_the_persisted_one() {
     let replay = g.spawn(
         "replay",
         Bin::SensorBridge,
-        &["replay", &folder_s, "--max", "--wait-subscribers", "1", "--linger", "0.2"],
+        &[
+            "replay",
+            &folder_s,
+            "--max",
+            "--wait-subscribers",
+            "1",
+            "--linger",
+            "0.2",
+        ],
     );
     assert!(g.wait_exit(replay).success(), "{}", g.log(replay));
     let log = g.wait_log(cal, "PUBLISHED estimate v1");
@@ -60,10 +68,18 @@ fn calibrator_publishes_a_gated_estimate_and_restarts_from_the_persisted_one() {
     assert_eq!(saved["circumference_m"]["rr"].as_f64(), Some(est.c_rr_m));
     // It passed the gate: small sigma, and it is far closer to the truth
     // than the nominal 2.2 m (at least 5 times).
-    assert!(est.sigma_rl_m <= 0.005 && est.sigma_rr_m <= 0.005, "{est:?}");
+    assert!(
+        est.sigma_rl_m <= 0.005 && est.sigma_rr_m <= 0.005,
+        "{est:?}"
+    );
     let nominal_err = (2.2 - truth.rl).abs().max((2.2 - truth.rr).abs());
-    let err = (est.c_rl_m - truth.rl).abs().max((est.c_rr_m - truth.rr).abs());
-    assert!(err * 5.0 < nominal_err, "estimate error {err} m vs nominal {nominal_err} m");
+    let err = (est.c_rl_m - truth.rl)
+        .abs()
+        .max((est.c_rr_m - truth.rr).abs());
+    assert!(
+        err * 5.0 < nominal_err,
+        "estimate error {err} m vs nominal {nominal_err} m"
+    );
 
     // SIGKILL three times: each new calibrator starts from the persisted
     // estimate and serves it; the dead ones' resources do not block it
@@ -81,6 +97,10 @@ fn calibrator_publishes_a_gated_estimate_and_restarts_from_the_persisted_one() {
     // SIGTERM ends it cleanly.
     g.terminate(cal);
     let status = g.wait_exit(cal);
-    assert!(status.success(), "clean exit on SIGTERM: {status}\n{}", g.log(cal));
+    assert!(
+        status.success(),
+        "clean exit on SIGTERM: {status}\n{}",
+        g.log(cal)
+    );
     assert!(g.log(cal).contains("calibrator: stopped after"));
 }

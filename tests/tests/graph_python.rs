@@ -74,7 +74,8 @@ fn python_subscriber_reads_poses_published_from_rust() {
         }
     };
     let g = Graph::new("py");
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/pose_subscriber.py");
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/pose_subscriber.py");
     let bus: Bus = g.bus("rust-publisher");
     let mut publisher = bus.publisher::<Pose>().expect("pose publisher");
 
@@ -123,7 +124,10 @@ fn python_subscriber_reads_poses_published_from_rust() {
             Err(_) => {
                 let _ = child.0.kill();
                 let out = child.0.wait_with_output_lossy();
-                panic!("watchdog/EOF: got {} of {COUNT} lines; stderr: {out}", lines.len());
+                panic!(
+                    "watchdog/EOF: got {} of {COUNT} lines; stderr: {out}",
+                    lines.len()
+                );
             }
         }
     }
@@ -143,7 +147,11 @@ fn python_subscriber_reads_poses_published_from_rust() {
             .collect();
         assert_eq!(cov, p.covariance.to_vec());
         assert_eq!(v["estimate_version"], 2);
-        let mode = if i % 2 == 0 { "fused" } else { "dead_reckoning" };
+        let mode = if i % 2 == 0 {
+            "fused"
+        } else {
+            "dead_reckoning"
+        };
         assert_eq!(v["mode"], mode);
     }
     let status = child.0.wait().expect("wait python");

@@ -24,10 +24,26 @@ fn replay_at_max_speed_into_record_loses_nothing() {
     let replay = g.spawn(
         "replay",
         Bin::SensorBridge,
-        &["replay", folder_s, "--max", "--wait-subscribers", "1", "--linger", "0.2"],
+        &[
+            "replay",
+            folder_s,
+            "--max",
+            "--wait-subscribers",
+            "1",
+            "--linger",
+            "0.2",
+        ],
     );
-    assert!(g.wait_exit(replay).success(), "replay failed:\n{}", g.log(replay));
-    assert!(g.wait_exit(record).success(), "record failed:\n{}", g.log(record));
+    assert!(
+        g.wait_exit(replay).success(),
+        "replay failed:\n{}",
+        g.log(replay)
+    );
+    assert!(
+        g.wait_exit(record).success(),
+        "record failed:\n{}",
+        g.log(record)
+    );
     let log = g.log(record);
     assert!(log.contains("lost 0 (by sequence numbers)"), "{log}");
 
@@ -66,7 +82,11 @@ fn replay_at_max_speed_into_record_loses_nothing() {
             }
         }
         (None, None) => {}
-        (a, b) => panic!("heading: drive {} vs recording {}", a.is_some(), b.is_some()),
+        (a, b) => panic!(
+            "heading: drive {} vs recording {}",
+            a.is_some(),
+            b.is_some()
+        ),
     }
     assert!(rec.truth.is_none(), "truth is never on the bus");
 }

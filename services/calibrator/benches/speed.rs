@@ -18,7 +18,10 @@ use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use std::time::Instant;
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
     let sizes: Vec<f64> = if args.is_empty() {
         vec![600.0, 3600.0, 14400.0]
     } else {
@@ -30,7 +33,10 @@ fn main() {
         println!("| drive | wheel samples | method | time (median of 3) | ms per drive-minute | peak RSS before / after calibrate |");
         println!("|---|---|---|---|---|---|");
         for s in sizes {
-            let out = std::process::Command::new(&exe).arg(s.to_string()).output().expect("run bench child");
+            let out = std::process::Command::new(&exe)
+                .arg(s.to_string())
+                .output()
+                .expect("run bench child");
             print!("{}", String::from_utf8_lossy(&out.stdout));
             eprint!("{}", String::from_utf8_lossy(&out.stderr));
         }

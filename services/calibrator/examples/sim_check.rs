@@ -10,7 +10,9 @@ use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let seed: u64 = args.get(1).and_then(|s| s.parse().ok()).unwrap_or(1);
-    let scenario = args.get(4).map_or(Ok(Scenario::Paper), |s| Scenario::from_name(s))?;
+    let scenario = args
+        .get(4)
+        .map_or(Ok(Scenario::Paper), |s| Scenario::from_name(s))?;
     let mut sim = SimConfig::new(scenario, seed);
     for kv in args.iter().skip(5) {
         if kv == "noiseless" {
@@ -27,7 +29,10 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let drive = simulate(&sim)?;
-    let truth = drive.truth_params.clone().ok_or_else(|| anyhow::anyhow!("no truth"))?;
+    let truth = drive
+        .truth_params
+        .clone()
+        .ok_or_else(|| anyhow::anyhow!("no truth"))?;
     let mut config = CalibrationConfig {
         compare: true,
         ..CalibrationConfig::default()
@@ -39,7 +44,13 @@ fn main() -> anyhow::Result<()> {
     for kv in args.iter().skip(5) {
         let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
         match k {
-            "offset" => config.time_offset = match v { "off" => calibrator::TimeOffsetMode::Off, "check" => calibrator::TimeOffsetMode::Check, _ => calibrator::TimeOffsetMode::Compensate },
+            "offset" => {
+                config.time_offset = match v {
+                    "off" => calibrator::TimeOffsetMode::Off,
+                    "check" => calibrator::TimeOffsetMode::Check,
+                    _ => calibrator::TimeOffsetMode::Compensate,
+                }
+            }
             "seg" => config.segment_length_s = v.parse()?,
             "alpha" => config.alpha = v.parse()?,
             "qm" => config.q_m = v.parse()?,
@@ -55,11 +66,28 @@ fn main() -> anyhow::Result<()> {
     let cal = calibrate(&drive, &config)?;
     print!("{}", calibrator::report::render_text(&cal));
     let tc = truth.circumference_m;
-    println!("truth: c_RL {:.5} c_RR {:.5} track {:.4} effects {:?}", tc.rl, tc.rr, truth.track_width_m, truth.effects.keys().collect::<Vec<_>>());
-    let true_params = TwoWheelParams { c_rl: tc.rl, c_rr: tc.rr, track_width: truth.track_width_m };
-    println!("DR vs truth with true c: {:?}", common::dr_error_vs_truth(&drive, &true_params));
+    println!(
+        "truth: c_RL {:.5} c_RR {:.5} track {:.4} effects {:?}",
+        tc.rl,
+        tc.rr,
+        truth.track_width_m,
+        truth.effects.keys().collect::<Vec<_>>()
+    );
+    let true_params = TwoWheelParams {
+        c_rl: tc.rl,
+        c_rr: tc.rr,
+        track_width: truth.track_width_m,
+    };
+    println!(
+        "DR vs truth with true c: {:?}",
+        common::dr_error_vs_truth(&drive, &true_params)
+    );
     for m in &cal.comparison {
-        let p = TwoWheelParams { c_rl: m.circumference_m.rl, c_rr: m.circumference_m.rr, track_width: m.track_width_m };
+        let p = TwoWheelParams {
+            c_rl: m.circumference_m.rl,
+            c_rr: m.circumference_m.rr,
+            track_width: m.track_width_m,
+        };
         println!(
             "{}: err RL {:+.2} mm RR {:+.2} mm; DR vs truth {:?}",
             m.method,

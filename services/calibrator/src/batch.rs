@@ -43,7 +43,7 @@ use odometry::two_wheel::{Pose2, TwoWheelParams};
 const EARLY_STAGE_S: f64 = 600.0;
 
 /// Largest number of global parameters of any model.
-pub const MAX_GLOBAL: usize = 4;
+pub const MAX_GLOBAL: usize = 6;
 
 /// One step of a dead-reckoning model with its parameter derivatives.
 pub trait StepModel {
@@ -66,6 +66,11 @@ pub trait StepModel {
     fn priors(&self) -> Vec<(usize, f64, f64)> {
         Vec::new()
     }
+    /// Index of the GNSS antenna's body x among the parameters (body y
+    /// follows), when the lever arm is estimated.
+    fn lever_index(&self) -> Option<usize> {
+        None
+    }
 }
 
 /// How a model handles side-slip.
@@ -79,18 +84,25 @@ pub enum SlipGain {
     Parameter(usize),
 }
 
-/// The 2W model with `c_RL`, `c_RR` and optionally the track width and the side-slip gain.
+/// The 2W model with `c_RL`, `c_RR` and optionally the track width, the
+/// side-slip gain and the GNSS antenna position; parameters in that order.
 pub struct TwoWheelModel<'a> {
     p: &'a Prepared,
     /// Index of the track width in the parameters, or the fixed value.
     track: Result<usize, f64>,
     slip: SlipGain,
+    lever: Option<usize>,
     n: usize,
 }
 
 impl<'a> TwoWheelModel<'a> {
     /// The model over `p`; `track` `None` estimates it, `Some(t)` keeps `t`.
-    pub fn new(p: &'a Prepared, track: Option<f64>, slip_gain: bool) -> TwoWheelModel<'a> {
+    pub fn new(
+        p: &'a Prepared,
+        track: Option<f64>,
+        slip_gain: bool,
+        lever_arm: bool,
+    ) -> TwoWheelModel<'a> {
         let mut n = 2;
         let track = match track {
             Some(t) => Err(t),
@@ -105,7 +117,17 @@ impl<'a> TwoWheelModel<'a> {
         } else {
             SlipGain::Off
         };
-        TwoWheelModel { p, track, slip, n }
+        let lever = lever_arm.then(|| {
+            n += 2;
+            n - 2
+        });
+        TwoWheelModel {
+            p,
+            track,
+            slip,
+            lever,
+            n,
+        }
     }
 }
 
@@ -146,6 +168,10 @@ impl StepModel for TwoWheelModel<'_> {
 
     fn slip(&self) -> SlipGain {
         self.slip
+    }
+
+    fn lever_index(&self) -> Option<usize> {
+        self.lever
     }
 }
 
@@ -192,9 +218,15 @@ pub fn make_segments(
         let (t0, t1) = (p.t[a], p.t[b - 1]);
         let f = fixes.partition_point(|x| x.t < t0);
         let e = fixes.partition_point(|x| x.t <= t1);
-        let dist: f64 = (a + 1..b).map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c).sum();
+        let dist: f64 = (a + 1..b)
+            .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c)
+            .sum();
         if e >= f + 8 && dist >= 20.0 {
-            out.push(Segment { k0: a, k1: b, fixes: f..e });
+            out.push(Segment {
+                k0: a,
+                k1: b,
+                fixes: f..e,
+            });
         } else {
             dropped += 1;
         }
@@ -320,7 +352,11 @@ fn eval_segment(
         SlipGain::Parameter(i) => (g[i], Some(i)),
     };
     let (mut d_ds, mut d_dyaw) = ([0.0; MAX_GLOBAL], [0.0; MAX_GLOBAL]);
-    let [lx, ly] = s.lever;
+    let lever_index = model.lever_index();
+    let [lx, ly] = match lever_index {
+        Some(i) => [g[i], g[i + 1]],
+        None => s.lever,
+    };
     for k in seg.k0..seg.k1 {
         if k > seg.k0 {
             let Some((ds, dyaw)) = model.increments(k, g, &mut d_ds, &mut d_dyaw) else {
@@ -328,7 +364,7 @@ fn eval_segment(
             };
             // a_y is data here (smoothed, nominal values), so beta depends on
             // the parameters only through the gain.
-            let ay = p.lateral_accel[k];
+            let ay = f64::from(p.lateral_accel[k]);
             let beta = -gain * ay;
             // Eq. (1): course = theta + dtheta/2 + beta.
             let (sa, ca) = small_sin_cos(0.5 * dyaw + beta);
@@ -390,6 +426,13 @@ fn eval_segment(
                     let dthj = lerp(pdth[j], dth[j]);
                     jg[0][j] = (lerp(pdx[j], dx[j]) + rx * dthj) / sigma;
                     jg[1][j] = (lerp(pdy[j], dy[j]) + ry * dthj) / sigma;
+                }
+                if let Some(i) = lever_index {
+                    // antenna = p + R(theta) l
+                    jg[0][i] += ct / sigma;
+                    jg[1][i] += st / sigma;
+                    jg[0][i + 1] -= st / sigma;
+                    jg[1][i + 1] += ct / sigma;
                 }
                 let jl = [
                     [1.0 / sigma, 0.0, (-(py - pose0[1]) + rx) / sigma],
@@ -476,7 +519,11 @@ fn solve_step(
         rhs -= &hgl_inv * DVector::from_iterator(3, a.bl.iter().copied());
         inv_ll.push(inv);
     }
-    let dg = s.clone().cholesky().map(|c| c.solve(&rhs)).or_else(|| s.lu().solve(&rhs))?;
+    let dg = s
+        .clone()
+        .cholesky()
+        .map(|c| c.solve(&rhs))
+        .or_else(|| s.lu().solve(&rhs))?;
     if !dg.iter().all(|v| v.is_finite()) {
         return None;
     }
@@ -541,7 +588,10 @@ pub fn fit(
             let every = (total / EARLY_STAGE_S).ceil().max(1.0) as usize;
             segs = segs.into_iter().step_by(every).collect();
         }
-        let mut poses: Vec<[f64; 3]> = segs.iter().map(|s| [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]]).collect();
+        let mut poses: Vec<[f64; 3]> = segs
+            .iter()
+            .map(|s| [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]])
+            .collect();
         let mut settings = EvalSettings {
             lever: p.lever_arm,
             scale: 1.0,
@@ -634,7 +684,11 @@ fn prior_cost(priors: &[(usize, f64, f64)], g: &[f64]) -> f64 {
 fn robust_scale(evals: &[SegEval]) -> f64 {
     let mut u: Vec<f64> = evals
         .iter()
-        .flat_map(|e| e.residuals.iter().map(|r| (r[0] * r[0] + r[1] * r[1]).sqrt()))
+        .flat_map(|e| {
+            e.residuals
+                .iter()
+                .map(|r| (r[0] * r[0] + r[1] * r[1]).sqrt())
+        })
         .collect();
     if u.len() < 10 {
         return 1.0;
@@ -690,7 +744,11 @@ fn covariance(
     let n_params = ng + 3 * segs.len();
     let dof = (2 * n_res).saturating_sub(n_params).max(1);
     let chi2 = sum_sq / dof as f64;
-    let rho = if lag_den > 0.0 { (lag_num / lag_den).clamp(0.0, 0.95) } else { 0.0 };
+    let rho = if lag_den > 0.0 {
+        (lag_num / lag_den).clamp(0.0, 0.95)
+    } else {
+        0.0
+    };
     let inflation = (1.0 + rho) / (1.0 - rho);
     let accs: Vec<Acc> = evals.iter().filter_map(|e| e.acc.clone()).collect();
     let reduced = |accs: &[Acc]| -> Option<(DMatrix<f64>, DVector<f64>)> {
@@ -718,7 +776,8 @@ fn covariance(
     let Some(info_inv) = info.clone().try_inverse() else {
         return Err(CalibrationError::Unobservable {
             parameter: "the batch model parameters",
-            reason: "the information matrix is singular (the drive does not excite them)".to_string(),
+            reason: "the information matrix is singular (the drive does not excite them)"
+                .to_string(),
         });
     };
     let formal = &info_inv * (chi2.max(1e-12) * inflation);
@@ -728,7 +787,8 @@ fn covariance(
         for b in &e.blocks {
             let mut left = accs.clone();
             let rest = left[si].sub(b);
-            let singular = rest.hll.try_inverse().is_none() || rest.hll.trace() < 1e-9 * left[si].hll.trace();
+            let singular =
+                rest.hll.try_inverse().is_none() || rest.hll.trace() < 1e-9 * left[si].hll.trace();
             if singular {
                 left.remove(si);
             } else {
@@ -798,7 +858,11 @@ pub fn decide_track(
         }
         TrackWidthMode::Auto => {
             let ok = turn_deg >= 3.0 * NO_TURN_DEG;
-            if !ok && !warnings.iter().any(|w| w.code == WarningCode::TrackWidthFixed) {
+            if !ok
+                && !warnings
+                    .iter()
+                    .any(|w| w.code == WarningCode::TrackWidthFixed)
+            {
                 warnings.push(Warning::new(
                     WarningCode::TrackWidthFixed,
                     format!(
@@ -813,6 +877,33 @@ pub fn decide_track(
     }
 }
 
+/// Relative deviation of an estimated track width from the nominal beyond
+/// which it is not believed: the effective track differs from the physical
+/// one by a few percent (physics catalogue: 1-3 %).
+pub const TRACK_PLAUSIBLE_REL: f64 = 0.1;
+
+/// A warning when the estimated track width `t` is implausible (in `Auto`
+/// mode the caller then keeps the nominal value).
+pub fn implausible_track(t: f64, nominal: f64, mode: TrackWidthMode) -> Option<Warning> {
+    ((t / nominal - 1.0).abs() > TRACK_PLAUSIBLE_REL).then(|| {
+        Warning::new(
+            WarningCode::TrackWidthImplausible,
+            format!(
+                "the estimated effective track width {t:.3} m is {:+.0} % from the nominal {nominal:.3} m, more than the \
+                 {:.0} % a real track differs: physics the 2W model leaves out (GNSS antenna position, time offset, \
+                 wheel rate errors) is being absorbed by it; {}",
+                100.0 * (t / nominal - 1.0),
+                100.0 * TRACK_PLAUSIBLE_REL,
+                if mode == TrackWidthMode::Auto {
+                    "the nominal value is kept and the fit repeated"
+                } else {
+                    "kept because --track-width estimate was asked for"
+                }
+            ),
+        )
+    })
+}
+
 /// Run the batch method.
 pub fn run(
     p: &Prepared,
@@ -821,20 +912,47 @@ pub fn run(
     warnings: &mut Vec<Warning>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<MethodResult, CalibrationError> {
-    let estimate_track = decide_track(p, r, config, warnings)?;
+    let mut estimate_track = decide_track(p, r, config, warnings)?;
     let slip_gain = config.side_slip;
-    let model = TwoWheelModel::new(p, (!estimate_track).then_some(p.track), slip_gain);
-    let mut g0 = vec![p.nominal_c, p.nominal_c];
-    if estimate_track {
-        g0.push(p.track);
-    }
-    if slip_gain {
-        g0.push(0.0);
-    }
+    let lever = config.estimate_lever_arm;
     let lengths = stages(config.segment_length_s);
-    let fit = fit(&model, p, r, &g0, &lengths, &|_| false, progress)?;
+    let (model, g0, fit) = loop {
+        let model = TwoWheelModel::new(p, (!estimate_track).then_some(p.track), slip_gain, lever);
+        let mut g0 = vec![p.nominal_c, p.nominal_c];
+        if estimate_track {
+            g0.push(p.track);
+        }
+        if slip_gain {
+            g0.push(0.0);
+        }
+        if lever {
+            g0.extend_from_slice(&p.lever_arm);
+        }
+        let fit = fit(&model, p, r, &g0, &lengths, &|_| false, progress)?;
+        if estimate_track {
+            let t = fit.g[2];
+            if let Some(w) = implausible_track(t, p.track, config.track_width) {
+                warnings.push(w);
+                if config.track_width == TrackWidthMode::Auto {
+                    estimate_track = false;
+                    continue;
+                }
+            }
+        }
+        break (model, g0, fit);
+    };
     let track = if estimate_track { fit.g[2] } else { p.track };
-    let slip_value = slip_gain.then(|| fit.g[g0.len() - 1]);
+    let slip_index = 2 + usize::from(estimate_track);
+    let slip_value = slip_gain.then(|| fit.g[slip_index]);
+    let lever_value = model.lever_index().map(|i| {
+        let cov = |m: &DMatrix<f64>| [m[(i, i)].max(0.0).sqrt(), m[(i + 1, i + 1)].max(0.0).sqrt()];
+        let f = cov(&fit.formal);
+        let s = fit.jackknife.as_ref().map_or(f, |j| {
+            let j = cov(j);
+            [f[0].max(j[0]), f[1].max(j[1])]
+        });
+        ([fit.g[i], fit.g[i + 1]], s)
+    });
     let c = [fit.g[0], fit.g[1]];
     for (name, v) in [("c_RL", c[0]), ("c_RR", c[1])] {
         if !(v.is_finite() && v > 0.5 * p.nominal_c && v < 1.5 * p.nominal_c) {
@@ -850,7 +968,10 @@ pub fn run(
     if estimate_track && !(track > 0.5 * p.track && track < 1.5 * p.track) {
         return Err(CalibrationError::Implausible {
             method: Method::Batch,
-            detail: format!("track width {track:.3} m, more than 50 % from the nominal {:.3} m", p.track),
+            detail: format!(
+                "track width {track:.3} m, more than 50 % from the nominal {:.3} m",
+                p.track
+            ),
         });
     }
     let slip = slip_value.map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
@@ -862,14 +983,17 @@ pub fn run(
     let before = dr_deviation(p, r, &params(&g0), Slip::None, TRACK_POINTS);
     let mut iterations = vec![IterationRecord {
         n: 0,
-        circumference_m: RearPair { rl: g0[0], rr: g0[1] },
+        circumference_m: RearPair {
+            rl: g0[0],
+            rr: g0[1],
+        },
         track_width_m: p.track,
         dr_error_mean_m: before.mean_m,
         dr_error_max_m: before.max_m,
     }];
     for (i, (_, g)) in fit.steps.iter().enumerate() {
         let s = slip_gain
-            .then(|| g[g.len() - 1])
+            .then(|| g[slip_index])
             .map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
         let d = dr_deviation(p, r, &params(g), s, 0);
         iterations.push(IterationRecord {
@@ -898,6 +1022,7 @@ pub fn run(
         track_estimated: estimate_track,
         side_slip_gain: slip_value,
         side_slip: slip_gain,
+        lever_arm: lever_value,
         sigmas: fit.sigmas(),
         selected_iteration: iterations.len() - 1,
         iterations,

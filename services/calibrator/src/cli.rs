@@ -91,6 +91,9 @@ pub struct CalibrateArgs {
     /// Do not use the IMU accelerations in the position reference.
     #[arg(long)]
     pub no_imu_accel: bool,
+    /// Estimate the GNSS antenna position in the batch fit.
+    #[arg(long)]
+    pub estimate_lever_arm: bool,
     /// No progress bar.
     #[arg(long)]
     pub no_progress: bool,
@@ -142,6 +145,7 @@ impl CalibrateArgs {
         if self.no_imu_accel {
             c.use_imu_acceleration = false;
         }
+        c.estimate_lever_arm = self.estimate_lever_arm;
         c
     }
 }
@@ -185,7 +189,10 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
     let drive = loaded.drive;
     let config = args.config();
     // A bar only where it helps: drives longer than five minutes.
-    let mut bar = Bar { shown: false, last: -1 };
+    let mut bar = Bar {
+        shown: false,
+        last: -1,
+    };
     let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
     let result = calibrate_with_progress(&drive, &config, &mut |p| {
         if show {
@@ -204,8 +211,10 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         }
     }
     if let Some(path) = &args.json {
-        let text = serde_json::to_string_pretty(&cal).context("cannot encode the calibration as JSON")?;
-        std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+        let text =
+            serde_json::to_string_pretty(&cal).context("cannot encode the calibration as JSON")?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
     }
     if let Some(dir) = &args.plots {

@@ -209,7 +209,11 @@ pub fn run_pass(
                 [0.5 * n_rl * s, 0.5 * n_rr * s, 0.0],
                 [-n_rl / track, n_rr / track, third],
             ];
-            let mut yv = [r.x[k] - pose.x, r.y[k] - pose.y, wrap_angle(r.yaw[k] - pose.yaw)];
+            let mut yv = [
+                r.x[k] - pose.x,
+                r.y[k] - pose.y,
+                wrap_angle(r.yaw[k] - pose.yaw),
+            ];
             if estimate_track {
                 yv[2] -= h0;
             }
@@ -244,7 +248,11 @@ pub fn run_pass(
                 });
             };
             let g = sp * s_inv;
-            let nu = Vector3::new(r.x[k] - pred.x, r.y[k] - pred.y, wrap_angle(r.yaw[k] - pred.yaw));
+            let nu = Vector3::new(
+                r.x[k] - pred.x,
+                r.y[k] - pred.y,
+                wrap_angle(r.yaw[k] - pred.yaw),
+            );
             let dx = g * nu;
             let upd = Pose2 {
                 x: pred.x + dx[0],
@@ -321,7 +329,7 @@ pub enum Slip<'a> {
     Series(&'a [f64]),
     /// beta = -k a_y with a_y = v omega from the wheels
     /// ([`Prepared::lateral_accel`]).
-    Gain(f64, &'a [f64]),
+    Gain(f64, &'a [f32]),
 }
 
 impl Slip<'_> {
@@ -330,7 +338,7 @@ impl Slip<'_> {
         match self {
             Slip::None => 0.0,
             Slip::Series(b) => b[k],
-            Slip::Gain(g, ay) => -g * ay[k],
+            Slip::Gain(g, ay) => -g * f64::from(ay[k]),
         }
     }
 }
@@ -352,9 +360,19 @@ pub struct DrDeviation {
 /// from the reference pose at the first valid sample (and again after every
 /// break of the wheel data), and measure its deviation from the reference
 /// (section 4 of the paper).
-pub fn dr_deviation(p: &Prepared, r: &Reference, params: &TwoWheelParams, slip: Slip, keep: usize) -> DrDeviation {
+pub fn dr_deviation(
+    p: &Prepared,
+    r: &Reference,
+    params: &TwoWheelParams,
+    slip: Slip,
+    keep: usize,
+) -> DrDeviation {
     let n = p.len();
-    let stride = if keep == 0 { usize::MAX } else { n.div_ceil(keep).max(1) };
+    let stride = if keep == 0 {
+        usize::MAX
+    } else {
+        n.div_ceil(keep).max(1)
+    };
     let mut track = Vec::new();
     let mut pose: Option<Pose2> = None;
     let (mut sum, mut max, mut count) = (0.0, 0.0f64, 0usize);
@@ -394,7 +412,11 @@ pub fn dr_deviation(p: &Prepared, r: &Reference, params: &TwoWheelParams, slip: 
         pose = Some(cur);
     }
     DrDeviation {
-        mean_m: if count > 0 { sum / count as f64 } else { f64::NAN },
+        mean_m: if count > 0 {
+            sum / count as f64
+        } else {
+            f64::NAN
+        },
         max_m: max,
         samples: count,
         track,

@@ -126,7 +126,11 @@ pub fn estimate(
     let breaks = |k: usize| k > 0 && !(gyro[k] - gyro[k - 1]).is_finite();
     // The gyro starts near its answer (bias from standstill, scale 0): two stages do.
     let lengths = [30.0f64.min(segment_length_s), segment_length_s];
-    let lengths = if lengths[0] >= lengths[1] { &lengths[1..] } else { &lengths[..] };
+    let lengths = if lengths[0] >= lengths[1] {
+        &lengths[1..]
+    } else {
+        &lengths[..]
+    };
     let result = fit(&model, p, r, &[b0, 0.0], lengths, &breaks, &mut |_| {});
     let f = match result {
         Ok(f) => f,

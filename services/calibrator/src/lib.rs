@@ -142,6 +142,9 @@ pub struct CalibrationConfig {
     pub segment_length_s: f64,
     /// Use the IMU's accelerations in the position reference (`p'' = a`).
     pub use_imu_acceleration: bool,
+    /// Estimate the GNSS antenna position (body frame) in the batch fit,
+    /// starting from `vehicle.toml`'s `[gnss]` values (or the axle centre).
+    pub estimate_lever_arm: bool,
 }
 
 impl Default for CalibrationConfig {
@@ -163,6 +166,7 @@ impl Default for CalibrationConfig {
             max_gnss_gap_s: 2.0,
             segment_length_s: 120.0,
             use_imu_acceleration: true,
+            estimate_lever_arm: false,
         }
     }
 }
@@ -170,9 +174,14 @@ impl Default for CalibrationConfig {
 impl CalibrationConfig {
     /// Check the ranges; the error names the field.
     pub fn validate(&self) -> Result<(), CalibrationError> {
-        let bad = |field: &'static str, reason: String| Err(CalibrationError::InvalidConfig { field, reason });
+        let bad = |field: &'static str, reason: String| {
+            Err(CalibrationError::InvalidConfig { field, reason })
+        };
         if self.iterations == 0 || self.iterations > 1000 {
-            return bad("iterations", format!("{} is not in 1..=1000", self.iterations));
+            return bad(
+                "iterations",
+                format!("{} is not in 1..=1000", self.iterations),
+            );
         }
         if !(self.alpha > 0.0 && self.alpha <= 1.0) {
             return bad("alpha", format!("{} is not in (0, 1]", self.alpha));
@@ -180,8 +189,14 @@ impl CalibrationConfig {
         if !(self.q_m.is_finite() && self.q_m >= 1.0) {
             return bad("q_m", format!("{} must be >= 1 (eq. 10a)", self.q_m));
         }
-        if !(self.paper_rate_hz.is_finite() && self.paper_rate_hz > 0.0 && self.paper_rate_hz <= 1000.0) {
-            return bad("paper_rate_hz", format!("{} is not in (0, 1000] Hz", self.paper_rate_hz));
+        if !(self.paper_rate_hz.is_finite()
+            && self.paper_rate_hz > 0.0
+            && self.paper_rate_hz <= 1000.0)
+        {
+            return bad(
+                "paper_rate_hz",
+                format!("{} is not in (0, 1000] Hz", self.paper_rate_hz),
+            );
         }
         if !(self.q_p.is_finite() && self.q_p >= 0.0) {
             return bad("q_p", format!("{} must be >= 0 (eq. 10b)", self.q_p));
@@ -192,13 +207,22 @@ impl CalibrationConfig {
             }
         }
         if !(self.outlier_gate_sigma.is_finite() && self.outlier_gate_sigma >= 2.0) {
-            return bad("outlier_gate_sigma", format!("{} must be >= 2", self.outlier_gate_sigma));
+            return bad(
+                "outlier_gate_sigma",
+                format!("{} must be >= 2", self.outlier_gate_sigma),
+            );
         }
         if !(self.max_gnss_gap_s.is_finite() && self.max_gnss_gap_s > 0.0) {
-            return bad("max_gnss_gap_s", format!("{} must be positive", self.max_gnss_gap_s));
+            return bad(
+                "max_gnss_gap_s",
+                format!("{} must be positive", self.max_gnss_gap_s),
+            );
         }
         if !(self.segment_length_s.is_finite() && self.segment_length_s >= 5.0) {
-            return bad("segment_length_s", format!("{} must be >= 5 s", self.segment_length_s));
+            return bad(
+                "segment_length_s",
+                format!("{} must be >= 5 s", self.segment_length_s),
+            );
         }
         Ok(())
     }
@@ -338,7 +362,10 @@ pub struct Progress {
 }
 
 /// Calibrate the rear wheel circumferences of `drive`.
-pub fn calibrate(drive: &Drive, config: &CalibrationConfig) -> Result<Calibration, CalibrationError> {
+pub fn calibrate(
+    drive: &Drive,
+    config: &CalibrationConfig,
+) -> Result<Calibration, CalibrationError> {
     calibrate_with_progress(drive, config, &mut |_| {})
 }
 
@@ -393,7 +420,14 @@ pub fn calibrate_with_progress(
         stage: Stage::Gyro,
         fraction: 0.9,
     });
-    let cal = report::assemble(&prepared, &reference, config, paper_result, batch_result, warnings)?;
+    let cal = report::assemble(
+        &prepared,
+        &reference,
+        config,
+        paper_result,
+        batch_result,
+        warnings,
+    )?;
     progress(Progress {
         stage: Stage::Done,
         fraction: 1.0,

@@ -38,6 +38,26 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<MethodResult, CalibrationError> {
     let estimate_track = crate::batch::decide_track(p, r, config, warnings)?;
+    let result = run_once(p, r, config, estimate_track, progress)?;
+    if result.track_estimated {
+        if let Some(w) = crate::batch::implausible_track(result.track, p.track, config.track_width)
+        {
+            warnings.push(w);
+            if config.track_width == crate::TrackWidthMode::Auto {
+                return run_once(p, r, config, false, progress);
+            }
+        }
+    }
+    Ok(result)
+}
+
+fn run_once(
+    p: &Prepared,
+    r: &Reference,
+    config: &CalibrationConfig,
+    estimate_track: bool,
+    progress: &mut dyn FnMut(f64),
+) -> Result<MethodResult, CalibrationError> {
     let mut track = p.track;
     let slip = if config.side_slip && p.gyro.is_some() {
         Slip::Series(&r.beta)
@@ -63,10 +83,23 @@ pub fn run(
     let mut best: Option<(usize, [f64; 2], f64, f64, Sigmas, Vec<[f64; 2]>)> = None;
     for i in 1..=config.iterations {
         let cov = schedule(i, config.q_m, config.q_p);
-        let pass = run_pass(p, r, &grid, c, track, &cov, side_slip, estimate_track, JACKKNIFE_BLOCKS)?;
+        let pass = run_pass(
+            p,
+            r,
+            &grid,
+            c,
+            track,
+            &cov,
+            side_slip,
+            estimate_track,
+            JACKKNIFE_BLOCKS,
+        )?;
         let opt = pass.solve()?;
         // Eq. (11).
-        let next = [c[0] + config.alpha * (opt[0] - c[0]), c[1] + config.alpha * (opt[1] - c[1])];
+        let next = [
+            c[0] + config.alpha * (opt[0] - c[0]),
+            c[1] + config.alpha * (opt[1] - c[1]),
+        ];
         check_plausible(next, p.nominal_c, i)?;
         if estimate_track {
             track += config.alpha * (opt[2] - track);
@@ -110,6 +143,7 @@ pub fn run(
         track_estimated: estimate_track,
         side_slip_gain: None,
         side_slip,
+        lever_arm: None,
         sigmas,
         iterations,
         selected_iteration: selected,
@@ -122,7 +156,11 @@ pub fn run(
 }
 
 /// An iteration that leaves the plausible range is an error, not a result.
-pub fn check_plausible(c: [f64; 2], nominal: f64, iteration: usize) -> Result<(), CalibrationError> {
+pub fn check_plausible(
+    c: [f64; 2],
+    nominal: f64,
+    iteration: usize,
+) -> Result<(), CalibrationError> {
     for (name, v) in [("c_RL", c[0]), ("c_RR", c[1])] {
         if !(v.is_finite() && v > 0.5 * nominal && v < 1.5 * nominal) {
             return Err(CalibrationError::Implausible {

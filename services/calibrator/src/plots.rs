@@ -10,13 +10,21 @@ const W: f64 = 900.0;
 const H: f64 = 700.0;
 const MARGIN: f64 = 60.0;
 
-fn polyline(points: &[[f64; 2]], map: &dyn Fn([f64; 2]) -> (f64, f64), colour: &str, width: f64) -> String {
+fn polyline(
+    points: &[[f64; 2]],
+    map: &dyn Fn([f64; 2]) -> (f64, f64),
+    colour: &str,
+    width: f64,
+) -> String {
     let mut s = String::new();
     let _ = write!(
         s,
         r#"<polyline fill="none" stroke="{colour}" stroke-width="{width}" points=""#
     );
-    for p in points.iter().filter(|p| p[0].is_finite() && p[1].is_finite()) {
+    for p in points
+        .iter()
+        .filter(|p| p[0].is_finite() && p[1].is_finite())
+    {
         let (x, y) = map(*p);
         let _ = write!(s, "{x:.1},{y:.1} ");
     }
@@ -41,7 +49,9 @@ fn legend(items: &[(&str, &str)]) -> String {
 }
 
 fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// The track: GNSS fixes, reference, 2W dead-reckoning with the nominal and
@@ -61,12 +71,19 @@ pub fn track_svg(c: &Calibration) -> String {
     }
     let span = (x1 - x0).max(y1 - y0).max(1.0);
     let scale = ((W - 2.0 * MARGIN) / span).min((H - 2.0 * MARGIN) / span);
-    let map = move |p: [f64; 2]| (MARGIN + (p[0] - x0) * scale, H - MARGIN - (p[1] - y0) * scale);
+    let map = move |p: [f64; 2]| {
+        (
+            MARGIN + (p[0] - x0) * scale,
+            H - MARGIN - (p[1] - y0) * scale,
+        )
+    };
     // The nominal track may run far away: clip it to a generous box.
     let clip = |v: &[[f64; 2]]| -> Vec<[f64; 2]> {
         v.iter()
             .copied()
-            .filter(|p| p[0] > x0 - span && p[0] < x1 + span && p[1] > y0 - span && p[1] < y1 + span)
+            .filter(|p| {
+                p[0] > x0 - span && p[0] < x1 + span && p[1] > y0 - span && p[1] < y1 + span
+            })
             .collect()
     };
     let mut s = String::new();
@@ -81,7 +98,10 @@ pub fn track_svg(c: &Calibration) -> String {
     );
     for p in &t.gnss {
         let (x, y) = map(*p);
-        let _ = writeln!(s, r##"<circle cx="{x:.1}" cy="{y:.1}" r="1.2" fill="#bbbbbb"/>"##);
+        let _ = writeln!(
+            s,
+            r##"<circle cx="{x:.1}" cy="{y:.1}" r="1.2" fill="#bbbbbb"/>"##
+        );
     }
     s.push_str(&polyline(&t.reference, &map, "black", 2.0));
     s.push_str(&polyline(&clip(&t.before), &map, "#d62728", 1.5));
@@ -125,12 +145,24 @@ pub fn iterations_svg(c: &Calibration) -> String {
     }
     let n_max = it.iter().map(|i| i.n).max().unwrap_or(1).max(1) as f64;
     let x_of = |n: usize| MARGIN + (W - 2.0 * MARGIN) * n as f64 / n_max;
-    let panel = |top: f64, bottom: f64, series: &[(&str, &str, Vec<f64>)], unit: &str, s: &mut String| {
-        let vals: Vec<f64> = series.iter().flat_map(|x| x.2.iter().copied()).filter(|v| v.is_finite()).collect();
+    let panel = |top: f64,
+                 bottom: f64,
+                 series: &[(&str, &str, Vec<f64>)],
+                 unit: &str,
+                 s: &mut String| {
+        let vals: Vec<f64> = series
+            .iter()
+            .flat_map(|x| x.2.iter().copied())
+            .filter(|v| v.is_finite())
+            .collect();
         let (lo, hi) = vals
             .iter()
             .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(*v), b.max(*v)));
-        let (lo, hi) = if lo < hi { (lo, hi) } else { (lo - 1.0, hi + 1.0) };
+        let (lo, hi) = if lo < hi {
+            (lo, hi)
+        } else {
+            (lo - 1.0, hi + 1.0)
+        };
         let y_of = |v: f64| bottom - (bottom - top) * (v - lo) / (hi - lo);
         let _ = writeln!(
             s,
@@ -145,22 +177,46 @@ pub fn iterations_svg(c: &Calibration) -> String {
             0.5 * (top + bottom)
         );
         for (label, colour, v) in series {
-            let pts: Vec<[f64; 2]> = it.iter().zip(v).map(|(i, v)| [x_of(i.n), y_of(*v)]).collect();
+            let pts: Vec<[f64; 2]> = it
+                .iter()
+                .zip(v)
+                .map(|(i, v)| [x_of(i.n), y_of(*v)])
+                .collect();
             s.push_str(&polyline(&pts, &|p| (p[0], p[1]), colour, 2.0));
             for p in &pts {
-                let _ = writeln!(s, r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#, p[0], p[1]);
+                let _ = writeln!(
+                    s,
+                    r#"<circle cx="{:.1}" cy="{:.1}" r="3" fill="{colour}"/>"#,
+                    p[0], p[1]
+                );
             }
             let _ = label;
         }
     };
     let top_series = [
-        ("c_RL", "#1f77b4", it.iter().map(|i| i.circumference_m.rl).collect()),
-        ("c_RR", "#d62728", it.iter().map(|i| i.circumference_m.rr).collect()),
+        (
+            "c_RL",
+            "#1f77b4",
+            it.iter().map(|i| i.circumference_m.rl).collect(),
+        ),
+        (
+            "c_RR",
+            "#d62728",
+            it.iter().map(|i| i.circumference_m.rr).collect(),
+        ),
     ];
     panel(60.0, 320.0, &top_series, "m", &mut s);
     let bottom_series = [
-        ("mean", "#2ca02c", it.iter().map(|i| i.dr_error_mean_m).collect()),
-        ("max", "#ff7f0e", it.iter().map(|i| i.dr_error_max_m).collect()),
+        (
+            "mean",
+            "#2ca02c",
+            it.iter().map(|i| i.dr_error_mean_m).collect(),
+        ),
+        (
+            "max",
+            "#ff7f0e",
+            it.iter().map(|i| i.dr_error_max_m).collect(),
+        ),
     ];
     panel(360.0, 640.0, &bottom_series, "m", &mut s);
     let x = x_of(c.selected_iteration);

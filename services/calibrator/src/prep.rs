@@ -66,7 +66,10 @@ pub struct Prepared {
     /// Lateral acceleration `v omega` from the wheels with the nominal
     /// values, averaged over 0.5 s (per-step increments of a quantised
     /// encoder are far too noisy for a side-slip model), m/s^2.
-    pub lateral_accel: Vec<f64>,
+    pub lateral_accel: Vec<f32>,
+    /// Offsets subtracted from rate-type wheel channels (rl, rr in the
+    /// channel's unit) and the standstill seconds they come from.
+    pub wheel_offsets: Option<(f64, f64, f64)>,
 }
 
 impl Prepared {
@@ -108,7 +111,10 @@ impl Prepared {
         let g = self.gyro.as_ref()?;
         let i0 = self.t.partition_point(|&s| s < t0);
         let i1 = self.t.partition_point(|&s| s <= t1);
-        if g[i0.min(g.len() - 1)..i1.min(g.len())].iter().any(|v| !v.is_finite()) {
+        if g[i0.min(g.len() - 1)..i1.min(g.len())]
+            .iter()
+            .any(|v| !v.is_finite())
+        {
             return None;
         }
         Some((self.gyro_cum_at(t1)? - self.gyro_cum_at(t0)?) / (t1 - t0))
@@ -131,7 +137,10 @@ pub fn prepare(
 ) -> Result<Prepared, CalibrationError> {
     let _ = config;
     let vehicle = &drive.vehicle;
-    if !(vehicle.track_width_m.is_finite() && vehicle.track_width_m > 0.1 && vehicle.track_width_m < 5.0) {
+    if !(vehicle.track_width_m.is_finite()
+        && vehicle.track_width_m > 0.1
+        && vehicle.track_width_m < 5.0)
+    {
         return Err(CalibrationError::BadVehicle(format!(
             "track_width_m = {} is not a plausible rear track (0.1..5 m)",
             vehicle.track_width_m
@@ -157,14 +166,20 @@ pub fn prepare(
         )));
     }
 
-    let (t, dn_rl, dn_rr, piece_starts, wheel_dt) = wheels(drive, warnings)?;
+    let (t, dn_rl, dn_rr, piece_starts, wheel_dt, wheel_offsets) = wheels(drive, warnings)?;
     let fixes = gnss(drive, warnings)?;
     let (gyro, has_accel, imu_end) = imu(drive, &t, warnings);
     let headings = heading(drive, warnings);
     check_stream_ends(&t, &fixes, imu_end, warnings);
 
     let standstill = standstill_intervals(&t, &dn_rl, &dn_rr, vehicle.nominal_circumference_m);
-    let lateral_accel = lateral_accel(&t, &dn_rl, &dn_rr, vehicle.nominal_circumference_m, vehicle.track_width_m);
+    let lateral_accel = lateral_accel(
+        &t,
+        &dn_rl,
+        &dn_rr,
+        vehicle.nominal_circumference_m,
+        vehicle.track_width_m,
+    );
 
     Ok(Prepared {
         t,
@@ -181,12 +196,13 @@ pub fn prepare(
         track: vehicle.track_width_m,
         standstill,
         lateral_accel,
+        wheel_offsets,
     })
 }
 
 /// `v omega` over a centred window of 0.5 s, from the wheels (running
 /// window sums, no extra arrays).
-fn lateral_accel(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64, track: f64) -> Vec<f64> {
+fn lateral_accel(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64, track: f64) -> Vec<f32> {
     let n = t.len();
     let mut out = Vec::with_capacity(n);
     // Window (j0, j1]: the increments after j0 up to j1.
@@ -210,12 +226,72 @@ fn lateral_accel(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64, track: f64) ->
         }
         let v = 0.5 * c * (l + r) / dt;
         let w = c * (r - l) / (track * dt);
-        out.push(v * w);
+        out.push((v * w) as f32);
     }
     out
 }
 
-type WheelArrays = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>, f64);
+type WheelArrays = (
+    Vec<f64>,
+    Vec<f64>,
+    Vec<f64>,
+    Vec<usize>,
+    f64,
+    Option<(f64, f64, f64)>,
+);
+
+/// Offsets of rate-type wheel channels (`_rad_s`, `_m_s`): the mean reading
+/// of each rear wheel while the car stands (both below 0.03 m/s for at
+/// least 1 s; 2 s in total needed), in the channel's own unit, and the
+/// seconds used. Wheel-hub gyros read a few hundredths of rad/s at rest,
+/// which integrates to a slow, speed-independent distance and heading
+/// drift. Counting channels (`_rev`, `_ticks`) have no offset.
+fn rate_offsets(
+    samples: &[WheelSample],
+    units: interfaces::drive::WheelUnits,
+    k_rl: f64,
+    k_rr: f64,
+    c: f64,
+) -> Option<(f64, f64, f64)> {
+    if !(units.rl.is_rate() && units.rr.is_rate()) {
+        return None;
+    }
+    let still = |s: &WheelSample| {
+        s.rl.is_finite()
+            && s.rr.is_finite()
+            && (s.rl * k_rl * c).abs() < 0.03
+            && (s.rr * k_rr * c).abs() < 0.03
+    };
+    let (mut sum_l, mut sum_r, mut n, mut total_t) = (0.0, 0.0, 0usize, 0.0);
+    let mut run: Option<(f64, f64, f64, usize)> = None; // start, sum_l, sum_r, count
+    let mut last_t = f64::NAN;
+    let mut close = |run: &mut Option<(f64, f64, f64, usize)>, end: f64| {
+        if let Some((t0, l, r, m)) = run.take() {
+            if end - t0 >= 1.0 && m > 0 {
+                sum_l += l;
+                sum_r += r;
+                n += m;
+                total_t += end - t0;
+            }
+        }
+    };
+    for s in samples {
+        if !s.t_s.is_finite() {
+            continue;
+        }
+        if still(s) {
+            let r = run.get_or_insert((s.t_s, 0.0, 0.0, 0));
+            r.1 += s.rl;
+            r.2 += s.rr;
+            r.3 += 1;
+        } else {
+            close(&mut run, last_t);
+        }
+        last_t = s.t_s;
+    }
+    close(&mut run, last_t);
+    (total_t >= 2.0 && n > 0).then(|| (sum_l / n as f64, sum_r / n as f64, total_t))
+}
 
 fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, CalibrationError> {
     let samples = &drive.wheels.samples;
@@ -249,6 +325,14 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
         })
     };
     let (k_rl, k_rr) = (scale(units.rl)?, scale(units.rr)?);
+    let offsets = rate_offsets(
+        samples,
+        units,
+        k_rl,
+        k_rr,
+        drive.vehicle.nominal_circumference_m,
+    );
+    let (o_rl, o_rr) = offsets.map_or((0.0, 0.0), |o| (o.0, o.1));
     // Median sample interval from the first rows (enough to set the gap threshold).
     let mut dts: Vec<f64> = samples
         .windows(2)
@@ -291,15 +375,15 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             first_bad.get_or_insert(s.t_s);
             continue;
         }
-        let inc = |unit: WheelUnit, k: f64, a: f64, b: f64| {
+        let inc = |unit: WheelUnit, k: f64, a: f64, b: f64, offset: f64| {
             if unit.is_rate() {
-                0.5 * (a + b) * k * dt
+                (0.5 * (a + b) - offset) * k * dt
             } else {
                 (b - a) * k
             }
         };
-        let a = inc(units.rl, k_rl, p.rl, s.rl);
-        let b = inc(units.rr, k_rr, p.rr, s.rr);
+        let a = inc(units.rl, k_rl, p.rl, s.rl, o_rl);
+        let b = inc(units.rr, k_rr, p.rr, s.rr, o_rr);
         t.push(s.t_s);
         if dt > gap_threshold {
             gaps += 1;
@@ -356,7 +440,7 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             other_revs: big,
         });
     }
-    Ok((t, dn_rl, dn_rr, piece_starts, wheel_dt))
+    Ok((t, dn_rl, dn_rr, piece_starts, wheel_dt, offsets))
 }
 
 fn gnss(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<Vec<Fix>, CalibrationError> {
@@ -426,7 +510,11 @@ fn gnss(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<Vec<Fix>, Calibrat
 
 /// The gyro integral at the wheel times `t`, whether the IMU has
 /// accelerations, and the IMU's last time.
-fn imu(drive: &Drive, t: &[f64], warnings: &mut Vec<Warning>) -> (Option<Vec<f64>>, bool, Option<f64>) {
+fn imu(
+    drive: &Drive,
+    t: &[f64],
+    warnings: &mut Vec<Warning>,
+) -> (Option<Vec<f64>>, bool, Option<f64>) {
     let Some(rows) = drive.imu.as_ref().filter(|r| !r.is_empty()) else {
         warnings.push(Warning::new(
             WarningCode::NoImu,
@@ -555,7 +643,10 @@ fn heading(drive: &Drive, warnings: &mut Vec<Warning>) -> Vec<HeadingSample> {
     if skipped > 0 {
         warnings.push(Warning::new(
             WarningCode::NonFiniteSamples,
-            format!("heading: {skipped} of {} rows are non-finite or out of order and were skipped", rows.len()),
+            format!(
+                "heading: {skipped} of {} rows are non-finite or out of order and were skipped",
+                rows.len()
+            ),
         ));
     }
     out
@@ -678,9 +769,15 @@ mod tests {
     #[test]
     fn standstill_is_found() {
         let t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.01).collect();
-        let dn: Vec<f64> = t.iter().map(|&tk| if (3.0..6.0).contains(&tk) { 0.0 } else { 0.01 }).collect();
+        let dn: Vec<f64> = t
+            .iter()
+            .map(|&tk| if (3.0..6.0).contains(&tk) { 0.0 } else { 0.01 })
+            .collect();
         let s = standstill_intervals(&t, &dn, &dn, 2.0);
         assert_eq!(s.len(), 1, "{s:?}");
-        assert!((s[0].0 - 3.25).abs() < 0.05 && (s[0].1 - 5.75).abs() < 0.05, "{s:?}");
+        assert!(
+            (s[0].0 - 3.25).abs() < 0.05 && (s[0].1 - 5.75).abs() < 0.05,
+            "{s:?}"
+        );
     }
 }

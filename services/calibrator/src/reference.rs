@@ -69,7 +69,8 @@ pub struct Reference {
     pub y: Vec<f64>,
     /// Heading, rad, unwrapped (continuous).
     pub yaw: Vec<f64>,
-    /// Side-slip angle, rad (0 where not estimated).
+    /// Side-slip angle, rad (0 where not estimated); empty unless side-slip
+    /// is switched on and the drive has a gyro.
     pub beta: Vec<f64>,
     /// True where a GNSS fix is close enough for the reference to be trusted.
     pub valid: Vec<bool>,
@@ -251,11 +252,12 @@ fn smooth_positions(
         }
     }
     // Rauch-Tung-Striebel backward pass.
-    let mut xs = xf.clone();
-    let mut ps = pf.clone();
+    // In place: step j reads the filtered values at j before overwriting them.
+    let mut xs = xf;
+    let mut ps = pf;
     for j in (0..n.saturating_sub(1)).rev() {
         let tt = fixes[j + 1].t - fixes[j].t;
-        let c = pf[j];
+        let c = ps[j];
         let p1 = pp[j + 1];
         // C = Pf F^T Pp^-1 with F = [[1, tt], [0, 1]].
         let pft = [[c.pp + tt * c.pv, c.pv], [c.pv + tt * c.vv, c.vv]];
@@ -263,7 +265,10 @@ fn smooth_positions(
         if !(det.is_finite() && det > 0.0) {
             return Err(CalibrationError::Numerical {
                 stage: "reference position smoother",
-                detail: format!("predicted covariance not positive definite at t = {:.3} s", fixes[j + 1].t),
+                detail: format!(
+                    "predicted covariance not positive definite at t = {:.3} s",
+                    fixes[j + 1].t
+                ),
             });
         }
         let inv = [[p1.vv / det, -p1.pv / det], [-p1.pv / det, p1.pp / det]];
@@ -277,7 +282,7 @@ fn smooth_positions(
                 pft[1][0] * inv[0][1] + pft[1][1] * inv[1][1],
             ],
         ];
-        let a = xf[j];
+        let a = xs[j];
         let u = inputs.map_or([0.0; 4], |i| i[j + 1]);
         let xp = [
             a[0] + a[2] * tt + u[0],
@@ -340,17 +345,6 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
     Some(1.4826 * mad / 6f64.sqrt())
 }
 
-/// Cumulative centre distance at the wheel times (nominal circumference).
-fn cumulative_distance(p: &Prepared) -> Vec<f64> {
-    let mut s = Vec::with_capacity(p.len());
-    let mut acc = 0.0;
-    for k in 0..p.len() {
-        acc += 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c;
-        s.push(acc);
-    }
-    s
-}
-
 /// Estimate the GNSS latency relative to the wheels from the speeds:
 /// minimise `sum (v_gnss(t) - k v_wheel(t - tau))^2` over `tau` in +-0.5 s
 /// (k absorbs the unknown circumference), refine with a parabola fitted
@@ -360,22 +354,24 @@ fn cumulative_distance(p: &Prepared) -> Vec<f64> {
 /// GNSS speeds are correlated over about a second. `None` when the speed
 /// hardly changes (no timing information) or the minimum is at the edge.
 fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
-    let dist = cumulative_distance(p);
     let h = 0.25;
-    // Wheel speed over +-h at every wheel time, then interpolated (a cursor
-    // walks forward because the observation times increase).
+    // Wheel speed over +-h at every wheel time (running window sums, f32 to
+    // keep a long drive small), then interpolated by a forward cursor.
     let n = p.len();
-    let mut speed = Vec::with_capacity(n);
+    let mut speed: Vec<f32> = Vec::with_capacity(n);
     let (mut j0, mut j1) = (0usize, 0usize);
+    let mut sum = 0.0;
     for k in 0..n {
-        while p.t[k] - p.t[j0] > h {
-            j0 += 1;
-        }
         while j1 + 1 < n && p.t[j1 + 1] - p.t[k] <= h {
             j1 += 1;
+            sum += 0.5 * (p.dn_rl[j1] + p.dn_rr[j1]) * p.nominal_c;
+        }
+        while p.t[k] - p.t[j0] > h {
+            j0 += 1;
+            sum -= 0.5 * (p.dn_rl[j0] + p.dn_rr[j0]) * p.nominal_c;
         }
         let dt = p.t[j1] - p.t[j0];
-        speed.push(if dt > 0.0 { (dist[j1] - dist[j0]) / dt } else { 0.0 });
+        speed.push(if dt > 0.0 { (sum / dt) as f32 } else { 0.0 });
     }
     let speed_at = |t: f64, cursor: &mut usize| -> Option<f64> {
         if !(t >= p.t[0] && t <= p.t[n - 1]) {
@@ -386,8 +382,13 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
         }
         let i = *cursor;
         let (t0, t1) = (p.t[i], p.t[i + 1]);
-        let f = if t1 > t0 { ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
-        Some(speed[i] + f * (speed[i + 1] - speed[i]))
+        let f = if t1 > t0 {
+            ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (a, b) = (f64::from(speed[i]), f64::from(speed[i + 1]));
+        Some(a + f * (b - a))
     };
     if n < 3 {
         return None;
@@ -483,7 +484,11 @@ struct HeadingMeas {
     var: f64,
 }
 
-fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<HeadingTrack, CalibrationError> {
+fn heading_filter(
+    meas: &[HeadingMeas],
+    p: &Prepared,
+    bias0: f64,
+) -> Result<HeadingTrack, CalibrationError> {
     let n = meas.len();
     let q_theta = 2.5e-7; // (5e-4 rad/sqrt(s))^2, gyro angle random walk
     let q_bias = 1e-10; // bias random walk, (rad/s)^2/s
@@ -503,9 +508,7 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
             continue;
         }
         let tt = meas[j].t - meas[j - 1].t;
-        let dg = p
-            .gyro_mean_rate(meas[j - 1].t, meas[j].t)
-            .map(|w| w * tt);
+        let dg = p.gyro_mean_rate(meas[j - 1].t, meas[j].t).map(|w| w * tt);
         inc.push(dg);
         let a = xf[j - 1];
         let c = pf[j - 1];
@@ -513,7 +516,10 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
             Some(dg) => {
                 // theta' = theta + dg - b tt; F = [[1, -tt], [0, 1]].
                 let xp = [a[0] + dg - a[1] * tt, a[1]];
-                let p00 = c[0] - 2.0 * tt * c[1] + tt * tt * c[2] + q_theta * tt + scale_var * dg * dg
+                let p00 = c[0] - 2.0 * tt * c[1]
+                    + tt * tt * c[2]
+                    + q_theta * tt
+                    + scale_var * dg * dg
                     + q_bias * tt * tt * tt / 3.0;
                 let p01 = c[1] - tt * c[2] - q_bias * tt * tt / 2.0;
                 let p11 = c[2] + q_bias * tt;
@@ -534,18 +540,23 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
         let k0 = pred[0] / s;
         let k1 = pred[1] / s;
         xf.push([xp[0] + k0 * nu, xp[1] + k1 * nu]);
-        pf.push([pred[0] - k0 * pred[0], pred[1] - k0 * pred[1], pred[2] - k1 * pred[1]]);
+        pf.push([
+            pred[0] - k0 * pred[0],
+            pred[1] - k0 * pred[1],
+            pred[2] - k1 * pred[1],
+        ]);
     }
-    let mut xs = xf.clone();
-    let mut ps = pf.clone();
+    // In place: step j reads the filtered values at j before overwriting them.
+    let mut xs = xf;
+    let mut ps = pf;
     for j in (0..n.saturating_sub(1)).rev() {
         let tt = meas[j + 1].t - meas[j].t;
-        let c = pf[j];
+        let c = ps[j];
         let p1 = pp[j + 1];
         let gyro = inc[j + 1];
         let (f01, xp) = match gyro {
-            Some(dg) => (-tt, [xf[j][0] + dg - xf[j][1] * tt, xf[j][1]]),
-            None => (0.0, xf[j]),
+            Some(dg) => (-tt, [xs[j][0] + dg - xs[j][1] * tt, xs[j][1]]),
+            None => (0.0, xs[j]),
         };
         // Pf F^T
         let pft = [[c[0] + f01 * c[1], c[1]], [c[1] + f01 * c[2], c[2]]];
@@ -553,7 +564,10 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
         if !(det.is_finite() && det > 0.0) {
             return Err(CalibrationError::Numerical {
                 stage: "reference heading smoother",
-                detail: format!("predicted covariance not positive definite at t = {:.3} s", meas[j + 1].t),
+                detail: format!(
+                    "predicted covariance not positive definite at t = {:.3} s",
+                    meas[j + 1].t
+                ),
             });
         }
         let inv = [[p1[2] / det, -p1[1] / det], [-p1[1] / det, p1[0] / det]];
@@ -569,8 +583,15 @@ fn heading_filter(meas: &[HeadingMeas], p: &Prepared, bias0: f64) -> Result<Head
         ];
         let d0 = xs[j + 1][0] - xp[0];
         let d1 = xs[j + 1][1] - xp[1];
-        xs[j] = [xf[j][0] + g[0][0] * d0 + g[0][1] * d1, xf[j][1] + g[1][0] * d0 + g[1][1] * d1];
-        let dp = [ps[j + 1][0] - p1[0], ps[j + 1][1] - p1[1], ps[j + 1][2] - p1[2]];
+        xs[j] = [
+            xs[j][0] + g[0][0] * d0 + g[0][1] * d1,
+            xs[j][1] + g[1][0] * d0 + g[1][1] * d1,
+        ];
+        let dp = [
+            ps[j + 1][0] - p1[0],
+            ps[j + 1][1] - p1[1],
+            ps[j + 1][2] - p1[2],
+        ];
         let m00 = g[0][0] * dp[0] + g[0][1] * dp[1];
         let m01 = g[0][0] * dp[1] + g[0][1] * dp[2];
         let m10 = g[1][0] * dp[0] + g[1][1] * dp[1];
@@ -619,7 +640,9 @@ impl HeadingTrack {
         }
         if j + 1 >= n {
             return match (g_t.is_finite(), g_of(n - 1)) {
-                (true, Some(g1)) => self.yaw[n - 1] + (g_t - g1) - self.bias[n - 1] * (t - self.t[n - 1]),
+                (true, Some(g1)) => {
+                    self.yaw[n - 1] + (g_t - g1) - self.bias[n - 1] * (t - self.t[n - 1])
+                }
                 _ => self.yaw[n - 1],
             };
         }
@@ -841,6 +864,7 @@ pub fn build(
             [f.x - (c * lx - s * ly), f.y - (s * lx + c * ly)]
         })
         .collect();
+    drop(pass1);
     let use_accel = config.use_imu_acceleration && p.has_accel;
     let inputs = if use_accel {
         Some(accel_inputs(&fixes, p, drive, &heading))
@@ -860,7 +884,8 @@ pub fn build(
     let mut x = Vec::with_capacity(n);
     let mut y = Vec::with_capacity(n);
     let mut yaw = Vec::with_capacity(n);
-    let mut beta = Vec::with_capacity(n);
+    let want_beta = config.side_slip && gyro.is_some();
+    let mut beta = Vec::with_capacity(if want_beta { n } else { 0 });
     let mut valid = Vec::with_capacity(n);
     let acc_t: Vec<f64> = fixes.iter().filter(|f| f.accepted).map(|f| f.t).collect();
     let mut j = 0usize;
@@ -878,7 +903,9 @@ pub fn build(
         y.push(s[1]);
         let g_t = p.gyro.as_ref().map_or(f64::NAN, |g| g[k]);
         yaw.push(heading.at(t, g_t, &mut hc));
-        beta.push(beta_track.as_ref().map_or(0.0, |b| b.at(t, &mut bc)));
+        if want_beta {
+            beta.push(beta_track.as_ref().map_or(0.0, |b| b.at(t, &mut bc)));
+        }
         while a + 1 < acc_t.len() && acc_t[a + 1] <= t {
             a += 1;
         }
@@ -915,7 +942,8 @@ pub fn build(
         ));
     }
     let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &valid);
-    let heading_filter_gyro_bias = gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
+    let heading_filter_gyro_bias =
+        gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
     Ok(Reference {
         x,
         y,
@@ -984,7 +1012,10 @@ pub fn standstill_gyro_bias(p: &Prepared) -> Option<(f64, f64, f64)> {
     // Standard error from the spread of the intervals, with a floor for white noise.
     let spread = if rates.len() > 1 {
         let m = rates.iter().sum::<f64>() / rates.len() as f64;
-        (rates.iter().map(|r| (r - m).powi(2)).sum::<f64>() / (rates.len() - 1) as f64 / rates.len() as f64).sqrt()
+        (rates.iter().map(|r| (r - m).powi(2)).sum::<f64>()
+            / (rates.len() - 1) as f64
+            / rates.len() as f64)
+            .sqrt()
     } else {
         0.0
     };
@@ -1036,9 +1067,17 @@ fn smooth_side_slip(t: &[f64], z: &[f64], var: &[f64]) -> Option<SlipTrack> {
     let mut phis = Vec::with_capacity(n);
     let (mut x, mut p) = (0.0, stat_var);
     for j in 0..n {
-        let phi = if j == 0 { 1.0 } else { (-(t[j] - t[j - 1]) / tau).exp() };
+        let phi = if j == 0 {
+            1.0
+        } else {
+            (-(t[j] - t[j - 1]) / tau).exp()
+        };
         let xp = phi * x;
-        let ppred = if j == 0 { p } else { phi * phi * p + stat_var * (1.0 - phi * phi) };
+        let ppred = if j == 0 {
+            p
+        } else {
+            phi * phi * p + stat_var * (1.0 - phi * phi)
+        };
         let k = ppred / (ppred + var[j]);
         x = xp + k * (z[j] - xp);
         p = (1.0 - k) * ppred;
@@ -1061,13 +1100,20 @@ fn smooth_side_slip(t: &[f64], z: &[f64], var: &[f64]) -> Option<SlipTrack> {
 /// Position/velocity change from the IMU accelerations rotated by the
 /// heading, for each interval ending at fix j (entry 0 unused). The IMU rows
 /// are read from the drive (rows without finite accelerations skipped).
-fn accel_inputs(fixes: &[RefFix], p: &Prepared, drive: &Drive, heading: &HeadingTrack) -> Vec<Input> {
+fn accel_inputs(
+    fixes: &[RefFix],
+    p: &Prepared,
+    drive: &Drive,
+    heading: &HeadingTrack,
+) -> Vec<Input> {
     let mut out = vec![[0.0; 4]; fixes.len()];
     let Some(rows) = drive.imu.as_deref() else {
         return out;
     };
     let usable = |r: &ImuSample| {
-        r.t_s.is_finite() && r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite)
+        r.t_s.is_finite()
+            && r.ax_m_s2.is_some_and(f64::is_finite)
+            && r.ay_m_s2.is_some_and(f64::is_finite)
     };
     let t_start = fixes.first().map_or(0.0, |f| f.t);
     let mut i = rows.partition_point(|r| !(r.t_s >= t_start));
@@ -1129,7 +1175,11 @@ fn gyro_at_cursor(p: &Prepared, t: f64, cursor: &mut usize) -> f64 {
     }
     let i = *cursor;
     let (t0, t1) = (p.t[i], p.t[i + 1]);
-    let f = if t1 > t0 { ((t - t0) / (t1 - t0)).clamp(0.0, 1.0) } else { 0.0 };
+    let f = if t1 > t0 {
+        ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     g[i] + f * (g[i + 1] - g[i])
 }
 

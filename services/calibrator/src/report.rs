@@ -77,6 +77,8 @@ pub enum WarningCode {
     TrackWidthUnobservable,
     /// The track width was kept at the nominal value.
     TrackWidthFixed,
+    /// The estimated track width is implausible.
+    TrackWidthImplausible,
     /// The gyro bias/scale could not be estimated.
     GyroUnobservable,
     /// The gyro scale was held at 0.
@@ -135,6 +137,9 @@ pub struct MethodResult {
     pub side_slip_gain: Option<f64>,
     /// Whether side-slip was in the model.
     pub side_slip: bool,
+    /// Estimated GNSS antenna position (body x, y from the rear-axle centre)
+    /// and its sigmas, m (batch with the lever arm estimated).
+    pub lever_arm: Option<([f64; 2], [f64; 2])>,
     /// Uncertainty.
     pub sigmas: Sigmas,
     /// Per-iteration table.
@@ -203,6 +208,9 @@ pub struct Diagnostics {
     pub residual_rms_m: Option<f64>,
     /// Batch segments.
     pub segments: usize,
+    /// Offsets subtracted from rate-type wheel channels (rl, rr, in the
+    /// channel's unit), measured at standstill.
+    pub wheel_rate_offsets: Option<[f64; 2]>,
 }
 
 /// The nominal values the calibration started from.
@@ -250,6 +258,12 @@ pub struct Calibration {
     pub side_slip: bool,
     /// Side-slip gain k (beta = -k a_y), rad per m/s^2, when fitted.
     pub side_slip_gain_rad_per_m_s2: Option<f64>,
+    /// Estimated GNSS antenna position, body frame from the rear-axle centre, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss_antenna_m: Option<[f64; 2]>,
+    /// Its 1-sigma, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_gnss_antenna_m: Option<[f64; 2]>,
     /// The method that produced the values.
     pub method: Method,
     /// The kept iteration.
@@ -286,7 +300,10 @@ fn summary(m: &MethodResult) -> MethodSummary {
         .or_else(|| m.iterations.last().copied());
     MethodSummary {
         method: m.method,
-        circumference_m: RearPair { rl: m.c[0], rr: m.c[1] },
+        circumference_m: RearPair {
+            rl: m.c[0],
+            rr: m.c[1],
+        },
         sigma_m: RearSigma::from(&m.sigmas),
         track_width_m: m.track,
         selected_iteration: m.selected_iteration,
@@ -372,8 +389,17 @@ pub fn assemble(
         None
     };
     let n = p.len();
-    let reference = thin((0..n).map(|k| [r.x[k], r.y[k]]), n, crate::paper::TRACK_POINTS);
-    let gnss: Vec<[f64; 2]> = r.fixes.iter().filter(|f| f.accepted).map(|f| [f.x, f.y]).collect();
+    let reference = thin(
+        (0..n).map(|k| [r.x[k], r.y[k]]),
+        n,
+        crate::paper::TRACK_POINTS,
+    );
+    let gnss: Vec<[f64; 2]> = r
+        .fixes
+        .iter()
+        .filter(|f| f.accepted)
+        .map(|f| [f.x, f.y])
+        .collect();
     let standstill_s = p.standstill.iter().map(|(a, b)| b - a).sum();
     Ok(Calibration {
         circumference_m: RearPair {
@@ -393,6 +419,8 @@ pub fn assemble(
         gyro,
         side_slip: primary.side_slip,
         side_slip_gain_rad_per_m_s2: primary.side_slip_gain,
+        gnss_antenna_m: primary.lever_arm.map(|l| l.0),
+        sigma_gnss_antenna_m: primary.lever_arm.map(|l| l.1),
         method: primary.method,
         selected_iteration: primary.selected_iteration,
         iterations: primary.iterations,
@@ -416,6 +444,7 @@ pub fn assemble(
             standstill_s,
             residual_rms_m: primary.residual_rms_m,
             segments: primary.segments,
+            wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
         },
         comparison,
         tracks: Tracks {
@@ -428,7 +457,9 @@ pub fn assemble(
 }
 
 fn mm(v: Option<f64>) -> String {
-    v.map_or("not determined".to_string(), |v| format!("{:.2} mm", 1000.0 * v))
+    v.map_or("not determined".to_string(), |v| {
+        format!("{:.2} mm", 1000.0 * v)
+    })
 }
 
 /// The readable report: drive facts, the per-iteration table, the result
@@ -458,6 +489,13 @@ pub fn render_text(c: &Calibration) -> String {
         d.lever_arm_m[0],
         d.lever_arm_m[1]
     );
+    if let Some(o) = d.wheel_rate_offsets {
+        let _ = writeln!(
+            s,
+            "wheels: rate offsets at standstill subtracted: rl {:+.5}, rr {:+.5} (channel units)",
+            o[0], o[1]
+        );
+    }
     if let Some(t) = d.time_offset {
         let _ = writeln!(
             s,
@@ -476,7 +514,11 @@ pub fn render_text(c: &Calibration) -> String {
         let _ = writeln!(
             s,
             "{} {:4}   {:9.6}   {:9.6}   {:9.4}   {:11.2}   {:10.2}",
-            if it.n == c.selected_iteration { "*" } else { " " },
+            if it.n == c.selected_iteration {
+                "*"
+            } else {
+                " "
+            },
             it.n,
             it.circumference_m.rl,
             it.circumference_m.rr,
@@ -519,6 +561,13 @@ pub fn render_text(c: &Calibration) -> String {
     if let Some(k) = c.side_slip_gain_rad_per_m_s2 {
         let _ = writeln!(s, "  side-slip k  = {:.5} rad per m/s^2", k);
     }
+    if let (Some(l), Some(sl)) = (c.gnss_antenna_m, c.sigma_gnss_antenna_m) {
+        let _ = writeln!(
+            s,
+            "  GNSS antenna = ({:+.3}, {:+.3}) m body x, y from the rear-axle centre (sigma {:.3}, {:.3} m)",
+            l[0], l[1], sl[0], sl[1]
+        );
+    }
     if let Some(g) = &c.gyro {
         let _ = writeln!(
             s,
@@ -526,19 +575,27 @@ pub fn render_text(c: &Calibration) -> String {
             g.bias_rad_s,
             g.bias_rad_s.to_degrees() * 3600.0,
             g.sigma_bias_rad_s.to_degrees() * 3600.0,
-            g.standstill_bias_rad_s
-                .map_or(String::new(), |b| format!("; at standstill {:+.1} deg/h", b.to_degrees() * 3600.0))
+            g.standstill_bias_rad_s.map_or(String::new(), |b| format!(
+                "; at standstill {:+.1} deg/h",
+                b.to_degrees() * 3600.0
+            ))
         );
         let _ = writeln!(
             s,
             "  gyro scale   = {:+.5}{}",
             g.scale,
             g.sigma_scale
-                .map_or(" (held, not estimated)".to_string(), |v| format!(" (sigma {v:.5})"))
+                .map_or(" (held, not estimated)".to_string(), |v| format!(
+                    " (sigma {v:.5})"
+                ))
         );
     }
     if let Some(rms) = d.residual_rms_m {
-        let _ = writeln!(s, "  GNSS residual RMS of the fit: {rms:.3} m over {} segments", d.segments);
+        let _ = writeln!(
+            s,
+            "  GNSS residual RMS of the fit: {rms:.3} m over {} segments",
+            d.segments
+        );
     }
     if !c.comparison.is_empty() {
         let _ = writeln!(s);
@@ -553,9 +610,13 @@ pub fn render_text(c: &Calibration) -> String {
                 "  {:6}  {:9.5}  {:>8}  {:9.5}  {:>8}  {:9.4}   {:11.2}   {:10.2}",
                 m.method.name(),
                 m.circumference_m.rl,
-                m.sigma_m.rl.map_or("-".to_string(), |v| format!("{:.2}mm", 1000.0 * v)),
+                m.sigma_m
+                    .rl
+                    .map_or("-".to_string(), |v| format!("{:.2}mm", 1000.0 * v)),
                 m.circumference_m.rr,
-                m.sigma_m.rr.map_or("-".to_string(), |v| format!("{:.2}mm", 1000.0 * v)),
+                m.sigma_m
+                    .rr
+                    .map_or("-".to_string(), |v| format!("{:.2}mm", 1000.0 * v)),
                 m.track_width_m,
                 m.dr_error_mean_m,
                 m.dr_error_max_m

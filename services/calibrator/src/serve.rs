@@ -26,11 +26,11 @@
 use crate::prep::prepare;
 use crate::reference::{build as build_reference, Reference};
 use crate::{calibrate, CalibrationConfig, CalibrationError};
+use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, TopicPublisher};
 use interfaces::drive::{Drive, VehicleParams};
 use interfaces::effects::Effect;
 use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension, MAX_EXTENSIONS};
-use iceoryx2::prelude::CallbackProgression;
 use odometry::two_wheel::{step, Pose2, TwoWheelParams};
 use sensor_bridge::record::{DriveBuilder, SensorSubscribers};
 use serde::{Deserialize, Serialize};
@@ -326,7 +326,12 @@ impl Coverage {
 
 /// The part of `drive` before `t_split` (fit) and from it on (held out).
 pub fn split_drive(drive: &Drive, t_split: f64) -> (Drive, Drive) {
-    fn part<T: Clone>(v: &Option<Vec<T>>, t: impl Fn(&T) -> f64, before: bool, ts: f64) -> Option<Vec<T>> {
+    fn part<T: Clone>(
+        v: &Option<Vec<T>>,
+        t: impl Fn(&T) -> f64,
+        before: bool,
+        ts: f64,
+    ) -> Option<Vec<T>> {
         v.as_ref().map(|v| {
             v.iter()
                 .filter(|s| (t(s) < ts) == before)
@@ -371,7 +376,15 @@ pub fn holdout_errors(
     let p = prepare(held, config, &mut warnings)?;
     let r = build_reference(&p, held, config, &mut warnings)?;
     let track = RefTrack::of(&r);
-    Ok(score_windows(&p.t, &p.dn_rl, &p.dn_rr, &p.piece_starts, &track, params, window_s))
+    Ok(score_windows(
+        &p.t,
+        &p.dn_rl,
+        &p.dn_rr,
+        &p.piece_starts,
+        &track,
+        params,
+        window_s,
+    ))
 }
 
 /// The reference poses at the wheel sample times.
@@ -453,7 +466,13 @@ fn score_windows(
     HoldoutScore {
         mean_error_m: sums
             .iter()
-            .map(|s| if windows > 0 { s / windows as f64 } else { f64::NAN })
+            .map(|s| {
+                if windows > 0 {
+                    s / windows as f64
+                } else {
+                    f64::NAN
+                }
+            })
             .collect(),
         windows,
     }
@@ -846,14 +865,26 @@ mod tests {
         let quarter = std::f64::consts::FRAC_PI_2;
         for i in 0..=100 {
             let f = i as f64 / 100.0 * quarter;
-            c.add(i as f64 * 0.1, f * (r - t / 2.0) / cn, f * (r + t / 2.0) / cn);
+            c.add(
+                i as f64 * 0.1,
+                f * (r - t / 2.0) / cn,
+                f * (r + t / 2.0) / cn,
+            );
         }
         assert!((c.turn_deg() - 90.0).abs() < 1.0, "{}", c.turn_deg());
         let (rl0, rr0) = (quarter * (r - t / 2.0) / cn, quarter * (r + t / 2.0) / cn);
         for i in 1..=100 {
-            c.add(10.0 + i as f64 * 0.1, rl0 + i as f64 * 0.05, rr0 + i as f64 * 0.05);
+            c.add(
+                10.0 + i as f64 * 0.1,
+                rl0 + i as f64 * 0.05,
+                rr0 + i as f64 * 0.05,
+            );
         }
-        assert!((c.distance_m - (quarter * r + 10.0)).abs() < 1e-6, "{}", c.distance_m);
+        assert!(
+            (c.distance_m - (quarter * r + 10.0)).abs() < 1e-6,
+            "{}",
+            c.distance_m
+        );
         assert!((c.turn_deg() - 90.0).abs() < 1.0);
     }
 
@@ -889,7 +920,10 @@ mod tests {
         assert_eq!(est.params.gyro_scale, -0.01);
         std::fs::write(&path, "{\"version\": 1}").unwrap();
         let err = load_state(&path).unwrap_err().to_string();
-        assert!(err.contains("state.json") && err.contains("missing field"), "{err}");
+        assert!(
+            err.contains("state.json") && err.contains("missing field"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -928,6 +962,10 @@ mod tests {
         assert!(s.windows >= 6, "{}", s.windows);
         assert!(s.mean_error_m[0] < 1e-9);
         // 10 % too large: 10 m over a 100 m window.
-        assert!((s.mean_error_m[1] - 10.0).abs() < 0.2, "{:?}", s.mean_error_m);
+        assert!(
+            (s.mean_error_m[1] - 10.0).abs() < 0.2,
+            "{:?}",
+            s.mean_error_m
+        );
     }
 }

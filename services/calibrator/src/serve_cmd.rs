@@ -53,7 +53,8 @@ pub struct ServeArgs {
 
 fn load_vehicle(path: &Path) -> Result<VehicleParams> {
     if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        let text =
+            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
         return toml::from_str(&text).with_context(|| format!("parsing {}", path.display()));
     }
     let loaded = sensor_bridge::read_drive(path)

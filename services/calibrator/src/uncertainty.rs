@@ -84,7 +84,10 @@ pub fn jackknife_ls(pass: &EkfPass) -> Sigmas {
             rows: pass.total.rows - b.rows,
         };
         match rest.solve(pass.dim) {
-            Some(x) => estimates.push(DVector::from_iterator(pass.dim, x.iter().copied().take(pass.dim))),
+            Some(x) => estimates.push(DVector::from_iterator(
+                pass.dim,
+                x.iter().copied().take(pass.dim),
+            )),
             None => return infinite(),
         }
     }
@@ -134,7 +137,12 @@ pub const NO_TURN_DEG: f64 = 30.0;
 
 /// Observability warnings for an estimate with `sigmas` on the drive
 /// described by `r`. Each names the parameter and the reason.
-pub fn observability(r: &Reference, sigmas: &Sigmas, track_estimated: bool, residual_rms_m: Option<f64>) -> Vec<Warning> {
+pub fn observability(
+    r: &Reference,
+    sigmas: &Sigmas,
+    track_estimated: bool,
+    residual_rms_m: Option<f64>,
+) -> Vec<Warning> {
     let mut out = Vec::new();
     let turn_deg = r.total_turn_rad.to_degrees();
     let used = r.fixes.iter().filter(|f| f.accepted).count();

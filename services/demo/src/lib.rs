@@ -18,10 +18,10 @@ pub mod report;
 pub mod svg;
 
 use anyhow::{bail, Context, Result};
+use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusSettings};
 use interfaces::drive::Drive;
 use interfaces::wire::{CircumferenceEstimate, Pose, PoseMode};
-use iceoryx2::prelude::CallbackProgression;
 use sensor_bridge::replay::{replay, to_wire, Pacing, ReplayOptions};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use std::io::{BufRead, BufReader};
@@ -67,7 +67,10 @@ pub fn default_drive(seed: u64, nominal: f64, outage_s: f64) -> Result<(Drive, (
     let start = t0 + 0.6 * (t1 - t0);
     let end = (start + outage_s).min(t1 - 20.0);
     if end <= start + 5.0 {
-        bail!("the drive ({:.0} s) is too short for a {outage_s} s outage", t1 - t0);
+        bail!(
+            "the drive ({:.0} s) is too short for a {outage_s} s outage",
+            t1 - t0
+        );
     }
     if let Some(g) = drive.gnss.as_mut() {
         g.retain(|f| f.t_s < start || f.t_s > end);
@@ -82,7 +85,12 @@ struct ChildProc {
 }
 
 impl ChildProc {
-    fn spawn(label: &'static str, exe: &Path, args: &[String], settings: &BusSettings) -> Result<ChildProc> {
+    fn spawn(
+        label: &'static str,
+        exe: &Path,
+        args: &[String],
+        settings: &BusSettings,
+    ) -> Result<ChildProc> {
         let mut cmd = Command::new(exe);
         cmd.args(args)
             .stdin(Stdio::null())
@@ -98,8 +106,14 @@ impl ChildProc {
             .spawn()
             .with_context(|| format!("starting {}", exe.display()))?;
         for stream in [
-            child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
-            child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
+            child
+                .stdout
+                .take()
+                .map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
+            child
+                .stderr
+                .take()
+                .map(|s| Box::new(s) as Box<dyn std::io::Read + Send>),
         ]
         .into_iter()
         .flatten()
@@ -135,7 +149,10 @@ impl ChildProc {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
-        eprintln!("[demo      ] {} did not stop within {grace:?}: killing it", self.label);
+        eprintln!(
+            "[demo      ] {} did not stop within {grace:?}: killing it",
+            self.label
+        );
         let _ = child.kill();
         let _ = child.wait();
         false
@@ -171,7 +188,9 @@ fn viewer(
     let estimates = bus.subscriber::<CircumferenceEstimate>()?;
     let waitset = bus.waitset()?;
     let err = |e: &dyn std::fmt::Debug| anyhow::anyhow!("waitset: {e:?}");
-    let _g1 = waitset.attach_notification(poses.listener()).map_err(|e| err(&e))?;
+    let _g1 = waitset
+        .attach_notification(poses.listener())
+        .map_err(|e| err(&e))?;
     let _g2 = waitset
         .attach_notification(estimates.listener())
         .map_err(|e| err(&e))?;
@@ -293,7 +312,12 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let last_pose_t = Arc::new(AtomicI64::new(i64::MIN));
     let viewer_handle = {
-        let (s, d, st, lp) = (settings.clone(), drive.clone(), stop.clone(), last_pose_t.clone());
+        let (s, d, st, lp) = (
+            settings.clone(),
+            drive.clone(),
+            stop.clone(),
+            last_pose_t.clone(),
+        );
         std::thread::spawn(move || viewer(s, d, st, lp, ready_tx))
     };
     let _ = ready_rx.recv_timeout(Duration::from_secs(10));
@@ -314,7 +338,11 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     let mut odometry = ChildProc::spawn(
         "odometry",
         &odometry_exe,
-        &["serve".to_string(), "--vehicle".to_string(), vehicle.clone()],
+        &[
+            "serve".to_string(),
+            "--vehicle".to_string(),
+            vehicle.clone(),
+        ],
         &settings,
     )?;
 
@@ -327,7 +355,8 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         progress_every_s: 60.0,
     };
     let stats = replay(&bus, &wire, &replay_opts);
-    let interrupted = bus::shutdown_requested() || stats.as_ref().map(|s| s.interrupted).unwrap_or(false);
+    let interrupted =
+        bus::shutdown_requested() || stats.as_ref().map(|s| s.interrupted).unwrap_or(false);
 
     // Let the odometry publish the pose of the last wheel sample (unless interrupted).
     let last_wheel_t = wire.wheels.last().map_or(0, |w| w.header.t_ns);
@@ -363,8 +392,11 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     std::fs::write(&json, serde_json::to_string_pretty(&result)? + "\n")
         .with_context(|| format!("writing {}", json.display()))?;
     let picture = opts.out_dir.join("tracks.svg");
-    std::fs::write(&picture, svg::tracks_svg(&drive, outage, &seen.poses, &result))
-        .with_context(|| format!("writing {}", picture.display()))?;
+    std::fs::write(
+        &picture,
+        svg::tracks_svg(&drive, outage, &seen.poses, &result),
+    )
+    .with_context(|| format!("writing {}", picture.display()))?;
     println!("picture of the tracks: {}", picture.display());
     println!("numbers: {}", json.display());
     Ok(())

@@ -49,8 +49,13 @@ fn build_siblings(bin_dir: &std::path::Path) -> Result<()> {
     if let Some(target) = bin_dir.parent() {
         cmd.env("CARGO_TARGET_DIR", target);
     }
-    let status = cmd.status().context("running cargo build for calibrator and odometry")?;
-    anyhow::ensure!(status.success(), "cargo build of calibrator and odometry failed");
+    let status = cmd
+        .status()
+        .context("running cargo build for calibrator and odometry")?;
+    anyhow::ensure!(
+        status.success(),
+        "cargo build of calibrator and odometry failed"
+    );
     Ok(())
 }
 

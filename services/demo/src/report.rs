@@ -240,8 +240,13 @@ pub fn outage_report(
             },
         ),
         None => {
-            let i = truth.partition_point(|s| s.t_s < ta).min(truth.len().saturating_sub(1));
-            let s = truth.get(i).copied().ok_or_else(|| anyhow::anyhow!("no truth"))?;
+            let i = truth
+                .partition_point(|s| s.t_s < ta)
+                .min(truth.len().saturating_sub(1));
+            let s = truth
+                .get(i)
+                .copied()
+                .ok_or_else(|| anyhow::anyhow!("no truth"))?;
             (
                 s.t_s,
                 Pose2 {
@@ -307,7 +312,11 @@ pub fn outage_report(
         filter.push(FilterRow {
             parameters: format!(
                 "estimates v{} as taken live",
-                switches.iter().map(|s| s.1.to_string()).collect::<Vec<_>>().join(", v")
+                switches
+                    .iter()
+                    .map(|s| s.1.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", v")
             ),
             end_error_m: e,
             max_error_m: m,
@@ -318,7 +327,8 @@ pub fn outage_report(
         .filter(|p| p.header.t_s() > ta && p.header.t_s() <= tb)
         .collect();
     let live = inside.last().map(|last| {
-        let err = |p: &Pose| truth_at(truth, p.header.t_s()).map(|(x, y)| (p.x_m - x).hypot(p.y_m - y));
+        let err =
+            |p: &Pose| truth_at(truth, p.header.t_s()).map(|(x, y)| (p.x_m - x).hypot(p.y_m - y));
         LiveResult {
             estimate_version: last.estimate_version,
             poses: inside.len(),
@@ -334,9 +344,14 @@ pub fn outage_report(
         outage_start_s: ta,
         outage_end_s: tb,
         outage_distance_m: distance,
-        true_circumference_m: truth_params.map_or([f64::NAN; 2], |t| [t.circumference_m.rl, t.circumference_m.rr]),
+        true_circumference_m: truth_params.map_or([f64::NAN; 2], |t| {
+            [t.circumference_m.rl, t.circumference_m.rr]
+        }),
         nominal_circumference_m: drive.vehicle.nominal_circumference_m,
-        published: estimates.iter().map(|e| (e.version, e.c_rl_m, e.c_rr_m)).collect(),
+        published: estimates
+            .iter()
+            .map(|e| (e.version, e.c_rl_m, e.c_rr_m))
+            .collect(),
         estimate: estimate.map(|e| EstimateInfo {
             version: e.version,
             c_rl_m: e.c_rl_m,
@@ -358,7 +373,10 @@ impl OutageReport {
     /// The text shown at the end of the demo.
     pub fn render(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "\n================ wheelcal demo: result ================");
+        let _ = writeln!(
+            s,
+            "\n================ wheelcal demo: result ================"
+        );
         let _ = writeln!(
             s,
             "GNSS outage: {:.0} s .. {:.0} s ({:.0} s, {:.0} m driven)",
@@ -370,7 +388,9 @@ impl OutageReport {
         let _ = writeln!(
             s,
             "rear circumferences: true {:.4} / {:.4} m, nominal {:.4} m",
-            self.true_circumference_m[0], self.true_circumference_m[1], self.nominal_circumference_m
+            self.true_circumference_m[0],
+            self.true_circumference_m[1],
+            self.nominal_circumference_m
         );
         for (v, rl, rr) in &self.published {
             let _ = writeln!(s, "calibrator published v{v}: {rl:.4} / {rr:.4} m");
@@ -384,7 +404,10 @@ impl OutageReport {
                 );
             }
             None => {
-                let _ = writeln!(s, "no estimate was in use at the outage start (nominal values)");
+                let _ = writeln!(
+                    s,
+                    "no estimate was in use at the outage start (nominal values)"
+                );
             }
         }
         let _ = writeln!(
@@ -418,7 +441,10 @@ impl OutageReport {
             s,
             "\npure 2W dead-reckoning without heading aid, error at the outage end (max inside it):"
         );
-        let _ = writeln!(s, "  heading   nominal c              calibrated c           ratio");
+        let _ = writeln!(
+            s,
+            "  heading   nominal c              calibrated c           ratio"
+        );
         for r in &self.offline {
             let cal = match (r.calibrated_end_error_m, r.calibrated_max_error_m) {
                 (Some(e), Some(m)) => format!("{e:8.2} m ({m:8.2} m)"),
@@ -427,7 +453,9 @@ impl OutageReport {
             let ratio = r
                 .calibrated_end_error_m
                 .filter(|e| *e > 0.0)
-                .map_or("-".to_string(), |e| format!("{:.1}x", r.nominal_end_error_m / e));
+                .map_or("-".to_string(), |e| {
+                    format!("{:.1}x", r.nominal_end_error_m / e)
+                });
             let _ = writeln!(
                 s,
                 "  {:<8} {:8.2} m ({:8.2} m)  {cal}  {ratio}",

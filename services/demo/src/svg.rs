@@ -34,12 +34,16 @@ impl Frame {
         if x0 > x1 {
             (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
         }
-        let scale = ((W - 2.0 * MARGIN) / (x1 - x0).max(1.0)).min((H - TOP - MARGIN) / (y1 - y0).max(1.0));
+        let scale =
+            ((W - 2.0 * MARGIN) / (x1 - x0).max(1.0)).min((H - TOP - MARGIN) / (y1 - y0).max(1.0));
         Frame { x0, y1, scale }
     }
 
     fn px(&self, [x, y]: [f64; 2]) -> (f64, f64) {
-        (MARGIN + (x - self.x0) * self.scale, TOP + (self.y1 - y) * self.scale)
+        (
+            MARGIN + (x - self.x0) * self.scale,
+            TOP + (self.y1 - y) * self.scale,
+        )
     }
 }
 
@@ -52,11 +56,20 @@ fn polyline(out: &mut String, f: &Frame, pts: &[[f64; 2]], style: &str) {
         let (x, y) = f.px(*p);
         let _ = write!(d, "{x:.1},{y:.1} ");
     }
-    let _ = writeln!(out, r#"<polyline fill="none" {style} points="{}"/>"#, d.trim_end());
+    let _ = writeln!(
+        out,
+        r#"<polyline fill="none" {style} points="{}"/>"#,
+        d.trim_end()
+    );
 }
 
 /// The SVG text.
-pub fn tracks_svg(drive: &Drive, outage: (f64, f64), poses: &[Pose], report: &OutageReport) -> String {
+pub fn tracks_svg(
+    drive: &Drive,
+    outage: (f64, f64),
+    poses: &[Pose],
+    report: &OutageReport,
+) -> String {
     let truth: Vec<[f64; 2]> = drive
         .truth
         .as_deref()
@@ -65,18 +78,31 @@ pub fn tracks_svg(drive: &Drive, outage: (f64, f64), poses: &[Pose], report: &Ou
         .step_by(10)
         .map(|s| [s.x_m, s.y_m])
         .collect();
-    let frame = Frame::fit(truth.iter().copied().chain(poses.iter().map(|p| [p.x_m, p.y_m])));
+    let frame = Frame::fit(
+        truth
+            .iter()
+            .copied()
+            .chain(poses.iter().map(|p| [p.x_m, p.y_m])),
+    );
     let mut out = String::new();
     let _ = writeln!(
         out,
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="13">"#
     );
     let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
-    polyline(&mut out, &frame, &truth, r##"stroke="#999" stroke-width="4" stroke-opacity="0.5""##);
+    polyline(
+        &mut out,
+        &frame,
+        &truth,
+        r##"stroke="#999" stroke-width="4" stroke-opacity="0.5""##,
+    );
     if let Some(g) = &drive.gnss {
         for f in g.iter().step_by(5) {
             let (x, y) = frame.px([f.x_m, f.y_m]);
-            let _ = writeln!(out, r##"<circle cx="{x:.1}" cy="{y:.1}" r="1.2" fill="#2a2"/>"##);
+            let _ = writeln!(
+                out,
+                r##"<circle cx="{x:.1}" cy="{y:.1}" r="1.2" fill="#2a2"/>"##
+            );
         }
     }
     // Live poses, split into runs of one mode.
@@ -88,7 +114,12 @@ pub fn tracks_svg(drive: &Drive, outage: (f64, f64), poses: &[Pose], report: &Ou
         } else {
             "#24c"
         };
-        polyline(out, &frame, run, &format!(r#"stroke="{color}" stroke-width="1.5""#));
+        polyline(
+            out,
+            &frame,
+            run,
+            &format!(r#"stroke="{color}" stroke-width="1.5""#),
+        );
     };
     for p in poses.iter().step_by(5) {
         if run_mode != Some(p.mode) && !run.is_empty() {
@@ -101,12 +132,26 @@ pub fn tracks_svg(drive: &Drive, outage: (f64, f64), poses: &[Pose], report: &Ou
         run.push([p.x_m, p.y_m]);
     }
     flush(&mut out, &mut run, run_mode);
-    polyline(&mut out, &frame, &report.tracks[0], r##"stroke="#f80" stroke-width="2" stroke-dasharray="6 3""##);
-    polyline(&mut out, &frame, &report.tracks[1], r##"stroke="#819" stroke-width="2" stroke-dasharray="2 2""##);
+    polyline(
+        &mut out,
+        &frame,
+        &report.tracks[0],
+        r##"stroke="#f80" stroke-width="2" stroke-dasharray="6 3""##,
+    );
+    polyline(
+        &mut out,
+        &frame,
+        &report.tracks[1],
+        r##"stroke="#819" stroke-width="2" stroke-dasharray="2 2""##,
+    );
     for t in [outage.0, outage.1] {
-        if let Some((x, y)) = crate::report::truth_at(drive.truth.as_deref().unwrap_or_default(), t) {
+        if let Some((x, y)) = crate::report::truth_at(drive.truth.as_deref().unwrap_or_default(), t)
+        {
             let (px, py) = frame.px([x, y]);
-            let _ = writeln!(out, r#"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="black"/>"#);
+            let _ = writeln!(
+                out,
+                r#"<circle cx="{px:.1}" cy="{py:.1}" r="5" fill="none" stroke="black"/>"#
+            );
         }
     }
     let gyro = report.offline.iter().find(|r| r.heading == "gyro");

@@ -35,7 +35,10 @@ fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) ->
             ..OdometerConfig::default()
         },
         truth_point_m: arm,
-        align_distance_m: std::env::var("ALIGN_M").ok().and_then(|v| v.parse().ok()).unwrap_or(30.0),
+        align_distance_m: std::env::var("ALIGN_M")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(30.0),
         ..EvaluateConfig::default()
     }
 }
@@ -43,7 +46,11 @@ fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) ->
 type Model = (OdometryParams, [f64; 2]);
 
 /// End-position residuals (x and y per stretch) of `params` on `drive`.
-fn residuals(drive: &interfaces::drive::Drive, model: &Model, heading: HeadingMode) -> Option<DVector<f64>> {
+fn residuals(
+    drive: &interfaces::drive::Drive,
+    model: &Model,
+    heading: HeadingMode,
+) -> Option<DVector<f64>> {
     let report = evaluate(drive, &model.0, &config(heading, 20.0, 2.0, model.1)).ok()?;
     let mut r = Vec::with_capacity(2 * report.outages.len());
     for o in &report.outages {
@@ -108,7 +115,13 @@ fn fit(
 
 fn fitted_model(drive: &interfaces::drive::Drive, fit_arm: bool) -> Model {
     let nominal = OdometryParams::nominal(&drive.vehicle);
-    let arm = |v: &[f64], k: usize| if fit_arm { [v[k], v[k + 1]] } else { [0.0, 0.0] };
+    let arm = |v: &[f64], k: usize| {
+        if fit_arm {
+            [v[k], v[k + 1]]
+        } else {
+            [0.0, 0.0]
+        }
+    };
     let wheel_model = |v: &[f64]| {
         (
             OdometryParams {
@@ -129,7 +142,13 @@ fn fitted_model(drive: &interfaces::drive::Drive, fit_arm: bool) -> Model {
         start.extend([0.0, 0.0]);
         steps.extend([1e-3, 1e-3]);
     }
-    let w = fit(drive, HeadingMode::WheelDifference, start, &steps, &wheel_model);
+    let w = fit(
+        drive,
+        HeadingMode::WheelDifference,
+        start,
+        &steps,
+        &wheel_model,
+    );
     let ratio = w[1] / w[0];
     let gyro_model = |v: &[f64]| {
         (
@@ -174,7 +193,10 @@ fn main() {
     let trials = [("wid-trial02", &t02), ("wid-trial04", &t04)];
     // FIT_ARM=1 also fits the truth point (the RTK antenna) in the body frame.
     let fit_arm = std::env::var("FIT_ARM").is_ok_and(|v| v == "1");
-    let fits: Vec<Model> = trials.iter().map(|(_, d)| fitted_model(d, fit_arm)).collect();
+    let fits: Vec<Model> = trials
+        .iter()
+        .map(|(_, d)| fitted_model(d, fit_arm))
+        .collect();
     for ((name, _), (p, arm)) in trials.iter().zip(&fits) {
         println!("fit on {name}: {p} truth point {arm:?}");
     }

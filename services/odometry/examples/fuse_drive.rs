@@ -61,8 +61,15 @@ fn main() -> Result<()> {
         let before = fusion.stats();
         let out = fusion.process(&input)?;
         let after = fusion.stats();
-        if verbose && (after.gnss_rejected > before.gnss_rejected || after.position_resets > before.position_resets) {
-            println!("t = {:.2}: fix rejected (resets {})", input.t_s(), after.position_resets);
+        if verbose
+            && (after.gnss_rejected > before.gnss_rejected
+                || after.position_resets > before.position_resets)
+        {
+            println!(
+                "t = {:.2}: fix rejected (resets {})",
+                input.t_s(),
+                after.position_resets
+            );
         }
         if let Some(pose) = out {
             counts[pose.mode as usize] += 1;
@@ -85,7 +92,11 @@ fn main() -> Result<()> {
     );
     println!("{s:?}");
     for mode in [PoseMode::Fused, PoseMode::DeadReckoning] {
-        let mut e: Vec<f64> = errors.iter().filter(|(m, _)| *m == mode).map(|(_, e)| *e).collect();
+        let mut e: Vec<f64> = errors
+            .iter()
+            .filter(|(m, _)| *m == mode)
+            .map(|(_, e)| *e)
+            .collect();
         e.sort_by(f64::total_cmp);
         if !e.is_empty() {
             println!(

@@ -46,7 +46,11 @@ fn main() -> Result<()> {
     for input in drive_inputs(&drive)? {
         match input {
             Input::Imu { t_s, gz_rad_s } => gyro.gyro(t_s, gz_rad_s)?,
-            Input::Wheels { t_s, rl_rev, rr_rev } => {
+            Input::Wheels {
+                t_s,
+                rl_rev,
+                rr_rev,
+            } => {
                 let g = gyro.wheels(t_s, rl_rev, rr_rev)?;
                 let w = wheels.wheels(t_s, rl_rev, rr_rev)?;
                 if (t_s * 100.0).round() as i64 % 50 == 0 {

@@ -29,7 +29,11 @@ fn main() -> Result<()> {
         Some(p) => Estimate::load(&PathBuf::from(p))?.params,
         None => OdometryParams::nominal(&drive.vehicle),
     };
-    let only: Option<f64> = args.get(4).map(|t| t.parse()).transpose().context("T_START")?;
+    let only: Option<f64> = args
+        .get(4)
+        .map(|t| t.parse())
+        .transpose()
+        .context("T_START")?;
     let config = EvaluateConfig {
         outage_s,
         odometer: OdometerConfig {

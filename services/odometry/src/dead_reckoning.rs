@@ -12,10 +12,12 @@
 //! - [`HeadingMode::Gyro`]: distance from the rear wheels, heading change from
 //!   the calibrated gyro, `w = (gz - bias) / (1 + scale)` integrated over the
 //!   wheel interval. The gyro is integrated with the trapezoidal rule between
-//!   its own samples and evaluated at the wheel times (linear interpolation of
-//!   the rate inside its history, the last rate held beyond the newest gyro
-//!   sample). A value taken with a held rate is corrected in the next
-//!   increment, so the total heading change always equals the gyro integral.
+//!   its own samples; at a wheel time the integral uses only the gyro samples
+//!   at or before that time (the last rate held after it), so an increment
+//!   depends only on samples up to its end, never on whether a later sample
+//!   has arrived yet (the service's poses are the same however the samples
+//!   are grouped into wakeups). The part taken with a held rate is corrected
+//!   in the next increment: the total heading change equals the gyro integral.
 //!   While the gyro is missing or older than [`OdometerConfig::max_gyro_gap_s`]
 //!   the increment falls back to the wheel difference and is counted.
 //!
@@ -72,7 +74,9 @@ impl std::str::FromStr for HeadingMode {
         match s {
             "wheels" | "wheel" | "wheel-difference" | "2w" => Ok(HeadingMode::WheelDifference),
             "gyro" => Ok(HeadingMode::Gyro),
-            other => Err(format!("unknown heading mode `{other}` (expected `wheels` or `gyro`)")),
+            other => Err(format!(
+                "unknown heading mode `{other}` (expected `wheels` or `gyro`)"
+            )),
         }
     }
 }
@@ -107,7 +111,9 @@ pub struct Increment {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InputError {
     /// A timestamp that does not increase within its stream.
-    #[error("{stream} sample at t = {t_s} s is not after the previous one at {previous_t_s} s; skipped")]
+    #[error(
+        "{stream} sample at t = {t_s} s is not after the previous one at {previous_t_s} s; skipped"
+    )]
     OutOfOrder {
         /// `wheels` or `imu`.
         stream: &'static str,
@@ -197,26 +203,23 @@ impl GyroIntegral {
         Ok(())
     }
 
-    fn newest_t(&self) -> Option<f64> {
-        self.history.back().map(|p| p.t_s)
+    /// The newest sample at or before `t_s`.
+    fn last_at_or_before(&self, t_s: f64) -> Option<&GyroPoint> {
+        let i = self.history.partition_point(|p| p.t_s <= t_s);
+        i.checked_sub(1).and_then(|i| self.history.get(i))
     }
 
-    /// Raw integral at `t_s`; `None` without any sample.
+    /// Raw integral at `t_s` from the samples at or before `t_s` only (the
+    /// last rate held after them), so that the value does not depend on
+    /// whether later samples have arrived yet; `None` without such a sample.
     fn at(&self, t_s: f64) -> Option<f64> {
-        let first = self.history.front()?;
-        let last = self.history.back()?;
-        if t_s >= last.t_s {
-            return Some(last.integral_rad + last.gz_rad_s * (t_s - last.t_s));
-        }
-        if t_s <= first.t_s {
-            return Some(first.integral_rad - first.gz_rad_s * (first.t_s - t_s));
-        }
-        // First point strictly after t_s; t_s lies in [history[i-1], history[i]).
-        let i = self.history.partition_point(|p| p.t_s <= t_s);
-        let (a, b) = (self.history[i - 1], self.history[i]);
-        let dt = t_s - a.t_s;
-        let slope = (b.gz_rad_s - a.gz_rad_s) / (b.t_s - a.t_s);
-        Some(a.integral_rad + a.gz_rad_s * dt + 0.5 * slope * dt * dt)
+        let p = self.last_at_or_before(t_s)?;
+        Some(p.integral_rad + p.gz_rad_s * (t_s - p.t_s))
+    }
+
+    /// Raw rate at `t_s` (the last sample at or before it).
+    fn rate_at(&self, t_s: f64) -> Option<f64> {
+        self.last_at_or_before(t_s).map(|p| p.gz_rad_s)
     }
 
     /// Forget samples no longer needed for times at or after `t_s`.
@@ -292,15 +295,16 @@ impl Odometer {
 
     /// Watch for standstill over the raw increment and learn the offsets.
     /// Returns true while the vehicle stands.
-    fn watch_standstill(&mut self, dt: f64, dn_rl: f64, dn_rr: f64) -> bool {
+    fn watch_standstill(&mut self, t_s: f64, dt: f64, dn_rl: f64, dn_rr: f64) -> bool {
         let c = &self.config;
         let bias = self.params.gyro_bias_rad_s;
         let gyro_still = self
             .gyro
-            .history
-            .back()
-            .is_none_or(|g| (g.gz_rad_s - bias).abs() < c.standstill_gyro_rad_s);
-        let still = dn_rl.abs() < c.standstill_rate_rev_s * dt && dn_rr.abs() < c.standstill_rate_rev_s * dt && gyro_still;
+            .rate_at(t_s)
+            .is_none_or(|gz| (gz - bias).abs() < c.standstill_gyro_rad_s);
+        let still = dn_rl.abs() < c.standstill_rate_rev_s * dt
+            && dn_rr.abs() < c.standstill_rate_rev_s * dt
+            && gyro_still;
         if !still {
             self.standstill = Standstill::default();
             return false;
@@ -364,17 +368,26 @@ impl Odometer {
         self.gyro.push(t_s, gz_rad_s)
     }
 
+    /// A gyro sample at or before `t_s`, at most `max_gyro_gap_s` old.
     fn gyro_fresh_at(&self, t_s: f64) -> bool {
         self.gyro
-            .newest_t()
-            .is_some_and(|tg| t_s - tg <= self.config.max_gyro_gap_s)
+            .last_at_or_before(t_s)
+            .is_some_and(|p| t_s - p.t_s <= self.config.max_gyro_gap_s)
     }
 
     /// Take a wheel sample (cumulative revolutions of the rear wheels). Returns
     /// the increment since the previous wheel sample, or `None` for the first.
-    pub fn wheels(&mut self, t_s: f64, rl_rev: f64, rr_rev: f64) -> Result<Option<Increment>, InputError> {
+    pub fn wheels(
+        &mut self,
+        t_s: f64,
+        rl_rev: f64,
+        rr_rev: f64,
+    ) -> Result<Option<Increment>, InputError> {
         if !(t_s.is_finite() && rl_rev.is_finite() && rr_rev.is_finite()) {
-            return Err(InputError::NonFinite { stream: "wheels", t_s });
+            return Err(InputError::NonFinite {
+                stream: "wheels",
+                t_s,
+            });
         }
         let increment = match self.last_wheels {
             Some((t0, _, _)) if t_s <= t0 => {
@@ -390,16 +403,18 @@ impl Odometer {
                 let (mut dn_rl, mut dn_rr) = (rl_rev - rl0, rr_rev - rr0);
                 let mut standing = false;
                 if self.config.learn_wheel_offsets {
-                    standing = self.watch_standstill(dt, dn_rl, dn_rr);
+                    standing = self.watch_standstill(t_s, dt, dn_rl, dn_rr);
                     dn_rl -= self.offsets.rl_rev_s * dt;
                     dn_rr -= self.offsets.rr_rev_s * dt;
                 }
                 let (ds_m, dyaw_wheels) = self.params.two_wheel.increments(dn_rl, dn_rr);
                 let gyro_dyaw = match (self.config.heading, self.gyro_mark) {
-                    (HeadingMode::Gyro, Some(mark)) if self.gyro_fresh_at(t_s) => self
-                        .gyro
-                        .at(t_s)
-                        .map(|now| (now - mark - self.params.gyro_bias_rad_s * (t_s - t0)) / (1.0 + self.params.gyro_scale)),
+                    (HeadingMode::Gyro, Some(mark)) if self.gyro_fresh_at(t_s) => {
+                        self.gyro.at(t_s).map(|now| {
+                            (now - mark - self.params.gyro_bias_rad_s * (t_s - t0))
+                                / (1.0 + self.params.gyro_scale)
+                        })
+                    }
                     _ => None,
                 };
                 let (ds_m, dyaw_rad, heading_source) = match gyro_dyaw {
@@ -424,7 +439,11 @@ impl Odometer {
             }
         };
         self.last_wheels = Some((t_s, rl_rev, rr_rev));
-        self.gyro_mark = if self.gyro_fresh_at(t_s) { self.gyro.at(t_s) } else { None };
+        self.gyro_mark = if self.gyro_fresh_at(t_s) {
+            self.gyro.at(t_s)
+        } else {
+            None
+        };
         self.gyro.prune_before(t_s);
         Ok(increment)
     }
@@ -517,7 +536,10 @@ mod tests {
     impl Circle {
         fn revs(&self, time: f64) -> (f64, f64) {
             let angle = self.v * time / self.r;
-            (angle * (self.r - self.t / 2.0) / self.c, angle * (self.r + self.t / 2.0) / self.c)
+            (
+                angle * (self.r - self.t / 2.0) / self.c,
+                angle * (self.r + self.t / 2.0) / self.c,
+            )
         }
         fn yaw_rate(&self) -> f64 {
             self.v / self.r
@@ -553,8 +575,9 @@ mod tests {
         let mut pose = Pose2::default();
         for i in 0..=n {
             let tw = i as f64 * period / n as f64;
-            // Gyro sample a little after the wheel sample, as delivered in practice.
-            dr.gyro(tw + 0.003, (1.0 + scale) * circle.yaw_rate() + bias).unwrap();
+            // Gyro samples on their own clock, 3 ms before each wheel sample.
+            dr.gyro(tw - 0.003, (1.0 + scale) * circle.yaw_rate() + bias)
+                .unwrap();
             let (rl, rr) = circle.revs(tw);
             pose = dr.wheels(tw, rl, rr).unwrap();
         }
@@ -573,12 +596,18 @@ mod tests {
         odo.wheels(0.0, 0.0, 0.0).unwrap();
         odo.gyro(0.4, 0.0).unwrap();
         let a = odo.wheels(0.55, 0.1, 0.1).unwrap().unwrap();
-        assert!(a.dyaw_rad.abs() < 1e-15, "held rate 0 until the new sample arrives");
+        assert!(
+            a.dyaw_rad.abs() < 1e-15,
+            "held rate 0 until the new sample arrives"
+        );
         odo.gyro(0.5, 1.0).unwrap();
         odo.gyro(0.6, 1.0).unwrap();
         let b = odo.wheels(0.6, 0.2, 0.2).unwrap().unwrap();
         // Exact integral over [0, 0.6] of the piecewise-linear rate: 0.5*0.1*1 + 0.1*1 = 0.15.
-        assert!((a.dyaw_rad + b.dyaw_rad - 0.15).abs() < 1e-12, "{a:?} {b:?}");
+        assert!(
+            (a.dyaw_rad + b.dyaw_rad - 0.15).abs() < 1e-12,
+            "{a:?} {b:?}"
+        );
     }
 
     #[test]
@@ -591,28 +620,48 @@ mod tests {
         assert!((inc.dyaw_rad - 0.1).abs() < 1e-12);
         odo.gyro(0.15, 0.0).unwrap();
         // Gyro now fresh at 0.2 but there was none at 0.1: still the wheels.
-        assert_eq!(odo.wheels(0.2, 0.0, 0.2).unwrap().unwrap().heading_source, HeadingSource::Wheels);
+        assert_eq!(
+            odo.wheels(0.2, 0.0, 0.2).unwrap().unwrap().heading_source,
+            HeadingSource::Wheels
+        );
         odo.gyro(0.25, 0.0).unwrap();
-        assert_eq!(odo.wheels(0.3, 0.0, 0.3).unwrap().unwrap().heading_source, HeadingSource::Gyro);
+        assert_eq!(
+            odo.wheels(0.3, 0.0, 0.3).unwrap().unwrap().heading_source,
+            HeadingSource::Gyro
+        );
         // Gyro goes silent for longer than max_gyro_gap_s.
-        assert_eq!(odo.wheels(0.9, 0.0, 0.4).unwrap().unwrap().heading_source, HeadingSource::Wheels);
+        assert_eq!(
+            odo.wheels(0.9, 0.0, 0.4).unwrap().unwrap().heading_source,
+            HeadingSource::Wheels
+        );
         assert_eq!(odo.stats().gyro_fallbacks, 3);
     }
 
     #[test]
     fn estimate_switch_keeps_the_pose_and_changes_the_next_increments() {
-        let mut dr = DeadReckoner::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference), Pose2::default());
+        let mut dr = DeadReckoner::new(
+            params(2.0, 2.0, 1.5),
+            config(HeadingMode::WheelDifference),
+            Pose2::default(),
+        );
         dr.wheels(0.0, 0.0, 0.0).unwrap();
         let before = dr.wheels(1.0, 1.0, 1.0).unwrap();
         dr.set_params(params(2.2, 2.2, 1.5));
         assert_eq!(dr.pose(), before, "switching moves nothing");
         let after = dr.wheels(2.0, 2.0, 2.0).unwrap();
-        assert!((after.x - before.x - 2.2).abs() < 1e-12, "{before:?} {after:?}");
+        assert!(
+            (after.x - before.x - 2.2).abs() < 1e-12,
+            "{before:?} {after:?}"
+        );
     }
 
     #[test]
     fn bad_samples_are_rejected_without_touching_the_state() {
-        let mut dr = DeadReckoner::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference), Pose2::default());
+        let mut dr = DeadReckoner::new(
+            params(2.0, 2.0, 1.5),
+            config(HeadingMode::WheelDifference),
+            Pose2::default(),
+        );
         dr.wheels(0.0, 0.0, 0.0).unwrap();
         let err = dr.wheels(0.0, 1.0, 1.0).unwrap_err();
         assert!(err.to_string().contains("not after"), "{err}");
@@ -621,7 +670,10 @@ mod tests {
         let pose = dr.wheels(1.0, 1.0, 1.0).unwrap();
         assert!((pose.x - 2.0).abs() < 1e-12);
         dr.gyro(1.0, 0.0).unwrap();
-        assert!(matches!(dr.gyro(0.9, 0.0), Err(InputError::OutOfOrder { stream: "imu", .. })));
+        assert!(matches!(
+            dr.gyro(0.9, 0.0),
+            Err(InputError::OutOfOrder { stream: "imu", .. })
+        ));
     }
 
     #[test]
@@ -634,7 +686,8 @@ mod tests {
             ..OdometerConfig::default()
         };
         let mut dr = DeadReckoner::new(p, cfg, Pose2::default());
-        let mut plain = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        let mut plain =
+            DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
         // 3 s standing, then 20 s straight at 10 m/s (5 rev/s).
         for i in 0..=2300 {
             let t = i as f64 * 0.01;
@@ -644,18 +697,32 @@ mod tests {
             plain.wheels(t, rl, rr).unwrap();
         }
         let learned = dr.odometer().wheel_offsets();
-        assert!((learned.rl_rev_s - offsets.0).abs() < 1e-9 && (learned.rr_rev_s - offsets.1).abs() < 1e-9);
+        assert!(
+            (learned.rl_rev_s - offsets.0).abs() < 1e-9
+                && (learned.rr_rev_s - offsets.1).abs() < 1e-9
+        );
         assert_eq!(dr.odometer().stats().standstills, 1);
         // Standing increments are zero, moving ones corrected.
-        assert!(dr.pose().yaw.abs() < 1e-9 && dr.pose().y.abs() < 1e-6, "{:?}", dr.pose());
+        assert!(
+            dr.pose().yaw.abs() < 1e-9 && dr.pose().y.abs() < 1e-6,
+            "{:?}",
+            dr.pose()
+        );
         assert!((dr.pose().x - 200.0).abs() < 1e-6);
         // Without learning: 0.002 rev/s * 2 m / 1.5 m = 0.00267 rad/s over 23 s.
-        assert!((plain.pose().yaw - 0.002 * 2.0 / 1.5 * 23.0).abs() < 1e-9, "{:?}", plain.pose());
+        assert!(
+            (plain.pose().yaw - 0.002 * 2.0 / 1.5 * 23.0).abs() < 1e-9,
+            "{:?}",
+            plain.pose()
+        );
     }
 
     #[test]
     fn heading_mode_parses_its_names() {
-        assert_eq!("wheels".parse::<HeadingMode>(), Ok(HeadingMode::WheelDifference));
+        assert_eq!(
+            "wheels".parse::<HeadingMode>(),
+            Ok(HeadingMode::WheelDifference)
+        );
         assert_eq!("gyro".parse::<HeadingMode>(), Ok(HeadingMode::Gyro));
         assert!("compass".parse::<HeadingMode>().is_err());
         assert_eq!(HeadingMode::Gyro.to_string(), "gyro");

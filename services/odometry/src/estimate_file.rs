@@ -278,25 +278,40 @@ mod tests {
 
     #[test]
     fn missing_field_names_source_and_line() {
-        let err = Estimate::from_json_str("{\n \"circumference_m\": {\"rl\": 2.0, \"rr\": 2.0}\n}", "cal.json")
-            .unwrap_err();
+        let err = Estimate::from_json_str(
+            "{\n \"circumference_m\": {\"rl\": 2.0, \"rr\": 2.0}\n}",
+            "cal.json",
+        )
+        .unwrap_err();
         let msg = err.to_string();
-        assert!(msg.contains("cal.json") && msg.contains("track_width_m") && msg.contains("line 3"), "{msg}");
+        assert!(
+            msg.contains("cal.json") && msg.contains("track_width_m") && msg.contains("line 3"),
+            "{msg}"
+        );
     }
 
     #[test]
     fn nonsense_values_are_rejected_with_the_field() {
         let text = r#"{"circumference_m": {"rl": -2.0, "rr": 2.0}, "track_width_m": 1.5}"#;
-        let msg = Estimate::from_json_str(text, "x.json").unwrap_err().to_string();
-        assert!(msg.contains("circumference_m.rl") && msg.contains("-2"), "{msg}");
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("circumference_m.rl") && msg.contains("-2"),
+            "{msg}"
+        );
         let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5, "gyro_scale": 3.0}"#;
-        let msg = Estimate::from_json_str(text, "x.json").unwrap_err().to_string();
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("gyro_scale"), "{msg}");
     }
 
     #[test]
     fn unreadable_file_names_the_path() {
-        let msg = Estimate::load(Path::new("/nonexistent/est.json")).unwrap_err().to_string();
+        let msg = Estimate::load(Path::new("/nonexistent/est.json"))
+            .unwrap_err()
+            .to_string();
         assert!(msg.contains("/nonexistent/est.json"), "{msg}");
     }
 
@@ -312,7 +327,10 @@ mod tests {
         let mut broken = wire;
         broken.track_width_m = f64::NAN;
         let msg = Estimate::from_wire(&broken).unwrap_err().to_string();
-        assert!(msg.contains("version 7") && msg.contains("track_width_m"), "{msg}");
+        assert!(
+            msg.contains("version 7") && msg.contains("track_width_m"),
+            "{msg}"
+        );
     }
 
     #[test]
@@ -326,7 +344,10 @@ mod tests {
             gnss: GnssAntenna::default(),
         };
         let p = OdometryParams::nominal(&vehicle);
-        assert_eq!((p.two_wheel.c_rl, p.two_wheel.c_rr, p.two_wheel.track_width), (1.85, 1.85, 1.45));
+        assert_eq!(
+            (p.two_wheel.c_rl, p.two_wheel.c_rr, p.two_wheel.track_width),
+            (1.85, 1.85, 1.45)
+        );
         let p = OdometryParams {
             gyro_bias_rad_s: 0.01,
             gyro_scale: 0.02,

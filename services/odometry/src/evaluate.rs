@@ -198,13 +198,17 @@ pub enum EvaluateError {
     #[error("the drive has no truth.csv: outages cannot be scored")]
     NoTruth,
     /// Gyro heading asked for a drive without `imu.csv`.
-    #[error("heading mode gyro needs imu.csv, which the drive does not have (use --heading wheels)")]
+    #[error(
+        "heading mode gyro needs imu.csv, which the drive does not have (use --heading wheels)"
+    )]
     NoImu,
     /// Wheel values cannot be converted to revolutions.
     #[error(transparent)]
     Wheels(#[from] WheelConversionError),
     /// Not even one outage fits in the drive.
-    #[error("no {outage_s} s outage fits: wheels and truth overlap only from {from_s} s to {to_s} s")]
+    #[error(
+        "no {outage_s} s outage fits: wheels and truth overlap only from {from_s} s to {to_s} s"
+    )]
     TooShort {
         /// Requested outage length, s.
         outage_s: f64,
@@ -309,7 +313,12 @@ fn dead_banded_arc_length(rows: &[TruthSample]) -> Vec<f64> {
 /// length grew (and the first), so that GNSS jitter while standing does not
 /// weigh in. `None` when fewer than five points or less than
 /// two metres of track lie in the window, or the fit is singular.
-pub fn course_at(rows: &[TruthSample], arc_m: &[f64], s0_m: f64, half_window_m: f64) -> Option<f64> {
+pub fn course_at(
+    rows: &[TruthSample],
+    arc_m: &[f64],
+    s0_m: f64,
+    half_window_m: f64,
+) -> Option<f64> {
     let mut normal = Matrix4::<f64>::zeros();
     let mut rhs_x = Vector4::<f64>::zeros();
     let mut rhs_y = Vector4::<f64>::zeros();
@@ -375,7 +384,11 @@ fn revs_at(revs: &[WheelRevs], t_s: f64) -> Option<(f64, f64)> {
 }
 
 /// Run the outage evaluation of `drive` with `params`.
-pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig) -> Result<EvaluationReport, EvaluateError> {
+pub fn evaluate(
+    drive: &Drive,
+    params: &OdometryParams,
+    config: &EvaluateConfig,
+) -> Result<EvaluationReport, EvaluateError> {
     if !(config.outage_s > 0.0 && config.spacing_s > 0.0) {
         return Err(EvaluateError::Config(format!(
             "outage ({} s) and spacing ({} s) must be positive",
@@ -385,8 +398,13 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
     params
         .validate("odometry parameters")
         .map_err(|e| EvaluateError::Config(e.to_string()))?;
-    let truth_rows = drive.truth.as_deref().filter(|t| !t.is_empty()).ok_or(EvaluateError::NoTruth)?;
-    if config.odometer.heading == HeadingMode::Gyro && drive.imu.as_ref().is_none_or(Vec::is_empty) {
+    let truth_rows = drive
+        .truth
+        .as_deref()
+        .filter(|t| !t.is_empty())
+        .ok_or(EvaluateError::NoTruth)?;
+    if config.odometer.heading == HeadingMode::Gyro && drive.imu.as_ref().is_none_or(Vec::is_empty)
+    {
         return Err(EvaluateError::NoImu);
     }
     let revs = drive.wheel_revolutions()?;
@@ -419,7 +437,9 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
         let align = if truth.yaw_at(t0).is_some() {
             None
         } else {
-            truth.arc_at(t0).and_then(|s0| alignment_window(&truth, config, t0, s0))
+            truth
+                .arc_at(t0)
+                .and_then(|s0| alignment_window(&truth, config, t0, s0))
         };
         windows.push((t0, t1, align));
     }
@@ -432,7 +452,8 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
         .collect();
     starts.sort_by(f64::total_cmp);
     starts.dedup();
-    let (snapshots, background_skipped) = snapshots(&revs, &inputs, params, config.odometer, &starts);
+    let (snapshots, background_skipped) =
+        snapshots(&revs, &inputs, params, config.odometer, &starts);
     let snapshot_at = |t: f64| -> Result<&Snapshot, String> {
         let i = starts.partition_point(|s| *s < t);
         match snapshots.get(i) {
@@ -453,7 +474,16 @@ pub fn evaluate(drive: &Drive, params: &OdometryParams, config: &EvaluateConfig)
         let scored = snapshot_at(t0).and_then(|start| {
             let aligned = align.and_then(|(ta, tb)| {
                 let from = snapshot_at(ta).ok()?;
-                aligned_start(&truth, &revs, &inputs, from, config.truth_point_m, ta, tb, t0)
+                aligned_start(
+                    &truth,
+                    &revs,
+                    &inputs,
+                    from,
+                    config.truth_point_m,
+                    ta,
+                    tb,
+                    t0,
+                )
             });
             run_outage(&truth, &revs, &inputs, config, start, aligned, t0, t1)
         });
@@ -530,7 +560,11 @@ fn snapshots(
 fn feed(dr: &mut DeadReckoner, input: &Input, heading: HeadingMode) -> Result<(), InputError> {
     match *input {
         Input::Imu { t_s, gz_rad_s } if heading == HeadingMode::Gyro => dr.gyro(t_s, gz_rad_s),
-        Input::Wheels { t_s, rl_rev, rr_rev } => dr.wheels(t_s, rl_rev, rr_rev).map(|_| ()),
+        Input::Wheels {
+            t_s,
+            rl_rev,
+            rr_rev,
+        } => dr.wheels(t_s, rl_rev, rr_rev).map(|_| ()),
         _ => Ok(()),
     }
 }
@@ -545,7 +579,14 @@ struct Span {
     gyro_fallbacks: u64,
 }
 
-fn dead_reckon_span(revs: &[WheelRevs], inputs: &[Input], start: &Snapshot, pose0: Pose2, t0: f64, t1: f64) -> Result<Span, String> {
+fn dead_reckon_span(
+    revs: &[WheelRevs],
+    inputs: &[Input],
+    start: &Snapshot,
+    pose0: Pose2,
+    t0: f64,
+    t1: f64,
+) -> Result<Span, String> {
     let wheels_end = revs_at(revs, t1).ok_or("no wheel data at the end")?;
     let mut dr = start.dr.clone();
     dr.set_pose(pose0);
@@ -564,7 +605,9 @@ fn dead_reckon_span(revs: &[WheelRevs], inputs: &[Input], start: &Snapshot, pose
             track.push((t, dr.pose()));
         }
     }
-    let pose = dr.wheels(t1, wheels_end.0, wheels_end.1).map_err(|e| e.to_string())?;
+    let pose = dr
+        .wheels(t1, wheels_end.0, wheels_end.1)
+        .map_err(|e| e.to_string())?;
     track.push((t1, pose));
     Ok(Span {
         track,
@@ -576,7 +619,10 @@ fn dead_reckon_span(revs: &[WheelRevs], inputs: &[Input], start: &Snapshot, pose
 /// Where the truth point is for a rear-axle pose.
 fn truth_point(pose: &Pose2, arm: [f64; 2]) -> [f64; 2] {
     let (s, c) = pose.yaw.sin_cos();
-    [pose.x + arm[0] * c - arm[1] * s, pose.y + arm[0] * s + arm[1] * c]
+    [
+        pose.x + arm[0] * c - arm[1] * s,
+        pose.y + arm[0] * s + arm[1] * c,
+    ]
 }
 
 /// Position of a dead-reckoned track at `t_s`, interpolated linearly.
@@ -600,7 +646,12 @@ fn track_position_at(track: &[(f64, Pose2)], t_s: f64, arm: [f64; 2]) -> Option<
 /// vehicle has not driven that far before `t0` (a drive's start), the first
 /// `align_distance_m` after it (`ta = t0`); within `align_max_s` and without
 /// truth gaps longer than `max_truth_gap_s`.
-fn alignment_window(truth: &TruthTrack<'_>, config: &EvaluateConfig, t0: f64, s0: f64) -> Option<(f64, f64)> {
+fn alignment_window(
+    truth: &TruthTrack<'_>,
+    config: &EvaluateConfig,
+    t0: f64,
+    s0: f64,
+) -> Option<(f64, f64)> {
     let rows = truth.rows;
     let no_gap = |from: usize, to: usize| {
         rows[from..=to]
@@ -613,7 +664,8 @@ fn alignment_window(truth: &TruthTrack<'_>, config: &EvaluateConfig, t0: f64, s0
         .rev()
         .find(|&i| s0 - truth.arc_m[i] >= config.align_distance_m)
     {
-        return (after_t0 > 0 && no_gap(i, after_t0.min(rows.len() - 1))).then_some((rows[i].t_s, t0));
+        return (after_t0 > 0 && no_gap(i, after_t0.min(rows.len() - 1)))
+            .then_some((rows[i].t_s, t0));
     }
     let last = rows.partition_point(|r| r.t_s <= t0 + config.align_max_s);
     let j = (after_t0..last).find(|&j| truth.arc_m[j] - s0 >= config.align_distance_m)?;
@@ -649,7 +701,10 @@ fn aligned_start(
         let (dx, dy) = (d[0] - dm[0], d[1] - dm[1]);
         (gm[0] + c * dx - s * dy - g[0]).hypot(gm[1] + s * dx + c * dy - g[1])
     };
-    let residuals: Vec<f64> = pairs.iter().map(|(d, g)| residual(rotation, dm, gm, *d, *g)).collect();
+    let residuals: Vec<f64> = pairs
+        .iter()
+        .map(|(d, g)| residual(rotation, dm, gm, *d, *g))
+        .collect();
     let limit = (3.0 * percentile(&residuals, 0.5)?).max(0.1);
     let kept: Vec<_> = pairs
         .iter()
@@ -660,7 +715,11 @@ fn aligned_start(
     if kept.len() < pairs.len() {
         (rotation, dm, gm) = procrustes(&kept)?;
     }
-    let (t_end, end) = if t0 == ta { span.track.first()? } else { span.track.last()? };
+    let (t_end, end) = if t0 == ta {
+        span.track.first()?
+    } else {
+        span.track.last()?
+    };
     debug_assert!(*t_end == t0);
     let d0 = truth_point(end, arm);
     let (s, c) = rotation.sin_cos();
@@ -725,7 +784,11 @@ fn run_outage(
         let after = truth.arc_at(t0).is_some_and(|s0| {
             alignment_window(truth, config, t0, s0).is_some_and(|(ta, _)| ta == t0)
         });
-        let source = if after { "truth_track_alignment_after" } else { "truth_track_alignment" };
+        let source = if after {
+            "truth_track_alignment_after"
+        } else {
+            "truth_track_alignment"
+        };
         (position, y, source)
     } else {
         (
@@ -733,7 +796,14 @@ fn run_outage(
             // Widen the window where the truth is sparse (e.g. at a drive's start).
             [1.0, 2.0, 4.0]
                 .iter()
-                .find_map(|k| course_at(truth.rows, &truth.arc_m, s0, k * config.course_half_window_m))
+                .find_map(|k| {
+                    course_at(
+                        truth.rows,
+                        &truth.arc_m,
+                        s0,
+                        k * config.course_half_window_m,
+                    )
+                })
                 .ok_or("the truth track does not move enough around the start to give a course")?,
             "truth_course",
         )
@@ -754,9 +824,16 @@ fn run_outage(
     };
     let span = dead_reckon_span(revs, inputs, start_state, pose0, t0, t1)?;
     if span.skipped > 0 {
-        return Err(format!("{} wheel or IMU samples inside it are unusable", span.skipped));
+        return Err(format!(
+            "{} wheel or IMU samples inside it are unusable",
+            span.skipped
+        ));
     }
-    let pose = span.track.last().map(|(_, p)| *p).ok_or("empty dead-reckoning")?;
+    let pose = span
+        .track
+        .last()
+        .map(|(_, p)| *p)
+        .ok_or("empty dead-reckoning")?;
     let end_point = truth_point(&pose, config.truth_point_m);
     let mut track = Vec::new();
     if config.keep_tracks {
@@ -778,7 +855,8 @@ fn run_outage(
         length_s: t1 - t0,
         distance_m,
         error_m,
-        error_pct: (distance_m >= config.min_distance_for_pct_m).then(|| 100.0 * error_m / distance_m),
+        error_pct: (distance_m >= config.min_distance_for_pct_m)
+            .then(|| 100.0 * error_m / distance_m),
         start_yaw_rad: yaw,
         start_yaw_source: yaw_source,
         end_m: end_point,
@@ -792,7 +870,9 @@ fn run_outage(
 mod tests {
     use super::*;
     use crate::two_wheel::TwoWheelParams;
-    use interfaces::drive::{GnssAntenna, ImuSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits};
+    use interfaces::drive::{
+        GnssAntenna, ImuSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
+    };
 
     const C_RL: f64 = 1.83;
     const C_RR: f64 = 1.84;
@@ -918,14 +998,52 @@ mod tests {
     #[test]
     fn wrong_circumferences_are_worse_than_right_ones() {
         let drive = winding_drive(70.0);
-        let good = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        let good = evaluate(
+            &drive,
+            &true_params(),
+            &config(HeadingMode::WheelDifference, 30.0),
+        )
+        .unwrap();
         let nominal = OdometryParams::nominal(&drive.vehicle);
-        let bad = evaluate(&drive, &nominal, &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        let bad = evaluate(
+            &drive,
+            &nominal,
+            &config(HeadingMode::WheelDifference, 30.0),
+        )
+        .unwrap();
         // 1 % scale error alone is 2.4 m after 240 m.
         assert!(bad.median_error_m > 2.0, "{bad:?}");
-        assert!(bad.median_error_m > 10.0 * good.median_error_m, "{good:?} {bad:?}");
+        assert!(
+            bad.median_error_m > 10.0 * good.median_error_m,
+            "{good:?} {bad:?}"
+        );
         let pct = bad.median_error_pct.unwrap();
-        assert!((pct - 100.0 * bad.median_error_m / 240.0).abs() < 0.5, "{pct}");
+        assert!(
+            (pct - 100.0 * bad.median_error_m / 240.0).abs() < 0.5,
+            "{pct}"
+        );
+    }
+
+    #[test]
+    fn alignment_start_pose_shrugs_off_truth_noise_and_jumps() {
+        // Truth with +-3 cm of deterministic jitter and, just before every
+        // outage start, a 0.8 m sideways jump for two rows (an RTK glitch).
+        let mut drive = winding_drive(100.0);
+        for (k, r) in drive.truth.as_mut().unwrap().iter_mut().enumerate() {
+            let jitter = 0.03 * ((k as f64 * 1.7).sin());
+            r.x_m += jitter;
+            r.y_m -= jitter;
+            let phase = r.t_s % 10.0;
+            if (9.5..9.9).contains(&phase) {
+                r.y_m += 0.8;
+            }
+        }
+        let report = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        for o in &report.outages {
+            // A course from the raw points would be off by a few hundredths of
+            // a radian here: metres after 240 m.
+            assert!(o.error_m < 0.3, "{o:?}");
+        }
     }
 
     #[test]
@@ -959,7 +1077,10 @@ mod tests {
         let course = course_at(&rows, &arc, s0, 5.0).unwrap();
         let expected = 50.0 * 0.8 / r;
         // Arc length is measured along chords, so u is slightly off: a few mrad at most.
-        assert!((wrap_angle(course - expected)).abs() < 2e-3, "{course} vs {expected}");
+        assert!(
+            (wrap_angle(course - expected)).abs() < 2e-3,
+            "{course} vs {expected}"
+        );
         assert!(course_at(&rows[..2], &arc[..2], 0.0, 5.0).is_none());
     }
 
@@ -989,9 +1110,13 @@ mod tests {
             .to_string();
         assert!(msg.contains("imu.csv"), "{msg}");
         drive.truth = None;
-        let msg = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 10.0))
-            .unwrap_err()
-            .to_string();
+        let msg = evaluate(
+            &drive,
+            &true_params(),
+            &config(HeadingMode::WheelDifference, 10.0),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(msg.contains("truth.csv"), "{msg}");
     }
 
@@ -1004,10 +1129,19 @@ mod tests {
             .as_mut()
             .unwrap()
             .retain(|r| !(r.t_s > 48.0 && r.t_s < 52.0));
-        let report = evaluate(&drive, &true_params(), &config(HeadingMode::WheelDifference, 30.0)).unwrap();
+        let report = evaluate(
+            &drive,
+            &true_params(),
+            &config(HeadingMode::WheelDifference, 30.0),
+        )
+        .unwrap();
         assert_eq!(report.outages.len(), 4, "{report:?}");
         assert_eq!(report.warnings.len(), 1);
-        assert!(report.warnings[0].contains("20.00 s") && report.warnings[0].contains("end"), "{:?}", report.warnings);
+        assert!(
+            report.warnings[0].contains("20.00 s") && report.warnings[0].contains("end"),
+            "{:?}",
+            report.warnings
+        );
     }
 
     #[test]

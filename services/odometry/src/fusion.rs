@@ -38,7 +38,9 @@
 //!
 //! Pure: no clock, no I/O; numerical failure is a [`FusionError`].
 
-use crate::dead_reckoning::{HeadingMode, HeadingSource, Increment, InputError, Odometer, OdometerConfig};
+use crate::dead_reckoning::{
+    HeadingMode, HeadingSource, Increment, InputError, Odometer, OdometerConfig,
+};
 use crate::estimate_file::OdometryParams;
 use crate::inputs::Input;
 use crate::two_wheel::{wrap_angle, Pose2};
@@ -191,8 +193,17 @@ pub struct FusionStats {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Measurement {
-    Gnss { t_s: f64, x_m: f64, y_m: f64, sigma_m: f64 },
-    Heading { t_s: f64, yaw_rad: f64, sigma_rad: f64 },
+    Gnss {
+        t_s: f64,
+        x_m: f64,
+        y_m: f64,
+        sigma_m: f64,
+    },
+    Heading {
+        t_s: f64,
+        yaw_rad: f64,
+        sigma_rad: f64,
+    },
 }
 
 impl Measurement {
@@ -334,9 +345,18 @@ impl Fusion {
                 self.odometer.gyro(t_s, gz_rad_s)?;
                 Ok(None)
             }
-            Input::Gnss { t_s, x_m, y_m, sigma_m } => {
+            Input::Gnss {
+                t_s,
+                x_m,
+                y_m,
+                sigma_m,
+            } => {
                 if !(t_s.is_finite() && x_m.is_finite() && y_m.is_finite()) {
-                    return Err(InputError::NonFinite { stream: "gnss", t_s }.into());
+                    return Err(InputError::NonFinite {
+                        stream: "gnss",
+                        t_s,
+                    }
+                    .into());
                 }
                 let sigma = sigma_m
                     .filter(|s| s.is_finite() && *s > 0.0)
@@ -350,22 +370,40 @@ impl Fusion {
                 });
                 Ok(None)
             }
-            Input::Heading { t_s, yaw_rad, sigma_rad } => {
+            Input::Heading {
+                t_s,
+                yaw_rad,
+                sigma_rad,
+            } => {
                 if !(t_s.is_finite() && yaw_rad.is_finite()) {
-                    return Err(InputError::NonFinite { stream: "heading", t_s }.into());
+                    return Err(InputError::NonFinite {
+                        stream: "heading",
+                        t_s,
+                    }
+                    .into());
                 }
                 let sigma = sigma_rad
                     .filter(|s| s.is_finite() && *s > 0.0)
                     .unwrap_or(self.config.default_heading_sigma_rad);
                 self.last_heading = Some((t_s, yaw_rad, sigma));
-                self.push_pending(Measurement::Heading { t_s, yaw_rad, sigma_rad: sigma });
+                self.push_pending(Measurement::Heading {
+                    t_s,
+                    yaw_rad,
+                    sigma_rad: sigma,
+                });
                 Ok(None)
             }
-            Input::Estimate { version, estimate, .. } => {
+            Input::Estimate {
+                version, estimate, ..
+            } => {
                 self.set_estimate(estimate.params, version);
                 Ok(None)
             }
-            Input::Wheels { t_s, rl_rev, rr_rev } => match self.wheels(t_s, rl_rev, rr_rev) {
+            Input::Wheels {
+                t_s,
+                rl_rev,
+                rr_rev,
+            } => match self.wheels(t_s, rl_rev, rr_rev) {
                 Ok(pose) => Ok(Some(pose)),
                 Err(ProcessError::Numerical(e)) => {
                     self.reset();
@@ -388,7 +426,11 @@ impl Fusion {
 
     fn wheels(&mut self, t1: f64, rl1: f64, rr1: f64) -> Result<FusedPose, ProcessError> {
         if !(t1.is_finite() && rl1.is_finite() && rr1.is_finite()) {
-            return Err(InputError::NonFinite { stream: "wheels", t_s: t1 }.into());
+            return Err(InputError::NonFinite {
+                stream: "wheels",
+                t_s: t1,
+            }
+            .into());
         }
         if let Some((t0, _, _)) = self.last_wheels {
             if t1 <= t0 {
@@ -517,17 +559,36 @@ impl Fusion {
 
     fn measure(&mut self, m: &Measurement) -> Result<(), FusionError> {
         match (*m, self.state) {
-            (Measurement::Gnss { t_s, x_m, y_m, sigma_m }, State::Uninitialised { anchor, local }) => {
+            (
+                Measurement::Gnss {
+                    t_s,
+                    x_m,
+                    y_m,
+                    sigma_m,
+                },
+                State::Uninitialised { anchor, local },
+            ) => {
                 self.initialise_from_fix(t_s, x_m, y_m, sigma_m, anchor, local);
                 Ok(())
             }
             (Measurement::Heading { .. }, State::Uninitialised { .. }) => Ok(()),
-            (Measurement::Gnss { t_s, x_m, y_m, sigma_m }, State::Running { .. }) => {
-                self.update_gnss(t_s, x_m, y_m, sigma_m)
-            }
-            (Measurement::Heading { t_s, yaw_rad, sigma_rad }, State::Running { .. }) => {
-                self.update_heading(t_s, yaw_rad, sigma_rad)
-            }
+            (
+                Measurement::Gnss {
+                    t_s,
+                    x_m,
+                    y_m,
+                    sigma_m,
+                },
+                State::Running { .. },
+            ) => self.update_gnss(t_s, x_m, y_m, sigma_m),
+            (
+                Measurement::Heading {
+                    t_s,
+                    yaw_rad,
+                    sigma_rad,
+                },
+                State::Running { .. },
+            ) => self.update_heading(t_s, yaw_rad, sigma_rad),
         }
     }
 
@@ -560,7 +621,9 @@ impl Fusion {
                     };
                     return;
                 }
-                if baseline >= self.config.init_baseline_m && lx.hypot(ly) >= 0.5 * self.config.init_baseline_m {
+                if baseline >= self.config.init_baseline_m
+                    && lx.hypot(ly) >= 0.5 * self.config.init_baseline_m
+                {
                     let rotation = gy.atan2(gx) - ly.atan2(lx);
                     let sigma = 2.0 * (sigma_m + lever) / baseline + 0.02;
                     Some((wrap_angle(local.yaw + rotation), sigma))
@@ -599,7 +662,13 @@ impl Fusion {
         self.rejected_in_a_row = 0;
     }
 
-    fn update_gnss(&mut self, t_s: f64, x_m: f64, y_m: f64, sigma_m: f64) -> Result<(), FusionError> {
+    fn update_gnss(
+        &mut self,
+        t_s: f64,
+        x_m: f64,
+        y_m: f64,
+        sigma_m: f64,
+    ) -> Result<(), FusionError> {
         let State::Running { x, p } = self.state else {
             return Ok(());
         };
@@ -662,7 +731,12 @@ impl Fusion {
         }
     }
 
-    fn update_heading(&mut self, t_s: f64, yaw_rad: f64, sigma_rad: f64) -> Result<(), FusionError> {
+    fn update_heading(
+        &mut self,
+        t_s: f64,
+        yaw_rad: f64,
+        sigma_rad: f64,
+    ) -> Result<(), FusionError> {
         let State::Running { x, p } = self.state else {
             return Ok(());
         };
@@ -673,7 +747,10 @@ impl Fusion {
         let s_mat = h * p * h.transpose() + r;
         let s = s_mat[(0, 0)];
         if !(s.is_finite() && s > 0.0) {
-            return Err(FusionError::NotPositiveDefinite { what: "heading", t_s });
+            return Err(FusionError::NotPositiveDefinite {
+                what: "heading",
+                t_s,
+            });
         }
         if nu[0] * nu[0] / s > self.config.heading_gate {
             self.stats.heading_rejected += 1;
@@ -686,7 +763,13 @@ impl Fusion {
         Ok(())
     }
 
-    fn set_running(&mut self, x: Vec4, mut p: Mat4, t_s: f64, after: &'static str) -> Result<(), FusionError> {
+    fn set_running(
+        &mut self,
+        x: Vec4,
+        mut p: Mat4,
+        t_s: f64,
+        after: &'static str,
+    ) -> Result<(), FusionError> {
         symmetrise(&mut p);
         if !(x.iter().all(|v| v.is_finite()) && p.iter().all(|v| v.is_finite())) {
             return Err(FusionError::NonFinite { t_s, after });
@@ -858,7 +941,12 @@ mod tests {
         }
         // The covariance grows through the outage and shrinks after it.
         let var = |t: f64| poses[at(t)].covariance[0] + poses[at(t)].covariance[4];
-        assert!(var(44.9) > 5.0 * var(29.0), "{} vs {}", var(44.9), var(29.0));
+        assert!(
+            var(44.9) > 5.0 * var(29.0),
+            "{} vs {}",
+            var(44.9),
+            var(29.0)
+        );
         assert!(var(59.0) < var(44.9));
         let s = fusion.stats();
         assert_eq!(s.initialisations, 1);
@@ -874,13 +962,20 @@ mod tests {
         let split = sim.inputs.iter().position(|i| i.t_s() > 12.0).unwrap();
         let poses = run(&mut fusion, &sim.inputs[..split]);
         let start = poses.last().unwrap();
-        let mut dr =
-            crate::dead_reckoning::DeadReckoner::new(params(), config(HeadingMode::WheelDifference).odometer, start.pose);
+        let mut dr = crate::dead_reckoning::DeadReckoner::new(
+            params(),
+            config(HeadingMode::WheelDifference).odometer,
+            start.pose,
+        );
         // Re-feed the gyro history so that both start from the same state.
         for i in &sim.inputs[..split] {
             match *i {
                 Input::Imu { t_s, gz_rad_s } if t_s > 11.0 => dr.gyro(t_s, gz_rad_s).unwrap(),
-                Input::Wheels { t_s, rl_rev, rr_rev } if t_s == start.t_s => {
+                Input::Wheels {
+                    t_s,
+                    rl_rev,
+                    rr_rev,
+                } if t_s == start.t_s => {
                     dr.wheels(t_s, rl_rev, rr_rev).unwrap();
                 }
                 _ => {}
@@ -893,12 +988,19 @@ mod tests {
                     dr.gyro(t_s, gz_rad_s).unwrap();
                     None
                 }
-                Input::Wheels { t_s, rl_rev, rr_rev } => Some(dr.wheels(t_s, rl_rev, rr_rev).unwrap()),
+                Input::Wheels {
+                    t_s,
+                    rl_rev,
+                    rr_rev,
+                } => Some(dr.wheels(t_s, rl_rev, rr_rev).unwrap()),
                 _ => None,
             };
             if let (Some(f), Some(d)) = (out, dr_pose) {
                 assert_eq!(f.mode, PoseMode::DeadReckoning);
-                assert!((f.pose.x - d.x).hypot(f.pose.y - d.y) < 1e-6, "{f:?} vs {d:?}");
+                assert!(
+                    (f.pose.x - d.x).hypot(f.pose.y - d.y) < 1e-6,
+                    "{f:?} vs {d:?}"
+                );
             }
         }
     }
@@ -913,7 +1015,10 @@ mod tests {
         let truth = sim.truth.last().unwrap().1;
         let err = (end.pose.x - truth.x).hypot(end.pose.y - truth.y);
         // Unlearned, 0.004 rad/s over 30 s at 10 m/s is about 18 m off.
-        assert!(err < 3.0, "error after a 30 s outage with a learned bias: {err} m");
+        assert!(
+            err < 3.0,
+            "error after a 30 s outage with a learned bias: {err} m"
+        );
         let State::Running { x, .. } = with.state else {
             panic!("not running")
         };
@@ -948,10 +1053,16 @@ mod tests {
         let poses = run(&mut fusion, &shifted.inputs);
         let s = fusion.stats();
         assert_eq!(s.position_resets, 1, "{s:?}");
-        assert!(poses[2500].mode == PoseMode::DeadReckoning, "fixes gated out: dead-reckoning");
+        assert!(
+            poses[2500].mode == PoseMode::DeadReckoning,
+            "fixes gated out: dead-reckoning"
+        );
         let last = poses.last().unwrap();
         let truth = shifted.truth.last().unwrap().1;
-        assert!((last.pose.y - truth.y - 30.0).abs() < 0.5, "follows the fixes after the reset");
+        assert!(
+            (last.pose.y - truth.y - 30.0).abs() < 0.5,
+            "follows the fixes after the reset"
+        );
         assert_eq!(last.mode, PoseMode::Fused);
     }
 
@@ -975,7 +1086,11 @@ mod tests {
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
         let poses = run(&mut fusion, &sim.inputs);
         assert_eq!(poses[0].mode, PoseMode::NoFix, "before the first fix");
-        assert_eq!(poses[1].mode, PoseMode::Fused, "heading + fix: initialised at the first fix");
+        assert_eq!(
+            poses[1].mode,
+            PoseMode::Fused,
+            "heading + fix: initialised at the first fix"
+        );
         assert_eq!(fusion.stats().heading_rejected, 1);
         assert!(fusion.stats().heading_accepted > 150);
     }
@@ -1019,7 +1134,11 @@ mod tests {
         let poses = run(&mut fusion, &gap);
         let after_gap = poses.iter().find(|p| p.t_s >= 9.0).unwrap();
         assert_eq!(after_gap.mode, PoseMode::NoFix);
-        assert_eq!(poses.last().unwrap().mode, PoseMode::Fused, "initialises again");
+        assert_eq!(
+            poses.last().unwrap().mode,
+            PoseMode::Fused,
+            "initialises again"
+        );
     }
 
     #[test]
@@ -1031,7 +1150,12 @@ mod tests {
             .inputs
             .iter()
             .map(|i| match *i {
-                Input::Gnss { t_s, x_m, y_m, sigma_m } => {
+                Input::Gnss {
+                    t_s,
+                    x_m,
+                    y_m,
+                    sigma_m,
+                } => {
                     let k = ((t_s - 0.005) / 0.01).round() as usize;
                     let yaw = sim.truth[k].1.yaw;
                     Input::Gnss {
@@ -1049,7 +1173,10 @@ mod tests {
         let mut fusion = Fusion::new(params(), 0, cfg);
         let poses = run(&mut fusion, &inputs);
         let (p, truth) = (poses.last().unwrap().pose, sim.truth.last().unwrap().1);
-        assert!((p.x - truth.x).hypot(p.y - truth.y) < 0.2, "{p:?} vs {truth:?}");
+        assert!(
+            (p.x - truth.x).hypot(p.y - truth.y) < 0.2,
+            "{p:?} vs {truth:?}"
+        );
     }
 
     #[test]
@@ -1063,7 +1190,10 @@ mod tests {
                 sigma_m: None,
             })
             .unwrap_err();
-        assert!(err.to_string().contains("gnss") && err.to_string().contains("non-finite"), "{err}");
+        assert!(
+            err.to_string().contains("gnss") && err.to_string().contains("non-finite"),
+            "{err}"
+        );
         assert!(matches!(
             fusion.process(&Input::Wheels {
                 t_s: 0.0,
@@ -1097,6 +1227,10 @@ mod tests {
             })
             .unwrap_err();
         assert!(matches!(err, ProcessError::Numerical(_)), "{err}");
-        assert_eq!(fusion.mode_at(0.0), PoseMode::NoFix, "reset after the failure");
+        assert_eq!(
+            fusion.mode_at(0.0),
+            PoseMode::NoFix,
+            "reset after the failure"
+        );
     }
 }

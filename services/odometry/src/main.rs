@@ -8,7 +8,11 @@ use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
-#[command(name = "odometry", version, about = "2W odometry: dead-reckoning evaluation and the pose service")]
+#[command(
+    name = "odometry",
+    version,
+    about = "2W odometry: dead-reckoning evaluation and the pose service"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -45,6 +49,9 @@ struct EvaluateArgs {
     /// Write the result as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Do not learn the rear wheels' zero offsets at standstill (see the README).
+    #[arg(long)]
+    no_wheel_offsets: bool,
 }
 
 fn main() -> Result<()> {
@@ -53,7 +60,8 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Evaluate(args) => run_evaluate(&args),
         Command::Serve(args) => {
-            odometry::serve::run(&args, &odometry::serve::Shutdown::new()).context("odometry serve")?;
+            odometry::serve::run(&args, &odometry::serve::Shutdown::new())
+                .context("odometry serve")?;
             Ok(())
         }
     }
@@ -71,13 +79,17 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             let estimate = Estimate::load(path).context("cannot use the estimate")?;
             (estimate.params, path.display().to_string())
         }
-        None => (OdometryParams::nominal(&drive.vehicle), "nominal (vehicle.toml)".to_string()),
+        None => (
+            OdometryParams::nominal(&drive.vehicle),
+            "nominal (vehicle.toml)".to_string(),
+        ),
     };
     let config = EvaluateConfig {
         outage_s: args.outage,
         spacing_s: args.spacing,
         odometer: OdometerConfig {
             heading: args.heading,
+            learn_wheel_offsets: !args.no_wheel_offsets,
             ..OdometerConfig::default()
         },
         ..EvaluateConfig::default()
@@ -87,7 +99,8 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     print_report(&report, &source, &args.drive.display().to_string());
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report).context("cannot serialise the report")?;
-        std::fs::write(path, text + "\n").with_context(|| format!("cannot write {}", path.display()))?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(())
 }
@@ -104,7 +117,9 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
     println!();
     println!("  start s  length s  distance m   error m  error %  start yaw from");
     for o in &report.outages {
-        let pct = o.error_pct.map_or_else(|| "     -".to_string(), |p| format!("{p:6.2}"));
+        let pct = o
+            .error_pct
+            .map_or_else(|| "     -".to_string(), |p| format!("{p:6.2}"));
         println!(
             "  {:7.2}  {:8.1}  {:10.1}  {:8.3}  {pct}   {}",
             o.t_start_s, o.length_s, o.distance_m, o.error_m, o.start_yaw_source

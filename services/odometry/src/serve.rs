@@ -9,10 +9,13 @@
 //!   (each publish-subscribe service has an event service of the same name
 //!   that its publishers notify per sample) and an interval that checks for
 //!   stale inputs and termination. No polling loop.
-//! - Every wakeup drains all subscribers into one batch and processes it in
-//!   time order, wheels last at equal times ([`crate::inputs`]): the same
-//!   order as `odometry evaluate` and the bridge's replay, so a replayed
-//!   drive gives the same poses however the processes are scheduled.
+//! - Every wakeup drains all subscribers into one batch, the wheels first,
+//!   and processes it in time order, wheels last at equal times
+//!   ([`crate::inputs`]): the same order as `odometry evaluate` and the
+//!   bridge's replay. Each pose depends only on the samples up to its wheel
+//!   time, all of which a publisher sending in time order has sent before
+//!   that wheel sample, so a replayed drive gives the same poses however the
+//!   processes are scheduled and the samples grouped into wakeups.
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
 //!   old and new values.
@@ -25,6 +28,9 @@
 //!   cannot stand behind.
 //! - Poses in mode `NoFix` (before the first initialisation) are published at
 //!   wheel rate with zero position and covariance: they carry no position.
+//! - A stream's time going back by more than [`RESTART_BACKSTEP_S`] (a publisher
+//!   restarted) makes the filter start over; other unusable samples are
+//!   skipped and logged (the first ten, then every thousandth).
 //! - SIGINT/SIGTERM end the WaitSet loop; [`Shutdown`] does the same for a
 //!   caller in the same process (tests).
 
@@ -32,14 +38,20 @@ use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
 use crate::inputs::{sort_inputs, Input};
+use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
-use interfaces::wire::{CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, PoseMode, WheelRotations};
-use iceoryx2::prelude::CallbackProgression;
+use interfaces::wire::{
+    CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, PoseMode, WheelRotations,
+};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// A sample this much older than the newest one seen means its publisher
+/// restarted (a new replay, a restarted bridge): the filter starts over, s.
+pub const RESTART_BACKSTEP_S: f64 = 1.0;
 
 /// Arguments of `odometry serve`.
 #[derive(Debug, Clone, clap::Args)]
@@ -59,6 +71,9 @@ pub struct ServeArgs {
     /// why) or `wheels` (the paper's 2W model).
     #[arg(long, default_value = "gyro")]
     pub heading: HeadingMode,
+    /// Do not learn the rear wheels' zero offsets at standstill (see the README).
+    #[arg(long)]
+    pub no_wheel_offsets: bool,
     /// Without an accepted GNSS fix for this long, the mode is DeadReckoning, s.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub gnss_timeout: f64,
@@ -110,7 +125,9 @@ impl ServeConfig {
             if v.is_finite() && v > 0.0 {
                 Ok(v)
             } else {
-                Err(ServeError::Config(format!("{name} {v} must be a positive number of seconds")))
+                Err(ServeError::Config(format!(
+                    "{name} {v} must be a positive number of seconds"
+                )))
             }
         };
         let mut settings = BusSettings::from_env();
@@ -123,6 +140,7 @@ impl ServeConfig {
         let fusion = FusionConfig {
             odometer: OdometerConfig {
                 heading: args.heading,
+                learn_wheel_offsets: !args.no_wheel_offsets,
                 ..OdometerConfig::default()
             },
             lever_arm_m: [
@@ -269,12 +287,25 @@ impl Inputs {
 
     /// Consume every notification and every sample waiting, into `batch`.
     fn drain(&self, batch: &mut Vec<Input>, bus_estimates: bool) -> Result<Drained, BusError> {
-        let mut out = Drained::default();
-        out.wheels_ended = self.wheels.take_events()?.end_of_stream;
+        let mut out = Drained {
+            wheels_ended: self.wheels.take_events()?.end_of_stream,
+            skipped: 0,
+        };
         self.gnss.take_events()?;
         self.imu.take_events()?;
         self.heading.take_events()?;
         self.estimate.take_events()?;
+        // Wheels first: every other sample up to the newest wheel time was
+        // published before it, so it is in its queue now and lands in this
+        // batch too. (Other streams may run ahead of the wheels; the filter
+        // keeps them until the wheels pass their time.)
+        while let Some(s) = self.wheels.receive()? {
+            batch.push(Input::Wheels {
+                t_s: s.header.t_s(),
+                rl_rev: s.rl_rev,
+                rr_rev: s.rr_rev,
+            });
+        }
         while let Some(s) = self.imu.receive()? {
             batch.push(Input::Imu {
                 t_s: s.header.t_s(),
@@ -301,7 +332,10 @@ impl Inputs {
         }
         while let Some(s) = self.estimate.receive()? {
             if !bus_estimates {
-                tracing::info!("odometry: estimate v{} on the bus ignored (--no-bus-estimate)", s.version);
+                tracing::info!(
+                    "odometry: estimate v{} on the bus ignored (--no-bus-estimate)",
+                    s.version
+                );
                 continue;
             }
             match Estimate::from_wire(&s) {
@@ -317,14 +351,20 @@ impl Inputs {
                 }
             }
         }
-        while let Some(s) = self.wheels.receive()? {
-            batch.push(Input::Wheels {
-                t_s: s.header.t_s(),
-                rl_rev: s.rl_rev,
-                rr_rev: s.rr_rev,
-            });
-        }
         Ok(out)
+    }
+}
+
+const STREAM_NAMES: [&str; 4] = ["wheels", "imu", "gnss", "heading"];
+
+/// Index of an input's stream in [`STREAM_NAMES`] (estimates have none).
+fn stream_index(input: &Input) -> Option<usize> {
+    match input {
+        Input::Wheels { .. } => Some(0),
+        Input::Imu { .. } => Some(1),
+        Input::Gnss { .. } => Some(2),
+        Input::Heading { .. } => Some(3),
+        Input::Estimate { .. } => None,
     }
 }
 
@@ -368,7 +408,11 @@ fn describe_switch(old: &OdometryParams, new: &OdometryParams) -> String {
 
 /// The service loop on an open bus; returns when stopped (signal, `shutdown`,
 /// or the end of the wheel stream with `exit_on_end`).
-pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<ServeSummary, ServeError> {
+pub fn serve(
+    bus: &Bus,
+    config: &ServeConfig,
+    shutdown: &Shutdown,
+) -> Result<ServeSummary, ServeError> {
     let params = config
         .initial
         .map_or_else(|| OdometryParams::nominal(&config.vehicle), |e| e.params);
@@ -380,7 +424,11 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
         "odometry: serving poses on {} ({} heading, {} parameters: {params})",
         poses.service_name(),
         config.fusion.odometer.heading,
-        if config.initial.is_some() { "initial estimate" } else { "nominal" },
+        if config.initial.is_some() {
+            "initial estimate"
+        } else {
+            "nominal"
+        },
     );
 
     let waitset = bus.waitset()?;
@@ -405,7 +453,10 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
         .attach_notification(inputs.estimate.listener())
         .map_err(|e| ws_err("attach estimate", &e))?;
     // The tick notices stale inputs and stop requests; it does no work otherwise.
-    let tick = config.stale_after.div_f64(4.0).min(Duration::from_millis(100));
+    let tick = config
+        .stale_after
+        .div_f64(4.0)
+        .min(Duration::from_millis(100));
     let _g_tick = waitset
         .attach_interval(tick)
         .map_err(|e| ws_err("attach interval", &e))?;
@@ -418,6 +469,8 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
     let mut mode = PoseMode::NoFix;
     let mut next_status_t: Option<f64> = None;
     let mut wheels_ended = false;
+    // Newest time seen per input stream (wheels, IMU, GNSS, heading).
+    let mut latest_t: [Option<f64>; 4] = [None; 4];
 
     loop {
         let result = waitset
@@ -428,7 +481,10 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
         summary.skipped += drained.skipped;
         sort_inputs(&mut batch);
         for input in &batch {
-            if let Input::Estimate { version, estimate, .. } = input {
+            if let Input::Estimate {
+                version, estimate, ..
+            } = input
+            {
                 let old = *fusion.params();
                 let old_version = fusion.estimate_version();
                 if *version == old_version && estimate.params == old {
@@ -439,6 +495,19 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
                     describe_switch(&old, &estimate.params)
                 );
                 summary.estimate_switches += 1;
+            }
+            if let Some(k) = stream_index(input) {
+                let t = input.t_s();
+                if let Some(previous) = latest_t[k].filter(|p| t < p - RESTART_BACKSTEP_S) {
+                    tracing::warn!(
+                        "odometry: {} time went back from {previous:.2} s to {t:.2} s: a publisher \
+                         restarted; the filter starts over (NoFix until GNSS)",
+                        STREAM_NAMES[k]
+                    );
+                    fusion.reset();
+                    latest_t = [None; 4];
+                }
+                latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
             }
             if let Input::Wheels { t_s, .. } = input {
                 if stale {
@@ -468,7 +537,10 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
                 Ok(None) => {}
                 Err(ProcessError::Input(e)) => {
                     summary.skipped += 1;
-                    tracing::warn!("odometry: {e}");
+                    // The first ten, then every thousandth: a broken stream must not flood the log.
+                    if summary.skipped <= 10 || summary.skipped % 1000 == 0 {
+                        tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
+                    }
                 }
                 Err(e @ ProcessError::Numerical(_)) => {
                     summary.skipped += 1;
@@ -476,7 +548,12 @@ pub fn serve(bus: &Bus, config: &ServeConfig, shutdown: &Shutdown) -> Result<Ser
                 }
             }
         }
-        wheels_ended |= drained.wheels_ended;
+        // A stream that ended may start again (a new replay).
+        if batch.iter().any(|i| matches!(i, Input::Wheels { .. })) {
+            wheels_ended = drained.wheels_ended;
+        } else {
+            wheels_ended |= drained.wheels_ended;
+        }
 
         // Stale inputs: the wheels stopped coming.
         if let (Some(seen), false) = (last_wheel_wall, stale) {

@@ -109,7 +109,11 @@ mod tests {
             c_rr: 2.0,
             track_width: 1.5,
         };
-        let track = dead_reckon(Pose2::default(), &[revs(0.0, 0.0, 0.0), revs(1.0, 5.0, 5.0)], &p);
+        let track = dead_reckon(
+            Pose2::default(),
+            &[revs(0.0, 0.0, 0.0), revs(1.0, 5.0, 5.0)],
+            &p,
+        );
         assert!((track[1].x - 10.0).abs() < 1e-12);
         assert!(track[1].y.abs() < 1e-12);
         assert!(track[1].yaw.abs() < 1e-12);

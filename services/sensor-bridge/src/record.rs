@@ -9,13 +9,13 @@
 //! The wire carries no vehicle parameters: they come from the caller
 //! (`--vehicle`). Wheels are recorded as cumulative revolutions (`_rev`).
 
+use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, TopicSubscriber};
 use interfaces::drive::{
-    Drive, GnssSample, HeadingSample, ImuSample, VehicleParams, WheelSample, WheelSeries, WheelUnit,
-    WheelUnits,
+    Drive, GnssSample, HeadingSample, ImuSample, VehicleParams, WheelSample, WheelSeries,
+    WheelUnit, WheelUnits,
 };
 use interfaces::wire::{GnssFix, Heading, Imu, WheelRotations};
-use iceoryx2::prelude::CallbackProgression;
 use std::time::{Duration, Instant};
 
 /// Collects wire samples into a [`Drive`]. Samples that a drive cannot hold

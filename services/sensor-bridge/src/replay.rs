@@ -109,10 +109,22 @@ impl WireDrive {
     /// broken IMU, GNSS, heading, wheels.
     pub fn merged(&self) -> Vec<(Stream, usize)> {
         let streams: [(Stream, Vec<i64>); 4] = [
-            (Stream::Imu, self.imu.iter().map(|s| s.header.t_ns).collect()),
-            (Stream::Gnss, self.gnss.iter().map(|s| s.header.t_ns).collect()),
-            (Stream::Heading, self.heading.iter().map(|s| s.header.t_ns).collect()),
-            (Stream::Wheels, self.wheels.iter().map(|s| s.header.t_ns).collect()),
+            (
+                Stream::Imu,
+                self.imu.iter().map(|s| s.header.t_ns).collect(),
+            ),
+            (
+                Stream::Gnss,
+                self.gnss.iter().map(|s| s.header.t_ns).collect(),
+            ),
+            (
+                Stream::Heading,
+                self.heading.iter().map(|s| s.header.t_ns).collect(),
+            ),
+            (
+                Stream::Wheels,
+                self.wheels.iter().map(|s| s.header.t_ns).collect(),
+            ),
         ];
         let total = streams.iter().map(|(_, t)| t.len()).sum();
         let mut out = Vec::with_capacity(total);
@@ -148,7 +160,10 @@ impl WireDrive {
             self.imu.last().map(|s| s.header.t_ns),
             self.heading.last().map(|s| s.header.t_ns),
         ];
-        Some((firsts.into_iter().flatten().min()?, lasts.into_iter().flatten().max()?))
+        Some((
+            firsts.into_iter().flatten().min()?,
+            lasts.into_iter().flatten().max()?,
+        ))
     }
 }
 
@@ -303,7 +318,11 @@ const OUTAGE_LOG_S: f64 = 2.0;
 
 /// Publish `wire` on `bus` (see the module doc). Returns early, with
 /// `interrupted` set, on Ctrl-C or SIGTERM.
-pub fn replay(bus: &Bus, wire: &WireDrive, opts: &ReplayOptions) -> Result<ReplayStats, ReplayError> {
+pub fn replay(
+    bus: &Bus,
+    wire: &WireDrive,
+    opts: &ReplayOptions,
+) -> Result<ReplayStats, ReplayError> {
     if let Pacing::Speed(f) = opts.pacing {
         if !(f.is_finite() && f > 0.0) {
             return Err(ReplayError::BadSpeed(f));
@@ -560,15 +579,25 @@ mod tests {
         assert_eq!(w.gnss[0].sigma_m, 0.0);
         assert_eq!(w.gnss[1].sigma_m, 0.5);
         assert_eq!(w.gnss[1].fix, 1);
-        assert_eq!(w.imu[0].valid, 0, "partial accelerations are not flagged valid");
-        assert!(w.warnings.iter().any(|m| m.contains("ax, ay, az")), "{:?}", w.warnings);
+        assert_eq!(
+            w.imu[0].valid, 0,
+            "partial accelerations are not flagged valid"
+        );
+        assert!(
+            w.warnings.iter().any(|m| m.contains("ax, ay, az")),
+            "{:?}",
+            w.warnings
+        );
         let order = w.merged();
         assert_eq!(order.len(), 8);
         // t = 0: GNSS before wheels; t = 0.2: IMU, GNSS, wheels.
         assert_eq!(order[0], (Stream::Gnss, 0));
         assert_eq!(order[1], (Stream::Wheels, 0));
         assert_eq!(order[2], (Stream::Wheels, 1));
-        assert_eq!(&order[3..6], &[(Stream::Imu, 0), (Stream::Gnss, 1), (Stream::Wheels, 2)]);
+        assert_eq!(
+            &order[3..6],
+            &[(Stream::Imu, 0), (Stream::Gnss, 1), (Stream::Wheels, 2)]
+        );
         let times: Vec<i64> = order
             .iter()
             .map(|&(s, i)| match s {

@@ -13,12 +13,20 @@ pub fn truth_at(truth: &[TruthSample], t: f64) -> Option<(f64, f64, Option<f64>)
     }
     let i = truth.partition_point(|s| s.t_s <= t).clamp(1, n - 1);
     let (a, b) = (truth[i - 1], truth[i]);
-    let f = if b.t_s > a.t_s { (t - a.t_s) / (b.t_s - a.t_s) } else { 0.0 };
+    let f = if b.t_s > a.t_s {
+        (t - a.t_s) / (b.t_s - a.t_s)
+    } else {
+        0.0
+    };
     let yaw = match (a.yaw_rad, b.yaw_rad) {
         (Some(ya), Some(yb)) => Some(ya + f * odometry::two_wheel::wrap_angle(yb - ya)),
         _ => None,
     };
-    Some((a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m), yaw))
+    Some((
+        a.x_m + f * (b.x_m - a.x_m),
+        a.y_m + f * (b.y_m - a.y_m),
+        yaw,
+    ))
 }
 
 /// Mean and max distance between the pure 2W dead-reckoning with `params`
@@ -27,7 +35,9 @@ pub fn truth_at(truth: &[TruthSample], t: f64) -> Option<(f64, f64, Option<f64>)
 pub fn dr_error_vs_truth(drive: &Drive, params: &TwoWheelParams) -> Option<(f64, f64)> {
     let truth = drive.truth.as_ref()?;
     let revs = drive.wheel_revolutions().ok()?;
-    let first = revs.iter().position(|r| truth_at(truth, r.t_s).and_then(|t| t.2).is_some())?;
+    let first = revs
+        .iter()
+        .position(|r| truth_at(truth, r.t_s).and_then(|t| t.2).is_some())?;
     let (x, y, yaw) = truth_at(truth, revs[first].t_s)?;
     let track = dead_reckon(Pose2 { x, y, yaw: yaw? }, &revs[first..], params);
     let (mut sum, mut max, mut n) = (0.0, 0.0f64, 0usize);
@@ -40,6 +50,23 @@ pub fn dr_error_vs_truth(drive: &Drive, params: &TwoWheelParams) -> Option<(f64,
         }
     }
     (n > 0).then(|| (sum / n as f64, max))
+}
+
+/// Truth path length over the wheel distance with `params`: the factor that
+/// turns the static circumferences into the effective ones (driven-axle
+/// slip and the like make the wheels turn a little more than they roll).
+pub fn effective_scale(drive: &Drive, params: &TwoWheelParams) -> Option<f64> {
+    let truth = drive.truth.as_ref()?;
+    let revs = drive.wheel_revolutions().ok()?;
+    let (first, last) = (revs.first()?, revs.last()?);
+    let mut len = 0.0;
+    for w in truth.windows(2) {
+        if w[0].t_s >= first.t_s && w[1].t_s <= last.t_s {
+            len += (w[1].x_m - w[0].x_m).hypot(w[1].y_m - w[0].y_m);
+        }
+    }
+    let dist = 0.5 * ((last.rl - first.rl) * params.c_rl + (last.rr - first.rr) * params.c_rr);
+    (dist > 0.0).then(|| len / dist)
 }
 
 /// Peak resident memory of this process so far (VmHWM), MB.

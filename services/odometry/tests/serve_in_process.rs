@@ -1,0 +1,263 @@
+//! `odometry::serve::serve` in a thread of the test process, fed by
+//! publishers in the test's own thread, in an isolated iceoryx2 prefix and
+//! root path. The multi-process graph tests live in `tests/`.
+
+use interfaces::bus::{Bus, BusSettings, TopicPublisher, TopicSubscriber};
+use interfaces::drive::{GnssAntenna, VehicleParams};
+use interfaces::wire::{
+    CircumferenceEstimate, GnssFix, Header, Imu, Pose, PoseMode, WheelRotations,
+};
+use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
+use odometry::estimate_file::{Estimate, OdometryParams};
+use odometry::fusion::{Fusion, FusionConfig};
+use odometry::inputs::Input;
+use odometry::serve::{serve, ServeConfig, Shutdown};
+use odometry::two_wheel::TwoWheelParams;
+use std::time::{Duration, Instant};
+
+const WATCHDOG: Duration = Duration::from_secs(60);
+const C: f64 = 2.0;
+const TRACK: f64 = 1.5;
+const V: f64 = 10.0;
+
+fn vehicle() -> VehicleParams {
+    VehicleParams {
+        name: None,
+        track_width_m: TRACK,
+        nominal_circumference_m: C,
+        wheelbase_m: None,
+        ticks_per_rev: None,
+        gnss: GnssAntenna::default(),
+    }
+}
+
+fn fusion_config() -> FusionConfig {
+    FusionConfig {
+        odometer: OdometerConfig {
+            heading: HeadingMode::Gyro,
+            ..OdometerConfig::default()
+        },
+        ..FusionConfig::default()
+    }
+}
+
+/// Receive poses until `want` arrived (or the watchdog fails the test).
+fn collect(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, want: usize) {
+    let start = Instant::now();
+    while poses.len() < want {
+        assert!(
+            start.elapsed() < WATCHDOG,
+            "only {} of {want} poses arrived",
+            poses.len()
+        );
+        sub.wait_events(Duration::from_millis(50))
+            .expect("wait for poses");
+        while let Some(p) = sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+    }
+}
+
+#[test]
+fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_offline() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odoserve", root.path());
+    let config = ServeConfig {
+        bus: settings.clone(),
+        vehicle: vehicle(),
+        initial: None,
+        bus_estimates: true,
+        fusion: fusion_config(),
+        stale_after: Duration::from_millis(400),
+        status_every_s: 0.0,
+        exit_on_end: false,
+    };
+    let shutdown = Shutdown::new();
+    let service = {
+        let shutdown = shutdown.clone();
+        std::thread::spawn(move || {
+            let bus = Bus::open(&config.bus, "odometry-under-test").expect("odometry bus");
+            serve(&bus, &config, &shutdown)
+        })
+    };
+
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher().expect("wheels publisher");
+    let mut gnss: TopicPublisher<GnssFix> = bus.publisher().expect("gnss publisher");
+    let mut imu: TopicPublisher<Imu> = bus.publisher().expect("imu publisher");
+    let mut estimates: TopicPublisher<CircumferenceEstimate> =
+        bus.publisher().expect("estimate publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    // Wait for the service's subscribers, announce, and let them attach.
+    let start = Instant::now();
+    while wheels.subscriber_count() < 1 || imu.subscriber_count() < 1 || gnss.subscriber_count() < 1
+    {
+        assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for announce in [wheels.announce(), gnss.announce(), imu.announce()] {
+        announce.expect("announce");
+    }
+    std::thread::sleep(Duration::from_millis(300));
+
+    // 20 s straight east at 10 m/s; GNSS (5 Hz) only for the first 10 s.
+    // Everything published is also kept, to run the same filter offline.
+    let mut sent: Vec<Input> = Vec::new();
+    let mut poses = Vec::new();
+    let n = 2000usize;
+    let switch_at = 1200usize;
+    for i in 0..=n {
+        let t = i as f64 * 0.01;
+        // Keep taking poses: their publisher waits while our buffer is full.
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        if i == switch_at {
+            collect(&poses_sub, &mut poses, i);
+            let new = Estimate {
+                params: OdometryParams {
+                    two_wheel: TwoWheelParams {
+                        c_rl: 2.02,
+                        c_rr: 2.02,
+                        track_width: TRACK,
+                    },
+                    gyro_bias_rad_s: 0.0,
+                    gyro_scale: 0.0,
+                },
+                sigma_m: Some((1e-4, 1e-4)),
+                quality_m: Some(0.5),
+            };
+            estimates
+                .publish(new.to_wire(Header::from_seconds(t, 0), 1))
+                .expect("publish estimate");
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        imu.publish(Imu {
+            header: Header::from_seconds(t, 0),
+            ..Imu::default()
+        })
+        .expect("publish imu");
+        sent.push(Input::Imu {
+            t_s: Header::from_seconds(t, 0).t_s(),
+            gz_rad_s: 0.0,
+        });
+        if i % 20 == 0 && t < 10.0 {
+            gnss.publish(GnssFix {
+                header: Header::from_seconds(t, 0),
+                x_m: V * t,
+                y_m: 0.0,
+                sigma_m: 0.1,
+                fix: 1,
+                _pad: [0; 7],
+            })
+            .expect("publish gnss");
+            sent.push(Input::Gnss {
+                t_s: Header::from_seconds(t, 0).t_s(),
+                x_m: V * t,
+                y_m: 0.0,
+                sigma_m: Some(0.1),
+            });
+        }
+        let rev = V * t / C;
+        wheels
+            .publish(WheelRotations {
+                header: Header::from_seconds(t, 0),
+                rl_rev: rev,
+                rr_rev: rev,
+                ..WheelRotations::default()
+            })
+            .expect("publish wheels");
+        sent.push(Input::Wheels {
+            t_s: Header::from_seconds(t, 0).t_s(),
+            rl_rev: rev,
+            rr_rev: rev,
+        });
+    }
+    collect(&poses_sub, &mut poses, n + 1);
+    // The wheels stop: one NoFix marker must follow, and nothing else.
+    collect(&poses_sub, &mut poses, n + 2);
+    std::thread::sleep(Duration::from_millis(600));
+    while let Some(p) = poses_sub.receive().expect("receive") {
+        poses.push(p);
+    }
+    shutdown.request();
+    let summary = service
+        .join()
+        .expect("service thread")
+        .expect("service result");
+
+    assert_eq!(
+        poses.len(),
+        n + 2,
+        "one pose per wheel sample plus the stale marker"
+    );
+    let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
+    assert_eq!(mode(&poses[0]), PoseMode::NoFix, "before the first fix");
+    let at = |t: f64| &poses[(t / 0.01).round() as usize];
+    assert_eq!(mode(at(5.0)), PoseMode::Fused);
+    assert_eq!(mode(at(15.0)), PoseMode::DeadReckoning);
+    // Sequence numbers run without gaps; times are the wheel times.
+    for (k, p) in poses.iter().enumerate().take(n + 1) {
+        assert_eq!(p.header.seq, k as u64);
+        assert_eq!(p.header.t_ns, Header::from_seconds(k as f64 * 0.01, 0).t_ns);
+    }
+    // Fused on the fixes, then dead-reckoned: on the line y = 0.
+    for t in [5.0, 11.9] {
+        let p = at(t);
+        assert!(
+            (p.x_m - V * t).abs() < 0.2 && p.y_m.abs() < 0.2,
+            "t = {t}: {p:?}"
+        );
+        assert!(p.covariance[0] > 0.0 && p.covariance[4] > 0.0);
+    }
+    // The estimate switch: version 1 from the next sample on, no jump, then
+    // 1 % longer steps (the wheels were made with c = 2.0).
+    assert_eq!(poses[switch_at - 1].estimate_version, 0);
+    assert_eq!(poses[switch_at].estimate_version, 1);
+    let step = |k: usize| poses[k].x_m - poses[k - 1].x_m;
+    assert!(
+        (step(switch_at - 1) - 0.1).abs() < 1e-6,
+        "{}",
+        step(switch_at - 1)
+    );
+    assert!(
+        (step(switch_at) - 0.101).abs() < 1e-6,
+        "{}",
+        step(switch_at)
+    );
+    // Stale marker: NoFix, zeros, at the last wheel time.
+    let marker = &poses[n + 1];
+    assert_eq!(mode(marker), PoseMode::NoFix);
+    assert_eq!((marker.x_m, marker.y_m), (0.0, 0.0));
+    assert_eq!(marker.header.t_ns, poses[n].header.t_ns);
+
+    // The service's poses are exactly those of the filter run offline over the
+    // same samples: batching by wakeups changes nothing.
+    let mut offline = Fusion::new(OdometryParams::nominal(&vehicle()), 0, fusion_config());
+    let expected: Vec<_> = sent
+        .iter()
+        .filter_map(|i| offline.process(i).expect("offline input"))
+        .collect();
+    assert_eq!(expected.len(), n + 1);
+    for (k, (p, e)) in poses.iter().zip(&expected).enumerate() {
+        let same = p.x_m == e.pose.x
+            && p.y_m == e.pose.y
+            && p.yaw_rad == e.pose.yaw
+            && p.covariance == e.covariance
+            && p.mode == e.mode as u8
+            && p.estimate_version == e.estimate_version;
+        assert!(same, "pose {k}: service {p:?} vs offline {e:?}");
+    }
+
+    assert_eq!(summary.wheel_samples, n as u64 + 1);
+    assert_eq!(summary.poses, n as u64 + 2);
+    assert_eq!(summary.estimate_switches, 1);
+    assert_eq!(summary.estimate_version, 1);
+    assert_eq!(summary.stale_events, 1);
+    assert_eq!(summary.lost, [0; 5]);
+    assert_eq!(summary.skipped, 0);
+    drop((wheels, gnss, imu, estimates, poses_sub));
+    drop(bus);
+    settings.remove_leftovers();
+}

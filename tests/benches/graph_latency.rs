@@ -1,0 +1,320 @@
+//! Sample-to-pose latency over iceoryx2, with blocking (WaitSet) wakeups.
+//!
+//! The benchmark process plays the bridge: it publishes a simulated drive on
+//! the sensor topics (the bridge's own `TopicPublisher` code) paced in real
+//! time, and stamps each wheel sample's publish instant. A thread of the same
+//! process subscribes to the pose topic (WaitSet wakeup) and stamps the
+//! arrival of the pose that carries the wheel sample's time. So each figure is
+//! bridge publish -> (process) -> pose publish -> pose received: two hops.
+//!
+//! Measured in the same run, one after the other:
+//! - **bare**: a relay process (this executable with `--relay`) that wakes on
+//!   the wheel topic's event, receives the sample and publishes it on the
+//!   pose topic, doing nothing else: a bare publisher/subscriber pair in each
+//!   direction with the same wakeup mechanism;
+//! - **odometry**: `odometry serve` doing its real work (fusion, pose).
+//!
+//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS]`
+//! (default 60 s of drive per phase).
+
+use iceoryx2::prelude::CallbackProgression;
+use integration_tests::graph::{Bin, Graph};
+use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
+use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
+use sensor_bridge::replay::{to_wire, Stream, WireDrive};
+use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use sensor_bridge::write_drive;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+const WARMUP: usize = 300;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.iter().any(|a| a == "--relay") {
+        relay();
+        return;
+    }
+    let seconds: f64 = args
+        .iter()
+        .skip(1)
+        .find_map(|a| a.parse().ok())
+        .unwrap_or(60.0);
+    run(seconds);
+}
+
+/// The bare relay: wheels in, the same header out as a pose.
+fn relay() {
+    let bus = Bus::from_env("bench-relay").expect("bus");
+    let wheels = bus.subscriber::<WheelRotations>().expect("wheels");
+    let mut poses: TopicPublisher<Pose> = bus.publisher().expect("poses");
+    let waitset = bus.waitset().expect("waitset");
+    let _g = waitset
+        .attach_notification(wheels.listener())
+        .expect("attach");
+    let _t = waitset
+        .attach_interval(Duration::from_millis(100))
+        .expect("tick");
+    eprintln!("relay ready");
+    loop {
+        let r = waitset
+            .wait_and_process_once(|_| CallbackProgression::Continue)
+            .expect("wait");
+        wheels.take_events().expect("events");
+        while let Some(w) = wheels.receive().expect("receive") {
+            poses
+                .publish(Pose {
+                    header: w.header,
+                    ..Pose::default()
+                })
+                .expect("publish");
+        }
+        if bus::stop_requested_by(r) {
+            break;
+        }
+    }
+}
+
+struct Publishers {
+    wheels: TopicPublisher<WheelRotations>,
+    gnss: TopicPublisher<GnssFix>,
+    imu: TopicPublisher<Imu>,
+    heading: TopicPublisher<Heading>,
+}
+
+/// Arrival instants of poses by their time stamp.
+type Arrivals = Arc<Mutex<HashMap<i64, Instant>>>;
+
+fn receiver(
+    settings: BusSettings,
+    arrivals: Arrivals,
+    stop: Arc<AtomicBool>,
+    ready: std::sync::mpsc::Sender<()>,
+) {
+    let bus = Bus::open(&settings, "bench-receiver").expect("bus");
+    let poses = bus.subscriber::<Pose>().expect("poses");
+    let waitset = bus.waitset().expect("waitset");
+    let _g = waitset
+        .attach_notification(poses.listener())
+        .expect("attach");
+    let _t = waitset
+        .attach_interval(Duration::from_millis(50))
+        .expect("tick");
+    let _ = ready.send(());
+    while !stop.load(Ordering::SeqCst) {
+        waitset
+            .wait_and_process_once(|_| CallbackProgression::Continue)
+            .expect("wait");
+        poses.take_events().expect("events");
+        while let Some(p) = poses.receive().expect("receive") {
+            let now = Instant::now();
+            arrivals
+                .lock()
+                .expect("lock")
+                .entry(p.header.t_ns)
+                .or_insert(now);
+        }
+    }
+}
+
+/// Publish the first `seconds` of `wire` in real time; returns the publish
+/// instants of the wheel samples by time stamp.
+fn publish(p: &mut Publishers, wire: &WireDrive, seconds: f64) -> Vec<(i64, Instant)> {
+    let order = wire.merged();
+    let t0 = wire.time_span_ns().expect("span").0;
+    let start = Instant::now();
+    let mut sent = Vec::new();
+    for (stream, i) in order {
+        let t_ns = match stream {
+            Stream::Wheels => wire.wheels[i].header.t_ns,
+            Stream::Gnss => wire.gnss[i].header.t_ns,
+            Stream::Imu => wire.imu[i].header.t_ns,
+            Stream::Heading => wire.heading[i].header.t_ns,
+        };
+        let due = (t_ns - t0) as f64 * 1e-9;
+        if due > seconds {
+            break;
+        }
+        let now = start.elapsed().as_secs_f64();
+        if due > now {
+            std::thread::sleep(Duration::from_secs_f64(due - now));
+        }
+        match stream {
+            Stream::Wheels => {
+                let at = Instant::now();
+                p.wheels.publish(wire.wheels[i]).expect("publish");
+                sent.push((t_ns, at));
+            }
+            Stream::Gnss => {
+                p.gnss.publish(wire.gnss[i]).expect("publish");
+            }
+            Stream::Imu => {
+                p.imu.publish(wire.imu[i]).expect("publish");
+            }
+            Stream::Heading => {
+                p.heading.publish(wire.heading[i]).expect("publish");
+            }
+        }
+    }
+    sent
+}
+
+struct Stats {
+    n: usize,
+    p50: f64,
+    p99: f64,
+    p999: f64,
+    max: f64,
+    missing: usize,
+}
+
+fn stats(sent: &[(i64, Instant)], arrivals: &Arrivals) -> Stats {
+    let arrivals = arrivals.lock().expect("lock");
+    let mut lat: Vec<f64> = Vec::new();
+    let mut missing = 0;
+    for (t, at) in sent.iter().skip(WARMUP) {
+        match arrivals.get(t) {
+            Some(a) => lat.push(a.duration_since(*at).as_secs_f64() * 1e6),
+            None => missing += 1,
+        }
+    }
+    lat.sort_by(f64::total_cmp);
+    let q = |p: f64| {
+        if lat.is_empty() {
+            f64::NAN
+        } else {
+            lat[((lat.len() - 1) as f64 * p).round() as usize]
+        }
+    };
+    Stats {
+        n: lat.len(),
+        p50: q(0.5),
+        p99: q(0.99),
+        p999: q(0.999),
+        max: lat.last().copied().unwrap_or(f64::NAN),
+        missing,
+    }
+}
+
+fn phase(
+    g: &Graph,
+    p: &mut Publishers,
+    wire: &WireDrive,
+    seconds: f64,
+    arrivals: &Arrivals,
+) -> Stats {
+    // Wait until the consumer subscribes to every sensor topic it reads and
+    // attaches (announce + settle, as the bridge does).
+    let start = Instant::now();
+    while p.wheels.subscriber_count() < 1 {
+        assert!(start.elapsed() < Duration::from_secs(60), "no subscriber");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    for r in [
+        p.wheels.announce(),
+        p.gnss.announce(),
+        p.imu.announce(),
+        p.heading.announce(),
+    ] {
+        r.expect("announce");
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    arrivals.lock().expect("lock").clear();
+    let sent = publish(p, wire, seconds);
+    std::thread::sleep(Duration::from_millis(500));
+    let _ = g;
+    stats(&sent, arrivals)
+}
+
+fn run(seconds: f64) {
+    let mut g = Graph::new("lat");
+    let drive = simulate(&SimConfig::new(Scenario::Mixed, 1)).expect("simulate");
+    let folder = g.path("drive");
+    write_drive(&drive, &folder).expect("write");
+    let wire = to_wire(&drive).expect("wire");
+    let bus = g.bus("bench-bridge");
+    let mut p = Publishers {
+        wheels: bus.publisher().expect("p"),
+        gnss: bus.publisher().expect("p"),
+        imu: bus.publisher().expect("p"),
+        heading: bus.publisher().expect("p"),
+    };
+    let arrivals: Arrivals = Arc::new(Mutex::new(HashMap::new()));
+    let stop = Arc::new(AtomicBool::new(false));
+    let (tx, rx) = std::sync::mpsc::channel();
+    let handle = {
+        let (s, a, st) = (g.settings.clone(), arrivals.clone(), stop.clone());
+        std::thread::spawn(move || receiver(s, a, st, tx))
+    };
+    rx.recv().expect("receiver ready");
+
+    let exe = std::env::current_exe().expect("exe");
+    let relay = g.spawn_exe("relay", &exe, &["--relay"]);
+    let bare = phase(&g, &mut p, &wire, seconds, &arrivals);
+    g.kill(relay);
+
+    let vehicle = folder.join("vehicle.toml");
+    let odo = g.spawn(
+        "odometry",
+        Bin::Odometry,
+        &[
+            "serve",
+            "--vehicle",
+            vehicle.to_str().expect("utf-8"),
+            "--no-bus-estimate",
+        ],
+    );
+    // The odometry subscribes to every sensor topic.
+    let start = Instant::now();
+    while p.imu.subscriber_count() < 1
+        || p.heading.subscriber_count() < 1
+        || p.gnss.subscriber_count() < 1
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "odometry did not subscribe"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let odometry = phase(&g, &mut p, &wire, seconds, &arrivals);
+    g.terminate(odo);
+    stop.store(true, Ordering::SeqCst);
+    let _ = handle.join();
+
+    println!("sample-to-pose latency, {seconds:.0} s of drive at 100 Hz per phase (first {WARMUP} samples skipped), microseconds:");
+    println!(
+        "{:<44} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
+        "", "n", "p50", "p99", "p99.9", "max", "missing"
+    );
+    for (name, s) in [
+        ("bare relay (2 hops, no work)", &bare),
+        ("odometry serve (2 hops + fusion)", &odometry),
+    ] {
+        println!(
+            "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
+            s.n, s.p50, s.p99, s.p999, s.max, s.missing
+        );
+    }
+    println!(
+        "ratio odometry / bare: p50 {:.2}, p99 {:.2}, p99.9 {:.2}",
+        odometry.p50 / bare.p50,
+        odometry.p99 / bare.p99,
+        odometry.p999 / bare.p999
+    );
+    println!(
+        "goals: p50 <= 1.5 x bare: {}; p99 <= 100 us: {}",
+        if odometry.p50 <= 1.5 * bare.p50 {
+            "met"
+        } else {
+            "MISSED"
+        },
+        if odometry.p99 <= 100.0 {
+            "met"
+        } else {
+            "MISSED"
+        }
+    );
+}
