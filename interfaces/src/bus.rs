@@ -467,9 +467,7 @@ impl Bus {
             .map_err(|e| service_err("waitset", "create", e))
     }
 
-    fn open_services<T: Topic>(
-        &self,
-    ) -> Result<TopicServices<T>, BusError> {
+    fn open_services<T: Topic>(&self) -> Result<TopicServices<T>, BusError> {
         let name = ServiceName::new(T::SERVICE).map_err(|e| service_err(T::SERVICE, "name", e))?;
         let (overflow, buffer, history) = match T::DELIVERY {
             Delivery::Lossless { buffer } => (false, buffer, 0),

@@ -20,7 +20,7 @@ fn number_after(log: &str, before: &str, after: &str) -> Option<f64> {
     let i = log.rfind(before)? + before.len();
     let rest = &log[i..];
     let j = rest.find(after)?;
-    rest[..j].trim().split_whitespace().last()?.parse().ok()
+    rest[..j].split_whitespace().last()?.parse().ok()
 }
 
 fn main() {

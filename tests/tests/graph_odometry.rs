@@ -32,8 +32,7 @@ fn odometry(g: &mut Graph, label: &str, drive: &str, extra: &[&str]) -> ProcId {
     let vehicle = format!("{drive}/vehicle.toml");
     let mut args = vec!["serve", "--vehicle", &vehicle];
     args.extend_from_slice(extra);
-    let id = g.spawn(label, Bin::Odometry, &args);
-    id
+    g.spawn(label, Bin::Odometry, &args)
 }
 
 fn replay_max(g: &mut Graph, drive: &str, subscribers: &str) -> ProcId {

@@ -290,14 +290,20 @@ struct EvalSettings {
 
 const HUBER_K: f64 = 3.0;
 
+/// Internals exposed to the unit tests of other modules.
+#[cfg(test)]
+pub(crate) mod tests_support {
+    pub(crate) use super::small_sin_cos;
+}
+
 /// sin and cos of a small angle by their series (exact to ~1e-13 below
 /// 0.05 rad), the library functions above that.
 #[inline]
-fn small_sin_cos(a: f64) -> (f64, f64) {
+pub(crate) fn small_sin_cos(a: f64) -> (f64, f64) {
     if a.abs() < 0.05 {
         let a2 = a * a;
         (
-            a * (1.0 - a2 / 6.0 * (1.0 - a2 / 20.0)),
+            a * (1.0 - a2 / 6.0 * (1.0 - a2 / 20.0 * (1.0 - a2 / 42.0))),
             1.0 - a2 / 2.0 * (1.0 - a2 / 12.0 * (1.0 - a2 / 30.0)),
         )
     } else {
@@ -315,6 +321,7 @@ fn huber(u: f64) -> (f64, f64) {
 }
 
 /// Integrate `model` over `seg` from `pose0` and compare with the fixes.
+#[allow(clippy::needless_range_loop)] // small fixed-size numeric kernels read best indexed
 fn eval_segment(
     model: &dyn StepModel,
     g: &[f64],
@@ -385,7 +392,7 @@ fn eval_segment(
             };
             let (sd, cd) = small_sin_cos(dyaw);
             (sh, ch) = (sh * cd + ch * sd, ch * cd - sh * sd);
-            if (k - seg.k0) % 64 == 0 {
+            if (k - seg.k0).is_multiple_of(64) {
                 let norm = (sh * sh + ch * ch).sqrt();
                 (sh, ch) = (sh / norm, ch / norm);
             }
@@ -556,6 +563,9 @@ pub struct Fit {
     pub steps: Vec<(f64, Vec<f64>)>,
 }
 
+/// The end of a fit stage: segments, their poses, segments dropped, robust scale.
+type StageEnd = (Vec<Segment>, Vec<[f64; 3]>, usize, f64);
+
 /// Fit `model` to the accepted fixes: stages of segment lengths, LM in each.
 pub fn fit(
     model: &dyn StepModel,
@@ -571,7 +581,7 @@ pub fn fit(
     let priors = model.priors();
     let mut g = g0.to_vec();
     let mut steps = Vec::new();
-    let mut last: Option<(Vec<Segment>, Vec<[f64; 3]>, usize, f64)> = None;
+    let mut last: Option<StageEnd> = None;
     for (stage, &len) in stage_lengths.iter().enumerate() {
         let last_stage = stage + 1 == stage_lengths.len();
         let (mut segs, dropped) = make_segments(p, &fixes, len, breaks);

@@ -22,6 +22,9 @@
 //! schedule of eq. (10) raises G the overshoot fades. Rows are taken where the
 //! reference is valid and not across a break of the wheel data. With
 //! side-slip on, the regressor's direction is `theta^_{k-1} + beta_k`.
+//!
+//! Outages: the filter predicts through a GNSS outage without updates and
+//! restarts on the reference where it comes back (no row at that sample).
 
 use crate::prep::Prepared;
 use crate::reference::Reference;
@@ -168,7 +171,10 @@ pub fn run_pass(
     let mut x: Option<(Pose2, Matrix3<f64>)> = None;
     for j in 0..n {
         let k = grid[j];
-        if j == 0 || p.is_piece_start(k) {
+        // A new piece of wheel data, or the reference back after an outage:
+        // the filter restarts on the reference (the prediction through the
+        // outage would otherwise enter eq. (9) as one huge row).
+        if j == 0 || p.is_piece_start(k) || (r.valid[k] && !r.valid[grid[j - 1]]) {
             x = None;
         }
         let Some((pose, sigma)) = x else {

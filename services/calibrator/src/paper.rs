@@ -80,7 +80,7 @@ fn run_once(
         dr_error_max_m: dev0.max_m,
     }];
     let grid = crate::ekf::grid(p, config.paper_rate_hz);
-    let mut best: Option<(usize, [f64; 2], f64, f64, Sigmas, Vec<[f64; 2]>)> = None;
+    let mut best: Option<Best> = None;
     for i in 1..=config.iterations {
         let cov = schedule(i, config.q_m, config.q_p);
         let pass = run_pass(
@@ -154,6 +154,10 @@ fn run_once(
         notes: Vec::new(),
     })
 }
+
+/// The best iteration so far: number, circumferences, mean deviation,
+/// track, sigmas, dead-reckoned track.
+type Best = (usize, [f64; 2], f64, f64, Sigmas, Vec<[f64; 2]>);
 
 /// An iteration that leaves the plausible range is an error, not a result.
 pub fn check_plausible(

@@ -168,6 +168,18 @@ pub fn prepare(
 
     let (t, dn_rl, dn_rr, piece_starts, wheel_dt, wheel_offsets) = wheels(drive, warnings)?;
     let fixes = gnss(drive, warnings)?;
+    if let (Some(&w0), Some(&w1), Some(g0), Some(g1)) =
+        (t.first(), t.last(), fixes.first(), fixes.last())
+    {
+        if g1.t < w0 || g0.t > w1 {
+            return Err(CalibrationError::NoOverlap {
+                wheel_start: w0,
+                wheel_end: w1,
+                gnss_start: g0.t,
+                gnss_end: g1.t,
+            });
+        }
+    }
     let (gyro, has_accel, imu_end) = imu(drive, &t, warnings);
     let headings = heading(drive, warnings);
     check_stream_ends(&t, &fixes, imu_end, warnings);
@@ -370,7 +382,7 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             continue;
         };
         let dt = s.t_s - p.t_s;
-        if !(dt > 0.0) {
+        if dt.is_nan() || dt <= 0.0 {
             skipped += 1;
             first_bad.get_or_insert(s.t_s);
             continue;
@@ -765,6 +777,106 @@ fn standstill_intervals(t: &[f64], dn_rl: &[f64], dn_rr: &[f64], c: f64) -> Vec<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use interfaces::drive::{GnssAntenna, GnssSample, VehicleParams, WheelSeries, WheelUnits};
+
+    fn drive(unit: WheelUnit, rows: Vec<(f64, f64, f64)>) -> Drive {
+        Drive {
+            vehicle: VehicleParams {
+                name: None,
+                track_width_m: 1.5,
+                nominal_circumference_m: 2.0,
+                wheelbase_m: None,
+                ticks_per_rev: Some(48.0),
+                gnss: GnssAntenna::default(),
+            },
+            wheels: WheelSeries {
+                units: WheelUnits::rear(unit),
+                samples: rows
+                    .into_iter()
+                    .map(|(t_s, rl, rr)| WheelSample {
+                        t_s,
+                        rl,
+                        rr,
+                        fl: None,
+                        fr: None,
+                    })
+                    .collect(),
+            },
+            gnss: Some(
+                (0..20)
+                    .map(|i| GnssSample {
+                        t_s: i as f64,
+                        x_m: i as f64,
+                        y_m: 0.0,
+                        sigma_m: None,
+                    })
+                    .collect(),
+            ),
+            imu: None,
+            heading: None,
+            truth: None,
+            truth_params: None,
+        }
+    }
+
+    #[test]
+    fn the_streaming_conversion_matches_wheel_revolutions() {
+        for unit in WheelUnit::ALL {
+            let rows: Vec<(f64, f64, f64)> = (0..2000)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    let (a, b) = (5.0 + (t * 0.7).sin(), 5.2 + (t * 0.3).cos());
+                    if unit.is_rate() {
+                        (t, a, b)
+                    } else {
+                        (t, (10.0 * a * t).floor(), (10.0 * b * t).floor())
+                    }
+                })
+                .collect();
+            let d = drive(unit, rows);
+            let mut w = Vec::new();
+            let p = prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+            let revs = d.wheel_revolutions().expect("revolutions");
+            let (mut a, mut b) = (0.0, 0.0);
+            for k in 0..p.len() {
+                a += p.dn_rl[k];
+                b += p.dn_rr[k];
+                assert!((a - (revs[k].rl - revs[0].rl)).abs() < 1e-9, "{unit:?} {k}");
+                assert!((b - (revs[k].rr - revs[0].rr)).abs() < 1e-9, "{unit:?} {k}");
+            }
+            assert!(p.wheel_offsets.is_none());
+        }
+    }
+
+    #[test]
+    fn rate_offsets_at_standstill_are_subtracted() {
+        // 3 s standing with hub-gyro offsets, then driving.
+        let rows: Vec<(f64, f64, f64)> = (0..1000)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                let drive = if t < 3.0 { 0.0 } else { 20.0 };
+                (t, drive - 0.02, drive + 0.01)
+            })
+            .collect();
+        let d = drive(WheelUnit::RadS, rows);
+        let mut w = Vec::new();
+        let p = prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+        let (o_rl, o_rr, secs) = p.wheel_offsets.expect("offsets");
+        assert!((o_rl + 0.02).abs() < 1e-9 && (o_rr - 0.01).abs() < 1e-9 && secs > 2.5);
+        let standing: f64 = p.dn_rl[..250].iter().sum();
+        assert!(standing.abs() < 1e-12, "{standing}");
+    }
+
+    #[test]
+    fn small_sin_cos_is_accurate() {
+        for a in [-0.3, -0.049, -1e-3, 0.0, 2e-4, 0.02, 0.0499, 0.7] {
+            let (s, c) = crate::batch::tests_support::small_sin_cos(a);
+            assert!(
+                (s - a.sin()).abs() < 1e-13 && (c - a.cos()).abs() < 1e-13,
+                "{a}"
+            );
+        }
+    }
 
     #[test]
     fn standstill_is_found() {

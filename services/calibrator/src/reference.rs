@@ -8,7 +8,8 @@
 //!   may use the future too). Between fixes the smoothed states are joined by
 //!   cubic Hermite curves (the smoothed mean of that model). The antenna lever
 //!   arm is removed with the reference heading.
-//! - Heading: a filter on `[theta, gyro bias]` driven by the yaw-rate gyro,
+//! - Heading: an extended Kalman filter on `[theta, gyro bias, gyro scale]`
+//!   driven by the yaw-rate gyro,
 //!   corrected by the GNSS course (from the smoothed velocity, corrected for
 //!   the lever arm; weighted down in corners where side-slip separates course
 //!   and heading) and by an absolute heading when the drive has one; smoothed.
@@ -24,6 +25,7 @@ use crate::prep::{Fix, Prepared};
 use crate::report::{Warning, WarningCode};
 use crate::{CalibrationConfig, CalibrationError, TimeOffsetMode};
 use interfaces::drive::{Drive, ImuSample};
+use nalgebra::{Matrix3, Vector3};
 use odometry::two_wheel::wrap_angle;
 use serde::{Deserialize, Serialize};
 
@@ -447,7 +449,7 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
     }
     let mat = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
     let coef = mat.try_inverse()? * nalgebra::Vector3::new(v[0], v[1], v[2]);
-    if !(coef[2] > 0.0) {
+    if coef[2].is_nan() || coef[2] <= 0.0 {
         return None;
     }
     let tau = lags[i_min] - coef[1] / (2.0 * coef[2]);
@@ -472,6 +474,8 @@ struct HeadingTrack {
     t: Vec<f64>,
     yaw: Vec<f64>,
     bias: Vec<f64>,
+    /// Gyro scale error s (`omega_gyro = (1 + s) omega + b`).
+    scale: Vec<f64>,
     /// The gyro's cumulative angle at each epoch (NaN where not covered).
     gyro: Vec<f64>,
 }
@@ -484,6 +488,24 @@ struct HeadingMeas {
     var: f64,
 }
 
+/// Heading transition over one interval: the gyro's angle increment `dg`
+/// (None: no gyro there) turned into heading with the bias and scale states.
+fn heading_step(x: &Vector3<f64>, dg: Option<f64>, tt: f64) -> (Vector3<f64>, Matrix3<f64>) {
+    match dg {
+        Some(dg) => {
+            let (b, s) = (x[1], x[2]);
+            let num = dg - b * tt;
+            let mut f = Matrix3::identity();
+            f[(0, 1)] = -tt / (1.0 + s);
+            f[(0, 2)] = -num / ((1.0 + s) * (1.0 + s));
+            (Vector3::new(x[0] + num / (1.0 + s), b, s), f)
+        }
+        None => (*x, Matrix3::identity()),
+    }
+}
+
+/// Extended Kalman filter + RTS smoother on `[theta, gyro bias, gyro scale]`,
+/// driven by the gyro, corrected by the heading measurements.
 fn heading_filter(
     meas: &[HeadingMeas],
     p: &Prepared,
@@ -492,16 +514,16 @@ fn heading_filter(
     let n = meas.len();
     let q_theta = 2.5e-7; // (5e-4 rad/sqrt(s))^2, gyro angle random walk
     let q_bias = 1e-10; // bias random walk, (rad/s)^2/s
+    let q_scale = 1e-9; // scale random walk, 1/s
     let q_free = 0.25; // heading random walk without gyro, rad^2/s
-    let scale_var = 0.005f64 * 0.005; // gyro scale uncertainty per radian turned
-    let mut xf: Vec<[f64; 2]> = Vec::with_capacity(n);
-    let mut pf: Vec<[f64; 3]> = Vec::with_capacity(n);
-    let mut pp: Vec<[f64; 3]> = Vec::with_capacity(n);
+    let mut xf: Vec<Vector3<f64>> = Vec::with_capacity(n);
+    let mut pf: Vec<Matrix3<f64>> = Vec::with_capacity(n);
+    let mut pp: Vec<Matrix3<f64>> = Vec::with_capacity(n);
     let mut inc: Vec<Option<f64>> = Vec::with_capacity(n);
     for j in 0..n {
         if j == 0 {
-            xf.push([meas[0].z, bias0]);
-            let c = [meas[0].var, 0.0, 1e-4];
+            xf.push(Vector3::new(meas[0].z, bias0, 0.0));
+            let c = Matrix3::from_diagonal(&Vector3::new(meas[0].var, 1e-4, 4e-4));
             pf.push(c);
             pp.push(c);
             inc.push(None);
@@ -510,99 +532,54 @@ fn heading_filter(
         let tt = meas[j].t - meas[j - 1].t;
         let dg = p.gyro_mean_rate(meas[j - 1].t, meas[j].t).map(|w| w * tt);
         inc.push(dg);
-        let a = xf[j - 1];
-        let c = pf[j - 1];
-        let (xp, pred) = match dg {
-            Some(dg) => {
-                // theta' = theta + dg - b tt; F = [[1, -tt], [0, 1]].
-                let xp = [a[0] + dg - a[1] * tt, a[1]];
-                let p00 = c[0] - 2.0 * tt * c[1]
-                    + tt * tt * c[2]
-                    + q_theta * tt
-                    + scale_var * dg * dg
-                    + q_bias * tt * tt * tt / 3.0;
-                let p01 = c[1] - tt * c[2] - q_bias * tt * tt / 2.0;
-                let p11 = c[2] + q_bias * tt;
-                (xp, [p00, p01, p11])
-            }
-            None => (a, [c[0] + q_free * tt, c[1], c[2] + q_bias * tt]),
-        };
+        let (xp, f) = heading_step(&xf[j - 1], dg, tt);
+        let q = Matrix3::from_diagonal(&Vector3::new(
+            if dg.is_some() {
+                q_theta * tt
+            } else {
+                q_free * tt
+            },
+            q_bias * tt,
+            q_scale * tt,
+        ));
+        let pred = f * pf[j - 1] * f.transpose() + q;
         pp.push(pred);
         let m = meas[j];
         let nu = wrap_angle(m.z - xp[0]);
-        let s = pred[0] + m.var;
-        let d2 = nu * nu / s;
-        if d2 > 25.0 {
+        let s = pred[(0, 0)] + m.var;
+        if nu * nu / s > 25.0 {
             xf.push(xp);
             pf.push(pred);
             continue;
         }
-        let k0 = pred[0] / s;
-        let k1 = pred[1] / s;
-        xf.push([xp[0] + k0 * nu, xp[1] + k1 * nu]);
-        pf.push([
-            pred[0] - k0 * pred[0],
-            pred[1] - k0 * pred[1],
-            pred[2] - k1 * pred[1],
-        ]);
+        let k = pred.column(0) / s;
+        xf.push(xp + k * nu);
+        let upd = pred - k * pred.row(0);
+        pf.push(0.5 * (upd + upd.transpose()));
     }
-    // In place: step j reads the filtered values at j before overwriting them.
+    // Rauch-Tung-Striebel, in place: step j reads the filtered values at j
+    // before overwriting them.
     let mut xs = xf;
     let mut ps = pf;
     for j in (0..n.saturating_sub(1)).rev() {
         let tt = meas[j + 1].t - meas[j].t;
-        let c = ps[j];
-        let p1 = pp[j + 1];
-        let gyro = inc[j + 1];
-        let (f01, xp) = match gyro {
-            Some(dg) => (-tt, [xs[j][0] + dg - xs[j][1] * tt, xs[j][1]]),
-            None => (0.0, xs[j]),
-        };
-        // Pf F^T
-        let pft = [[c[0] + f01 * c[1], c[1]], [c[1] + f01 * c[2], c[2]]];
-        let det = p1[0] * p1[2] - p1[1] * p1[1];
-        if !(det.is_finite() && det > 0.0) {
+        let (xp, f) = heading_step(&xs[j], inc[j + 1], tt);
+        let Some(inv) = pp[j + 1].try_inverse() else {
             return Err(CalibrationError::Numerical {
                 stage: "reference heading smoother",
                 detail: format!(
-                    "predicted covariance not positive definite at t = {:.3} s",
+                    "predicted covariance singular at t = {:.3} s",
                     meas[j + 1].t
                 ),
             });
-        }
-        let inv = [[p1[2] / det, -p1[1] / det], [-p1[1] / det, p1[0] / det]];
-        let g = [
-            [
-                pft[0][0] * inv[0][0] + pft[0][1] * inv[1][0],
-                pft[0][0] * inv[0][1] + pft[0][1] * inv[1][1],
-            ],
-            [
-                pft[1][0] * inv[0][0] + pft[1][1] * inv[1][0],
-                pft[1][0] * inv[0][1] + pft[1][1] * inv[1][1],
-            ],
-        ];
-        let d0 = xs[j + 1][0] - xp[0];
-        let d1 = xs[j + 1][1] - xp[1];
-        xs[j] = [
-            xs[j][0] + g[0][0] * d0 + g[0][1] * d1,
-            xs[j][1] + g[1][0] * d0 + g[1][1] * d1,
-        ];
-        let dp = [
-            ps[j + 1][0] - p1[0],
-            ps[j + 1][1] - p1[1],
-            ps[j + 1][2] - p1[2],
-        ];
-        let m00 = g[0][0] * dp[0] + g[0][1] * dp[1];
-        let m01 = g[0][0] * dp[1] + g[0][1] * dp[2];
-        let m10 = g[1][0] * dp[0] + g[1][1] * dp[1];
-        let m11 = g[1][0] * dp[1] + g[1][1] * dp[2];
-        ps[j] = [
-            c[0] + m00 * g[0][0] + m01 * g[0][1],
-            c[1] + m00 * g[1][0] + m01 * g[1][1],
-            c[2] + m10 * g[1][0] + m11 * g[1][1],
-        ];
+        };
+        let c = ps[j] * f.transpose() * inv;
+        let x_next = xs[j + 1];
+        let p_next = ps[j + 1];
+        xs[j] += c * (x_next - xp);
+        ps[j] += c * (p_next - pp[j + 1]) * c.transpose();
     }
-    if xs.iter().any(|s| !(s[0].is_finite() && s[1].is_finite())) {
+    if xs.iter().any(|s| !s.iter().all(|v| v.is_finite())) {
         return Err(CalibrationError::Numerical {
             stage: "reference heading smoother",
             detail: "non-finite smoothed heading".to_string(),
@@ -612,6 +589,7 @@ fn heading_filter(
         t: meas.iter().map(|m| m.t).collect(),
         yaw: xs.iter().map(|s| s[0]).collect(),
         bias: xs.iter().map(|s| s[1]).collect(),
+        scale: xs.iter().map(|s| s[2]).collect(),
         gyro: meas
             .iter()
             .map(|m| p.gyro_cum_at(m.t).unwrap_or(f64::NAN))
@@ -620,6 +598,12 @@ fn heading_filter(
 }
 
 impl HeadingTrack {
+    /// Heading change from the gyro between epoch `j` and a point with gyro
+    /// angle `g`, `dt` later, corrected by epoch j's bias and scale.
+    fn turned(&self, j: usize, g: f64, dt: f64) -> f64 {
+        ((g - self.gyro[j]) - self.bias[j] * dt) / (1.0 + self.scale[j])
+    }
+
     /// Heading at `t` given the gyro's cumulative angle `g_t` there (NaN when
     /// not covered), with the closing error between epochs spread linearly.
     fn at(&self, t: f64, g_t: f64, cursor: &mut usize) -> f64 {
@@ -631,32 +615,30 @@ impl HeadingTrack {
             *cursor += 1;
         }
         let j = *cursor;
-        let g_of = |j: usize| Some(self.gyro[j]).filter(|v| v.is_finite());
+        let has = |j: usize| self.gyro[j].is_finite() && g_t.is_finite();
         if t <= self.t[0] {
-            return match (g_t.is_finite(), g_of(0)) {
-                (true, Some(g0)) => self.yaw[0] + (g_t - g0) - self.bias[0] * (t - self.t[0]),
-                _ => self.yaw[0],
+            return if has(0) {
+                self.yaw[0] + self.turned(0, g_t, t - self.t[0])
+            } else {
+                self.yaw[0]
             };
         }
         if j + 1 >= n {
-            return match (g_t.is_finite(), g_of(n - 1)) {
-                (true, Some(g1)) => {
-                    self.yaw[n - 1] + (g_t - g1) - self.bias[n - 1] * (t - self.t[n - 1])
-                }
-                _ => self.yaw[n - 1],
+            return if has(n - 1) {
+                self.yaw[n - 1] + self.turned(n - 1, g_t, t - self.t[n - 1])
+            } else {
+                self.yaw[n - 1]
             };
         }
         let (t0, t1) = (self.t[j], self.t[j + 1]);
         let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        match (g_t.is_finite(), g_of(j), g_of(j + 1)) {
-            (true, Some(g0), Some(g1)) => {
-                let b = self.bias[j];
-                let part = (g_t - g0) - b * (t - t0);
-                let whole = (g1 - g0) - b * (t1 - t0);
-                let closure = self.yaw[j + 1] - self.yaw[j] - whole;
-                self.yaw[j] + part + f * closure
-            }
-            _ => self.yaw[j] + f * (self.yaw[j + 1] - self.yaw[j]),
+        if has(j) && self.gyro[j + 1].is_finite() {
+            let part = self.turned(j, g_t, t - t0);
+            let whole = self.turned(j, self.gyro[j + 1], t1 - t0);
+            let closure = self.yaw[j + 1] - self.yaw[j] - whole;
+            self.yaw[j] + part + f * closure
+        } else {
+            self.yaw[j] + f * (self.yaw[j + 1] - self.yaw[j])
         }
     }
 }
@@ -1116,7 +1098,7 @@ fn accel_inputs(
             && r.ay_m_s2.is_some_and(f64::is_finite)
     };
     let t_start = fixes.first().map_or(0.0, |f| f.t);
-    let mut i = rows.partition_point(|r| !(r.t_s >= t_start));
+    let mut i = rows.partition_point(|r| r.t_s.is_nan() || r.t_s < t_start);
     let mut hc = 0usize;
     let mut gc = 0usize;
     for j in 1..fixes.len() {
@@ -1124,7 +1106,7 @@ fn accel_inputs(
         let (mut dvx, mut dvy, mut dpx, mut dpy) = (0.0, 0.0, 0.0, 0.0);
         let mut tprev = t0;
         let mut aprev: Option<[f64; 2]> = None;
-        while i < rows.len() && !(rows[i].t_s > t1) {
+        while i < rows.len() && (rows[i].t_s.is_nan() || rows[i].t_s <= t1) {
             let s = &rows[i];
             i += 1;
             if !usable(s) || s.t_s < tprev {

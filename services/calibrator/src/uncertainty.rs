@@ -183,7 +183,7 @@ pub fn observability(
             ),
         ));
     }
-    if !(sigmas.difference <= DIFFERENCE_SIGMA_LIMIT_M) {
+    if sigmas.difference.is_nan() || sigmas.difference > DIFFERENCE_SIGMA_LIMIT_M {
         out.push(Warning::new(
             WarningCode::DifferenceUnobservable,
             format!(
@@ -196,7 +196,7 @@ pub fn observability(
             ),
         ));
     }
-    if !(sigmas.mean <= MEAN_SIGMA_LIMIT_M) {
+    if sigmas.mean.is_nan() || sigmas.mean > MEAN_SIGMA_LIMIT_M {
         out.push(Warning::new(
             WarningCode::ScaleUnobservable,
             format!(
@@ -210,7 +210,7 @@ pub fn observability(
     if track_estimated {
         if let Some(st) = sigmas.track {
             let corr = sigmas.corr_difference_track.unwrap_or(0.0);
-            if !(st <= TRACK_SIGMA_LIMIT_M) || corr.abs() > 0.95 {
+            if st.is_nan() || st > TRACK_SIGMA_LIMIT_M || corr.abs() > 0.95 {
                 out.push(Warning::new(
                     WarningCode::TrackWidthUnobservable,
                     format!(

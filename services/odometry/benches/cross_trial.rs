@@ -35,10 +35,6 @@ fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) ->
             ..OdometerConfig::default()
         },
         truth_point_m: arm,
-        align_distance_m: std::env::var("ALIGN_M")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(30.0),
         ..EvaluateConfig::default()
     }
 }

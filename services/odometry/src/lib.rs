@@ -1,5 +1,14 @@
 //! Odometry: the 2W model, dead-reckoning through GNSS outages and the fusion
 //! that keeps the pose while GNSS is good.
+//!
+//! - [`two_wheel`]: the paper's 2W model, eq. (1)-(2).
+//! - [`estimate_file`]: odometry parameters from `vehicle.toml`, the
+//!   calibrator's JSON or the wire estimate.
+//! - [`dead_reckoning`]: the sample-by-sample dead-reckoner (wheel or gyro heading).
+//! - [`inputs`]: the odometry's inputs in processing order.
+//! - [`evaluate`]: simulated GNSS outages scored against the truth.
+//! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
+//! - [`serve`]: the iceoryx2 pose service.
 
 pub mod dead_reckoning;
 pub mod estimate_file;

@@ -115,7 +115,7 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
     );
     println!("heading    {}", report.heading);
     println!();
-    println!("  start s  length s  distance m   error m  error %  start yaw from");
+    println!("  start s  length s  distance m   error m  error %  start pose from");
     for o in &report.outages {
         let pct = o
             .error_pct

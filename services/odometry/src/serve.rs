@@ -538,7 +538,7 @@ pub fn serve(
                 Err(ProcessError::Input(e)) => {
                     summary.skipped += 1;
                     // The first ten, then every thousandth: a broken stream must not flood the log.
-                    if summary.skipped <= 10 || summary.skipped % 1000 == 0 {
+                    if summary.skipped <= 10 || summary.skipped.is_multiple_of(1000) {
                         tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
                     }
                 }

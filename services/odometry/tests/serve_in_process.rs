@@ -131,7 +131,16 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
             estimates
                 .publish(new.to_wire(Header::from_seconds(t, 0), 1))
                 .expect("publish estimate");
+            sent.push(Input::Estimate {
+                t_s: t,
+                version: 1,
+                estimate: new,
+            });
             std::thread::sleep(Duration::from_millis(200));
+        }
+        // Irregular pauses, so that wakeups group the samples differently.
+        if i % 97 == 0 {
+            std::thread::sleep(Duration::from_millis(3));
         }
         imu.publish(Imu {
             header: Header::from_seconds(t, 0),

@@ -167,18 +167,20 @@ impl DriveBuilder {
     /// What was not recorded, and why.
     pub fn warnings(&self) -> Vec<String> {
         let mut out = Vec::new();
-        for k in 0..4 {
-            if self.skipped_time[k] > 0 {
+        for ((name, time), nonfinite) in NAMES
+            .iter()
+            .zip(self.skipped_time)
+            .zip(self.skipped_nonfinite)
+        {
+            if time > 0 {
                 out.push(format!(
-                    "{}: {} samples not recorded: time not after the previous sample \
-                     (a publisher restarted?)",
-                    NAMES[k], self.skipped_time[k]
+                    "{name}: {time} samples not recorded: time not after the previous sample \
+                     (a publisher restarted?)"
                 ));
             }
-            if self.skipped_nonfinite[k] > 0 {
+            if nonfinite > 0 {
                 out.push(format!(
-                    "{}: {} samples not recorded: non-finite values",
-                    NAMES[k], self.skipped_nonfinite[k]
+                    "{name}: {nonfinite} samples not recorded: non-finite values"
                 ));
             }
         }

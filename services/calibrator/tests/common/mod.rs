@@ -145,7 +145,7 @@ impl Synth {
                 gx_rad_s: None,
                 gy_rad_s: None,
             });
-            if k % 10 == 0 {
+            if k.is_multiple_of(10) {
                 let (s, c) = th.sin_cos();
                 gnss.push(GnssSample {
                     t_s: t + self.gnss_late_s,

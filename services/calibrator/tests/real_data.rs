@@ -1,0 +1,74 @@
+//! The real drives of ../shared/data/real (skipped with a printed reason
+//! when the folder is absent).
+
+mod common;
+
+use calibrator::{calibrate, CalibrationConfig, WarningCode};
+
+fn load(name: &str) -> Option<interfaces::drive::Drive> {
+    let dir = common::real_data()?;
+    Some(sensor_bridge::read_drive(&dir.join(name)).unwrap().drive)
+}
+
+#[test]
+fn the_two_wid_trials_give_circumferences_that_agree() {
+    let (Some(a), Some(b)) = (load("wid-trial02"), load("wid-trial04")) else {
+        return;
+    };
+    let ca = calibrate(&a, &CalibrationConfig::default()).unwrap();
+    let cb = calibrate(&b, &CalibrationConfig::default()).unwrap();
+    for c in [&ca, &cb] {
+        // The README: a fit of the effective rear circumference gives roughly 1.83-1.84 m.
+        for v in [c.circumference_m.rl, c.circumference_m.rr] {
+            assert!((1.81..1.86).contains(&v), "{:?}", c.circumference_m);
+        }
+        assert!(
+            (1.30..1.60).contains(&c.track_width_m),
+            "{}",
+            c.track_width_m
+        );
+        assert!(
+            c.diagnostics.wheel_rate_offsets.is_some(),
+            "hub-gyro wheel rates read an offset at rest"
+        );
+    }
+    let mean = |c: &calibrator::Calibration| 0.5 * (c.circumference_m.rl + c.circumference_m.rr);
+    let d = (mean(&ca) - mean(&cb)).abs();
+    assert!(
+        d < 0.005,
+        "trial02 and trial04 disagree by {:.2} mm",
+        1000.0 * d
+    );
+}
+
+#[test]
+fn the_nearly_straight_comma_drive_pins_the_common_scale_and_says_so() {
+    let Some(d) = load("comma2k19-seg40") else {
+        return;
+    };
+    let cal = calibrate(&d, &CalibrationConfig::default()).unwrap();
+    assert!(cal.has_warning(WarningCode::NoTurn), "{:?}", cal.warnings);
+    assert!(cal.has_warning(WarningCode::TrackWidthFixed));
+    // The truth track's length over the mean wheel revolutions.
+    let truth = d.truth.as_ref().unwrap();
+    let revs = d.wheel_revolutions().unwrap();
+    let (t0, t1) = (
+        truth[0].t_s.max(revs[0].t_s),
+        truth[truth.len() - 1].t_s.min(revs[revs.len() - 1].t_s),
+    );
+    let len: f64 = truth
+        .windows(2)
+        .filter(|w| w[0].t_s >= t0 && w[1].t_s <= t1)
+        .map(|w| (w[1].x_m - w[0].x_m).hypot(w[1].y_m - w[0].y_m))
+        .sum();
+    let at = |t: f64| {
+        let i = revs.partition_point(|r| r.t_s < t).min(revs.len() - 1);
+        0.5 * (revs[i].rl + revs[i].rr)
+    };
+    let scale = len / (at(t1) - at(t0));
+    let mean = 0.5 * (cal.circumference_m.rl + cal.circumference_m.rr);
+    assert!(
+        (mean / scale - 1.0).abs() < 0.003,
+        "mean {mean:.5} vs truth scale {scale:.5}"
+    );
+}
