@@ -155,33 +155,13 @@ fn windows(drive: &Drive, k: usize) -> Vec<Window> {
     out
 }
 
-/// Least squares y = X b (normal equations; a handful of regressors).
+/// Least squares y = X b (a handful of regressors), solved by SVD.
 fn least_squares(rows: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
     let p = rows[0].len();
-    let mut a = vec![vec![0.0; p + 1]; p];
-    for (x, yi) in rows.iter().zip(y) {
-        for r in 0..p {
-            for c in 0..p {
-                a[r][c] += x[r] * x[c];
-            }
-            a[r][p] += x[r] * yi;
-        }
-    }
-    for col in 0..p {
-        let piv = (col..p)
-            .max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
-            .unwrap();
-        a.swap(col, piv);
-        for r in 0..p {
-            if r != col {
-                let f = a[r][col] / a[col][col];
-                for c in col..=p {
-                    a[r][c] -= f * a[col][c];
-                }
-            }
-        }
-    }
-    (0..p).map(|r| a[r][p] / a[r][r]).collect()
+    let x = nalgebra::DMatrix::from_fn(rows.len(), p, |r, c| rows[r][c]);
+    let y = nalgebra::DVector::from_column_slice(y);
+    let b = x.svd(true, true).solve(&y, 1e-12).unwrap();
+    b.iter().copied().collect()
 }
 
 fn rms_residual(rows: &[Vec<f64>], y: &[f64], b: &[f64]) -> f64 {

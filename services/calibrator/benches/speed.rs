@@ -4,8 +4,10 @@
 //! and round, 100 Hz wheels, 100 Hz IMU, 10 Hz GNSS) for 10 min, 1 h and
 //! 4 h; for each: the wall time of `calibrate` (median of a few runs, one
 //! thread) for the paper method (9 iterations) and the batch method, and the
-//! peak resident memory. The drive is simulated first and its own memory is
-//! reported apart (`drive MB`): `calibrate` works on the drive in memory.
+//! peak resident memory. The drive is simulated first; its `truth.csv` rows
+//! are dropped before calibrating (the calibration never reads them and a
+//! recorded drive has none), so the memory figures are those of a user's
+//! drive in memory plus the calibration.
 //!
 //! Run one size alone (a fresh process, so VmHWM is that size's peak):
 //! `cargo bench -p calibrator --bench speed -- 3600`.
@@ -30,7 +32,7 @@ fn main() {
     if sizes.len() > 1 {
         // Each size in its own process, so that the peak memory is its own.
         let exe = std::env::current_exe().expect("bench executable");
-        println!("| drive | wheel samples | method | time (median of 3) | ms per drive-minute | peak RSS before / after calibrate |");
+        println!("| drive | wheel samples | method | time (median of 3) | ms per drive-minute | peak RSS before / after calibrate (drive resident) |");
         println!("|---|---|---|---|---|---|");
         for s in sizes {
             let out = std::process::Command::new(&exe)
@@ -45,7 +47,8 @@ fn main() {
     let duration = sizes[0];
     let mut sim = SimConfig::new(Scenario::Long, 7);
     sim.duration_s = Some(duration);
-    let drive = simulate(&sim).expect("simulate");
+    let mut drive = simulate(&sim).expect("simulate");
+    drive.truth = None;
     let n = drive.wheels.samples.len();
     let before = common::peak_memory_mb().unwrap_or(f64::NAN);
     let resident = common::resident_memory_mb().unwrap_or(f64::NAN);
@@ -68,14 +71,15 @@ fn main() {
         let after = common::peak_memory_mb().unwrap_or(f64::NAN);
         let cal = last.expect("ran");
         println!(
-            "| {:.0} min | {} | {} | {:.3} s | {:.1} | {:.0} MB / {:.0} MB |",
+            "| {:.0} min | {} | {} | {:.3} s | {:.1} | {:.0} MB / {:.0} MB ({:.0} MB) |",
             duration / 60.0,
             n,
             method,
             times[1],
             1000.0 * times[1] / (duration / 60.0),
             before,
-            after
+            after,
+            resident
         );
         eprintln!(
             "  ({} {:.0} min: c_RL {:.5} c_RR {:.5} track {:.4}, {} warnings)",

@@ -499,7 +499,7 @@ fn solve_step(
     lambda: f64,
     priors: &[(usize, f64, f64)],
     g: &[f64],
-) -> Option<(DVector<f64>, Vec<Vector3<f64>>)> {
+) -> Option<(DVector<f64>, Vec<Vector3<f64>>, f64)> {
     let mut s = DMatrix::zeros(ng, ng);
     let mut rhs = DVector::zeros(ng);
     let mut inv_ll = Vec::with_capacity(accs.len());
@@ -526,21 +526,23 @@ fn solve_step(
         rhs -= &hgl_inv * DVector::from_iterator(3, a.bl.iter().copied());
         inv_ll.push(inv);
     }
-    let dg = s
-        .clone()
-        .cholesky()
-        .map(|c| c.solve(&rhs))
-        .or_else(|| s.lu().solve(&rhs))?;
+    let chol = s.clone().cholesky()?;
+    let dg = chol.solve(&rhs);
     if !dg.iter().all(|v| v.is_finite()) {
         return None;
     }
+    // The step in units of the parameters' (unit-scale) sigmas.
+    let inv = chol.inverse();
+    let ratio = (0..ng)
+        .map(|i| dg[i].abs() / inv[(i, i)].max(1e-300).sqrt())
+        .fold(0.0, f64::max);
     let mut dl = Vec::with_capacity(accs.len());
     for (a, inv) in accs.iter().zip(&inv_ll) {
         let t = a.hgl.transpose() * &dg;
         let v = a.bl - Vector3::new(t[0], t[1], t[2]);
         dl.push(inv * v);
     }
-    Some((dg, dl))
+    Some((dg, dl, ratio))
 }
 
 /// Outcome of a fit.
@@ -624,13 +626,14 @@ pub fn fit(
         settings.scale = robust_scale(&eval_all(&g, &poses, &settings).1);
         settings.jacobian = true;
         let tolerance = if last_stage { 1e-8 } else { 1e-5 };
+        let step_tolerance = if last_stage { 1e-3 } else { 0.1 };
         let (mut cost, mut evals) = eval_all(&g, &poses, &settings);
         for it in 0..40 {
             let accs: Vec<Acc> = evals.iter().filter_map(|e| e.acc.clone()).collect();
             let mut accepted = false;
             let mut converged = false;
             while lambda < 1e10 {
-                let Some((dg, dl)) = solve_step(&accs, ng, lambda, &priors, &g) else {
+                let Some((dg, dl, ratio)) = solve_step(&accs, ng, lambda, &priors, &g) else {
                     lambda *= 10.0;
                     continue;
                 };
@@ -650,7 +653,9 @@ pub fn fit(
                     evals = evals_new;
                     lambda = (lambda / 3.0).max(1e-12);
                     accepted = true;
-                    converged = rel < tolerance;
+                    // Done when the cost stalls or the step is a small
+                    // fraction of the parameters' sigmas.
+                    converged = rel < tolerance || ratio < step_tolerance;
                     break;
                 }
                 lambda *= 5.0;
@@ -659,9 +664,13 @@ pub fn fit(
                 break;
             }
             if it % 4 == 3 {
-                // Re-estimate the robust scale as the fit improves.
-                settings.scale = robust_scale(&evals);
-                (cost, evals) = eval_all(&g, &poses, &settings);
+                // Re-estimate the robust scale as the fit improves (a change
+                // under 2 % is not worth a new cost function).
+                let scale = robust_scale(&evals);
+                if (scale / settings.scale - 1.0).abs() > 0.02 {
+                    settings.scale = scale;
+                    (cost, evals) = eval_all(&g, &poses, &settings);
+                }
             }
         }
         if !g.iter().all(|v| v.is_finite()) {

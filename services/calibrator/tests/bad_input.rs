@@ -287,7 +287,7 @@ fn garbage_never_panics() {
             let i = rng.random_range(0..n);
             match rng.random_range(0..4) {
                 0 => d.wheels.samples[i].rl = f64::NAN,
-                1 => d.wheels.samples[i].t_s = d.wheels.samples[i].t_s - 5.0,
+                1 => d.wheels.samples[i].t_s -= 5.0,
                 2 => d.wheels.samples[i].rr = 1e12,
                 _ => d.wheels.samples[i].rl = -d.wheels.samples[i].rl,
             }

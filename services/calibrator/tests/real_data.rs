@@ -7,7 +7,10 @@ use calibrator::{calibrate, CalibrationConfig, WarningCode};
 
 fn load(name: &str) -> Option<interfaces::drive::Drive> {
     let dir = common::real_data()?;
-    Some(sensor_bridge::read_drive(&dir.join(name)).unwrap().drive)
+    match sensor_bridge::read_drive(&dir.join(name)) {
+        Ok(loaded) => Some(loaded.drive),
+        Err(e) => panic!("cannot read {name}: {e}"),
+    }
 }
 
 #[test]

@@ -3,6 +3,8 @@
 //! and scale. Small and fast; the simulator covers the physics.
 
 #![allow(dead_code)]
+// Test helpers: a failure here is a broken test set-up, a panic is the right answer.
+#![allow(clippy::expect_used, clippy::unwrap_used)]
 
 use interfaces::drive::{
     Drive, GnssAntenna, GnssSample, ImuSample, TruthSample, VehicleParams, WheelSample,
