@@ -34,7 +34,11 @@ const WARMUP: usize = 300;
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     if args.iter().any(|a| a == "--relay") {
-        relay();
+        relay(false);
+        return;
+    }
+    if args.iter().any(|a| a == "--relay-all") {
+        relay(true);
         return;
     }
     let seconds: f64 = args
@@ -45,15 +49,33 @@ fn main() {
     run(seconds);
 }
 
-/// The bare relay: wheels in, the same header out as a pose.
-fn relay() {
+/// The bare relay: wheels in, the same header out as a pose. With `all`, it
+/// also subscribes to IMU, GNSS and heading and wakes on their events too
+/// (the odometry's wakeup pattern), draining them without any work.
+fn relay(all: bool) {
     let bus = Bus::from_env("bench-relay").expect("bus");
+    let others = if all {
+        Some((
+            bus.subscriber::<Imu>().expect("imu"),
+            bus.subscriber::<GnssFix>().expect("gnss"),
+            bus.subscriber::<Heading>().expect("heading"),
+        ))
+    } else {
+        None
+    };
     let wheels = bus.subscriber::<WheelRotations>().expect("wheels");
     let mut poses: TopicPublisher<Pose> = bus.publisher().expect("poses");
     let waitset = bus.waitset().expect("waitset");
     let _g = waitset
         .attach_notification(wheels.listener())
         .expect("attach");
+    let _go = others.as_ref().map(|(i, g, h)| {
+        (
+            waitset.attach_notification(i.listener()).expect("attach"),
+            waitset.attach_notification(g.listener()).expect("attach"),
+            waitset.attach_notification(h.listener()).expect("attach"),
+        )
+    });
     let _t = waitset
         .attach_interval(Duration::from_millis(100))
         .expect("tick");
@@ -63,6 +85,14 @@ fn relay() {
             .wait_and_process_once(|_| CallbackProgression::Continue)
             .expect("wait");
         wheels.take_events().expect("events");
+        if let Some((i, g, h)) = &others {
+            i.take_events().expect("events");
+            g.take_events().expect("events");
+            h.take_events().expect("events");
+            while i.receive().expect("receive").is_some() {}
+            while g.receive().expect("receive").is_some() {}
+            while h.receive().expect("receive").is_some() {}
+        }
         while let Some(w) = wheels.receive().expect("receive") {
             poses
                 .publish(Pose {
@@ -255,6 +285,20 @@ fn run(seconds: f64) {
     let relay = g.spawn_exe("relay", &exe, &["--relay"]);
     let bare = phase(&g, &mut p, &wire, seconds, &arrivals);
     g.kill(relay);
+    let relay = g.spawn_exe("relay-all", &exe, &["--relay-all"]);
+    let start = Instant::now();
+    while p.imu.subscriber_count() < 1
+        || p.heading.subscriber_count() < 1
+        || p.gnss.subscriber_count() < 1
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "relay did not subscribe"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let bare_all = phase(&g, &mut p, &wire, seconds, &arrivals);
+    g.kill(relay);
 
     let vehicle = folder.join("vehicle.toml");
     let odo = g.spawn(
@@ -291,6 +335,7 @@ fn run(seconds: f64) {
     );
     for (name, s) in [
         ("bare relay (2 hops, no work)", &bare),
+        ("bare relay waking on all 4 sensor topics", &bare_all),
         ("odometry serve (2 hops + fusion)", &odometry),
     ] {
         println!(

@@ -3,8 +3,11 @@
 //! wire types hold across languages.
 //!
 //! Python is looked for in `WHEELCAL_PYTHON`, then
-//! `target/python-venv/bin/python`, then `python3`; the test skips (with the
-//! reason printed) when none of them can `import iceoryx2`.
+//! `target/python-venv/bin/python`, then `python3`. When none of them can
+//! `import iceoryx2` but `python3` exists, the test makes the venv
+//! `target/python-venv` and installs `iceoryx2==0.10.0` from PyPI into it (once;
+//! set `WHEELCAL_PYTHON_NO_INSTALL=1` to forbid that). Without Python, or when
+//! the install fails, the test skips with the reason printed.
 
 use integration_tests::graph::{wait_until, Graph, WATCHDOG};
 use interfaces::bus::Bus;
@@ -37,7 +40,28 @@ fn python_with_iceoryx2() -> Result<PathBuf, String> {
             Err(e) => reasons.push(format!("{}: {e}", c.display())),
         }
     }
-    Err(reasons.join("; "))
+    if std::env::var_os("WHEELCAL_PYTHON_NO_INSTALL").is_some() {
+        return Err(reasons.join("; "));
+    }
+    // Make the venv and install the package (PyPI), then try again.
+    let venv = workspace.join("target/python-venv");
+    let made = Command::new("python3")
+        .args(["-m", "venv"])
+        .arg(&venv)
+        .status()
+        .map_err(|e| format!("{}; python3 -m venv: {e}", reasons.join("; ")))?;
+    if !made.success() {
+        return Err(format!("{}; python3 -m venv failed", reasons.join("; ")));
+    }
+    let python = venv.join("bin/python");
+    let installed = Command::new(&python)
+        .args(["-m", "pip", "install", "-q", "iceoryx2==0.10.0"])
+        .status()
+        .map_err(|e| format!("pip install iceoryx2: {e}"))?;
+    if !installed.success() {
+        return Err("pip install iceoryx2==0.10.0 failed (no network?)".to_string());
+    }
+    Ok(python)
 }
 
 fn pose(i: u64) -> Pose {

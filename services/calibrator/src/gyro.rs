@@ -6,10 +6,22 @@
 //!
 //! The model is the one the odometry runs through a GNSS outage: distance
 //! from the calibrated wheels, heading from the gyro. It is fitted to the GNSS
-//! fixes by the batch machinery ([`crate::batch::fit`]) with the
-//! circumferences held at their estimate. The mean gyro rate at standstill,
-//! when the drive has some, enters as a prior on the bias. Without enough
-//! turning the scale is held at 0 (and a warning says so).
+//! fixes by the batch machinery ([`crate::batch::fit`]) with the ratio of the
+//! circumferences held at their estimate. Beside the bias and scale it fits
+//! - a common distance factor `k` on both circumferences: where the wheel
+//!   difference is a poor heading source (wheel-rate sensors whose difference
+//!   drifts, as on the WID drives), the 2W fit trades the scale against its
+//!   heading errors, while this model's heading comes from the gyro; the
+//!   calibration takes `k` when this model fits the GNSS much better
+//!   ([`prefer_distance_factor`]);
+//! - the GNSS antenna position in the body frame (a prior of
+//!   [`ANTENNA_PRIOR_SIGMA_M`] around `vehicle.toml`'s value): an antenna
+//!   half a metre ahead of the rear axle moves a metre sideways in a U-turn,
+//!   which a model of the rear axle would otherwise put into the gyro scale.
+//!
+//! The mean gyro rate at standstill, when the drive has some, enters as a
+//! prior on the bias. Without enough turning the scale is held at 0 (and a
+//! warning says so).
 
 use crate::batch::{fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::prep::Prepared;
@@ -18,6 +30,10 @@ use crate::report::{Warning, WarningCode};
 use crate::uncertainty::Sigmas;
 use crate::CalibrationError;
 use serde::{Deserialize, Serialize};
+
+/// 1-sigma of the prior on the GNSS antenna position around `vehicle.toml`'s
+/// value (or the axle centre), m: an antenna is somewhere on the car.
+pub const ANTENNA_PRIOR_SIGMA_M: f64 = 1.0;
 
 /// The gyro calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -36,6 +52,37 @@ pub struct GyroEstimate {
     pub standstill_s: f64,
     /// RMS of the GNSS residuals of the wheel + gyro model, m.
     pub residual_rms_m: f64,
+    /// The common factor on both circumferences this model fits (1 = the
+    /// circumferences it was given).
+    #[serde(default = "one")]
+    pub distance_factor: f64,
+    /// 1-sigma of `distance_factor`.
+    #[serde(default)]
+    pub sigma_distance_factor: f64,
+    /// GNSS antenna position (body x forward, y left, from the rear-axle
+    /// centre) this model fits, m.
+    #[serde(default)]
+    pub antenna_m: [f64; 2],
+    /// 1-sigma of `antenna_m`, m.
+    #[serde(default)]
+    pub sigma_antenna_m: [f64; 2],
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Index of the distance factor and of the antenna x (y follows) among the
+/// gyro model's parameters (bias and scale are 0 and 1).
+const DISTANCE: usize = 2;
+const ANTENNA: usize = 3;
+
+/// Whether the calibration should take the gyro model's distance factor:
+/// when the wheel + gyro model fits the GNSS at least twice as well as the
+/// 2W model (whose scale then absorbs heading errors of the wheels).
+pub fn prefer_distance_factor(gyro: &GyroEstimate, two_wheel_residual_rms_m: Option<f64>) -> bool {
+    two_wheel_residual_rms_m.is_some_and(|r| gyro.residual_rms_m < 0.5 * r)
+        && (gyro.distance_factor - 1.0).abs() < 0.05
 }
 
 struct GyroModel<'a> {
@@ -45,11 +92,16 @@ struct GyroModel<'a> {
     slip: SlipGain,
     prior_bias: Option<(f64, f64)>,
     hold_scale: bool,
+    antenna_prior: [f64; 2],
 }
 
 impl StepModel for GyroModel<'_> {
     fn n_global(&self) -> usize {
-        2
+        5
+    }
+
+    fn lever_index(&self) -> Option<usize> {
+        Some(ANTENNA)
     }
 
     fn increments(
@@ -71,7 +123,8 @@ impl StepModel for GyroModel<'_> {
         *d_dyaw = [0.0; MAX_GLOBAL];
         d_dyaw[0] = -dt / (1.0 + s);
         d_dyaw[1] = -num / ((1.0 + s) * (1.0 + s));
-        Some((ds, num / (1.0 + s)))
+        d_ds[DISTANCE] = ds;
+        Some((ds * g[DISTANCE], num / (1.0 + s)))
     }
 
     fn slip(&self) -> SlipGain {
@@ -86,11 +139,15 @@ impl StepModel for GyroModel<'_> {
         if self.hold_scale {
             out.push((1, 0.0, 1e-6));
         }
+        for (i, value) in self.antenna_prior.iter().enumerate() {
+            out.push((ANTENNA + i, *value, ANTENNA_PRIOR_SIGMA_M));
+        }
         out
     }
 }
 
-/// Fit the gyro bias and scale with the circumferences `c` (and side-slip gain, if any).
+/// Fit the gyro bias and scale (with the distance factor and the antenna
+/// position) on the circumferences `c` (and side-slip gain, if any).
 pub fn estimate(
     p: &Prepared,
     r: &Reference,
@@ -118,6 +175,7 @@ pub fn estimate(
         slip: side_slip_gain.map_or(SlipGain::Off, SlipGain::Fixed),
         prior_bias: standstill.map(|(b, s, _)| (b, s)),
         hold_scale,
+        antenna_prior: p.lever_arm,
     };
     let b0 = standstill
         .map(|s| s.0)
@@ -131,7 +189,8 @@ pub fn estimate(
     } else {
         &lengths[..]
     };
-    let result = fit(&model, p, r, &[b0, 0.0], lengths, &breaks, &mut |_| {});
+    let g0 = [b0, 0.0, 1.0, p.lever_arm[0], p.lever_arm[1]];
+    let result = fit(&model, p, r, &g0, lengths, &breaks, &mut |_| {});
     let f = match result {
         Ok(f) => f,
         Err(e) => {
@@ -149,6 +208,11 @@ pub fn estimate(
         Some(j) => (sig.rl.max(j.rl), sig.rr.max(j.rr)),
         None => (sig.rl, sig.rr),
     };
+    let sigma = |i: usize| {
+        let formal = f.formal[(i, i)].max(0.0);
+        let jack = f.jackknife.as_ref().map_or(0.0, |j| j[(i, i)].max(0.0));
+        formal.max(jack).sqrt()
+    };
     Ok(Some(GyroEstimate {
         bias_rad_s: f.g[0],
         sigma_bias_rad_s: sb,
@@ -157,5 +221,9 @@ pub fn estimate(
         standstill_bias_rad_s: standstill.map(|s| s.0),
         standstill_s: standstill.map_or(0.0, |s| s.2),
         residual_rms_m: f.residual_rms_m,
+        distance_factor: f.g[DISTANCE],
+        sigma_distance_factor: sigma(DISTANCE),
+        antenna_m: [f.g[ANTENNA], f.g[ANTENNA + 1]],
+        sigma_antenna_m: [sigma(ANTENNA), sigma(ANTENNA + 1)],
     }))
 }

@@ -89,6 +89,8 @@ pub enum WarningCode {
     MethodsDisagree,
     /// Batch segments were left out.
     SegmentsDropped,
+    /// The common scale comes from the wheel + gyro model, not the 2W fit.
+    ScaleFromGyroModel,
 }
 
 /// A warning: a stable code and a message naming the cause.
@@ -388,6 +390,46 @@ pub fn assemble(
     } else {
         None
     };
+    // Where the wheel + gyro model fits the GNSS far better than the 2W model,
+    // its common distance factor is the better measure of the scale.
+    let mut c = primary.c;
+    let mut sigma_m = RearSigma::from(&primary.sigmas);
+    if let Some(g) = gyro.filter(|g| crate::gyro::prefer_distance_factor(g, primary.residual_rms_m))
+    {
+        c = [c[0] * g.distance_factor, c[1] * g.distance_factor];
+        let mean = 0.5 * (c[0] + c[1]);
+        let s_mean = mean * g.sigma_distance_factor;
+        let with_mean = |s: Option<f64>| {
+            let d = sigma_m.difference.unwrap_or(0.0);
+            s.map(|_| (s_mean * s_mean + 0.25 * d * d).sqrt())
+        };
+        sigma_m = RearSigma {
+            rl: with_mean(sigma_m.rl),
+            rr: with_mean(sigma_m.rr),
+            difference: sigma_m.difference,
+            mean: Some(s_mean),
+        };
+        warnings.retain(|w| w.code != WarningCode::ScaleUnobservable);
+        warnings.push(Warning::new(
+            WarningCode::ScaleFromGyroModel,
+            format!(
+                "common scale taken from the wheel + gyro model: it fits the GNSS to {:.3} m RMS against {:.3} m for the 2W model, whose scale absorbs the wheels' heading errors; both circumferences x {:.5} (sigma {:.5})",
+                g.residual_rms_m,
+                primary.residual_rms_m.unwrap_or(f64::NAN),
+                g.distance_factor,
+                g.sigma_distance_factor
+            ),
+        ));
+        if s_mean > 0.002 {
+            warnings.push(Warning::new(
+                WarningCode::ScaleUnobservable,
+                format!(
+                    "the common scale (c_RL + c_RR)/2 is poorly determined: sigma {:.2} mm (limit 2.0 mm) from the wheel + gyro model",
+                    1000.0 * s_mean
+                ),
+            ));
+        }
+    }
     let n = p.len();
     let reference = thin(
         (0..n).map(|k| [r.x[k], r.y[k]]),
@@ -402,11 +444,8 @@ pub fn assemble(
         .collect();
     let standstill_s = p.standstill.iter().map(|(a, b)| b - a).sum();
     Ok(Calibration {
-        circumference_m: RearPair {
-            rl: primary.c[0],
-            rr: primary.c[1],
-        },
-        sigma_m: RearSigma::from(&primary.sigmas),
+        circumference_m: RearPair { rl: c[0], rr: c[1] },
+        sigma_m,
         track_width_m: primary.track,
         track_width_estimated: primary.track_estimated,
         sigma_track_width_m: if primary.track_estimated {

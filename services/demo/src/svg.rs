@@ -18,6 +18,7 @@ struct Frame {
     x0: f64,
     y1: f64,
     scale: f64,
+    height: f64,
 }
 
 impl Frame {
@@ -36,7 +37,13 @@ impl Frame {
         }
         let scale =
             ((W - 2.0 * MARGIN) / (x1 - x0).max(1.0)).min((H - TOP - MARGIN) / (y1 - y0).max(1.0));
-        Frame { x0, y1, scale }
+        let height = TOP + (y1 - y0) * scale + MARGIN;
+        Frame {
+            x0,
+            y1,
+            scale,
+            height,
+        }
     }
 
     fn px(&self, [x, y]: [f64; 2]) -> (f64, f64) {
@@ -85,9 +92,10 @@ pub fn tracks_svg(
             .chain(poses.iter().map(|p| [p.x_m, p.y_m])),
     );
     let mut out = String::new();
+    let h = frame.height.round();
     let _ = writeln!(
         out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" viewBox="0 0 {W} {H}" font-family="sans-serif" font-size="13">"#
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{h}" viewBox="0 0 {W} {h}" font-family="sans-serif" font-size="13">"#
     );
     let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
     polyline(
@@ -105,33 +113,36 @@ pub fn tracks_svg(
             );
         }
     }
-    // Live poses, split into runs of one mode.
-    let mut run: Vec<[f64; 2]> = Vec::new();
-    let mut run_mode = None;
-    let flush = |out: &mut String, run: &mut Vec<[f64; 2]>, mode: Option<u8>| {
-        let color = if mode == Some(PoseMode::DeadReckoning as u8) {
-            "#d22"
-        } else {
-            "#24c"
-        };
-        polyline(
-            out,
-            &frame,
-            run,
-            &format!(r#"stroke="{color}" stroke-width="1.5""#),
-        );
-    };
+    // Live poses, split into runs of one mode (NoFix poses carry no
+    // position and are left out); dead-reckoning drawn last, on top.
+    let dr = PoseMode::DeadReckoning as u8;
+    let mut runs: Vec<(u8, Vec<[f64; 2]>)> = Vec::new();
     for p in poses.iter().step_by(5) {
-        if run_mode != Some(p.mode) && !run.is_empty() {
-            let last = *run.last().unwrap_or(&[p.x_m, p.y_m]);
-            flush(&mut out, &mut run, run_mode);
-            run.clear();
-            run.push(last);
+        if p.mode == PoseMode::NoFix as u8 {
+            continue;
         }
-        run_mode = Some(p.mode);
-        run.push([p.x_m, p.y_m]);
+        match runs.last_mut() {
+            Some((mode, pts)) if *mode == p.mode => pts.push([p.x_m, p.y_m]),
+            last => {
+                let joint = last.and_then(|(_, pts)| pts.last().copied());
+                let mut pts: Vec<[f64; 2]> = joint.into_iter().collect();
+                pts.push([p.x_m, p.y_m]);
+                runs.push((p.mode, pts));
+            }
+        }
     }
-    flush(&mut out, &mut run, run_mode);
+    for top in [false, true] {
+        for (mode, pts) in runs.iter().filter(|(m, _)| (*m == dr) == top) {
+            let color = if *mode == dr { "#d22" } else { "#24c" };
+            let width = if *mode == dr { "2.5" } else { "1.5" };
+            polyline(
+                &mut out,
+                &frame,
+                pts,
+                &format!(r#"stroke="{color}" stroke-width="{width}""#),
+            );
+        }
+    }
     polyline(
         &mut out,
         &frame,
@@ -154,19 +165,17 @@ pub fn tracks_svg(
             );
         }
     }
-    let gyro = report.offline.iter().find(|r| r.heading == "gyro");
-    let numbers = match gyro {
-        Some(r) => format!(
-            "DR error at the outage end: nominal {:.1} m, calibrated {}",
-            r.nominal_end_error_m,
-            r.calibrated_end_error_m
-                .map_or("-".to_string(), |e| format!("{e:.1} m"))
-        ),
-        None => String::new(),
-    };
+    let nominal = report.filter.first().map(|r| r.end_error_m);
+    let numbers = format!(
+        "odometry error at the outage end: nominal c {}, calibrated c {} (live)",
+        nominal.map_or("-".to_string(), |e| format!("{e:.1} m")),
+        report
+            .live
+            .map_or("-".to_string(), |l| format!("{:.1} m", l.end_error_m))
+    );
     let _ = writeln!(
         out,
-        r#"<text x="{MARGIN}" y="24" font-size="16">wheelcal demo: {:.0} s GNSS outage ({:.0} m). {numbers}</text>"#,
+        r#"<text x="{MARGIN}" y="24" font-size="14">wheelcal demo: {:.0} s GNSS outage ({:.0} m). {numbers}</text>"#,
         outage.1 - outage.0,
         report.outage_distance_m
     );
@@ -174,12 +183,12 @@ pub fn tracks_svg(
         ("#999", "truth"),
         ("#2a2", "GNSS fixes"),
         ("#24c", "odometry, fused"),
-        ("#d22", "odometry, dead-reckoning"),
-        ("#f80", "DR with nominal c"),
-        ("#819", "DR with calibrated c"),
+        ("#d22", "odometry, DR"),
+        ("#f80", "pure DR, nominal c"),
+        ("#819", "pure DR, calibrated c"),
     ];
     for (i, (color, label)) in legend.iter().enumerate() {
-        let x = MARGIN + 160.0 * i as f64;
+        let x = MARGIN + 158.0 * i as f64;
         let _ = writeln!(
             out,
             r#"<rect x="{x}" y="44" width="14" height="4" fill="{color}"/><text x="{}" y="52">{label}</text>"#,

@@ -114,6 +114,10 @@ pub struct Estimate {
     pub sigma_m: Option<(f64, f64)>,
     /// Mean dead-reckoning error on held-out data, m, when known.
     pub quality_m: Option<f64>,
+    /// GNSS antenna position the calibration found (body x forward, y left,
+    /// from the rear-axle centre), m, when it has one: `gyro.antenna_m`, else
+    /// `gnss_antenna_m` of the calibrator's JSON.
+    pub antenna_m: Option<[f64; 2]>,
 }
 
 /// Why parameters could not be read.
@@ -171,6 +175,17 @@ struct EstimateJson {
     gyro_scale: Option<f64>,
     #[serde(default)]
     sigma_m: Option<RearPair>,
+    #[serde(default)]
+    gyro: Option<GyroJson>,
+    #[serde(default)]
+    gnss_antenna_m: Option<[f64; 2]>,
+}
+
+/// The part of the calibrator's `gyro` object the odometry uses.
+#[derive(Debug, Deserialize)]
+struct GyroJson {
+    #[serde(default)]
+    antenna_m: Option<[f64; 2]>,
 }
 
 impl Estimate {
@@ -197,6 +212,11 @@ impl Estimate {
             params,
             sigma_m: parsed.sigma_m.map(|s| (s.rl, s.rr)),
             quality_m: None,
+            antenna_m: parsed
+                .gyro
+                .and_then(|g| g.antenna_m)
+                .or(parsed.gnss_antenna_m)
+                .filter(|a| a.iter().all(|v| v.is_finite())),
         })
     }
 
@@ -225,6 +245,7 @@ impl Estimate {
             params,
             sigma_m: Some((wire.sigma_rl_m, wire.sigma_rr_m)),
             quality_m: Some(wire.quality_m),
+            antenna_m: None,
         })
     }
 
@@ -355,5 +376,19 @@ mod tests {
         };
         let w = 0.3;
         assert!((p.corrected_yaw_rate((1.0 + 0.02) * w + 0.01) - w).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_antenna_comes_from_the_gyro_object_else_the_top_level() {
+        let base = r#""circumference_m": {"rl": 1.83, "rr": 1.83}, "track_width_m": 1.45"#;
+        let gyro = format!(
+            r#"{{{base}, "gyro": {{"antenna_m": [0.5, -0.3]}}, "gnss_antenna_m": [1.0, 0.0]}}"#
+        );
+        let top = format!(r#"{{{base}, "gnss_antenna_m": [1.0, 0.0]}}"#);
+        let none = format!("{{{base}}}");
+        let a = |t: &str| Estimate::from_json_str(t, "test").unwrap().antenna_m;
+        assert_eq!(a(&gyro), Some([0.5, -0.3]));
+        assert_eq!(a(&top), Some([1.0, 0.0]));
+        assert_eq!(a(&none), None);
     }
 }

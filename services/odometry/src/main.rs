@@ -52,6 +52,33 @@ struct EvaluateArgs {
     /// Do not learn the rear wheels' zero offsets at standstill (see the README).
     #[arg(long)]
     no_wheel_offsets: bool,
+    /// The body point truth.csv follows: `axle` (the rear-axle centre, as the
+    /// drive format says), `antenna` (the GNSS antenna position in the
+    /// estimate: for drives whose truth is the GNSS track, e.g. WID), or `X,Y`
+    /// in metres (x forward, y left of the rear-axle centre).
+    #[arg(long, default_value = "axle")]
+    truth_point: String,
+}
+
+/// The body point `--truth-point` names.
+fn truth_point(arg: &str, antenna: Option<[f64; 2]>) -> Result<[f64; 2]> {
+    match arg {
+        "axle" => Ok([0.0, 0.0]),
+        "antenna" => antenna.context(
+            "--truth-point antenna needs an estimate with an antenna position (gyro.antenna_m or gnss_antenna_m)",
+        ),
+        xy => {
+            let v: Vec<f64> = xy
+                .split(',')
+                .map(|s| s.trim().parse::<f64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--truth-point `{xy}`: expected axle, antenna or X,Y"))?;
+            match v[..] {
+                [x, y] if x.is_finite() && y.is_finite() => Ok([x, y]),
+                _ => anyhow::bail!("--truth-point `{xy}`: expected axle, antenna or X,Y"),
+            }
+        }
+    }
 }
 
 fn main() -> Result<()> {
@@ -74,16 +101,22 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
-    let (params, source) = match &args.estimate {
+    let (params, source, antenna) = match &args.estimate {
         Some(path) => {
             let estimate = Estimate::load(path).context("cannot use the estimate")?;
-            (estimate.params, path.display().to_string())
+            (
+                estimate.params,
+                path.display().to_string(),
+                estimate.antenna_m,
+            )
         }
         None => (
             OdometryParams::nominal(&drive.vehicle),
             "nominal (vehicle.toml)".to_string(),
+            None,
         ),
     };
+    let truth_point_m = truth_point(&args.truth_point, antenna)?;
     let config = EvaluateConfig {
         outage_s: args.outage,
         spacing_s: args.spacing,
@@ -92,6 +125,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             learn_wheel_offsets: !args.no_wheel_offsets,
             ..OdometerConfig::default()
         },
+        truth_point_m,
         ..EvaluateConfig::default()
     };
     let report = evaluate(&drive, &params, &config)

@@ -127,6 +127,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 },
                 sigma_m: Some((1e-4, 1e-4)),
                 quality_m: Some(0.5),
+                antenna_m: None,
             };
             estimates
                 .publish(new.to_wire(Header::from_seconds(t, 0), 1))
