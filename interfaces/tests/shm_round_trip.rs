@@ -314,13 +314,13 @@ fn lossless_stream_loses_nothing_to_a_slow_subscriber() {
             "watchdog: got {next} of {FLOOD}"
         );
         sub.wait_events(Duration::from_millis(50)).expect("wait");
-        let mut batch = 0;
+        let mut batch = 0u32;
         while let Some(s) = sub.receive().expect("receive") {
             assert_eq!(s.header.seq, next, "samples arrive in order, none missing");
             assert_eq!(s.rl_rev, next as f64);
             next += 1;
             batch += 1;
-            if batch % 64 == 0 {
+            if batch.is_multiple_of(64) {
                 std::thread::sleep(Duration::from_millis(2)); // a slow subscriber
             }
         }

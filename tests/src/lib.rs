@@ -1,4 +1,6 @@
-//! Integration tests of the workspace; [`graph`] starts the real binaries
-//! as a process graph over iceoryx2 for the `graph_*` tests.
+//! Integration tests of the workspace: [`graph`] starts the real binaries as a
+//! process graph over iceoryx2 for the `graph_*` tests, and [`demo`] is the
+//! main job (`wheelcal-demo`) that runs the whole graph on a built-in drive.
 
+pub mod demo;
 pub mod graph;

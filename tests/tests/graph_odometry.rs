@@ -11,8 +11,8 @@ use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::write_drive;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use wheelcal_demo::default_drive;
-use wheelcal_demo::report::truth_at;
+use integration_tests::demo::default_drive;
+use integration_tests::demo::report::truth_at;
 
 /// The nominal circumferences are expected to be worse than the calibrated
 /// ones through the outage by at least this factor (observed: far more).

@@ -79,7 +79,7 @@ fn pose(i: u64) -> Pose {
         yaw_rad: 0.125 * i as f64,
         covariance,
         estimate_version: 2,
-        mode: if i % 2 == 0 {
+        mode: if i.is_multiple_of(2) {
             PoseMode::Fused as u8
         } else {
             PoseMode::DeadReckoning as u8
@@ -171,7 +171,7 @@ fn python_subscriber_reads_poses_published_from_rust() {
             .collect();
         assert_eq!(cov, p.covariance.to_vec());
         assert_eq!(v["estimate_version"], 2);
-        let mode = if i % 2 == 0 {
+        let mode = if i.is_multiple_of(2) {
             "fused"
         } else {
             "dead_reckoning"

@@ -805,10 +805,12 @@ fn handle_attempt(
                 version: current.map_or(0, |a| a.version) + 1,
                 ..*e
             };
-            publisher.publish(accepted.to_wire())?;
+            // Persisted before it is published: whoever sees it can rely on
+            // a restart starting from it.
             if let Some(path) = &cfg.state_file {
                 save_state(path, &accepted)?;
             }
+            publisher.publish(accepted.to_wire())?;
             tracing::info!(
                 "calibrator: PUBLISHED estimate v{}: c_rl = {:.4} m, c_rr = {:.4} m, track {:.4} m{}",
                 accepted.version,

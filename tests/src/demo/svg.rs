@@ -4,7 +4,7 @@
 //! red (dead-reckoning), and through the outage the same-start dead-reckoning
 //! with the nominal (orange) and the calibrated (purple) circumferences.
 
-use crate::report::OutageReport;
+use super::report::OutageReport;
 use interfaces::drive::Drive;
 use interfaces::wire::{Pose, PoseMode};
 use std::fmt::Write as _;
@@ -156,7 +156,7 @@ pub fn tracks_svg(
         r##"stroke="#819" stroke-width="2" stroke-dasharray="2 2""##,
     );
     for t in [outage.0, outage.1] {
-        if let Some((x, y)) = crate::report::truth_at(drive.truth.as_deref().unwrap_or_default(), t)
+        if let Some((x, y)) = super::report::truth_at(drive.truth.as_deref().unwrap_or_default(), t)
         {
             let (px, py) = frame.px([x, y]);
             let _ = writeln!(

@@ -205,7 +205,7 @@ fn dead_reckon(
             max_err = max_err.max(e);
             end_err = e;
         }
-        if k % 10 == 0 {
+        if k.is_multiple_of(10) {
             track.push([pose.x, pose.y]);
         }
     }

@@ -1,12 +1,12 @@
 //! `wheelcal-demo`: the whole process graph on a built-in drive.
 //!
-//! `cargo run --release -p wheelcal-demo` builds the service binaries it
+//! `cargo run --release -p integration-tests --bin wheelcal-demo` builds the service binaries it
 //! starts (calibrator, odometry) and runs the demo; Ctrl-C stops every process.
 
 use anyhow::{Context, Result};
 use clap::Parser;
 use std::path::PathBuf;
-use wheelcal_demo::{run, DemoOptions};
+use integration_tests::demo::{run, DemoOptions};
 
 /// Start bridge, calibrator and odometry on a simulated drive whose wheels
 /// start miscalibrated, with a long GNSS outage in its second half; show what
