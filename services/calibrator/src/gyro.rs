@@ -35,6 +35,11 @@ use serde::{Deserialize, Serialize};
 /// value (or the axle centre), m: an antenna is somewhere on the car.
 pub const ANTENNA_PRIOR_SIGMA_M: f64 = 1.0;
 
+/// 1-sigma of the prior on the gyro scale error around 0: the physics
+/// catalogue's typical size of `gyro_scale` (0.1-1 %). It only matters on
+/// drives that turn too little to pin the scale down by themselves.
+pub const GYRO_SCALE_PRIOR_SIGMA: f64 = 0.01;
+
 /// The gyro calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct GyroEstimate {
@@ -136,9 +141,12 @@ impl StepModel for GyroModel<'_> {
         if let Some((b, s)) = self.prior_bias {
             out.push((0, b, s));
         }
-        if self.hold_scale {
-            out.push((1, 0.0, 1e-6));
-        }
+        let scale_sigma = if self.hold_scale {
+            1e-6
+        } else {
+            GYRO_SCALE_PRIOR_SIGMA
+        };
+        out.push((1, 0.0, scale_sigma));
         for (i, value) in self.antenna_prior.iter().enumerate() {
             out.push((ANTENNA + i, *value, ANTENNA_PRIOR_SIGMA_M));
         }

@@ -5,7 +5,7 @@
 use interfaces::bus::{Bus, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::{GnssAntenna, VehicleParams};
 use interfaces::wire::{
-    CircumferenceEstimate, GnssFix, Header, Imu, Pose, PoseMode, WheelRotations,
+    CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, PoseMode, WheelRotations,
 };
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
@@ -86,22 +86,31 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     let mut wheels: TopicPublisher<WheelRotations> = bus.publisher().expect("wheels publisher");
     let mut gnss: TopicPublisher<GnssFix> = bus.publisher().expect("gnss publisher");
     let mut imu: TopicPublisher<Imu> = bus.publisher().expect("imu publisher");
+    let mut heading: TopicPublisher<Heading> = bus.publisher().expect("heading publisher");
     let mut estimates: TopicPublisher<CircumferenceEstimate> =
         bus.publisher().expect("estimate publisher");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
     // Wait for the service's subscribers, announce, and let them attach.
     let start = Instant::now();
-    while wheels.subscriber_count() < 1 || imu.subscriber_count() < 1 || gnss.subscriber_count() < 1
+    while wheels.subscriber_count() < 1
+        || imu.subscriber_count() < 1
+        || gnss.subscriber_count() < 1
+        || heading.subscriber_count() < 1
     {
         assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
         std::thread::sleep(Duration::from_millis(10));
     }
-    for announce in [wheels.announce(), gnss.announce(), imu.announce()] {
+    for announce in [
+        wheels.announce(),
+        gnss.announce(),
+        imu.announce(),
+        heading.announce(),
+    ] {
         announce.expect("announce");
     }
     std::thread::sleep(Duration::from_millis(300));
 
-    // 20 s straight east at 10 m/s; GNSS (5 Hz) only for the first 10 s.
+    // 20 s straight east at 10 m/s; GNSS and heading (5 Hz) from 0.2 s to 10 s.
     // Everything published is also kept, to run the same filter offline.
     let mut sent: Vec<Input> = Vec::new();
     let mut poses = Vec::new();
@@ -152,21 +161,44 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
             t_s: Header::from_seconds(t, 0).t_s(),
             gz_rad_s: 0.0,
         });
-        if i % 20 == 0 && t < 10.0 {
+        if i % 20 == 0 && i > 0 && t < 10.0 {
+            // A fix and a heading of the same instant, the heading published
+            // first and (every other time) alone in a wakeup before the fix:
+            // it arrives ahead of its wheel sample and of the fix it ties with,
+            // the batching case that must not change the processing order.
+            // `sent` keeps the processing order (fix before heading at a tie).
+            let t_s = Header::from_seconds(t, 0).t_s();
+            let (x_m, y_m) = (V * t, 0.05 * (0.7 * i as f64).cos());
+            let yaw_rad = 0.01 * (1.3 * i as f64).sin();
+            heading
+                .publish(Heading {
+                    header: Header::from_seconds(t, 0),
+                    yaw_rad,
+                    sigma_rad: 0.03,
+                })
+                .expect("publish heading");
+            if i % 40 == 0 {
+                std::thread::sleep(Duration::from_millis(2));
+            }
             gnss.publish(GnssFix {
                 header: Header::from_seconds(t, 0),
-                x_m: V * t,
-                y_m: 0.0,
+                x_m,
+                y_m,
                 sigma_m: 0.1,
                 fix: 1,
                 _pad: [0; 7],
             })
             .expect("publish gnss");
             sent.push(Input::Gnss {
-                t_s: Header::from_seconds(t, 0).t_s(),
-                x_m: V * t,
-                y_m: 0.0,
+                t_s,
+                x_m,
+                y_m,
                 sigma_m: Some(0.1),
+            });
+            sent.push(Input::Heading {
+                t_s,
+                yaw_rad,
+                sigma_rad: Some(0.03),
             });
         }
         let rev = V * t / C;
@@ -267,7 +299,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     assert_eq!(summary.stale_events, 1);
     assert_eq!(summary.lost, [0; 5]);
     assert_eq!(summary.skipped, 0);
-    drop((wheels, gnss, imu, estimates, poses_sub));
+    drop((wheels, gnss, imu, heading, estimates, poses_sub));
     drop(bus);
     settings.remove_leftovers();
 }
