@@ -3,6 +3,8 @@
 //! prefix and root path, every child killed and reaped by the [`Graph`] guard.
 
 use calibrator::serve::{save_state, Accepted, Pair};
+use integration_tests::demo::default_drive;
+use integration_tests::demo::report::truth_at;
 use integration_tests::graph::{drain, wait_until, Bin, Graph, ProcId};
 use interfaces::bus::{Bus, TopicSubscriber};
 use interfaces::drive::Drive;
@@ -11,8 +13,6 @@ use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::write_drive;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use integration_tests::demo::default_drive;
-use integration_tests::demo::report::truth_at;
 
 /// The nominal circumferences are expected to be worse than the calibrated
 /// ones through the outage by at least this factor (observed: far more).

@@ -1,7 +1,9 @@
-//! `sensor-bridge replay` into `sensor-bridge record`, as real processes over
-//! iceoryx2: the recording holds every sample of the drive, value for value.
+//! `sensor-bridge replay` (and `simulate --publish`) into `sensor-bridge
+//! record`, as real processes over iceoryx2: the recording holds every sample
+//! of the drive, value for value.
 
-use integration_tests::graph::{Bin, Graph};
+use integration_tests::graph::{Bin, Graph, ProcId};
+use interfaces::drive::Drive;
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::{read_drive, write_drive};
 
@@ -39,6 +41,56 @@ fn replay_at_max_speed_into_record_loses_nothing() {
         "replay failed:\n{}",
         g.log(replay)
     );
+    let rec = finish_recording(&mut g, record, &out);
+    assert_recording_matches(&drive, &rec);
+}
+
+/// `simulate --publish --max` publishes the drive the simulator makes, every
+/// sample of it, as `replay` would publish the written drive.
+#[test]
+fn simulate_publish_at_max_speed_into_record_loses_nothing() {
+    let mut g = Graph::new("simpub");
+    // The same drive in-process (the simulator is deterministic per seed),
+    // written only to give `record` the vehicle parameters.
+    let drive = simulate(&SimConfig::new(Scenario::Paper, 3)).expect("simulate");
+    let folder = g.path("vehicle-source");
+    write_drive(&drive, &folder).expect("write drive");
+    let out = g.path("recording.mcap");
+    let folder_s = folder.to_str().expect("utf-8 path");
+    let out_s = out.to_str().expect("utf-8 path");
+
+    let record = g.spawn(
+        "record",
+        Bin::SensorBridge,
+        &["record", out_s, "--vehicle", folder_s, "--until-end"],
+    );
+    g.wait_log(record, "recording every sensor topic");
+    let sim = g.spawn(
+        "simulate",
+        Bin::SensorBridge,
+        &[
+            "simulate",
+            "--scenario",
+            "paper",
+            "--seed",
+            "3",
+            "--publish",
+            "--max",
+        ],
+    );
+    assert!(
+        g.wait_exit(sim).success(),
+        "simulate --publish failed:\n{}",
+        g.log(sim)
+    );
+    let sim_log = g.log(sim);
+    assert!(sim_log.contains("end of stream"), "{sim_log}");
+    let rec = finish_recording(&mut g, record, &out);
+    assert_recording_matches(&drive, &rec);
+}
+
+/// Wait for `record` to end cleanly with no sample lost; read what it wrote.
+fn finish_recording(g: &mut Graph, record: ProcId, out: &std::path::Path) -> Drive {
     assert!(
         g.wait_exit(record).success(),
         "record failed:\n{}",
@@ -46,8 +98,12 @@ fn replay_at_max_speed_into_record_loses_nothing() {
     );
     let log = g.log(record);
     assert!(log.contains("lost 0 (by sequence numbers)"), "{log}");
+    read_drive(out).expect("read recording").drive
+}
 
-    let rec = read_drive(&out).expect("read recording").drive;
+/// Every sample of `drive` is in `rec`, value for value (wheels as
+/// cumulative revolutions; truth never).
+fn assert_recording_matches(drive: &Drive, rec: &Drive) {
     assert_eq!(rec.vehicle, drive.vehicle);
     // Wheels: recorded as cumulative revolutions, exactly the drive's.
     let revs = drive.wheel_revolutions().expect("revolutions");

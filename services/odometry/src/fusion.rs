@@ -212,6 +212,14 @@ impl Measurement {
             Measurement::Gnss { t_s, .. } | Measurement::Heading { t_s, .. } => t_s,
         }
     }
+
+    /// Order at equal times, the same as [`Input::rank`].
+    fn rank(&self) -> u8 {
+        match self {
+            Measurement::Gnss { .. } => 1,
+            Measurement::Heading { .. } => 2,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -447,8 +455,11 @@ impl Fusion {
                 self.reset();
             }
         }
-        // Measurements up to t1, in time order, each at its own time.
-        self.pending.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()));
+        // Measurements up to t1, in time order (a fix before a heading of the
+        // same time, as in `crate::inputs`, whatever order they were queued
+        // in), each at its own time.
+        self.pending
+            .sort_by(|a, b| a.t_s().total_cmp(&b.t_s()).then(a.rank().cmp(&b.rank())));
         let due = self.pending.partition_point(|m| m.t_s() <= t1);
         let measurements: Vec<Measurement> = self.pending.drain(..due).collect();
         for m in measurements {

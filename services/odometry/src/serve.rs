@@ -9,13 +9,18 @@
 //!   (each publish-subscribe service has an event service of the same name
 //!   that its publishers notify per sample) and an interval that checks for
 //!   stale inputs and termination. No polling loop.
-//! - Every wakeup drains all subscribers into one batch, the wheels first,
-//!   and processes it in time order, wheels last at equal times
-//!   ([`crate::inputs`]): the same order as `odometry evaluate` and the
-//!   bridge's replay. Each pose depends only on the samples up to its wheel
-//!   time, all of which a publisher sending in time order has sent before
-//!   that wheel sample, so a replayed drive gives the same poses however the
-//!   processes are scheduled and the samples grouped into wakeups.
+//! - Every wakeup drains all subscribers, the wheels first, into a
+//!   [`Sequencer`], which releases the samples up to the newest wheel sample
+//!   in time order, wheels last at equal times ([`crate::inputs`]): the same
+//!   order as `odometry evaluate` and the bridge's replay. Samples beyond the
+//!   newest wheel sample wait for the next one, so that a wakeup that cuts
+//!   through an instant (a heading of time t here, the fix of time t in the
+//!   next wakeup) does not change the order. Each pose depends only on the
+//!   samples up to its wheel time, all of which a publisher sending in time
+//!   order has sent before that wheel sample, so a replayed drive gives the
+//!   same poses, bit for bit, however the processes are scheduled and the
+//!   samples grouped into wakeups. Wheel samples are never held back: no
+//!   stream (ended, absent or dead) can delay a pose.
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
 //!   old and new values.
@@ -37,7 +42,7 @@
 use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
-use crate::inputs::{sort_inputs, Input};
+use crate::inputs::{Input, Sequencer};
 use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
@@ -285,8 +290,8 @@ impl Inputs {
         ]
     }
 
-    /// Consume every notification and every sample waiting, into `batch`.
-    fn drain(&self, batch: &mut Vec<Input>, bus_estimates: bool) -> Result<Drained, BusError> {
+    /// Consume every notification and every sample waiting, into `sequencer`.
+    fn drain(&self, sequencer: &mut Sequencer, bus_estimates: bool) -> Result<Drained, BusError> {
         let mut out = Drained {
             wheels_ended: self.wheels.take_events()?.end_of_stream,
             skipped: 0,
@@ -297,17 +302,17 @@ impl Inputs {
         self.estimate.take_events()?;
         // Wheels first: every other sample up to the newest wheel time was
         // published before it, so it is in its queue now and lands in this
-        // batch too. (Other streams may run ahead of the wheels; the filter
-        // keeps them until the wheels pass their time.)
+        // batch too. (Other streams may run ahead of the wheels; the
+        // sequencer keeps them until the wheels pass their time.)
         while let Some(s) = self.wheels.receive()? {
-            batch.push(Input::Wheels {
+            sequencer.push(Input::Wheels {
                 t_s: s.header.t_s(),
                 rl_rev: s.rl_rev,
                 rr_rev: s.rr_rev,
             });
         }
         while let Some(s) = self.imu.receive()? {
-            batch.push(Input::Imu {
+            sequencer.push(Input::Imu {
                 t_s: s.header.t_s(),
                 gz_rad_s: s.gz_rad_s,
             });
@@ -316,7 +321,7 @@ impl Inputs {
             if s.fix == 0 {
                 continue; // "no fix": the position is not usable (wire contract)
             }
-            batch.push(Input::Gnss {
+            sequencer.push(Input::Gnss {
                 t_s: s.header.t_s(),
                 x_m: s.x_m,
                 y_m: s.y_m,
@@ -324,7 +329,7 @@ impl Inputs {
             });
         }
         while let Some(s) = self.heading.receive()? {
-            batch.push(Input::Heading {
+            sequencer.push(Input::Heading {
                 t_s: s.header.t_s(),
                 yaw_rad: s.yaw_rad,
                 sigma_rad: (s.sigma_rad > 0.0).then_some(s.sigma_rad),
@@ -340,7 +345,7 @@ impl Inputs {
             }
             match Estimate::from_wire(&s) {
                 // Taken between two samples: sorted before the wheels of this batch.
-                Ok(estimate) => batch.push(Input::Estimate {
+                Ok(estimate) => sequencer.push(Input::Estimate {
                     t_s: f64::NEG_INFINITY,
                     version: s.version,
                     estimate,
@@ -462,7 +467,9 @@ pub fn serve(
         .map_err(|e| ws_err("attach interval", &e))?;
 
     let mut summary = ServeSummary::default();
+    let mut sequencer = Sequencer::new(RESTART_BACKSTEP_S);
     let mut batch: Vec<Input> = Vec::with_capacity(4096);
+    let mut dropped_reported = (0u64, 0u64);
     let mut last_wheel_wall: Option<Instant> = None;
     let mut last_wheel_t: Option<f64> = None;
     let mut stale = false;
@@ -477,9 +484,10 @@ pub fn serve(
             .wait_and_process_once(|_| CallbackProgression::Continue)
             .map_err(|e| ws_err("wait", &e))?;
         batch.clear();
-        let drained = inputs.drain(&mut batch, config.bus_estimates)?;
+        let drained = inputs.drain(&mut sequencer, config.bus_estimates)?;
         summary.skipped += drained.skipped;
-        sort_inputs(&mut batch);
+        sequencer.release(&mut batch);
+        report_dropped(&sequencer, &mut dropped_reported, &mut summary);
         for input in &batch {
             if let Input::Estimate {
                 version, estimate, ..
@@ -609,6 +617,29 @@ pub fn serve(
         stats.heading_rejected
     );
     Ok(summary)
+}
+
+/// Warn about samples the sequencer dropped since the last report (and count them as skipped).
+fn report_dropped(sequencer: &Sequencer, reported: &mut (u64, u64), summary: &mut ServeSummary) {
+    let now = (sequencer.dropped_full(), sequencer.dropped_on_restart());
+    if now.0 > reported.0 {
+        summary.skipped += now.0 - reported.0;
+        tracing::warn!(
+            "odometry: {} samples dropped: more than {} waited for a wheel sample (the wheel stream \
+             is missing); {} so far",
+            now.0 - reported.0,
+            crate::inputs::MAX_HELD,
+            now.0
+        );
+    }
+    if now.1 > reported.1 {
+        summary.skipped += now.1 - reported.1;
+        tracing::warn!(
+            "odometry: {} held samples of a publisher's earlier run dropped (it restarted)",
+            now.1 - reported.1
+        );
+    }
+    *reported = now;
 }
 
 fn log_mode_change(from: PoseMode, pose: &FusedPose) {

@@ -9,7 +9,7 @@ use clap::Args;
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
-use sensor_bridge::replay::{replay, to_wire, Pacing, ReplayOptions};
+use sensor_bridge::replay::{publish_drive, Pacing, ReplayOptions};
 use sensor_bridge::{read_drive, write_drive, DriveError};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -79,18 +79,13 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
     for w in &loaded.warnings {
         tracing::warn!("{w}");
     }
-    let wire =
-        to_wire(&loaded.drive).with_context(|| format!("converting {}", args.drive.display()))?;
-    for w in &wire.warnings {
-        tracing::warn!("{w}");
-    }
+    let defaults = ReplayOptions::for_pacing(if args.max {
+        Pacing::Max
+    } else {
+        Pacing::Speed(args.speed)
+    });
     let opts = ReplayOptions {
-        pacing: if args.max {
-            Pacing::Max
-        } else {
-            Pacing::Speed(args.speed)
-        },
-        wait_subscribers: args.wait_subscribers.unwrap_or(usize::from(args.max)),
+        wait_subscribers: args.wait_subscribers.unwrap_or(defaults.wait_subscribers),
         wait_timeout: args
             .wait_timeout
             .map(|s| positive_seconds("wait-timeout", s))
@@ -98,12 +93,10 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
         settle: positive_seconds("settle", args.settle)?,
         linger: positive_seconds("linger", args.linger)?,
         progress_every_s: args.progress,
+        ..defaults
     };
-    let bus = Bus::from_env("sensor-bridge").context("joining the iceoryx2 graph")?;
-    let stats = replay(&bus, &wire, &opts).context("replaying")?;
-    if stats.interrupted {
-        tracing::info!("replay interrupted after {} samples", stats.total());
-    }
+    publish_drive(&loaded.drive, &opts, "sensor-bridge")
+        .with_context(|| format!("replaying {}", args.drive.display()))?;
     Ok(())
 }
 

@@ -33,6 +33,7 @@ enum Command {
     Record(graph_cmds::RecordArgs),
     /// Simulate a drive with its own truth (truth.csv, truth.toml): scenario
     /// paper, garage, mixed or long; every physics-catalogue effect is a knob.
+    /// With --publish [--speed F | --max] it is also published live, as by `replay`.
     Simulate(sensor_bridge::sim::cli::SimulateArgs),
 }
 

@@ -58,6 +58,18 @@ impl Default for ReplayOptions {
     }
 }
 
+impl ReplayOptions {
+    /// The defaults for `pacing`; with [`Pacing::Max`] the replay waits for
+    /// one subscriber per topic (a flood into no subscriber is lost).
+    pub fn for_pacing(pacing: Pacing) -> ReplayOptions {
+        ReplayOptions {
+            pacing,
+            wait_subscribers: usize::from(pacing == Pacing::Max),
+            ..ReplayOptions::default()
+        }
+    }
+}
+
 /// Why a replay failed.
 #[derive(Debug, thiserror::Error)]
 pub enum ReplayError {
@@ -264,8 +276,11 @@ pub fn to_wire(drive: &Drive) -> Result<WireDrive, ReplayError> {
         }
         if partial_rates > 0 {
             out.warnings.push(format!(
-                "imu.csv: {partial_rates} rows with only one of gx, gy: their roll/pitch rates \
-                 were not published"
+                "imu.csv: {partial_rates} rows have only one of gx_rad_s, gy_rad_s (the \
+                 simulator, for one, writes the pitch rate only): the wire Imu flags roll and \
+                 pitch rate together (ROLL_PITCH_RATE_VALID), so neither is published for these \
+                 rows (their yaw rate and accelerations are); a recording of the replay has no \
+                 gx/gy"
             ));
         }
     }
@@ -504,6 +519,26 @@ pub fn replay(
     Ok(stats)
 }
 
+/// Publish `drive` on the graph named by the environment (see
+/// [`Bus::from_env`]) as node `node`: [`to_wire`], its warnings logged, then
+/// [`replay`]. What `sensor-bridge replay` and `simulate --publish` run.
+pub fn publish_drive(
+    drive: &Drive,
+    opts: &ReplayOptions,
+    node: &str,
+) -> Result<ReplayStats, ReplayError> {
+    let wire = to_wire(drive)?;
+    for w in &wire.warnings {
+        tracing::warn!("{w}");
+    }
+    let bus = Bus::from_env(node)?;
+    let stats = replay(&bus, &wire, opts)?;
+    if stats.interrupted {
+        tracing::info!("replay interrupted after {} samples", stats.total());
+    }
+    Ok(stats)
+}
+
 fn open_if<T: bus::Topic>(bus: &Bus, wanted: bool) -> Result<Option<TopicPublisher<T>>, BusError> {
     if wanted {
         bus.publisher::<T>().map(Some)
@@ -563,7 +598,7 @@ mod tests {
                 ay_m_s2: None,
                 az_m_s2: None,
                 gx_rad_s: None,
-                gy_rad_s: None,
+                gy_rad_s: Some(0.01),
             }]),
             heading: None,
             truth: None,
@@ -585,6 +620,13 @@ mod tests {
         );
         assert!(
             w.warnings.iter().any(|m| m.contains("ax, ay, az")),
+            "{:?}",
+            w.warnings
+        );
+        assert!(
+            w.warnings
+                .iter()
+                .any(|m| m.contains("only one of gx_rad_s, gy_rad_s")),
             "{:?}",
             w.warnings
         );

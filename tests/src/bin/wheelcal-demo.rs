@@ -5,8 +5,8 @@
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use std::path::PathBuf;
 use integration_tests::demo::{run, DemoOptions};
+use std::path::PathBuf;
 
 /// Start bridge, calibrator and odometry on a simulated drive whose wheels
 /// start miscalibrated, with a long GNSS outage in its second half; show what

@@ -2,9 +2,11 @@
 
 use super::{simulate, EffectSettings, Scenario, SimConfig, SimError, VehicleKind, WheelWear};
 use crate::drive_io::{write_drive, DriveError};
+use crate::replay::{publish_drive, Pacing, ReplayError, ReplayOptions};
 use std::path::PathBuf;
 
-/// `sensor-bridge simulate`: write a simulated drive (folder, or MCAP when OUT ends in .mcap).
+/// `sensor-bridge simulate`: write a simulated drive (folder, or MCAP when OUT
+/// ends in .mcap), and/or publish it live over iceoryx2 (`--publish`, as `replay`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
     /// Scenario: paper, garage, mixed or long.
@@ -13,9 +15,28 @@ pub struct SimulateArgs {
     /// Seed of the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Output: a drive folder, or an .mcap file.
+    /// Output: a drive folder, or an .mcap file (optional with --publish).
+    #[arg(long, required_unless_present = "publish")]
+    pub out: Option<PathBuf>,
+    /// Publish the drive on the sensor topics, as `sensor-bridge replay` does
+    /// (after writing it, when --out is given).
     #[arg(long)]
-    pub out: PathBuf,
+    pub publish: bool,
+    /// With --publish: pace at FACTOR times real time (default 1).
+    #[arg(
+        long,
+        value_name = "FACTOR",
+        requires = "publish",
+        conflicts_with = "max"
+    )]
+    pub speed: Option<f64>,
+    /// With --publish: as fast as the subscribers take the samples, losing none.
+    #[arg(long, requires = "publish")]
+    pub max: bool,
+    /// With --publish: wait until every published topic has N subscribers
+    /// before the first sample (default: 1 with --max, 0 otherwise).
+    #[arg(long, value_name = "N", requires = "publish")]
+    pub wait_subscribers: Option<usize>,
     /// Effect knob, repeatable: ID=VALUE (main parameter), ID.PARAM=VALUE,
     /// ID=on (typical magnitude) or ID=off (also ID=0). E.g. side_slip=0.004,
     /// gnss_latency=0.08, gnss_lever_arm=1.2, gnss_lever_arm.y_m=0.3.
@@ -53,6 +74,9 @@ pub enum SimulateError {
     /// Bad arguments or a failed simulation.
     #[error(transparent)]
     Sim(#[from] SimError),
+    /// The drive could not be published.
+    #[error("publishing the simulated drive: {0}")]
+    Publish(#[from] ReplayError),
     /// The drive could not be written.
     #[error("writing {path}: {source}")]
     Write {
@@ -107,20 +131,42 @@ impl SimulateArgs {
         }
         Ok(c)
     }
+
+    /// The replay options of `--publish` (`None` without it).
+    pub fn publish_options(&self) -> Option<ReplayOptions> {
+        if !self.publish {
+            return None;
+        }
+        let pacing = if self.max {
+            Pacing::Max
+        } else {
+            Pacing::Speed(self.speed.unwrap_or(1.0))
+        };
+        let defaults = ReplayOptions::for_pacing(pacing);
+        Some(ReplayOptions {
+            wait_subscribers: self.wait_subscribers.unwrap_or(defaults.wait_subscribers),
+            ..defaults
+        })
+    }
 }
 
-/// Simulate and write the drive; returns the drive's length in seconds.
+/// Simulate the drive, write it (`--out`) and publish it (`--publish`);
+/// returns the drive's length in seconds.
 pub fn run(args: &SimulateArgs) -> Result<f64, SimulateError> {
     let config = args.config()?;
     let drive = simulate(&config)?;
-    write_drive(&drive, &args.out).map_err(|source| SimulateError::Write {
-        path: args.out.clone(),
-        source,
-    })?;
+    if let Some(out) = &args.out {
+        write_drive(&drive, out).map_err(|source| SimulateError::Write {
+            path: out.clone(),
+            source,
+        })?;
+    }
     let effects: Vec<String> = config.effects.to_truth_map().into_keys().collect();
     tracing::info!(
-        "wrote {}: scenario {}, vehicle {}, seed {}, {:.1} s, {} wheel samples, effects on: [{}]",
-        args.out.display(),
+        "simulated{}: scenario {}, vehicle {}, seed {}, {:.1} s, {} wheel samples, effects on: [{}]",
+        args.out
+            .as_ref()
+            .map_or(String::new(), |o| format!(" and wrote {}", o.display())),
         config.scenario.name(),
         config.vehicle.name(),
         config.seed,
@@ -128,6 +174,9 @@ pub fn run(args: &SimulateArgs) -> Result<f64, SimulateError> {
         drive.wheels.samples.len(),
         effects.join(", ")
     );
+    if let Some(opts) = args.publish_options() {
+        publish_drive(&drive, &opts, "sensor-bridge-simulate")?;
+    }
     Ok(drive.wheel_duration_s())
 }
 
@@ -183,5 +232,33 @@ mod tests {
             .args
             .config();
         assert!(bad.is_err());
+        assert!(cli.args.publish_options().is_none());
+    }
+
+    #[test]
+    fn publish_takes_the_replay_pacing_and_makes_out_optional() {
+        let cli = Cli::parse_from(["x", "--scenario", "paper", "--publish", "--max"]);
+        assert_eq!(cli.args.out, None);
+        let opts = cli.args.publish_options().unwrap();
+        assert_eq!((opts.pacing, opts.wait_subscribers), (Pacing::Max, 1));
+        let cli = Cli::parse_from(["x", "--scenario", "paper", "--publish", "--speed", "4"]);
+        let opts = cli.args.publish_options().unwrap();
+        assert_eq!(
+            (opts.pacing, opts.wait_subscribers),
+            (Pacing::Speed(4.0), 0)
+        );
+        // Without --publish: --out is required and the pacing flags are refused.
+        assert!(Cli::try_parse_from(["x", "--scenario", "paper"]).is_err());
+        assert!(Cli::try_parse_from(["x", "--scenario", "paper", "--out", "o", "--max"]).is_err());
+        assert!(Cli::try_parse_from([
+            "x",
+            "--scenario",
+            "paper",
+            "--publish",
+            "--max",
+            "--speed",
+            "2"
+        ])
+        .is_err());
     }
 }
