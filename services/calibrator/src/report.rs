@@ -442,7 +442,8 @@ pub fn assemble(
         .filter(|f| f.accepted)
         .map(|f| [f.x, f.y])
         .collect();
-    let standstill_s = p.standstill.iter().map(|(a, b)| b - a).sum();
+    // fold from +0.0: an empty f64 `sum()` is -0.0, which prints as "-0".
+    let standstill_s = p.standstill.iter().fold(0.0, |acc, (a, b)| acc + (b - a));
     Ok(Calibration {
         circumference_m: RearPair { rl: c[0], rr: c[1] },
         sigma_m,
