@@ -92,6 +92,11 @@ pub struct ServeArgs {
     /// waiting for more.
     #[arg(long)]
     pub exit_on_end: bool,
+    /// At exit, write one line per pose published for a wheel sample to FILE: its wheel time and
+    /// the wall-clock time at which it was handed to the publisher (both ns), so latency
+    /// can be measured across processes (the clock is the machine's one).
+    #[arg(long, value_name = "FILE")]
+    pub latency_trace: Option<PathBuf>,
     /// iceoryx2 prefix of the graph (default: $WHEELCAL_IOX_PREFIX, else iceoryx2's).
     #[arg(long, value_name = "PREFIX")]
     pub iox_prefix: Option<String>,
@@ -119,6 +124,8 @@ pub struct ServeConfig {
     pub status_every_s: f64,
     /// Stop when the wheel stream ends.
     pub exit_on_end: bool,
+    /// Where to write the publish-time trace at exit (see [`ServeArgs::latency_trace`]).
+    pub latency_trace: Option<PathBuf>,
 }
 
 impl ServeConfig {
@@ -164,6 +171,7 @@ impl ServeConfig {
             stale_after: Duration::from_secs_f64(positive("--stale-after", args.stale_after)?),
             status_every_s: args.status_every.max(0.0),
             exit_on_end: args.exit_on_end,
+            latency_trace: args.latency_trace.clone(),
         })
     }
 }
@@ -203,6 +211,14 @@ pub enum ServeError {
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),
+    /// The latency trace could not be written.
+    #[error("latency trace {path}: {source}")]
+    Trace {
+        /// The trace file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
 }
 
 /// A stop request from the same process (a test, or another thread); signals
@@ -425,6 +441,8 @@ pub fn serve(
     let mut fusion = Fusion::new(params, 0, config.fusion);
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
+    // (pose time, wall clock when handed to the publisher), both ns: only with --latency-trace.
+    let mut trace: Vec<(i64, i128)> = Vec::new();
     tracing::info!(
         "odometry: serving poses on {} ({} heading, {} parameters: {params})",
         poses.service_name(),
@@ -531,7 +549,11 @@ pub fn serve(
                         log_mode_change(mode, &pose);
                         mode = pose.mode;
                     }
-                    poses.publish(to_wire(&pose))?;
+                    let wire = to_wire(&pose);
+                    if config.latency_trace.is_some() {
+                        trace.push((wire.header.t_ns, wall_clock_ns()));
+                    }
+                    poses.publish(wire)?;
                     summary.poses += 1;
                     last_wheel_t = Some(pose.t_s);
                     if config.status_every_s > 0.0 {
@@ -603,6 +625,9 @@ pub fn serve(
     }
     summary.lost = inputs.lost();
     summary.estimate_version = fusion.estimate_version();
+    if let Some(path) = &config.latency_trace {
+        write_latency_trace(path, &trace)?;
+    }
     let stats = fusion.stats();
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
@@ -617,6 +642,27 @@ pub fn serve(
         stats.heading_rejected
     );
     Ok(summary)
+}
+
+/// Wall-clock time in ns since the Unix epoch (the one clock every process of
+/// the machine shares; 0 if the clock is before 1970).
+pub fn wall_clock_ns() -> i128 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i128)
+}
+
+/// Write `t_ns,published_wall_ns` lines.
+fn write_latency_trace(path: &Path, trace: &[(i64, i128)]) -> Result<(), ServeError> {
+    use std::fmt::Write as _;
+    let mut text = String::from("t_ns,published_wall_ns\n");
+    for (t, wall) in trace {
+        let _ = writeln!(text, "{t},{wall}");
+    }
+    std::fs::write(path, text).map_err(|source| ServeError::Trace {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Warn about samples the sequencer dropped since the last report (and count them as skipped).

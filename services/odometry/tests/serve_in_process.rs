@@ -72,6 +72,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
         stale_after: Duration::from_millis(400),
         status_every_s: 0.0,
         exit_on_end: false,
+        latency_trace: Some(root.path().join("latency.csv")),
     };
     let shutdown = Shutdown::new();
     let service = {
@@ -298,6 +299,24 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     assert_eq!(summary.estimate_version, 1);
     assert_eq!(summary.stale_events, 1);
     assert_eq!(summary.lost, [0; 5]);
+
+    // The latency trace: one line per pose of a wheel sample (not the stale
+    // marker), in publish order, with a wall clock that never goes back.
+    let trace = std::fs::read_to_string(root.path().join("latency.csv")).expect("trace");
+    let rows: Vec<(i64, i128)> = trace
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let (t, w) = l.split_once(',').expect("two columns");
+            (t.parse().expect("t_ns"), w.parse().expect("wall_ns"))
+        })
+        .collect();
+    assert_eq!(rows.len(), n + 1);
+    for (k, (t, _)) in rows.iter().enumerate() {
+        assert_eq!(*t, poses[k].header.t_ns, "trace row {k}");
+    }
+    assert!(rows.windows(2).all(|w| w[1].1 >= w[0].1));
+    assert!(rows[0].1 > 0);
     assert_eq!(summary.skipped, 0);
     drop((wheels, gnss, imu, heading, estimates, poses_sub));
     drop(bus);
