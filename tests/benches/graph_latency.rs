@@ -293,6 +293,21 @@ fn stats(latencies: impl Iterator<Item = Option<f64>>) -> Stats {
     }
 }
 
+/// Wait (watchdog 60 s) until `who` subscribes to IMU, GNSS and heading too.
+fn wait_for_sensor_subscribers(p: &Publishers, who: &str) {
+    let start = Instant::now();
+    while p.imu.subscriber_count() < 1
+        || p.heading.subscriber_count() < 1
+        || p.gnss.subscriber_count() < 1
+    {
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "{who} did not subscribe"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 fn phase(
     g: &Graph,
     p: &mut Publishers,
@@ -358,17 +373,7 @@ fn run(seconds: f64) {
     g.wait_exit(relay);
     let bare_hop = one_hop(&sent, &read_trace(&trace_bare));
     let relay = g.spawn_exe("relay-all", &exe, &["--relay-all"]);
-    let start = Instant::now();
-    while p.imu.subscriber_count() < 1
-        || p.heading.subscriber_count() < 1
-        || p.gnss.subscriber_count() < 1
-    {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "relay did not subscribe"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_sensor_subscribers(&p, "relay");
     let (bare_all, _) = phase(&g, &mut p, &wire, seconds, &arrivals);
     g.kill(relay);
 
@@ -386,18 +391,7 @@ fn run(seconds: f64) {
             trace_odometry.to_str().expect("utf-8"),
         ],
     );
-    // The odometry subscribes to every sensor topic.
-    let start = Instant::now();
-    while p.imu.subscriber_count() < 1
-        || p.heading.subscriber_count() < 1
-        || p.gnss.subscriber_count() < 1
-    {
-        assert!(
-            start.elapsed() < Duration::from_secs(60),
-            "odometry did not subscribe"
-        );
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    wait_for_sensor_subscribers(&p, "odometry");
     let (odometry, sent) = phase(&g, &mut p, &wire, seconds, &arrivals);
     g.terminate(odo);
     g.wait_exit(odo);

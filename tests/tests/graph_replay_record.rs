@@ -6,23 +6,35 @@ use integration_tests::graph::{Bin, Graph, ProcId};
 use interfaces::drive::Drive;
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::{read_drive, write_drive};
+use std::path::PathBuf;
 
-#[test]
-fn replay_at_max_speed_into_record_loses_nothing() {
-    let mut g = Graph::new("reprec");
+/// Simulate the paper drive (seed 3), write it, and start `record --until-end`
+/// on it; returns the drive, its folder, the recording path and the recorder.
+fn simulate_and_start_recording(g: &mut Graph) -> (Drive, PathBuf, PathBuf, ProcId) {
     let drive = simulate(&SimConfig::new(Scenario::Paper, 3)).expect("simulate");
     let folder = g.path("drive");
     write_drive(&drive, &folder).expect("write drive");
     let out = g.path("recording.mcap");
-    let folder_s = folder.to_str().expect("utf-8 path");
-    let out_s = out.to_str().expect("utf-8 path");
-
     let record = g.spawn(
         "record",
         Bin::SensorBridge,
-        &["record", out_s, "--vehicle", folder_s, "--until-end"],
+        &[
+            "record",
+            out.to_str().expect("utf-8 path"),
+            "--vehicle",
+            folder.to_str().expect("utf-8 path"),
+            "--until-end",
+        ],
     );
     g.wait_log(record, "recording every sensor topic");
+    (drive, folder, out, record)
+}
+
+#[test]
+fn replay_at_max_speed_into_record_loses_nothing() {
+    let mut g = Graph::new("reprec");
+    let (drive, folder, out, record) = simulate_and_start_recording(&mut g);
+    let folder_s = folder.to_str().expect("utf-8 path");
     let replay = g.spawn(
         "replay",
         Bin::SensorBridge,
@@ -50,21 +62,9 @@ fn replay_at_max_speed_into_record_loses_nothing() {
 #[test]
 fn simulate_publish_at_max_speed_into_record_loses_nothing() {
     let mut g = Graph::new("simpub");
-    // The same drive in-process (the simulator is deterministic per seed),
-    // written only to give `record` the vehicle parameters.
-    let drive = simulate(&SimConfig::new(Scenario::Paper, 3)).expect("simulate");
-    let folder = g.path("vehicle-source");
-    write_drive(&drive, &folder).expect("write drive");
-    let out = g.path("recording.mcap");
-    let folder_s = folder.to_str().expect("utf-8 path");
-    let out_s = out.to_str().expect("utf-8 path");
-
-    let record = g.spawn(
-        "record",
-        Bin::SensorBridge,
-        &["record", out_s, "--vehicle", folder_s, "--until-end"],
-    );
-    g.wait_log(record, "recording every sensor topic");
+    // The same drive in-process (the simulator is deterministic per seed); its
+    // folder gives `record` the vehicle parameters.
+    let (drive, _folder, out, record) = simulate_and_start_recording(&mut g);
     let sim = g.spawn(
         "simulate",
         Bin::SensorBridge,
