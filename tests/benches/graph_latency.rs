@@ -18,7 +18,9 @@
 //! the goals are about) compare the bridge's wall clock when it calls publish
 //! with the consumer's wall clock when it calls publish for the pose, written by the consumer
 //! at exit (`odometry serve --latency-trace`, the relay's `--trace`): the
-//! processes share the machine's clock.
+//! processes share the machine's clock. The consumer also stamps the wakeup
+//! that brought the wheel sample, which splits the hop into the wakeup
+//! (iceoryx2 and the scheduler) and the consumer's own work.
 //!
 //! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS]`
 //! (default 60 s of drive per phase).
@@ -46,11 +48,7 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map(std::path::PathBuf::from);
     if args.iter().any(|a| a == "--relay") {
-        relay(false, trace.as_deref());
-        return;
-    }
-    if args.iter().any(|a| a == "--relay-all") {
-        relay(true, trace.as_deref());
+        relay(trace.as_deref());
         return;
     }
     let seconds: f64 = args
@@ -61,34 +59,18 @@ fn main() {
     run(seconds);
 }
 
-/// The bare relay: wheels in, the same header out as a pose. With `all`, it
-/// also subscribes to IMU, GNSS and heading and wakes on their events too
-/// (the odometry's wakeup pattern), draining them without any work.
-fn relay(all: bool, trace_path: Option<&std::path::Path>) {
-    let mut trace: Vec<(i64, i128)> = Vec::new();
+/// The bare relay: wheels in, the same header out as a pose, nothing else;
+/// the same wakeup as the odometry (a WaitSet on the wheel topic's event and
+/// an interval).
+fn relay(trace_path: Option<&std::path::Path>) {
+    let mut trace: Vec<(i64, i128, i128)> = Vec::new();
     let bus = Bus::from_env("bench-relay").expect("bus");
-    let others = if all {
-        Some((
-            bus.subscriber::<Imu>().expect("imu"),
-            bus.subscriber::<GnssFix>().expect("gnss"),
-            bus.subscriber::<Heading>().expect("heading"),
-        ))
-    } else {
-        None
-    };
     let wheels = bus.subscriber::<WheelRotations>().expect("wheels");
     let mut poses: TopicPublisher<Pose> = bus.publisher().expect("poses");
     let waitset = bus.waitset().expect("waitset");
     let _g = waitset
         .attach_notification(wheels.listener())
         .expect("attach");
-    let _go = others.as_ref().map(|(i, g, h)| {
-        (
-            waitset.attach_notification(i.listener()).expect("attach"),
-            waitset.attach_notification(g.listener()).expect("attach"),
-            waitset.attach_notification(h.listener()).expect("attach"),
-        )
-    });
     let _t = waitset
         .attach_interval(Duration::from_millis(100))
         .expect("tick");
@@ -97,17 +79,10 @@ fn relay(all: bool, trace_path: Option<&std::path::Path>) {
         let r = waitset
             .wait_and_process_once(|_| CallbackProgression::Continue)
             .expect("wait");
-        wheels.take_events().expect("events");
-        if let Some((i, g, h)) = &others {
-            i.take_events().expect("events");
-            g.take_events().expect("events");
-            h.take_events().expect("events");
-            while i.receive().expect("receive").is_some() {}
-            while g.receive().expect("receive").is_some() {}
-            while h.receive().expect("receive").is_some() {}
-        }
+        let woke = wall_clock_ns();
+        wheels.take_notifications().expect("events");
         while let Some(w) = wheels.receive().expect("receive") {
-            trace.push((w.header.t_ns, wall_clock_ns()));
+            trace.push((w.header.t_ns, woke, wall_clock_ns()));
             poses
                 .publish(Pose {
                     header: w.header,
@@ -121,23 +96,26 @@ fn relay(all: bool, trace_path: Option<&std::path::Path>) {
     }
     // The same trace format as `odometry serve --latency-trace`.
     if let Some(path) = trace_path {
-        let mut text = String::from("t_ns,published_wall_ns\n");
-        for (t, w) in &trace {
-            text.push_str(&format!("{t},{w}\n"));
+        let mut text = String::from("t_ns,woke_wall_ns,published_wall_ns\n");
+        for (t, woke, published) in &trace {
+            text.push_str(&format!("{t},{woke},{published}\n"));
         }
         std::fs::write(path, text).expect("write trace");
     }
 }
 
-/// Publish instants of the consumer's poses (wall clock, ns) by time stamp,
-/// from its `--latency-trace` file.
-fn read_trace(path: &std::path::Path) -> HashMap<i64, i128> {
+/// The consumer's wakeup and pose publish instants (wall clock, ns) by time
+/// stamp, from its `--latency-trace` file.
+fn read_trace(path: &std::path::Path) -> HashMap<i64, (i128, i128)> {
     let text = std::fs::read_to_string(path).expect("trace file");
     text.lines()
         .skip(1)
         .filter_map(|l| {
-            let (t, w) = l.split_once(',')?;
-            Some((t.parse().ok()?, w.parse().ok()?))
+            let mut fields = l.split(',');
+            let t = fields.next()?.parse().ok()?;
+            let woke = fields.next()?.parse().ok()?;
+            let published = fields.next()?.parse().ok()?;
+            Some((t, (woke, published)))
         })
         .collect()
 }
@@ -257,13 +235,21 @@ fn round_trip(sent: &[Sent], arrivals: &Arrivals) -> Stats {
 }
 
 /// One hop with the work: bridge publish -> the consumer's pose publish
-/// (wall clock on both sides: one machine, one clock).
-fn one_hop(sent: &[Sent], trace: &HashMap<i64, i128>) -> Stats {
-    let lat = sent
-        .iter()
-        .skip(WARMUP)
-        .map(|s| trace.get(&s.t_ns).map(|w| (w - s.wall_ns) as f64 * 1e-3));
-    stats(lat)
+/// (wall clock on both sides: one machine, one clock), and its two parts:
+/// bridge publish -> the consumer's wakeup, wakeup -> pose publish.
+fn one_hop(sent: &[Sent], trace: &HashMap<i64, (i128, i128)>) -> [Stats; 3] {
+    let part = |f: fn(&Sent, (i128, i128)) -> i128| {
+        stats(
+            sent.iter()
+                .skip(WARMUP)
+                .map(|s| trace.get(&s.t_ns).map(|&w| f(s, w) as f64 * 1e-3)),
+        )
+    };
+    [
+        part(|s, (_, published)| published - s.wall_ns),
+        part(|s, (woke, _)| woke - s.wall_ns),
+        part(|_, (woke, published)| published - woke),
+    ]
 }
 
 fn stats(latencies: impl Iterator<Item = Option<f64>>) -> Stats {
@@ -371,11 +357,7 @@ fn run(seconds: f64) {
     let (bare, sent) = phase(&g, &mut p, &wire, seconds, &arrivals);
     g.terminate(relay);
     g.wait_exit(relay);
-    let bare_hop = one_hop(&sent, &read_trace(&trace_bare));
-    let relay = g.spawn_exe("relay-all", &exe, &["--relay-all"]);
-    wait_for_sensor_subscribers(&p, "relay");
-    let (bare_all, _) = phase(&g, &mut p, &wire, seconds, &arrivals);
-    g.kill(relay);
+    let [bare_hop, bare_wake, bare_work] = one_hop(&sent, &read_trace(&trace_bare));
 
     let vehicle = folder.join("vehicle.toml");
     let trace_odometry = g.path("trace-odometry.csv");
@@ -395,7 +377,7 @@ fn run(seconds: f64) {
     let (odometry, sent) = phase(&g, &mut p, &wire, seconds, &arrivals);
     g.terminate(odo);
     g.wait_exit(odo);
-    let odometry_hop = one_hop(&sent, &read_trace(&trace_odometry));
+    let [odometry_hop, odometry_wake, odometry_work] = one_hop(&sent, &read_trace(&trace_odometry));
     stop.store(true, Ordering::SeqCst);
     let _ = handle.join();
 
@@ -406,10 +388,16 @@ fn run(seconds: f64) {
     );
     for (name, s) in [
         ("bare relay (2 hops, no work)", &bare),
-        ("bare relay waking on all 4 sensor topics", &bare_all),
         ("odometry serve (2 hops + fusion)", &odometry),
         ("bare pair: publish -> relay's publish (1 hop)", &bare_hop),
+        ("  of which publish -> relay's wakeup", &bare_wake),
+        ("  of which wakeup -> relay's publish", &bare_work),
         ("publish -> odometry's pose publish (1 hop)", &odometry_hop),
+        ("  of which publish -> odometry's wakeup", &odometry_wake),
+        (
+            "  of which wakeup -> odometry's pose publish",
+            &odometry_work,
+        ),
     ] {
         println!(
             "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",

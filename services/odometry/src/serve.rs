@@ -5,10 +5,15 @@
 //! in every process) and publishes a [`Pose`] on `wheelcal/odometry/pose` for
 //! every wheel sample, from the [`Fusion`] filter.
 //!
-//! - Blocking wakeups: one WaitSet with the listener of every input topic
-//!   (each publish-subscribe service has an event service of the same name
-//!   that its publishers notify per sample) and an interval that checks for
-//!   stale inputs and termination. No polling loop.
+//! - Blocking wakeups: one WaitSet with the listeners of the wheel and
+//!   estimate topics (each publish-subscribe service has an event service of
+//!   the same name that its publishers notify per sample) and an interval that
+//!   checks for stale inputs and termination. No polling loop. The IMU, GNSS
+//!   and heading topics wake nobody: a pose is only due with a wheel sample,
+//!   and every sample up to its time is in its queue by then, so waking for
+//!   them would only add wakeups on the path of the next wheel sample. Their
+//!   notifications are taken at most every [`SIDE_EVENTS_EVERY`] (an
+//!   untaken notification makes the next ones free for their publisher).
 //! - Every wakeup drains all subscribers, the wheels first, into a
 //!   [`Sequencer`], which releases the samples up to the newest wheel sample
 //!   in time order, wheels last at equal times ([`crate::inputs`]): the same
@@ -53,6 +58,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// How often the notifications of the topics that wake nobody (IMU, GNSS,
+/// heading) are taken: they carry nothing the loop needs at once.
+pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
 
 /// A sample this much older than the newest one seen means its publisher
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
@@ -306,16 +315,26 @@ impl Inputs {
         ]
     }
 
-    /// Consume every notification and every sample waiting, into `sequencer`.
-    fn drain(&self, sequencer: &mut Sequencer, bus_estimates: bool) -> Result<Drained, BusError> {
+    /// Consume the wheel topic's notifications and every sensor sample
+    /// waiting, into `sequencer`; with `estimate`, the estimate topic's
+    /// notifications and samples; with `side_events`, the notifications of
+    /// the IMU, GNSS and heading topics.
+    fn drain(
+        &self,
+        sequencer: &mut Sequencer,
+        bus_estimates: bool,
+        estimate: bool,
+        side_events: bool,
+    ) -> Result<Drained, BusError> {
         let mut out = Drained {
-            wheels_ended: self.wheels.take_events()?.end_of_stream,
+            wheels_ended: self.wheels.take_notifications()?.end_of_stream,
             skipped: 0,
         };
-        self.gnss.take_events()?;
-        self.imu.take_events()?;
-        self.heading.take_events()?;
-        self.estimate.take_events()?;
+        if side_events {
+            self.gnss.take_events()?;
+            self.imu.take_events()?;
+            self.heading.take_events()?;
+        }
         // Wheels first: every other sample up to the newest wheel time was
         // published before it, so it is in its queue now and lands in this
         // batch too. (Other streams may run ahead of the wheels; the
@@ -351,6 +370,19 @@ impl Inputs {
                 sigma_rad: (s.sigma_rad > 0.0).then_some(s.sigma_rad),
             });
         }
+        if estimate {
+            self.estimate.take_events()?;
+            self.drain_estimates(sequencer, bus_estimates, &mut out)?;
+        }
+        Ok(out)
+    }
+
+    fn drain_estimates(
+        &self,
+        sequencer: &mut Sequencer,
+        bus_estimates: bool,
+        out: &mut Drained,
+    ) -> Result<(), BusError> {
         while let Some(s) = self.estimate.receive()? {
             if !bus_estimates {
                 tracing::info!(
@@ -372,7 +404,7 @@ impl Inputs {
                 }
             }
         }
-        Ok(out)
+        Ok(())
     }
 }
 
@@ -441,8 +473,9 @@ pub fn serve(
     let mut fusion = Fusion::new(params, 0, config.fusion);
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
-    // (pose time, wall clock when handed to the publisher), both ns: only with --latency-trace.
-    let mut trace: Vec<(i64, i128)> = Vec::new();
+    // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
+    // handed to the publisher), all ns: only with --latency-trace.
+    let mut trace: Vec<(i64, i128, i128)> = Vec::new();
     tracing::info!(
         "odometry: serving poses on {} ({} heading, {} parameters: {params})",
         poses.service_name(),
@@ -463,16 +496,7 @@ pub fn serve(
     let _g_wheels = waitset
         .attach_notification(inputs.wheels.listener())
         .map_err(|e| ws_err("attach wheels", &e))?;
-    let _g_gnss = waitset
-        .attach_notification(inputs.gnss.listener())
-        .map_err(|e| ws_err("attach gnss", &e))?;
-    let _g_imu = waitset
-        .attach_notification(inputs.imu.listener())
-        .map_err(|e| ws_err("attach imu", &e))?;
-    let _g_heading = waitset
-        .attach_notification(inputs.heading.listener())
-        .map_err(|e| ws_err("attach heading", &e))?;
-    let _g_estimate = waitset
+    let g_estimate = waitset
         .attach_notification(inputs.estimate.listener())
         .map_err(|e| ws_err("attach estimate", &e))?;
     // The tick notices stale inputs and stop requests; it does no work otherwise.
@@ -489,6 +513,7 @@ pub fn serve(
     let mut batch: Vec<Input> = Vec::with_capacity(4096);
     let mut dropped_reported = (0u64, 0u64);
     let mut last_wheel_wall: Option<Instant> = None;
+    let mut last_side_events = Instant::now();
     let mut last_wheel_t: Option<f64> = None;
     let mut stale = false;
     let mut mode = PoseMode::NoFix;
@@ -498,11 +523,31 @@ pub fn serve(
     let mut latest_t: [Option<f64>; 4] = [None; 4];
 
     loop {
+        let mut estimate_event = false;
         let result = waitset
-            .wait_and_process_once(|_| CallbackProgression::Continue)
+            .wait_and_process_once(|id| {
+                estimate_event |= id.has_event_from(&g_estimate);
+                CallbackProgression::Continue
+            })
             .map_err(|e| ws_err("wait", &e))?;
+        let woke_wall_ns = if config.latency_trace.is_some() {
+            wall_clock_ns()
+        } else {
+            0
+        };
         batch.clear();
-        let drained = inputs.drain(&mut sequencer, config.bus_estimates)?;
+        let side_events = last_side_events.elapsed() >= SIDE_EVENTS_EVERY;
+        if side_events {
+            last_side_events = Instant::now();
+        }
+        // The estimate topic is also read with the side events: a new
+        // subscriber gets the latest estimate (history) without a notification.
+        let drained = inputs.drain(
+            &mut sequencer,
+            config.bus_estimates,
+            estimate_event || side_events,
+            side_events,
+        )?;
         summary.skipped += drained.skipped;
         sequencer.release(&mut batch);
         report_dropped(&sequencer, &mut dropped_reported, &mut summary);
@@ -551,7 +596,7 @@ pub fn serve(
                     }
                     let wire = to_wire(&pose);
                     if config.latency_trace.is_some() {
-                        trace.push((wire.header.t_ns, wall_clock_ns()));
+                        trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
                     }
                     poses.publish(wire)?;
                     summary.poses += 1;
@@ -652,12 +697,12 @@ pub fn wall_clock_ns() -> i128 {
         .map_or(0, |d| d.as_nanos() as i128)
 }
 
-/// Write `t_ns,published_wall_ns` lines.
-fn write_latency_trace(path: &Path, trace: &[(i64, i128)]) -> Result<(), ServeError> {
+/// Write `t_ns,woke_wall_ns,published_wall_ns` lines.
+fn write_latency_trace(path: &Path, trace: &[(i64, i128, i128)]) -> Result<(), ServeError> {
     use std::fmt::Write as _;
-    let mut text = String::from("t_ns,published_wall_ns\n");
-    for (t, wall) in trace {
-        let _ = writeln!(text, "{t},{wall}");
+    let mut text = String::from("t_ns,woke_wall_ns,published_wall_ns\n");
+    for (t, woke, published) in trace {
+        let _ = writeln!(text, "{t},{woke},{published}");
     }
     std::fs::write(path, text).map_err(|source| ServeError::Trace {
         path: path.to_path_buf(),
