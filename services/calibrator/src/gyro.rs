@@ -35,6 +35,11 @@ use serde::{Deserialize, Serialize};
 /// value (or the axle centre), m: an antenna is somewhere on the car.
 pub const ANTENNA_PRIOR_SIGMA_M: f64 = 1.0;
 
+/// An antenna position whose 1-sigma exceeds this, m, gets the
+/// `antenna_unobservable` warning: a tenth of a metre of lateral offset is
+/// up to 0.2 m of position error when the car turns round.
+pub const ANTENNA_WARN_SIGMA_M: f64 = 0.1;
+
 /// 1-sigma of the prior on the gyro scale error around 0: the physics
 /// catalogue's typical size of `gyro_scale` (0.1-1 %). It only matters on
 /// drives that turn too little to pin the scale down by themselves.
