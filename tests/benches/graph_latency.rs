@@ -22,8 +22,13 @@
 //! that brought the wheel sample, which splits the hop into the wakeup
 //! (iceoryx2 and the scheduler) and the consumer's own work.
 //!
-//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS]`
-//! (default 60 s of drive per phase).
+//! The two consumers take turns (four each, a quarter of the time each), so
+//! that the machine's drift during a run falls on both alike.
+//!
+//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--cpu-latency-zero]`
+//! (default 60 s of drive per consumer). `--cpu-latency-zero` holds the
+//! machine's PM QoS CPU latency request at 0 during the run (a deployment
+//! setting: idle cores poll instead of halting; needs root).
 
 use iceoryx2::prelude::CallbackProgression;
 use integration_tests::graph::{Bin, Graph};
@@ -56,7 +61,7 @@ fn main() {
         .skip(1)
         .find_map(|a| a.parse().ok())
         .unwrap_or(60.0);
-    run(seconds);
+    run(seconds, 4, args.iter().any(|a| a == "--cpu-latency-zero"));
 }
 
 /// The bare relay: wheels in, the same header out as a pose, nothing else;
@@ -223,27 +228,31 @@ struct Stats {
     missing: usize,
 }
 
+/// Latencies in microseconds (`None`: the pose never came), warm-up skipped.
+type Latencies = Vec<Option<f64>>;
+
 /// Round trip: bridge publish -> consumer -> pose publish -> pose received.
-fn round_trip(sent: &[Sent], arrivals: &Arrivals) -> Stats {
+fn round_trip(sent: &[Sent], arrivals: &Arrivals) -> Latencies {
     let arrivals = arrivals.lock().expect("lock");
-    let lat = sent.iter().skip(WARMUP).map(|s| {
-        arrivals
-            .get(&s.t_ns)
-            .map(|a| a.duration_since(s.at).as_secs_f64() * 1e6)
-    });
-    stats(lat)
+    sent.iter()
+        .skip(WARMUP)
+        .map(|s| {
+            arrivals
+                .get(&s.t_ns)
+                .map(|a| a.duration_since(s.at).as_secs_f64() * 1e6)
+        })
+        .collect()
 }
 
 /// One hop with the work: bridge publish -> the consumer's pose publish
 /// (wall clock on both sides: one machine, one clock), and its two parts:
 /// bridge publish -> the consumer's wakeup, wakeup -> pose publish.
-fn one_hop(sent: &[Sent], trace: &HashMap<i64, (i128, i128)>) -> [Stats; 3] {
+fn one_hop(sent: &[Sent], trace: &HashMap<i64, (i128, i128)>) -> [Latencies; 3] {
     let part = |f: fn(&Sent, (i128, i128)) -> i128| {
-        stats(
-            sent.iter()
-                .skip(WARMUP)
-                .map(|s| trace.get(&s.t_ns).map(|&w| f(s, w) as f64 * 1e-3)),
-        )
+        sent.iter()
+            .skip(WARMUP)
+            .map(|s| trace.get(&s.t_ns).map(|&w| f(s, w) as f64 * 1e-3))
+            .collect()
     };
     [
         part(|s, (_, published)| published - s.wall_ns),
@@ -252,10 +261,10 @@ fn one_hop(sent: &[Sent], trace: &HashMap<i64, (i128, i128)>) -> [Stats; 3] {
     ]
 }
 
-fn stats(latencies: impl Iterator<Item = Option<f64>>) -> Stats {
+fn stats(latencies: &[Option<f64>]) -> Stats {
     let mut lat: Vec<f64> = Vec::new();
     let mut missing = 0;
-    for l in latencies {
+    for &l in latencies {
         match l {
             Some(v) => lat.push(v),
             None => missing += 1,
@@ -300,7 +309,7 @@ fn phase(
     wire: &WireDrive,
     seconds: f64,
     arrivals: &Arrivals,
-) -> (Stats, Vec<Sent>) {
+) -> (Latencies, Vec<Sent>) {
     // Wait until the consumer subscribes to every sensor topic it reads and
     // attaches (announce + settle, as the bridge does).
     let start = Instant::now();
@@ -325,7 +334,45 @@ fn phase(
     (round_trip(&sent, arrivals), sent)
 }
 
-fn run(seconds: f64) {
+/// Holds the machine's PM QoS CPU latency request at 0 while alive (what
+/// `tuned`'s latency-performance profile and cyclictest do): idle cores poll
+/// instead of halting, so a wakeup does not wait for a core to come out of
+/// its idle state. The request ends when the file is closed.
+struct CpuLatencyZero(#[allow(dead_code)] std::fs::File);
+
+impl CpuLatencyZero {
+    fn hold() -> CpuLatencyZero {
+        use std::io::Write as _;
+        let mut f = std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/cpu_dma_latency")
+            .expect("--cpu-latency-zero needs write access to /dev/cpu_dma_latency (root)");
+        f.write_all(&0i32.to_ne_bytes())
+            .expect("write the PM QoS request");
+        CpuLatencyZero(f)
+    }
+}
+
+/// One consumer's latencies, pooled over the rounds.
+#[derive(Default)]
+struct Pooled {
+    round_trip: Latencies,
+    hop: Latencies,
+    wake: Latencies,
+    work: Latencies,
+}
+
+impl Pooled {
+    fn add(&mut self, round_trip: Latencies, [hop, wake, work]: [Latencies; 3]) {
+        self.round_trip.extend(round_trip);
+        self.hop.extend(hop);
+        self.wake.extend(wake);
+        self.work.extend(work);
+    }
+}
+
+fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
+    let _pm_qos = cpu_latency_zero.then(CpuLatencyZero::hold);
     let mut g = Graph::new("lat");
     let drive = simulate(&SimConfig::new(Scenario::Mixed, 1)).expect("simulate");
     let folder = g.path("drive");
@@ -348,47 +395,70 @@ fn run(seconds: f64) {
     rx.recv().expect("receiver ready");
 
     let exe = std::env::current_exe().expect("exe");
-    let trace_bare = g.path("trace-bare.csv");
-    let relay = g.spawn_exe(
-        "relay",
-        &exe,
-        &["--relay", "--trace", trace_bare.to_str().expect("utf-8")],
-    );
-    let (bare, sent) = phase(&g, &mut p, &wire, seconds, &arrivals);
-    g.terminate(relay);
-    g.wait_exit(relay);
-    let [bare_hop, bare_wake, bare_work] = one_hop(&sent, &read_trace(&trace_bare));
-
     let vehicle = folder.join("vehicle.toml");
-    let trace_odometry = g.path("trace-odometry.csv");
-    let odo = g.spawn(
-        "odometry",
-        Bin::Odometry,
-        &[
-            "serve",
-            "--vehicle",
-            vehicle.to_str().expect("utf-8"),
-            "--no-bus-estimate",
-            "--latency-trace",
-            trace_odometry.to_str().expect("utf-8"),
-        ],
-    );
-    wait_for_sensor_subscribers(&p, "odometry");
-    let (odometry, sent) = phase(&g, &mut p, &wire, seconds, &arrivals);
-    g.terminate(odo);
-    g.wait_exit(odo);
-    let [odometry_hop, odometry_wake, odometry_work] = one_hop(&sent, &read_trace(&trace_odometry));
+    let per_phase = seconds / rounds as f64;
+    let (mut bare, mut odometry) = (Pooled::default(), Pooled::default());
+    // The two consumers take turns, so that a drift of the machine's state
+    // during the run falls on both alike.
+    for round in 0..rounds {
+        let trace_bare = g.path(&format!("trace-bare-{round}.csv"));
+        let relay = g.spawn_exe(
+            "relay",
+            &exe,
+            &["--relay", "--trace", trace_bare.to_str().expect("utf-8")],
+        );
+        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, &arrivals);
+        g.terminate(relay);
+        g.wait_exit(relay);
+        bare.add(rt, one_hop(&sent, &read_trace(&trace_bare)));
+
+        let trace_odometry = g.path(&format!("trace-odometry-{round}.csv"));
+        let odo = g.spawn(
+            "odometry",
+            Bin::Odometry,
+            &[
+                "serve",
+                "--vehicle",
+                vehicle.to_str().expect("utf-8"),
+                "--no-bus-estimate",
+                "--latency-trace",
+                trace_odometry.to_str().expect("utf-8"),
+            ],
+        );
+        wait_for_sensor_subscribers(&p, "odometry");
+        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, &arrivals);
+        g.terminate(odo);
+        g.wait_exit(odo);
+        odometry.add(rt, one_hop(&sent, &read_trace(&trace_odometry)));
+    }
     stop.store(true, Ordering::SeqCst);
     let _ = handle.join();
 
-    println!("sample-to-pose latency, {seconds:.0} s of drive at 100 Hz per phase (first {WARMUP} samples skipped), microseconds:");
+    println!(
+        "sample-to-pose latency, {seconds:.0} s of drive at 100 Hz per consumer in {rounds} turns \
+         (first {WARMUP} samples of each skipped), PM QoS CPU latency request: {}; microseconds:",
+        if cpu_latency_zero {
+            "0 (--cpu-latency-zero)"
+        } else {
+            "none (the machine's default)"
+        }
+    );
+    let [bare_rt, bare_hop, bare_wake, bare_work] =
+        [&bare.round_trip, &bare.hop, &bare.wake, &bare.work].map(|l| stats(l));
+    let [odometry_rt, odometry_hop, odometry_wake, odometry_work] = [
+        &odometry.round_trip,
+        &odometry.hop,
+        &odometry.wake,
+        &odometry.work,
+    ]
+    .map(|l| stats(l));
     println!(
         "{:<44} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
         "", "n", "p50", "p99", "p99.9", "max", "missing"
     );
     for (name, s) in [
-        ("bare relay (2 hops, no work)", &bare),
-        ("odometry serve (2 hops + fusion)", &odometry),
+        ("bare relay (2 hops, no work)", &bare_rt),
+        ("odometry serve (2 hops + fusion)", &odometry_rt),
         ("bare pair: publish -> relay's publish (1 hop)", &bare_hop),
         ("  of which publish -> relay's wakeup", &bare_wake),
         ("  of which wakeup -> relay's publish", &bare_work),

@@ -287,13 +287,6 @@ struct Inputs {
     estimate: TopicSubscriber<CircumferenceEstimate>,
 }
 
-/// What one drain of the subscribers found besides the samples.
-#[derive(Debug, Default)]
-struct Drained {
-    wheels_ended: bool,
-    skipped: u64,
-}
-
 impl Inputs {
     fn open(bus: &Bus) -> Result<Inputs, BusError> {
         Ok(Inputs {
@@ -316,25 +309,10 @@ impl Inputs {
     }
 
     /// Consume the wheel topic's notifications and every sensor sample
-    /// waiting, into `sequencer`; with `estimate`, the estimate topic's
-    /// notifications and samples; with `side_events`, the notifications of
-    /// the IMU, GNSS and heading topics.
-    fn drain(
-        &self,
-        sequencer: &mut Sequencer,
-        bus_estimates: bool,
-        estimate: bool,
-        side_events: bool,
-    ) -> Result<Drained, BusError> {
-        let mut out = Drained {
-            wheels_ended: self.wheels.take_notifications()?.end_of_stream,
-            skipped: 0,
-        };
-        if side_events {
-            self.gnss.take_events()?;
-            self.imu.take_events()?;
-            self.heading.take_events()?;
-        }
+    /// waiting, into `sequencer`: the work on the path from a wheel sample
+    /// to its pose. Returns whether the wheel stream's publisher said it ended.
+    fn drain(&self, sequencer: &mut Sequencer) -> Result<bool, BusError> {
+        let wheels_ended = self.wheels.take_notifications()?.end_of_stream;
         // Wheels first: every other sample up to the newest wheel time was
         // published before it, so it is in its queue now and lands in this
         // batch too. (Other streams may run ahead of the wheels; the
@@ -370,18 +348,38 @@ impl Inputs {
                 sigma_rad: (s.sigma_rad > 0.0).then_some(s.sigma_rad),
             });
         }
+        Ok(wheels_ended)
+    }
+
+    /// After the poses: with `estimate`, the estimate topic's notifications
+    /// and samples (into `sequencer`, taken at the next release, between two
+    /// wheel samples); with `side_events`, the notifications of the IMU, GNSS
+    /// and heading topics. Returns how many estimates were rejected.
+    fn housekeeping(
+        &self,
+        sequencer: &mut Sequencer,
+        bus_estimates: bool,
+        estimate: bool,
+        side_events: bool,
+    ) -> Result<u64, BusError> {
+        let mut rejected = 0;
+        if side_events {
+            self.gnss.take_events()?;
+            self.imu.take_events()?;
+            self.heading.take_events()?;
+        }
         if estimate {
             self.estimate.take_events()?;
-            self.drain_estimates(sequencer, bus_estimates, &mut out)?;
+            self.drain_estimates(sequencer, bus_estimates, &mut rejected)?;
         }
-        Ok(out)
+        Ok(rejected)
     }
 
     fn drain_estimates(
         &self,
         sequencer: &mut Sequencer,
         bus_estimates: bool,
-        out: &mut Drained,
+        rejected: &mut u64,
     ) -> Result<(), BusError> {
         while let Some(s) = self.estimate.receive()? {
             if !bus_estimates {
@@ -399,7 +397,7 @@ impl Inputs {
                     estimate,
                 }),
                 Err(e) => {
-                    out.skipped += 1;
+                    *rejected += 1;
                     tracing::warn!("odometry: estimate rejected: {e}");
                 }
             }
@@ -536,19 +534,7 @@ pub fn serve(
             0
         };
         batch.clear();
-        let side_events = last_side_events.elapsed() >= SIDE_EVENTS_EVERY;
-        if side_events {
-            last_side_events = Instant::now();
-        }
-        // The estimate topic is also read with the side events: a new
-        // subscriber gets the latest estimate (history) without a notification.
-        let drained = inputs.drain(
-            &mut sequencer,
-            config.bus_estimates,
-            estimate_event || side_events,
-            side_events,
-        )?;
-        summary.skipped += drained.skipped;
+        let wheels_ended_now = inputs.drain(&mut sequencer)?;
         sequencer.release(&mut batch);
         report_dropped(&sequencer, &mut dropped_reported, &mut summary);
         for input in &batch {
@@ -623,11 +609,25 @@ pub fn serve(
                 }
             }
         }
+        // Off the path from a wheel sample to its pose. The estimate topic is
+        // also read with the side events: a new subscriber gets the latest
+        // estimate (history) without a notification.
+        let side_events = last_side_events.elapsed() >= SIDE_EVENTS_EVERY;
+        if side_events {
+            last_side_events = Instant::now();
+        }
+        summary.skipped += inputs.housekeeping(
+            &mut sequencer,
+            config.bus_estimates,
+            estimate_event || side_events,
+            side_events,
+        )?;
+
         // A stream that ended may start again (a new replay).
         if batch.iter().any(|i| matches!(i, Input::Wheels { .. })) {
-            wheels_ended = drained.wheels_ended;
+            wheels_ended = wheels_ended_now;
         } else {
-            wheels_ended |= drained.wheels_ended;
+            wheels_ended |= wheels_ended_now;
         }
 
         // Stale inputs: the wheels stopped coming.

@@ -301,22 +301,30 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     assert_eq!(summary.lost, [0; 5]);
 
     // The latency trace: one line per pose of a wheel sample (not the stale
-    // marker), in publish order, with a wall clock that never goes back.
+    // marker), in publish order: the wakeup that brought the wheel sample,
+    // then the publish, on a wall clock that never goes back.
     let trace = std::fs::read_to_string(root.path().join("latency.csv")).expect("trace");
-    let rows: Vec<(i64, i128)> = trace
-        .lines()
-        .skip(1)
+    let mut lines = trace.lines();
+    assert_eq!(lines.next(), Some("t_ns,woke_wall_ns,published_wall_ns"));
+    let rows: Vec<(i64, i128, i128)> = lines
         .map(|l| {
-            let (t, w) = l.split_once(',').expect("two columns");
-            (t.parse().expect("t_ns"), w.parse().expect("wall_ns"))
+            let f: Vec<&str> = l.split(',').collect();
+            assert_eq!(f.len(), 3, "{l}");
+            (
+                f[0].parse().expect("t_ns"),
+                f[1].parse().expect("woke_wall_ns"),
+                f[2].parse().expect("published_wall_ns"),
+            )
         })
         .collect();
     assert_eq!(rows.len(), n + 1);
-    for (k, (t, _)) in rows.iter().enumerate() {
+    for (k, (t, _, _)) in rows.iter().enumerate() {
         assert_eq!(*t, poses[k].header.t_ns, "trace row {k}");
     }
-    assert!(rows.windows(2).all(|w| w[1].1 >= w[0].1));
-    assert!(rows[0].1 > 0);
+    assert!(rows.iter().all(|r| r.1 > 0 && r.1 <= r.2));
+    assert!(rows
+        .windows(2)
+        .all(|w| w[1].1 >= w[0].1 && w[1].2 >= w[0].2));
     assert_eq!(summary.skipped, 0);
     drop((wheels, gnss, imu, heading, estimates, poses_sub));
     drop(bus);
