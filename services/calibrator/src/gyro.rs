@@ -15,7 +15,8 @@
 //!   calibration takes `k` when this model fits the GNSS much better
 //!   ([`prefer_distance_factor`]);
 //! - the GNSS antenna position in the body frame (a prior of
-//!   [`ANTENNA_PRIOR_SIGMA_M`] around `vehicle.toml`'s value): an antenna
+//!   [`ANTENNA_MEASURED_SIGMA_M`] around `vehicle.toml`'s value where it
+//!   gives one, else [`ANTENNA_PRIOR_SIGMA_M`] around the axle centre): an antenna
 //!   half a metre ahead of the rear axle moves a metre sideways in a U-turn,
 //!   which a model of the rear axle would otherwise put into the gyro scale.
 //!
@@ -31,9 +32,15 @@ use crate::uncertainty::Sigmas;
 use crate::CalibrationError;
 use serde::{Deserialize, Serialize};
 
-/// 1-sigma of the prior on the GNSS antenna position around `vehicle.toml`'s
-/// value (or the axle centre), m: an antenna is somewhere on the car.
+/// 1-sigma of the prior on the GNSS antenna position around the axle
+/// centre when `vehicle.toml` gives none, m: an antenna is somewhere on the car.
 pub const ANTENNA_PRIOR_SIGMA_M: f64 = 1.0;
+
+/// 1-sigma of the prior on a GNSS antenna coordinate `vehicle.toml` gives, m:
+/// measured with a tape on the car. A drive that turns round pins the
+/// antenna to a few centimetres and still moves it; one that turns little
+/// keeps the measured value instead of guessing.
+pub const ANTENNA_MEASURED_SIGMA_M: f64 = 0.05;
 
 /// An antenna position whose 1-sigma exceeds this, m, gets the
 /// `antenna_unobservable` warning: a tenth of a metre of lateral offset is
@@ -102,7 +109,6 @@ struct GyroModel<'a> {
     slip: SlipGain,
     prior_bias: Option<(f64, f64)>,
     hold_scale: bool,
-    antenna_prior: [f64; 2],
 }
 
 impl StepModel for GyroModel<'_> {
@@ -152,8 +158,19 @@ impl StepModel for GyroModel<'_> {
             GYRO_SCALE_PRIOR_SIGMA
         };
         out.push((1, 0.0, scale_sigma));
-        for (i, value) in self.antenna_prior.iter().enumerate() {
-            out.push((ANTENNA + i, *value, ANTENNA_PRIOR_SIGMA_M));
+        for (i, (value, given)) in self
+            .p
+            .lever_arm
+            .iter()
+            .zip(self.p.lever_arm_given)
+            .enumerate()
+        {
+            let sigma = if given {
+                ANTENNA_MEASURED_SIGMA_M
+            } else {
+                ANTENNA_PRIOR_SIGMA_M
+            };
+            out.push((ANTENNA + i, *value, sigma));
         }
         out
     }
@@ -188,7 +205,6 @@ pub fn estimate(
         slip: side_slip_gain.map_or(SlipGain::Off, SlipGain::Fixed),
         prior_bias: standstill.map(|(b, s, _)| (b, s)),
         hold_scale,
-        antenna_prior: p.lever_arm,
     };
     let b0 = standstill
         .map(|s| s.0)

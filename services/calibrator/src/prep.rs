@@ -57,6 +57,9 @@ pub struct Prepared {
     pub headings: Vec<HeadingSample>,
     /// GNSS antenna position in the body frame (x forward, y left) from the rear-axle centre, m.
     pub lever_arm: [f64; 2],
+    /// Whether `vehicle.toml` gives each coordinate of `lever_arm` (measured),
+    /// or it is the axle-centre default.
+    pub lever_arm_given: [bool; 2],
     /// Nominal circumference, m.
     pub nominal_c: f64,
     /// Nominal rear track, m.
@@ -204,6 +207,10 @@ pub fn prepare(
         has_accel,
         headings,
         lever_arm,
+        lever_arm_given: [
+            vehicle.gnss.antenna_x_m.is_some(),
+            vehicle.gnss.antenna_y_m.is_some(),
+        ],
         nominal_c: vehicle.nominal_circumference_m,
         track: vehicle.track_width_m,
         standstill,

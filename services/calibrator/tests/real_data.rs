@@ -57,6 +57,32 @@ fn the_two_wid_trials_give_circumferences_that_agree() {
 }
 
 #[test]
+fn a_measured_antenna_position_is_kept_where_the_drive_cannot_tell() {
+    let Some(mut d) = load("wid-trial04") else {
+        return;
+    };
+    // As if measured on the car (the value trial02, which turns round, finds).
+    let measured = [0.51, -0.31];
+    d.vehicle.gnss.antenna_x_m = Some(measured[0]);
+    d.vehicle.gnss.antenna_y_m = Some(measured[1]);
+    let cal = calibrate(&d, &CalibrationConfig::default()).unwrap();
+    assert!(
+        !cal.has_warning(WarningCode::AntennaUnobservable),
+        "{:?}",
+        cal.warnings
+    );
+    let g = cal.gyro.as_ref().expect("gyro estimate");
+    for k in 0..2 {
+        assert!(
+            (g.antenna_m[k] - measured[k]).abs() < 0.1 && g.sigma_antenna_m[k] <= 0.05,
+            "antenna {:?} +- {:?}",
+            g.antenna_m,
+            g.sigma_antenna_m
+        );
+    }
+}
+
+#[test]
 fn the_nearly_straight_comma_drive_pins_the_common_scale_and_says_so() {
     let Some(d) = load("comma2k19-seg40") else {
         return;
