@@ -72,9 +72,9 @@ fn a_measured_antenna_position_is_kept_where_the_drive_cannot_tell() {
         cal.warnings
     );
     let g = cal.gyro.as_ref().expect("gyro estimate");
-    for k in 0..2 {
+    for ((estimated, sigma), given) in g.antenna_m.iter().zip(g.sigma_antenna_m).zip(measured) {
         assert!(
-            (g.antenna_m[k] - measured[k]).abs() < 0.1 && g.sigma_antenna_m[k] <= 0.05,
+            (estimated - given).abs() < 0.1 && sigma <= 0.05,
             "antenna {:?} +- {:?}",
             g.antenna_m,
             g.sigma_antenna_m
