@@ -576,16 +576,17 @@ pub fn serve(
             }
             match fusion.process(input) {
                 Ok(Some(pose)) => {
-                    if pose.mode != mode {
-                        log_mode_change(mode, &pose);
-                        mode = pose.mode;
-                    }
                     let wire = to_wire(&pose);
                     if config.latency_trace.is_some() {
                         trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
                     }
                     poses.publish(wire)?;
                     summary.poses += 1;
+                    // Logged after the pose is out: a log line is not worth its latency.
+                    if pose.mode != mode {
+                        log_mode_change(mode, &pose);
+                        mode = pose.mode;
+                    }
                     last_wheel_t = Some(pose.t_s);
                     if config.status_every_s > 0.0 {
                         let due = next_status_t.get_or_insert(pose.t_s);
