@@ -34,7 +34,7 @@ use iceoryx2::prelude::CallbackProgression;
 use integration_tests::graph::{Bin, Graph};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
-use odometry::serve::wall_clock_ns;
+use odometry::serve::{wall_clock_ns, write_latency_trace};
 use sensor_bridge::replay::{to_wire, Stream, WireDrive};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::write_drive;
@@ -101,11 +101,7 @@ fn relay(trace_path: Option<&std::path::Path>) {
     }
     // The same trace format as `odometry serve --latency-trace`.
     if let Some(path) = trace_path {
-        let mut text = String::from("t_ns,woke_wall_ns,published_wall_ns\n");
-        for (t, woke, published) in &trace {
-            text.push_str(&format!("{t},{woke},{published}\n"));
-        }
-        std::fs::write(path, text).expect("write trace");
+        write_latency_trace(path, &trace).expect("write trace");
     }
 }
 

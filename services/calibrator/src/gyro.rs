@@ -242,7 +242,7 @@ pub fn estimate(
         let jack = f.jackknife.as_ref().map_or(0.0, |j| j[(i, i)].max(0.0));
         formal.max(jack).sqrt()
     };
-    Ok(Some(GyroEstimate {
+    let estimate = GyroEstimate {
         bias_rad_s: f.g[0],
         sigma_bias_rad_s: sb,
         scale: f.g[1],
@@ -254,5 +254,29 @@ pub fn estimate(
         sigma_distance_factor: sigma(DISTANCE),
         antenna_m: [f.g[ANTENNA], f.g[ANTENNA + 1]],
         sigma_antenna_m: [sigma(ANTENNA), sigma(ANTENNA + 1)],
-    }))
+    };
+    if let Some(w) = antenna_warning(&estimate) {
+        warnings.push(w);
+    }
+    Ok(Some(estimate))
+}
+
+/// The warning for an antenna position the drive leaves poorly determined
+/// (either coordinate's sigma above [`ANTENNA_WARN_SIGMA_M`]): it matters
+/// wherever the position is carried between the antenna and the rear axle
+/// (fusion, scoring against a GNSS truth), and a drive with little turning
+/// cannot tell a lateral antenna offset from a position offset.
+fn antenna_warning(g: &GyroEstimate) -> Option<Warning> {
+    let [sx, sy] = g.sigma_antenna_m;
+    (sx.max(sy) > ANTENNA_WARN_SIGMA_M).then(|| {
+        Warning::new(
+            WarningCode::AntennaUnobservable,
+            format!(
+                "the GNSS antenna position ({:+.2}, {:+.2}) m is poorly determined: sigma {:.2} m forward, {:.2} m left \
+                 (limit {:.2} m; the drive turns too little to separate it from a position offset); \
+                 measure it and put it in vehicle.toml [gnss] antenna_x_m / antenna_y_m",
+                g.antenna_m[0], g.antenna_m[1], sx, sy, ANTENNA_WARN_SIGMA_M
+            ),
+        )
+    })
 }

@@ -392,9 +392,6 @@ pub fn assemble(
     } else {
         None
     };
-    if let Some(w) = gyro.as_ref().and_then(antenna_warning) {
-        warnings.push(w);
-    }
     // Where the wheel + gyro model fits the GNSS far better than the 2W model,
     // its common distance factor is the better measure of the scale.
     let mut c = primary.c;
@@ -679,28 +676,4 @@ pub fn render_text(c: &Calibration) -> String {
         }
     }
     s
-}
-
-/// The warning for an antenna position the drive leaves poorly determined
-/// (either coordinate's sigma above [`crate::gyro::ANTENNA_WARN_SIGMA_M`]):
-/// it matters wherever the position is carried between the antenna and the
-/// rear axle (fusion, scoring against a GNSS truth), and a drive with little
-/// turning cannot tell a lateral antenna offset from a position offset.
-fn antenna_warning(g: &GyroEstimate) -> Option<Warning> {
-    let [sx, sy] = g.sigma_antenna_m;
-    (sx.max(sy) > crate::gyro::ANTENNA_WARN_SIGMA_M).then(|| {
-        Warning::new(
-            WarningCode::AntennaUnobservable,
-            format!(
-                "the GNSS antenna position ({:+.2}, {:+.2}) m is poorly determined: sigma {:.2} m forward, {:.2} m left \
-                 (limit {:.2} m; the drive turns too little to separate it from a position offset); \
-                 measure it and put it in vehicle.toml [gnss] antenna_x_m / antenna_y_m",
-                g.antenna_m[0],
-                g.antenna_m[1],
-                sx,
-                sy,
-                crate::gyro::ANTENNA_WARN_SIGMA_M
-            ),
-        )
-    })
 }

@@ -698,8 +698,12 @@ pub fn wall_clock_ns() -> i128 {
         .map_or(0, |d| d.as_nanos() as i128)
 }
 
-/// Write `t_ns,woke_wall_ns,published_wall_ns` lines.
-fn write_latency_trace(path: &Path, trace: &[(i64, i128, i128)]) -> Result<(), ServeError> {
+/// Write a latency trace (`--latency-trace`): a header and one
+/// `t_ns,woke_wall_ns,published_wall_ns` line per pose, from `(pose time,
+/// wall clock at the wakeup that brought its wheel sample, wall clock when
+/// handed to the publisher)`, all ns. Public so that other consumers measured
+/// beside the service (the latency bench's bare relay) write the same format.
+pub fn write_latency_trace(path: &Path, trace: &[(i64, i128, i128)]) -> Result<(), ServeError> {
     use std::fmt::Write as _;
     let mut text = String::from("t_ns,woke_wall_ns,published_wall_ns\n");
     for (t, woke, published) in trace {
