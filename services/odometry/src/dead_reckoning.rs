@@ -34,6 +34,21 @@
 //! increments are zero (no distance, no heading change, whatever the gyro
 //! bias), a zero-velocity update.
 //!
+//! Gyro bias at standstill: a gyro's bias changes from one power-on to the
+//! next (the catalogue's `gyro_bias`, 10-1000 deg/h), so the bias calibrated
+//! on an earlier drive is only a prior for this one. A standing car does not
+//! turn, so the mean gyro rate over a standstill is a direct measurement of
+//! today's bias (a zero angular rate update), with no GNSS needed. When
+//! [`OdometerConfig::learn_gyro_bias`] is on, each standstill of at least
+//! [`OdometerConfig::standstill_min_s`] with a fresh gyro is such a
+//! measurement, taken when the car moves off: its variance is the spread of
+//! the gyro samples over their count (at least
+//! [`OdometerConfig::standstill_bias_floor_rad_s`] squared), and the bias used
+//! from then on is the inverse-variance mean of the calibrated bias (1-sigma
+//! [`OdometerConfig::gyro_bias_prior_sigma_rad_s`]) and every standstill so
+//! far. [`Odometer::take_bias_observation`] hands each measurement to a
+//! filter that keeps its own bias state (the service's fusion).
+//!
 //! Parameters can change between two samples ([`Odometer::set_params`]): the
 //! pose stays where it is and only the next increments use the new values.
 //!
@@ -88,7 +103,7 @@ pub enum HeadingSource {
     Wheels,
     /// The gyro.
     Gyro,
-    /// None: the vehicle stands (wheel offsets learning on), the pose is held.
+    /// None: the vehicle stands (standstill learning on), the pose is held.
     Standstill,
 }
 
@@ -147,8 +162,16 @@ pub struct OdometerConfig {
     pub standstill_rate_rev_s: f64,
     /// Gyro yaw rate below which the vehicle may be standing, rad/s.
     pub standstill_gyro_rad_s: f64,
-    /// Standing time needed before offsets are learned, s.
+    /// Standing time needed before offsets (and the gyro bias) are learned, s.
     pub standstill_min_s: f64,
+    /// Measure the gyro bias at standstill and use it (see the module docs).
+    pub learn_gyro_bias: bool,
+    /// 1-sigma of the calibrated gyro bias as a prior for this drive, rad/s:
+    /// how far a gyro's bias moves between power-ons.
+    pub gyro_bias_prior_sigma_rad_s: f64,
+    /// Smallest 1-sigma granted to one standstill's bias measurement, rad/s
+    /// (the spread of the samples over their count assumes white noise).
+    pub standstill_bias_floor_rad_s: f64,
 }
 
 impl Default for OdometerConfig {
@@ -161,6 +184,12 @@ impl Default for OdometerConfig {
             standstill_rate_rev_s: 0.01,
             standstill_gyro_rad_s: 0.02,
             standstill_min_s: 1.0,
+            learn_gyro_bias: true,
+            // About 100 deg/h, the middle of the catalogue's gyro_bias range:
+            // a standstill of a few seconds outweighs it, a short noisy one
+            // does not (BENCHMARKS.md compares it with 10 deg/h).
+            gyro_bias_prior_sigma_rad_s: 5e-4,
+            standstill_bias_floor_rad_s: 5e-6,
         }
     }
 }
@@ -239,6 +268,33 @@ pub struct OdometerStats {
     pub gyro_fallbacks: u64,
     /// Standstill stretches the wheel offsets were learned from.
     pub standstills: u64,
+    /// Standstills whose gyro mean went into the gyro bias.
+    pub gyro_bias_updates: u64,
+}
+
+/// The gyro bias measured over one standstill, as
+/// [`Odometer::take_bias_observation`] hands it on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasObservation {
+    /// Time the car moved off, s.
+    pub t_s: f64,
+    /// Mean raw gyro rate over the standstill, rad/s.
+    pub mean_rad_s: f64,
+    /// Variance of that mean, (rad/s)^2.
+    pub variance: f64,
+    /// The odometer's bias before this measurement, rad/s.
+    pub bias_before_rad_s: f64,
+    /// The odometer's bias after it (used from this increment on), rad/s.
+    pub bias_after_rad_s: f64,
+}
+
+/// What the standstills have said about the gyro bias, in information form.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct BiasLearning {
+    /// Sum of 1 / variance over the measurements.
+    information: f64,
+    /// Sum of mean / variance.
+    weighted_sum: f64,
 }
 
 /// Rear-wheel rate offsets learned at standstill.
@@ -257,6 +313,12 @@ struct Standstill {
     rl_rev: f64,
     rr_rev: f64,
     counted: bool,
+    /// Gyro over the standstill: time covered, raw integral, and the sum of
+    /// squares and count of the per-increment mean rates.
+    gyro_s: f64,
+    gyro_rad: f64,
+    gyro_sq: f64,
+    gyro_n: u32,
 }
 
 /// Turns wheel samples (and gyro samples) into [`Increment`]s.
@@ -270,6 +332,8 @@ pub struct Odometer {
     gyro_mark: Option<f64>,
     offsets: WheelOffsets,
     standstill: Standstill,
+    bias: BiasLearning,
+    bias_observation: Option<BiasObservation>,
     stats: OdometerStats,
 }
 
@@ -284,8 +348,56 @@ impl Odometer {
             gyro_mark: None,
             offsets: WheelOffsets::default(),
             standstill: Standstill::default(),
+            bias: BiasLearning::default(),
+            bias_observation: None,
             stats: OdometerStats::default(),
         }
+    }
+
+    /// The gyro bias in use, rad/s: the calibrated one, combined with what
+    /// the standstills measured when [`OdometerConfig::learn_gyro_bias`] is on.
+    pub fn gyro_bias(&self) -> f64 {
+        let prior = self.params.gyro_bias_rad_s;
+        if self.bias.information <= 0.0 {
+            return prior;
+        }
+        let prior_information = self.config.gyro_bias_prior_sigma_rad_s.powi(-2);
+        (prior * prior_information + self.bias.weighted_sum)
+            / (prior_information + self.bias.information)
+    }
+
+    /// The last standstill's gyro bias measurement, once (`None` if there was
+    /// none since the last call).
+    pub fn take_bias_observation(&mut self) -> Option<BiasObservation> {
+        self.bias_observation.take()
+    }
+
+    /// The car moved off after `standstill`: its gyro mean becomes a bias
+    /// measurement when it lasted long enough.
+    fn learn_bias_from(&mut self, t_s: f64, standstill: &Standstill) {
+        let s = standstill;
+        let c = &self.config;
+        if !c.learn_gyro_bias || s.gyro_s < c.standstill_min_s || s.gyro_n < 2 {
+            return;
+        }
+        let mean = s.gyro_rad / s.gyro_s;
+        let n = f64::from(s.gyro_n);
+        let spread = ((s.gyro_sq - n * mean * mean) / (n - 1.0)).max(0.0);
+        let variance = (spread / n).max(c.standstill_bias_floor_rad_s.powi(2));
+        if !(mean.is_finite() && variance.is_finite() && variance > 0.0) {
+            return;
+        }
+        let before = self.gyro_bias();
+        self.bias.information += 1.0 / variance;
+        self.bias.weighted_sum += mean / variance;
+        self.stats.gyro_bias_updates += 1;
+        self.bias_observation = Some(BiasObservation {
+            t_s,
+            mean_rad_s: mean,
+            variance,
+            bias_before_rad_s: before,
+            bias_after_rad_s: self.gyro_bias(),
+        });
     }
 
     /// The wheel rate offsets learned so far (zero before the first standstill).
@@ -297,7 +409,7 @@ impl Odometer {
     /// Returns true while the vehicle stands.
     fn watch_standstill(&mut self, t_s: f64, dt: f64, dn_rl: f64, dn_rr: f64) -> bool {
         let c = &self.config;
-        let bias = self.params.gyro_bias_rad_s;
+        let bias = self.gyro_bias();
         let gyro_still = self
             .gyro
             .rate_at(t_s)
@@ -306,14 +418,26 @@ impl Odometer {
             && dn_rr.abs() < c.standstill_rate_rev_s * dt
             && gyro_still;
         if !still {
-            self.standstill = Standstill::default();
+            let ended = std::mem::take(&mut self.standstill);
+            self.learn_bias_from(t_s, &ended);
             return false;
         }
+        // The gyro over this increment, when it covers the whole of it.
+        let gyro_rad = match (self.gyro_mark, self.gyro_fresh_at(t_s)) {
+            (Some(mark), true) => self.gyro.at(t_s).map(|now| now - mark),
+            _ => None,
+        };
         let s = &mut self.standstill;
         s.duration_s += dt;
         s.rl_rev += dn_rl;
         s.rr_rev += dn_rr;
-        if s.duration_s >= c.standstill_min_s {
+        if let Some(d) = gyro_rad {
+            s.gyro_s += dt;
+            s.gyro_rad += d;
+            s.gyro_sq += (d / dt) * (d / dt);
+            s.gyro_n += 1;
+        }
+        if c.learn_wheel_offsets && s.duration_s >= c.standstill_min_s {
             self.offsets = WheelOffsets {
                 rl_rev_s: s.rl_rev / s.duration_s,
                 rr_rev_s: s.rr_rev / s.duration_s,
@@ -402,7 +526,7 @@ impl Odometer {
                 let dt = t_s - t0;
                 let (mut dn_rl, mut dn_rr) = (rl_rev - rl0, rr_rev - rr0);
                 let mut standing = false;
-                if self.config.learn_wheel_offsets {
+                if self.config.learn_wheel_offsets || self.config.learn_gyro_bias {
                     standing = self.watch_standstill(t_s, dt, dn_rl, dn_rr);
                     dn_rl -= self.offsets.rl_rev_s * dt;
                     dn_rr -= self.offsets.rr_rev_s * dt;
@@ -411,7 +535,7 @@ impl Odometer {
                 let gyro_dyaw = match (self.config.heading, self.gyro_mark) {
                     (HeadingMode::Gyro, Some(mark)) if self.gyro_fresh_at(t_s) => {
                         self.gyro.at(t_s).map(|now| {
-                            (now - mark - self.params.gyro_bias_rad_s * (t_s - t0))
+                            (now - mark - self.gyro_bias() * (t_s - t0))
                                 / (1.0 + self.params.gyro_scale)
                         })
                     }
@@ -520,6 +644,7 @@ mod tests {
         OdometerConfig {
             heading,
             learn_wheel_offsets: false,
+            learn_gyro_bias: false,
             ..OdometerConfig::default()
         }
     }
@@ -674,6 +799,71 @@ mod tests {
             dr.gyro(0.9, 0.0),
             Err(InputError::OutOfOrder { stream: "imu", .. })
         ));
+    }
+
+    /// 5 s standing, then 20 s straight at 10 m/s (5 rev/s of a 2 m wheel),
+    /// wheels and gyro at 100 Hz; the gyro reads `bias` plus a +-`jitter`
+    /// alternating noise. Returns the final pose.
+    fn stand_then_drive(dr: &mut DeadReckoner, bias: f64, jitter: f64) -> Pose2 {
+        for i in 0..=2500 {
+            let t = f64::from(i) * 0.01;
+            let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+            dr.gyro(t - 0.003, bias + sign * jitter).unwrap();
+            let rev = 5.0 * (t - 5.0).max(0.0);
+            dr.wheels(t, rev, rev).unwrap();
+        }
+        dr.pose()
+    }
+
+    #[test]
+    fn gyro_bias_is_measured_at_standstill_and_used_when_driving_off() {
+        // The calibrated bias (0) is from an earlier power-on; today it is 1e-3 rad/s.
+        let p = params(2.0, 2.0, 1.5);
+        let bias = 1e-3;
+        let learning = OdometerConfig {
+            heading: HeadingMode::Gyro,
+            learn_wheel_offsets: false,
+            gyro_bias_prior_sigma_rad_s: 5e-5,
+            ..OdometerConfig::default()
+        };
+        let mut dr = DeadReckoner::new(p, learning, Pose2::default());
+        let pose = stand_then_drive(&mut dr, bias, 2e-3);
+        let mut odo = dr.odometer().clone();
+        assert_eq!(odo.stats().gyro_bias_updates, 1);
+        let obs = odo.take_bias_observation().expect("one measurement");
+        assert!((obs.mean_rad_s - bias).abs() < 1e-6, "{obs:?}");
+        // The jitter's spread over 500 increments, at most 2e-3 / sqrt(500).
+        assert!(
+            obs.variance > 0.0 && obs.variance <= 4e-6 / 500.0,
+            "{obs:?}"
+        );
+        // Inverse-variance mean with the calibrated bias (0, sigma 5e-5).
+        let w = 5e-5_f64.powi(2) / (5e-5_f64.powi(2) + obs.variance);
+        assert!(w > 0.2 && w < 0.9, "the prior still counts: {w}");
+        assert!((odo.gyro_bias() - w * obs.mean_rad_s).abs() < 1e-12);
+        // The standing part adds no heading; the drive only the unlearned part.
+        let expected_yaw = (bias - odo.gyro_bias()) * 20.0;
+        assert!(
+            (pose.yaw - expected_yaw).abs() < 1e-4,
+            "{pose:?} {expected_yaw}"
+        );
+
+        // A quiet gyro: the measurement outweighs the prior, the heading stays.
+        let mut quiet = DeadReckoner::new(p, learning, Pose2::default());
+        let pose = stand_then_drive(&mut quiet, bias, 0.0);
+        assert!((quiet.odometer().gyro_bias() - bias).abs() < 1e-5);
+        assert!(pose.yaw.abs() < 2e-4, "{pose:?}");
+        let mut odo = quiet.odometer().clone();
+        let obs = odo.take_bias_observation().expect("one measurement");
+        assert!((obs.mean_rad_s - bias).abs() < 1e-9 && obs.bias_before_rad_s == 0.0);
+        assert_eq!(obs.bias_after_rad_s, quiet.odometer().gyro_bias());
+        assert!(odo.take_bias_observation().is_none(), "handed on once");
+
+        // Switched off: the calibrated bias stays, the heading drifts by 0.02 rad.
+        let mut plain = DeadReckoner::new(p, config(HeadingMode::Gyro), Pose2::default());
+        let pose = stand_then_drive(&mut plain, bias, 0.0);
+        assert_eq!(plain.odometer().stats().gyro_bias_updates, 0);
+        assert!((pose.yaw - bias * 25.0).abs() < 1e-6, "{pose:?}");
     }
 
     #[test]

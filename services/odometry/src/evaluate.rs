@@ -38,7 +38,8 @@
 //! whole drive as the service would, so that at each outage start it has what
 //! it learned before (wheel offsets at standstill, gyro history); a copy of
 //! it is put at the truth pose and dead-reckons to the outage end on the
-//! wheels (and gyro). GNSS and heading samples are never read. The score is the distance between the dead-reckoned
+//! wheels (and gyro), learning at standstills as the service does (wheel
+//! offsets, gyro bias). GNSS and heading samples are never read. The score is the distance between the dead-reckoned
 //! and the true position at the outage end. `distance_m` is the truth arc
 //! length driven during the outage (same dead band), `error_pct` the error in
 //! percent of it, given for outages of at least `min_distance_for_pct_m`.
@@ -128,6 +129,13 @@ pub struct OutageResult {
     pub truth_end_m: [f64; 2],
     /// Increments that fell back to the wheel difference in gyro mode.
     pub gyro_fallbacks: u64,
+    /// Gyro bias the dead-reckoning started with, rad/s: the calibrated one,
+    /// or, with standstill learning, combined with the standstills before
+    /// the outage.
+    pub gyro_bias_rad_s: f64,
+    /// Standstill gyro-bias measurements the odometer had taken by the
+    /// outage end (those before the outage and during it).
+    pub gyro_bias_standstills: u64,
     /// With `keep_tracks`: at every truth row inside the outage, its time,
     /// the dead-reckoned truth point and the truth (east, north).
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -577,6 +585,10 @@ struct Span {
     skipped: usize,
     /// Increments in the span that fell back to the wheel difference in gyro mode.
     gyro_fallbacks: u64,
+    /// Gyro bias at the start, rad/s.
+    gyro_bias_rad_s: f64,
+    /// Standstill bias measurements by the end.
+    gyro_bias_standstills: u64,
 }
 
 fn dead_reckon_span(
@@ -592,6 +604,7 @@ fn dead_reckon_span(
     dr.set_pose(pose0);
     let heading = dr.odometer().config().heading;
     let fallbacks_before = dr.odometer().stats().gyro_fallbacks;
+    let gyro_bias_rad_s = dr.odometer().gyro_bias();
     let mut track = vec![(t0, pose0)];
     let mut skipped = 0usize;
     for input in &inputs[start.next.min(inputs.len())..] {
@@ -613,6 +626,8 @@ fn dead_reckon_span(
         track,
         skipped,
         gyro_fallbacks: dr.odometer().stats().gyro_fallbacks - fallbacks_before,
+        gyro_bias_rad_s,
+        gyro_bias_standstills: dr.odometer().stats().gyro_bias_updates,
     })
 }
 
@@ -862,6 +877,8 @@ fn run_outage(
         end_m: end_point,
         truth_end_m: end,
         gyro_fallbacks: span.gyro_fallbacks,
+        gyro_bias_rad_s: span.gyro_bias_rad_s,
+        gyro_bias_standstills: span.gyro_bias_standstills,
         track,
     })
 }

@@ -39,7 +39,7 @@
 //! Pure: no clock, no I/O; numerical failure is a [`FusionError`].
 
 use crate::dead_reckoning::{
-    HeadingMode, HeadingSource, Increment, InputError, Odometer, OdometerConfig,
+    BiasObservation, HeadingMode, HeadingSource, Increment, InputError, Odometer, OdometerConfig,
 };
 use crate::estimate_file::OdometryParams;
 use crate::inputs::Input;
@@ -128,7 +128,7 @@ pub enum FusionError {
     /// An innovation covariance that cannot be inverted.
     #[error("{what} innovation covariance at t = {t_s} s is not positive definite")]
     NotPositiveDefinite {
-        /// `gnss` or `heading`.
+        /// `gnss`, `heading` or `standstill gyro bias`.
         what: &'static str,
         /// Time of the measurement.
         t_s: f64,
@@ -496,9 +496,48 @@ impl Fusion {
     fn advance(&mut self, t_s: f64, rl: f64, rr: f64) -> Result<(), ProcessError> {
         let increment = self.odometer.wheels(t_s, rl, rr)?;
         self.last_wheels = Some((t_s, rl, rr));
+        if let Some(observation) = self.odometer.take_bias_observation() {
+            self.observe_bias(&observation)?;
+        }
         if let Some(inc) = increment {
             self.predict(&inc)?;
         }
+        Ok(())
+    }
+
+    /// A standstill measured the gyro bias: update the residual bias with it,
+    /// then move the residual onto the odometer's new bias, so that the total
+    /// (odometer bias + residual) is the filter's estimate, not the odometer's.
+    fn observe_bias(&mut self, obs: &BiasObservation) -> Result<(), FusionError> {
+        if self.config.odometer.heading != HeadingMode::Gyro {
+            return Ok(());
+        }
+        let State::Running { x, p } = &mut self.state else {
+            return Ok(());
+        };
+        let mut h = SMatrix::<f64, 1, 4>::zeros();
+        h[(0, 3)] = 1.0;
+        let r = SMatrix::<f64, 1, 1>::new(obs.variance);
+        let nu = SVector::<f64, 1>::new(obs.mean_rad_s - obs.bias_before_rad_s - x[3]);
+        let s = h * *p * h.transpose() + r;
+        let Some(s_inv) = s.try_inverse() else {
+            return Err(FusionError::NotPositiveDefinite {
+                what: "standstill gyro bias",
+                t_s: obs.t_s,
+            });
+        };
+        let gain = *p * h.transpose() * s_inv;
+        let (mut x1, mut p1) = joseph_update(*x, *p, &gain, &h, &r, &nu);
+        x1[3] -= obs.bias_after_rad_s - obs.bias_before_rad_s;
+        symmetrise(&mut p1);
+        if !(x1.iter().all(|v| v.is_finite()) && p1.iter().all(|v| v.is_finite())) {
+            return Err(FusionError::NonFinite {
+                t_s: obs.t_s,
+                after: "standstill gyro bias update",
+            });
+        }
+        *x = x1;
+        *p = p1;
         Ok(())
     }
 
@@ -1014,6 +1053,47 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_standstill_bias_measurement_updates_the_total_bias_once() {
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        // Running, with a residual bias of 2e-4 +- 1e-4 on top of the odometer's 0.
+        let mut p = Mat4::identity() * 0.01;
+        p[(3, 3)] = 1e-8;
+        fusion.state = State::Running {
+            x: Vec4::new(0.0, 0.0, 0.0, 2e-4),
+            p,
+        };
+        // The standstill says 1e-3 +- 1e-4; the odometer moved its own bias to 5e-4.
+        let obs = BiasObservation {
+            t_s: 1.0,
+            mean_rad_s: 1e-3,
+            variance: 1e-8,
+            bias_before_rad_s: 0.0,
+            bias_after_rad_s: 5e-4,
+        };
+        fusion.observe_bias(&obs).unwrap();
+        let State::Running { x, p } = fusion.state else {
+            panic!("not running")
+        };
+        // Equal variances: the total is the mean of 2e-4 and 1e-3, whatever
+        // the odometer's bias, and its variance halves.
+        assert!((5e-4 + x[3] - 6e-4).abs() < 1e-12, "residual {}", x[3]);
+        assert!((p[(3, 3)] - 0.5e-8).abs() < 1e-15, "{}", p[(3, 3)]);
+        assert_eq!(
+            (x[0], x[1], x[2]),
+            (0.0, 0.0, 0.0),
+            "uncorrelated: pose unmoved"
+        );
+        // Wheel heading: the bias is not the filter's business.
+        let mut wheels = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
+        wheels.state = State::Running {
+            x: Vec4::zeros(),
+            p: Mat4::identity(),
+        };
+        wheels.observe_bias(&obs).unwrap();
+        assert!(matches!(wheels.state, State::Running { x, .. } if x == Vec4::zeros()));
     }
 
     #[test]

@@ -52,6 +52,9 @@ struct EvaluateArgs {
     /// Do not learn the rear wheels' zero offsets at standstill (see the README).
     #[arg(long)]
     no_wheel_offsets: bool,
+    /// Keep the calibrated gyro bias: do not measure it at standstill (see the README).
+    #[arg(long)]
+    no_standstill_gyro_bias: bool,
     /// The body point truth.csv follows: `axle` (the rear-axle centre, as the
     /// drive format says), `antenna` (the GNSS antenna position in the
     /// estimate: for drives whose truth is the GNSS track, e.g. WID), or `X,Y`
@@ -123,6 +126,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         odometer: OdometerConfig {
             heading: args.heading,
             learn_wheel_offsets: !args.no_wheel_offsets,
+            learn_gyro_bias: !args.no_standstill_gyro_bias,
             ..OdometerConfig::default()
         },
         truth_point_m,
@@ -149,14 +153,22 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
     );
     println!("heading    {}", report.heading);
     println!();
-    println!("  start s  length s  distance m   error m  error %  start pose from");
+    println!(
+        "  start s  length s  distance m   error m  error %  gyro bias rad/s (standstills)  start pose from"
+    );
     for o in &report.outages {
         let pct = o
             .error_pct
             .map_or_else(|| "     -".to_string(), |p| format!("{p:6.2}"));
         println!(
-            "  {:7.2}  {:8.1}  {:10.1}  {:8.3}  {pct}   {}",
-            o.t_start_s, o.length_s, o.distance_m, o.error_m, o.start_yaw_source
+            "  {:7.2}  {:8.1}  {:10.1}  {:8.3}  {pct}   {:12.6} ({:3})             {}",
+            o.t_start_s,
+            o.length_s,
+            o.distance_m,
+            o.error_m,
+            o.gyro_bias_rad_s,
+            o.gyro_bias_standstills,
+            o.start_yaw_source
         );
     }
     println!();

@@ -88,6 +88,9 @@ pub struct ServeArgs {
     /// Do not learn the rear wheels' zero offsets at standstill (see the README).
     #[arg(long)]
     pub no_wheel_offsets: bool,
+    /// Keep the calibrated gyro bias: do not measure it at standstill (see the README).
+    #[arg(long)]
+    pub no_standstill_gyro_bias: bool,
     /// Without an accepted GNSS fix for this long, the mode is DeadReckoning, s.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub gnss_timeout: f64,
@@ -162,6 +165,7 @@ impl ServeConfig {
             odometer: OdometerConfig {
                 heading: args.heading,
                 learn_wheel_offsets: !args.no_wheel_offsets,
+                learn_gyro_bias: !args.no_standstill_gyro_bias,
                 ..OdometerConfig::default()
             },
             lever_arm_m: [
