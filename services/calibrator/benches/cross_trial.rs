@@ -147,10 +147,11 @@ fn main() -> Result<()> {
         "Scored at the rear-axle centre (`--truth-point axle`, the CLI default), and, last column,"
     );
     println!("at the GNSS antenna position the calibration of the other trial found (`--truth-point antenna`):");
-    println!("the WID truth is the RTK antenna track, not the rear axle.");
+    println!("the WID truth is the RTK antenna track, not the rear axle. The last column keeps the");
+    println!("calibrated gyro bias instead of measuring it at standstill (`--no-standstill-gyro-bias`).");
     println!();
-    println!("| calibrated on → evaluated on | heading | outage | nominal | scale-only | calibrated | calibrated, scored at antenna |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| calibrated on → evaluated on | heading | outage | nominal | scale-only | calibrated | calibrated, scored at antenna | same, calibrated gyro bias kept |");
+    println!("|---|---|---|---|---|---|---|---|");
     let mut goal = Vec::new();
     for (i, j) in [(0usize, 1usize), (1, 0)] {
         let v = &drives[i].vehicle;
@@ -179,17 +180,25 @@ fn main() -> Result<()> {
                     truth_point_m: antennas[i].unwrap_or([0.0, 0.0]),
                     ..config
                 };
+                let kept_bias_config = EvaluateConfig {
+                    odometer: OdometerConfig {
+                        learn_gyro_bias: false,
+                        ..antenna_config.odometer
+                    },
+                    ..antenna_config
+                };
                 let mut cells = Vec::new();
                 let runs = [
                     (&sets[0], &config),
                     (&sets[1], &config),
                     (&sets[2], &config),
                     (&sets[2], &antenna_config),
+                    (&sets[2], &kept_bias_config),
                 ];
                 for (k, (prm, cfg)) in runs.into_iter().enumerate() {
                     let cell = match evaluate(&drives[j], prm, cfg) {
                         Ok(rep) => {
-                            if k >= 2 && heading == HeadingMode::Gyro {
+                            if (k == 2 || k == 3) && heading == HeadingMode::Gyro {
                                 goal.push((i, j, outage_s, k == 3, rep.median_error_m));
                             }
                             format!(
