@@ -147,8 +147,12 @@ fn main() -> Result<()> {
         "Scored at the rear-axle centre (`--truth-point axle`, the CLI default), and, last column,"
     );
     println!("at the GNSS antenna position the calibration of the other trial found (`--truth-point antenna`):");
-    println!("the WID truth is the RTK antenna track, not the rear axle. The last column keeps the");
-    println!("calibrated gyro bias instead of measuring it at standstill (`--no-standstill-gyro-bias`).");
+    println!(
+        "the WID truth is the RTK antenna track, not the rear axle. The last column keeps the"
+    );
+    println!(
+        "calibrated gyro bias instead of measuring it at standstill (`--no-standstill-gyro-bias`)."
+    );
     println!();
     println!("| calibrated on → evaluated on | heading | outage | nominal | scale-only | calibrated | calibrated, scored at antenna | same, calibrated gyro bias kept |");
     println!("|---|---|---|---|---|---|---|---|");
