@@ -189,6 +189,8 @@ pub struct FusionStats {
     pub position_resets: u64,
     /// Times the inputs went stale.
     pub stale: u64,
+    /// Gyro bias measurements taken at standstill.
+    pub gyro_bias_standstills: u64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -277,6 +279,16 @@ impl Fusion {
     /// The parameters in use.
     pub fn params(&self) -> &OdometryParams {
         self.odometer.params()
+    }
+
+    /// The gyro bias the filter uses, rad/s: the odometer's (calibrated, and
+    /// measured at standstills) plus the residual learned while running.
+    pub fn gyro_bias(&self) -> f64 {
+        let residual = match self.state {
+            State::Running { x, .. } => x[3],
+            State::Uninitialised { .. } => 0.0,
+        };
+        self.odometer.gyro_bias() + residual
     }
 
     /// Version of the estimate in use.
@@ -497,6 +509,7 @@ impl Fusion {
         let increment = self.odometer.wheels(t_s, rl, rr)?;
         self.last_wheels = Some((t_s, rl, rr));
         if let Some(observation) = self.odometer.take_bias_observation() {
+            self.stats.gyro_bias_standstills += 1;
             self.observe_bias(&observation)?;
         }
         if let Some(inc) = increment {
@@ -1053,6 +1066,83 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_car_standing_before_it_drives_off_measures_its_gyro_bias() {
+        let bias = 0.003;
+        // 5 s standing (no GNSS yet), then the usual drive with fixes.
+        let mut inputs = Vec::new();
+        for i in 0..500 {
+            let t = f64::from(i) * 0.01;
+            inputs.push(Input::Imu {
+                t_s: t,
+                gz_rad_s: bias,
+            });
+            inputs.push(Input::Wheels {
+                t_s: t,
+                rl_rev: 0.0,
+                rr_rev: 0.0,
+            });
+        }
+        let sim = simulate(30.0, &|_| true, bias, 0.0);
+        inputs.extend(sim.inputs.iter().map(|i| match *i {
+            Input::Imu { t_s, gz_rad_s } => Input::Imu {
+                t_s: t_s + 5.0,
+                gz_rad_s,
+            },
+            Input::Wheels {
+                t_s,
+                rl_rev,
+                rr_rev,
+            } => Input::Wheels {
+                t_s: t_s + 5.0,
+                rl_rev,
+                rr_rev,
+            },
+            Input::Gnss {
+                t_s,
+                x_m,
+                y_m,
+                sigma_m,
+            } => Input::Gnss {
+                t_s: t_s + 5.0,
+                x_m,
+                y_m,
+                sigma_m,
+            },
+            other => other,
+        }));
+        let moved_off = inputs.partition_point(|i| i.t_s() <= 5.01);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        run(&mut fusion, &inputs[..moved_off]);
+        assert_eq!(fusion.stats().gyro_bias_standstills, 1);
+        assert!(
+            (fusion.gyro_bias() - bias).abs() < 1e-5,
+            "{}",
+            fusion.gyro_bias()
+        );
+        run(&mut fusion, &inputs[moved_off..]);
+        assert!(
+            (fusion.gyro_bias() - bias).abs() < 2e-4,
+            "{}",
+            fusion.gyro_bias()
+        );
+
+        let mut kept = Fusion::new(
+            params(),
+            0,
+            FusionConfig {
+                odometer: OdometerConfig {
+                    learn_gyro_bias: false,
+                    ..config(HeadingMode::Gyro).odometer
+                },
+                ..config(HeadingMode::Gyro)
+            },
+        );
+        run(&mut kept, &inputs[..moved_off]);
+        assert_eq!(kept.stats().gyro_bias_standstills, 0);
+        assert_eq!(kept.gyro_bias(), 0.0);
     }
 
     #[test]

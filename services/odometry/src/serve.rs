@@ -519,6 +519,7 @@ pub fn serve(
     let mut last_wheel_t: Option<f64> = None;
     let mut stale = false;
     let mut mode = PoseMode::NoFix;
+    let mut bias_standstills = 0u64;
     let mut next_status_t: Option<f64> = None;
     let mut wheels_ended = false;
     // Newest time seen per input stream (wheels, IMU, GNSS, heading).
@@ -590,6 +591,15 @@ pub fn serve(
                     if pose.mode != mode {
                         log_mode_change(mode, &pose);
                         mode = pose.mode;
+                    }
+                    let standstills = fusion.stats().gyro_bias_standstills;
+                    if standstills != bias_standstills {
+                        bias_standstills = standstills;
+                        tracing::info!(
+                            "odometry: t = {:.2} s: gyro bias measured at standstill; in use now {:.3e} rad/s",
+                            pose.t_s,
+                            fusion.gyro_bias()
+                        );
                     }
                     last_wheel_t = Some(pose.t_s);
                     if config.status_every_s > 0.0 {
@@ -681,7 +691,7 @@ pub fn serve(
     let stats = fusion.stats();
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
-         GNSS {} accepted / {} gated out, headings {} / {}",
+         GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s))",
         summary.wheel_samples,
         summary.poses,
         summary.estimate_switches,
@@ -689,7 +699,9 @@ pub fn serve(
         stats.gnss_accepted,
         stats.gnss_rejected,
         stats.heading_accepted,
-        stats.heading_rejected
+        stats.heading_rejected,
+        fusion.gyro_bias(),
+        stats.gyro_bias_standstills
     );
     Ok(summary)
 }
