@@ -8,7 +8,7 @@
 use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::{Estimate, OdometryParams};
+use odometry::estimate_file::Estimate;
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::drive_inputs;
 use std::path::PathBuf;
@@ -23,10 +23,10 @@ fn main() -> Result<()> {
         Some(h) => h.parse().map_err(anyhow::Error::msg)?,
         None => HeadingMode::Gyro,
     };
-    let params = match args.get(2) {
-        Some(p) => Estimate::load(&PathBuf::from(p))?.params,
-        None => OdometryParams::nominal(&drive.vehicle),
-    };
+    let estimate = args
+        .get(2)
+        .map(|p| Estimate::load(&PathBuf::from(p)))
+        .transpose()?;
     let config = FusionConfig {
         odometer: OdometerConfig {
             heading,
@@ -38,12 +38,16 @@ fn main() -> Result<()> {
         ],
         ..FusionConfig::default()
     };
-    // Tuning experiments: FUSION_DS (distance noise fraction), FUSION_MINSIG
+    // Tuning experiments: FUSION_DS (distance noise fraction; FUSION_DS_NOMINAL
+    // with the nominal circumferences), FUSION_MINSIG
     // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)).
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
     let mut config = config;
     if let Some(v) = env("FUSION_DS") {
         config.distance_noise_frac = v;
+    }
+    if let Some(v) = env("FUSION_DS_NOMINAL") {
+        config.nominal_distance_noise_frac = v;
     }
     if let Some(v) = env("FUSION_MINSIG") {
         config.min_gnss_sigma_m = v;
@@ -51,7 +55,11 @@ fn main() -> Result<()> {
     if let Some(v) = env("FUSION_GYRO") {
         config.gyro_noise_rad_per_sqrt_s = v;
     }
-    let mut fusion = Fusion::new(params, 0, config);
+    let mut fusion = match &estimate {
+        Some(e) => Fusion::new(e.params, 0, config),
+        None => Fusion::nominal(&drive.vehicle, config),
+    };
+    let params = *fusion.params();
     let truth = drive.truth.clone().unwrap_or_default();
     let mut counts = [0usize; 3];
     let mut errors = Vec::new();

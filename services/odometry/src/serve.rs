@@ -472,7 +472,10 @@ pub fn serve(
         .initial
         .map_or_else(|| OdometryParams::nominal(&config.vehicle), |e| e.params);
     params.validate("vehicle parameters")?;
-    let mut fusion = Fusion::new(params, 0, config.fusion);
+    let mut fusion = match config.initial {
+        Some(_) => Fusion::new(params, 0, config.fusion),
+        None => Fusion::nominal(&config.vehicle, config.fusion),
+    };
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when

@@ -277,7 +277,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
 
     // The service's poses are exactly those of the filter run offline over the
     // same samples: batching by wakeups changes nothing.
-    let mut offline = Fusion::new(OdometryParams::nominal(&vehicle()), 0, fusion_config());
+    let mut offline = Fusion::nominal(&vehicle(), fusion_config());
     let expected: Vec<_> = sent
         .iter()
         .filter_map(|i| offline.process(i).expect("offline input"))

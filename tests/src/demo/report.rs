@@ -122,7 +122,7 @@ fn filter_through_outage(
         ],
         ..FusionConfig::default()
     };
-    let mut fusion = Fusion::new(OdometryParams::nominal(&drive.vehicle), 0, config);
+    let mut fusion = Fusion::nominal(&drive.vehicle, config);
     let (mut end, mut max) = (f64::NAN, 0.0f64);
     for input in &inputs {
         let Ok(Some(p)) = fusion.process(input) else {
