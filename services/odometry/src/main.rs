@@ -2,7 +2,6 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
 use std::path::PathBuf;
@@ -43,18 +42,12 @@ struct EvaluateArgs {
     /// Time between outage starts, seconds.
     #[arg(long, default_value_t = 10.0)]
     spacing: f64,
-    /// Heading source during the outage: `wheels` (the paper's 2W model) or `gyro`.
-    #[arg(long, default_value = "gyro")]
-    heading: HeadingMode,
     /// Write the result as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Do not learn the rear wheels' zero offsets at standstill (see the README).
-    #[arg(long)]
-    no_wheel_offsets: bool,
-    /// Keep the calibrated gyro bias: do not measure it at standstill (see the README).
-    #[arg(long)]
-    no_standstill_gyro_bias: bool,
+    /// Dead-reckoning settings.
+    #[command(flatten)]
+    odometer: odometry::serve::OdometerArgs,
     /// The body point truth.csv follows: `axle` (the rear-axle centre, as the
     /// drive format says), `antenna` (the GNSS antenna position in the
     /// estimate: for drives whose truth is the GNSS track, e.g. WID), or `X,Y`
@@ -123,12 +116,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     let config = EvaluateConfig {
         outage_s: args.outage,
         spacing_s: args.spacing,
-        odometer: OdometerConfig {
-            heading: args.heading,
-            learn_wheel_offsets: !args.no_wheel_offsets,
-            learn_gyro_bias: !args.no_standstill_gyro_bias,
-            ..OdometerConfig::default()
-        },
+        odometer: args.odometer.config(),
         truth_point_m,
         ..EvaluateConfig::default()
     };

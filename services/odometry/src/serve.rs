@@ -67,6 +67,33 @@ pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
 pub const RESTART_BACKSTEP_S: f64 = 1.0;
 
+/// The dead-reckoning flags `odometry serve` and `odometry evaluate` share.
+#[derive(Debug, Clone, clap::Args)]
+pub struct OdometerArgs {
+    /// Heading source while dead-reckoning: `gyro` (default, see the README for
+    /// why) or `wheels` (the paper's 2W model).
+    #[arg(long, default_value = "gyro")]
+    pub heading: HeadingMode,
+    /// Do not learn the rear wheels' zero offsets at standstill (see the README).
+    #[arg(long)]
+    pub no_wheel_offsets: bool,
+    /// Keep the calibrated gyro bias: do not measure it at standstill (see the README).
+    #[arg(long)]
+    pub no_standstill_gyro_bias: bool,
+}
+
+impl OdometerArgs {
+    /// The odometer configuration these flags ask for.
+    pub fn config(&self) -> OdometerConfig {
+        OdometerConfig {
+            heading: self.heading,
+            learn_wheel_offsets: !self.no_wheel_offsets,
+            learn_gyro_bias: !self.no_standstill_gyro_bias,
+            ..OdometerConfig::default()
+        }
+    }
+}
+
 /// Arguments of `odometry serve`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ServeArgs {
@@ -81,16 +108,9 @@ pub struct ServeArgs {
     /// Ignore estimates on the bus (keep the nominal or --estimate values).
     #[arg(long)]
     pub no_bus_estimate: bool,
-    /// Heading source while dead-reckoning: `gyro` (default, see the README for
-    /// why) or `wheels` (the paper's 2W model).
-    #[arg(long, default_value = "gyro")]
-    pub heading: HeadingMode,
-    /// Do not learn the rear wheels' zero offsets at standstill (see the README).
-    #[arg(long)]
-    pub no_wheel_offsets: bool,
-    /// Keep the calibrated gyro bias: do not measure it at standstill (see the README).
-    #[arg(long)]
-    pub no_standstill_gyro_bias: bool,
+    /// Dead-reckoning settings.
+    #[command(flatten)]
+    pub odometer: OdometerArgs,
     /// Without an accepted GNSS fix for this long, the mode is DeadReckoning, s.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub gnss_timeout: f64,
@@ -162,12 +182,7 @@ impl ServeConfig {
             settings.root = Some(r.clone());
         }
         let fusion = FusionConfig {
-            odometer: OdometerConfig {
-                heading: args.heading,
-                learn_wheel_offsets: !args.no_wheel_offsets,
-                learn_gyro_bias: !args.no_standstill_gyro_bias,
-                ..OdometerConfig::default()
-            },
+            odometer: args.odometer.config(),
             lever_arm_m: [
                 vehicle.gnss.antenna_x_m.unwrap_or(0.0),
                 vehicle.gnss.antenna_y_m.unwrap_or(0.0),
@@ -374,17 +389,18 @@ impl Inputs {
         }
         if estimate {
             self.estimate.take_events()?;
-            self.drain_estimates(sequencer, bus_estimates, &mut rejected)?;
+            rejected = self.drain_estimates(sequencer, bus_estimates)?;
         }
         Ok(rejected)
     }
 
+    /// Every estimate waiting, into `sequencer`; returns how many were rejected.
     fn drain_estimates(
         &self,
         sequencer: &mut Sequencer,
         bus_estimates: bool,
-        rejected: &mut u64,
-    ) -> Result<(), BusError> {
+    ) -> Result<u64, BusError> {
+        let mut rejected = 0;
         while let Some(s) = self.estimate.receive()? {
             if !bus_estimates {
                 tracing::info!(
@@ -401,12 +417,12 @@ impl Inputs {
                     estimate,
                 }),
                 Err(e) => {
-                    *rejected += 1;
+                    rejected += 1;
                     tracing::warn!("odometry: estimate rejected: {e}");
                 }
             }
         }
-        Ok(())
+        Ok(rejected)
     }
 }
 
@@ -468,14 +484,12 @@ pub fn serve(
     config: &ServeConfig,
     shutdown: &Shutdown,
 ) -> Result<ServeSummary, ServeError> {
-    let params = config
-        .initial
-        .map_or_else(|| OdometryParams::nominal(&config.vehicle), |e| e.params);
-    params.validate("vehicle parameters")?;
     let mut fusion = match config.initial {
-        Some(_) => Fusion::new(params, 0, config.fusion),
+        Some(e) => Fusion::new(e.params, 0, config.fusion),
         None => Fusion::nominal(&config.vehicle, config.fusion),
     };
+    let params = *fusion.params();
+    params.validate("vehicle parameters")?;
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
