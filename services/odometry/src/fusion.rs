@@ -546,33 +546,24 @@ impl Fusion {
         if self.config.odometer.heading != HeadingMode::Gyro {
             return Ok(());
         }
-        let State::Running { x, p } = &mut self.state else {
+        let State::Running { x, p } = self.state else {
             return Ok(());
         };
+        let nu = SVector::<f64, 1>::new(obs.mean_rad_s - obs.bias_before_rad_s - x[3]);
         let mut h = SMatrix::<f64, 1, 4>::zeros();
         h[(0, 3)] = 1.0;
         let r = SMatrix::<f64, 1, 1>::new(obs.variance);
-        let nu = SVector::<f64, 1>::new(obs.mean_rad_s - obs.bias_before_rad_s - x[3]);
-        let s = h * *p * h.transpose() + r;
-        let Some(s_inv) = s.try_inverse() else {
+        let s = (h * p * h.transpose() + r)[(0, 0)];
+        if !(s.is_finite() && s > 0.0) {
             return Err(FusionError::NotPositiveDefinite {
                 what: "standstill gyro bias",
                 t_s: obs.t_s,
             });
-        };
-        let gain = *p * h.transpose() * s_inv;
-        let (mut x1, mut p1) = joseph_update(*x, *p, &gain, &h, &r, &nu);
-        x1[3] -= obs.bias_after_rad_s - obs.bias_before_rad_s;
-        symmetrise(&mut p1);
-        if !(x1.iter().all(|v| v.is_finite()) && p1.iter().all(|v| v.is_finite())) {
-            return Err(FusionError::NonFinite {
-                t_s: obs.t_s,
-                after: "standstill gyro bias update",
-            });
         }
-        *x = x1;
-        *p = p1;
-        Ok(())
+        let gain = p * h.transpose() / s;
+        let (mut x, p) = joseph_update(x, p, &gain, &h, &r, &nu);
+        x[3] -= obs.bias_after_rad_s - obs.bias_before_rad_s;
+        self.set_running(x, p, obs.t_s, "standstill gyro bias update")
     }
 
     fn predict(&mut self, inc: &Increment) -> Result<(), FusionError> {
