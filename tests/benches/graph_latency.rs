@@ -34,7 +34,7 @@ use iceoryx2::prelude::CallbackProgression;
 use integration_tests::graph::{Bin, Graph};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
-use odometry::serve::{wall_clock_ns, write_latency_trace};
+use odometry::serve::{read_latency_trace, wall_clock_ns, write_latency_trace};
 use sensor_bridge::replay::{to_wire, Stream, WireDrive};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::write_drive;
@@ -108,16 +108,10 @@ fn relay(trace_path: Option<&std::path::Path>) {
 /// The consumer's wakeup and pose publish instants (wall clock, ns) by time
 /// stamp, from its `--latency-trace` file.
 fn read_trace(path: &std::path::Path) -> HashMap<i64, (i128, i128)> {
-    let text = std::fs::read_to_string(path).expect("trace file");
-    text.lines()
-        .skip(1)
-        .filter_map(|l| {
-            let mut fields = l.split(',');
-            let t = fields.next()?.parse().ok()?;
-            let woke = fields.next()?.parse().ok()?;
-            let published = fields.next()?.parse().ok()?;
-            Some((t, (woke, published)))
-        })
+    read_latency_trace(path)
+        .expect("trace file")
+        .into_iter()
+        .map(|(t, woke, published)| (t, (woke, published)))
         .collect()
 }
 

@@ -239,13 +239,26 @@ pub enum ServeError {
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),
-    /// The latency trace could not be written.
+    /// The latency trace could not be written or read.
     #[error("latency trace {path}: {source}")]
     Trace {
         /// The trace file.
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
+    },
+    /// A latency trace line that is not `t_ns,woke_wall_ns,published_wall_ns`.
+    #[error(
+        "latency trace {path}, line {line}: expected the header `t_ns,woke_wall_ns,published_wall_ns` \
+         or three integers, found `{text}`"
+    )]
+    TraceLine {
+        /// The trace file.
+        path: PathBuf,
+        /// Line number, from 1.
+        line: usize,
+        /// The line.
+        text: String,
     },
 }
 
@@ -731,6 +744,42 @@ pub fn wall_clock_ns() -> i128 {
         .map_or(0, |d| d.as_nanos() as i128)
 }
 
+/// The header line of a latency trace.
+pub const LATENCY_TRACE_HEADER: &str = "t_ns,woke_wall_ns,published_wall_ns";
+
+/// Read a latency trace written by [`write_latency_trace`]: `(pose time,
+/// wakeup wall clock, publish wall clock)` per line, in file order. A wrong
+/// header or line is an error naming the file and line.
+pub fn read_latency_trace(path: &Path) -> Result<Vec<(i64, i128, i128)>, ServeError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ServeError::Trace {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let bad = |line: usize, text: &str| ServeError::TraceLine {
+        path: path.to_path_buf(),
+        line,
+        text: text.to_string(),
+    };
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, LATENCY_TRACE_HEADER)) => {}
+        other => return Err(bad(1, other.map_or("", |(_, l)| l))),
+    }
+    lines
+        .map(|(i, l)| {
+            let f: Vec<&str> = l.split(',').collect();
+            match f[..] {
+                [t, woke, published] => Ok((
+                    t.parse().map_err(|_| bad(i + 1, l))?,
+                    woke.parse().map_err(|_| bad(i + 1, l))?,
+                    published.parse().map_err(|_| bad(i + 1, l))?,
+                )),
+                _ => Err(bad(i + 1, l)),
+            }
+        })
+        .collect()
+}
+
 /// Write a latency trace (`--latency-trace`): a header and one
 /// `t_ns,woke_wall_ns,published_wall_ns` line per pose, from `(pose time,
 /// wall clock at the wakeup that brought its wheel sample, wall clock when
@@ -738,7 +787,7 @@ pub fn wall_clock_ns() -> i128 {
 /// beside the service (the latency bench's bare relay) write the same format.
 pub fn write_latency_trace(path: &Path, trace: &[(i64, i128, i128)]) -> Result<(), ServeError> {
     use std::fmt::Write as _;
-    let mut text = String::from("t_ns,woke_wall_ns,published_wall_ns\n");
+    let mut text = format!("{LATENCY_TRACE_HEADER}\n");
     for (t, woke, published) in trace {
         let _ = writeln!(text, "{t},{woke},{published}");
     }
@@ -806,4 +855,36 @@ fn log_status(pose: &FusedPose, fusion: &Fusion, inputs: &Inputs) {
         inputs.imu.received(),
         stats.gnss_accepted + stats.gnss_rejected,
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_latency_trace_reads_back_and_a_bad_line_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("trace.csv");
+        let rows = vec![(10, 1_000, 1_500), (20, 2_000, 2_400)];
+        write_latency_trace(&path, &rows).unwrap();
+        assert_eq!(read_latency_trace(&path).unwrap(), rows);
+
+        std::fs::write(
+            &path,
+            format!("{LATENCY_TRACE_HEADER}\n10,1000,1500\n20,x,2400\n"),
+        )
+        .unwrap();
+        let err = read_latency_trace(&path).unwrap_err();
+        assert!(
+            matches!(err, ServeError::TraceLine { line: 3, .. }),
+            "{err}"
+        );
+        assert!(err.to_string().contains("20,x,2400"), "{err}");
+
+        std::fs::write(&path, "t,a,b\n").unwrap();
+        assert!(matches!(
+            read_latency_trace(&path),
+            Err(ServeError::TraceLine { line: 1, .. })
+        ));
+    }
 }

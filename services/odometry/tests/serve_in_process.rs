@@ -11,7 +11,7 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::Input;
-use odometry::serve::{serve, ServeConfig, Shutdown};
+use odometry::serve::{read_latency_trace, serve, ServeConfig, Shutdown};
 use odometry::two_wheel::TwoWheelParams;
 use std::time::{Duration, Instant};
 
@@ -303,20 +303,13 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     // The latency trace: one line per pose of a wheel sample (not the stale
     // marker), in publish order: the wakeup that brought the wheel sample,
     // then the publish, on a wall clock that never goes back.
-    let trace = std::fs::read_to_string(root.path().join("latency.csv")).expect("trace");
-    let mut lines = trace.lines();
-    assert_eq!(lines.next(), Some("t_ns,woke_wall_ns,published_wall_ns"));
-    let rows: Vec<(i64, i128, i128)> = lines
-        .map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            assert_eq!(f.len(), 3, "{l}");
-            (
-                f[0].parse().expect("t_ns"),
-                f[1].parse().expect("woke_wall_ns"),
-                f[2].parse().expect("published_wall_ns"),
-            )
-        })
-        .collect();
+    let trace_path = root.path().join("latency.csv");
+    let trace = std::fs::read_to_string(&trace_path).expect("trace");
+    assert_eq!(
+        trace.lines().next(),
+        Some("t_ns,woke_wall_ns,published_wall_ns")
+    );
+    let rows = read_latency_trace(&trace_path).expect("three integers per line");
     assert_eq!(rows.len(), n + 1);
     for (k, (t, _, _)) in rows.iter().enumerate() {
         assert_eq!(*t, poses[k].header.t_ns, "trace row {k}");
