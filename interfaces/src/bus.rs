@@ -821,6 +821,13 @@ impl<T: Topic> TopicSubscriber<T> {
         }
     }
 
+    /// Whether a sample is waiting (without taking it).
+    pub fn has_samples(&self) -> Result<bool, BusError> {
+        self.subscriber
+            .has_samples()
+            .map_err(|e| service_err(T::SERVICE, "has_samples", e))
+    }
+
     /// Samples missing in the sequence numbers so far (all publishers).
     pub fn lost(&self) -> u64 {
         self.seq.borrow().lost()

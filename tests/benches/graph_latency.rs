@@ -80,12 +80,18 @@ fn relay(trace_path: Option<&std::path::Path>) {
         .attach_interval(Duration::from_millis(100))
         .expect("tick");
     eprintln!("relay ready");
+    let mut sample_waiting = false;
     loop {
-        let r = waitset
-            .wait_and_process_once(|_| CallbackProgression::Continue)
-            .expect("wait");
+        let r = if sample_waiting {
+            waitset.wait_and_process_once_with_timeout(
+                |_| CallbackProgression::Continue,
+                Duration::ZERO,
+            )
+        } else {
+            waitset.wait_and_process_once(|_| CallbackProgression::Continue)
+        }
+        .expect("wait");
         let woke = wall_clock_ns();
-        wheels.take_notifications().expect("events");
         while let Some(w) = wheels.receive().expect("receive") {
             trace.push((w.header.t_ns, woke, wall_clock_ns()));
             poses
@@ -95,6 +101,9 @@ fn relay(trace_path: Option<&std::path::Path>) {
                 })
                 .expect("publish");
         }
+        // As the odometry: the notifications after the poses.
+        wheels.take_notifications().expect("events");
+        sample_waiting = wheels.has_samples().expect("has samples");
         if bus::stop_requested_by(r) {
             break;
         }

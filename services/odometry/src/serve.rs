@@ -14,7 +14,8 @@
 //!   them would only add wakeups on the path of the next wheel sample. Their
 //!   notifications are taken at most every [`SIDE_EVENTS_EVERY`] (an
 //!   untaken notification makes the next ones free for their publisher).
-//! - Every wakeup drains all subscribers, the wheels first, into a
+//! - Every wakeup takes the waiting wheel samples one at a time, each with
+//!   every IMU, GNSS and heading sample waiting, into a
 //!   [`Sequencer`], which releases the samples up to the newest wheel sample
 //!   in time order, wheels last at equal times ([`crate::inputs`]): the same
 //!   order as `odometry evaluate` and the bridge's replay. Samples beyond the
@@ -26,6 +27,11 @@
 //!   same poses, bit for bit, however the processes are scheduled and the
 //!   samples grouped into wakeups. Wheel samples are never held back: no
 //!   stream (ended, absent or dead) can delay a pose.
+//! - The wheel topic's notifications are taken after the poses are out, not
+//!   before the samples are received: on the path to a pose they cost a few
+//!   syscalls. A sample published after the last receive may have had its
+//!   notification taken with them, so if a wheel sample is waiting then, the
+//!   next wait returns at once instead of blocking.
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
 //!   old and new values.
@@ -48,7 +54,7 @@ use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
 use crate::inputs::{Input, Sequencer};
-use iceoryx2::prelude::CallbackProgression;
+use iceoryx2::prelude::{ipc, CallbackProgression, WaitSetAttachmentId};
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
 use interfaces::wire::{
@@ -62,6 +68,10 @@ use std::time::{Duration, Instant};
 /// How often the notifications of the topics that wake nobody (IMU, GNSS,
 /// heading) are taken: they carry nothing the loop needs at once.
 pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
+
+/// Wheel samples taken per wakeup at most; more waiting (a replay with
+/// `--max`) are taken after the wakeup's housekeeping, without blocking.
+const WHEELS_PER_WAKEUP: usize = 256;
 
 /// A sample this much older than the newest one seen means its publisher
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
@@ -340,22 +350,27 @@ impl Inputs {
         ]
     }
 
-    /// Consume the wheel topic's notifications and every sensor sample
-    /// waiting, into `sequencer`: the work on the path from a wheel sample
-    /// to its pose. Returns whether the wheel stream's publisher said it ended.
-    fn drain(&self, sequencer: &mut Sequencer) -> Result<bool, BusError> {
-        let wheels_ended = self.wheels.take_notifications()?.end_of_stream;
-        // Wheels first: every other sample up to the newest wheel time was
-        // published before it, so it is in its queue now and lands in this
-        // batch too. (Other streams may run ahead of the wheels; the
-        // sequencer keeps them until the wheels pass their time.)
-        while let Some(s) = self.wheels.receive()? {
-            sequencer.push(Input::Wheels {
-                t_s: s.header.t_s(),
-                rl_rev: s.rl_rev,
-                rr_rev: s.rr_rev,
-            });
-        }
+    /// The next wheel sample, if one is waiting, into `sequencer`; returns
+    /// whether there was one. One at a time, so that the empty receive that
+    /// ends a wakeup's samples comes after their poses, not before.
+    fn receive_wheels(&self, sequencer: &mut Sequencer) -> Result<bool, BusError> {
+        let Some(s) = self.wheels.receive()? else {
+            return Ok(false);
+        };
+        sequencer.push(Input::Wheels {
+            t_s: s.header.t_s(),
+            rl_rev: s.rl_rev,
+            rr_rev: s.rr_rev,
+        });
+        Ok(true)
+    }
+
+    /// Every IMU, GNSS and heading sample waiting, into `sequencer`: after
+    /// a wheel sample, every other sample up to its time was published
+    /// before it, so it is in its queue now. (Other streams may run ahead
+    /// of the wheels; the sequencer keeps them until the wheels pass their
+    /// time.)
+    fn drain_side(&self, sequencer: &mut Sequencer) -> Result<(), BusError> {
         while let Some(s) = self.imu.receive()? {
             sequencer.push(Input::Imu {
                 t_s: s.header.t_s(),
@@ -380,7 +395,16 @@ impl Inputs {
                 sigma_rad: (s.sigma_rad > 0.0).then_some(s.sigma_rad),
             });
         }
-        Ok(wheels_ended)
+        Ok(())
+    }
+
+    /// After the poses of a wakeup: consume the wheel topic's notifications.
+    /// Returns whether its publisher said the stream ended, and whether a
+    /// wheel sample is waiting: one published after the last receive, whose
+    /// notification this may have consumed, so the next wait must not block.
+    fn wheel_notifications(&self) -> Result<(bool, bool), BusError> {
+        let ended = self.wheels.take_notifications()?.end_of_stream;
+        Ok((ended, self.wheels.has_samples()?))
     }
 
     /// After the poses: with `estimate`, the estimate topic's notifications
@@ -552,110 +576,135 @@ pub fn serve(
     let mut bias_standstills = 0u64;
     let mut next_status_t: Option<f64> = None;
     let mut wheels_ended = false;
+    // A wheel sample is known to be waiting: the next wait returns at once.
+    let mut wheel_sample_waiting = false;
     // Newest time seen per input stream (wheels, IMU, GNSS, heading).
     let mut latest_t: [Option<f64>; 4] = [None; 4];
 
     loop {
         let mut estimate_event = false;
-        let result = waitset
-            .wait_and_process_once(|id| {
-                estimate_event |= id.has_event_from(&g_estimate);
-                CallbackProgression::Continue
-            })
-            .map_err(|e| ws_err("wait", &e))?;
+        let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+            estimate_event |= id.has_event_from(&g_estimate);
+            CallbackProgression::Continue
+        };
+        let result = if wheel_sample_waiting {
+            waitset.wait_and_process_once_with_timeout(on_event, Duration::ZERO)
+        } else {
+            waitset.wait_and_process_once(on_event)
+        }
+        .map_err(|e| ws_err("wait", &e))?;
         let woke_wall_ns = if config.latency_trace.is_some() {
             wall_clock_ns()
         } else {
             0
         };
-        batch.clear();
-        let wheels_ended_now = inputs.drain(&mut sequencer)?;
-        sequencer.release(&mut batch);
-        report_dropped(&sequencer, &mut dropped_reported, &mut summary);
-        for input in &batch {
-            if let Input::Estimate {
-                version, estimate, ..
-            } = input
-            {
-                let old = *fusion.params();
-                let old_version = fusion.estimate_version();
-                if *version == old_version && estimate.params == old {
-                    continue; // the same estimate again (history on a reconnect)
-                }
-                tracing::info!(
+        // The path from a wheel sample to its pose: one wheel sample, the
+        // other samples up to its time, the filter, the pose; then the next
+        // wheel sample, up to WHEELS_PER_WAKEUP (a publisher that never
+        // pauses must not starve the estimate and stop checks below). A
+        // wakeup without one (estimate, tick) still drains the other topics,
+        // so that their queues never fill.
+        let mut wheels_taken = 0;
+        loop {
+            let wheel =
+                wheels_taken < WHEELS_PER_WAKEUP && inputs.receive_wheels(&mut sequencer)?;
+            if !wheel && wheels_taken > 0 {
+                break;
+            }
+            wheels_taken += usize::from(wheel);
+            inputs.drain_side(&mut sequencer)?;
+            batch.clear();
+            sequencer.release(&mut batch);
+            report_dropped(&sequencer, &mut dropped_reported, &mut summary);
+            for input in &batch {
+                if let Input::Estimate {
+                    version, estimate, ..
+                } = input
+                {
+                    let old = *fusion.params();
+                    let old_version = fusion.estimate_version();
+                    if *version == old_version && estimate.params == old {
+                        continue; // the same estimate again (history on a reconnect)
+                    }
+                    tracing::info!(
                     "odometry: switching estimate v{old_version} -> v{version} between two samples: {}",
                     describe_switch(&old, &estimate.params)
                 );
-                summary.estimate_switches += 1;
-            }
-            if let Some(k) = stream_index(input) {
-                let t = input.t_s();
-                if let Some(previous) = latest_t[k].filter(|p| t < p - RESTART_BACKSTEP_S) {
-                    tracing::warn!(
+                    summary.estimate_switches += 1;
+                }
+                if let Some(k) = stream_index(input) {
+                    let t = input.t_s();
+                    if let Some(previous) = latest_t[k].filter(|p| t < p - RESTART_BACKSTEP_S) {
+                        tracing::warn!(
                         "odometry: {} time went back from {previous:.2} s to {t:.2} s: a publisher \
                          restarted; the filter starts over (NoFix until GNSS)",
                         STREAM_NAMES[k]
                     );
-                    fusion.reset();
-                    latest_t = [None; 4];
-                }
-                latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
-            }
-            if let Input::Wheels { t_s, .. } = input {
-                if stale {
-                    stale = false;
-                    tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
-                }
-                last_wheel_wall = Some(Instant::now());
-                summary.wheel_samples += 1;
-            }
-            match fusion.process(input) {
-                Ok(Some(pose)) => {
-                    let wire = to_wire(&pose);
-                    if config.latency_trace.is_some() {
-                        trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
+                        fusion.reset();
+                        latest_t = [None; 4];
                     }
-                    poses.publish(wire)?;
-                    summary.poses += 1;
-                    // Logged after the pose is out: a log line is not worth its latency.
-                    if pose.mode != mode {
-                        log_mode_change(mode, &pose);
-                        mode = pose.mode;
+                    latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
+                }
+                if let Input::Wheels { t_s, .. } = input {
+                    if stale {
+                        stale = false;
+                        tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
                     }
-                    let standstills = fusion.stats().gyro_bias_standstills;
-                    if standstills != bias_standstills {
-                        bias_standstills = standstills;
-                        tracing::info!(
+                    last_wheel_wall = Some(Instant::now());
+                    summary.wheel_samples += 1;
+                }
+                match fusion.process(input) {
+                    Ok(Some(pose)) => {
+                        let wire = to_wire(&pose);
+                        if config.latency_trace.is_some() {
+                            trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
+                        }
+                        poses.publish(wire)?;
+                        summary.poses += 1;
+                        // Logged after the pose is out: a log line is not worth its latency.
+                        if pose.mode != mode {
+                            log_mode_change(mode, &pose);
+                            mode = pose.mode;
+                        }
+                        let standstills = fusion.stats().gyro_bias_standstills;
+                        if standstills != bias_standstills {
+                            bias_standstills = standstills;
+                            tracing::info!(
                             "odometry: t = {:.2} s: gyro bias measured at standstill; in use now {:.3e} rad/s",
                             pose.t_s,
                             fusion.gyro_bias()
                         );
-                    }
-                    last_wheel_t = Some(pose.t_s);
-                    if config.status_every_s > 0.0 {
-                        let due = next_status_t.get_or_insert(pose.t_s);
-                        if pose.t_s >= *due {
-                            *due = pose.t_s + config.status_every_s;
-                            log_status(&pose, &fusion, &inputs);
+                        }
+                        last_wheel_t = Some(pose.t_s);
+                        if config.status_every_s > 0.0 {
+                            let due = next_status_t.get_or_insert(pose.t_s);
+                            if pose.t_s >= *due {
+                                *due = pose.t_s + config.status_every_s;
+                                log_status(&pose, &fusion, &inputs);
+                            }
                         }
                     }
-                }
-                Ok(None) => {}
-                Err(ProcessError::Input(e)) => {
-                    summary.skipped += 1;
-                    // The first ten, then every thousandth: a broken stream must not flood the log.
-                    if summary.skipped <= 10 || summary.skipped.is_multiple_of(1000) {
-                        tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
+                    Ok(None) => {}
+                    Err(ProcessError::Input(e)) => {
+                        summary.skipped += 1;
+                        // The first ten, then every thousandth: a broken stream must not flood the log.
+                        if summary.skipped <= 10 || summary.skipped.is_multiple_of(1000) {
+                            tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
+                        }
+                    }
+                    Err(e @ ProcessError::Numerical(_)) => {
+                        summary.skipped += 1;
+                        tracing::error!("odometry: {e}");
                     }
                 }
-                Err(e @ ProcessError::Numerical(_)) => {
-                    summary.skipped += 1;
-                    tracing::error!("odometry: {e}");
-                }
+            }
+            if !wheel {
+                break;
             }
         }
-        // Off the path from a wheel sample to its pose. The estimate topic is
-        // also read with the side events: a new subscriber gets the latest
+        // Off the path from a wheel sample to its pose: the wheel topic's
+        // notifications (taking them before receiving cost a few syscalls on
+        // that path), then the estimate topic, read with the side events too: a new subscriber gets the latest
         // estimate (history) without a notification.
         let side_events = last_side_events.elapsed() >= SIDE_EVENTS_EVERY;
         if side_events {
@@ -668,8 +717,10 @@ pub fn serve(
             side_events,
         )?;
 
+        let (wheels_ended_now, waiting) = inputs.wheel_notifications()?;
+        wheel_sample_waiting = waiting;
         // A stream that ended may start again (a new replay).
-        if batch.iter().any(|i| matches!(i, Input::Wheels { .. })) {
+        if wheels_taken > 0 {
             wheels_ended = wheels_ended_now;
         } else {
             wheels_ended |= wheels_ended_now;
