@@ -136,6 +136,10 @@ fn main() {
         drive.wheels.samples.len(),
         sub.lost()
     );
+    // A pose beyond one per wheel sample is a stale-input marker (the
+    // odometry got no wheel sample for its stale time): say so, not hide it.
+    let stale = odo_log.matches("inputs stale").count();
+    println!("  odometry stale-input markers: {stale}");
     println!(
         "  lost by sequence number: calibrator {}, odometry {}; calibrator accepted {} estimate(s)",
         cal_lost.map_or("?".to_string(), |v| format!("{v:.0}")),

@@ -14,8 +14,7 @@
 //!   them would only add wakeups on the path of the next wheel sample. Their
 //!   notifications are taken at most every [`SIDE_EVENTS_EVERY`] (an
 //!   untaken notification makes the next ones free for their publisher).
-//! - Every wakeup takes the waiting wheel samples one at a time, each with
-//!   every IMU, GNSS and heading sample waiting, into a
+//! - Every wakeup drains all subscribers, the wheels first, into a
 //!   [`Sequencer`], which releases the samples up to the newest wheel sample
 //!   in time order, wheels last at equal times ([`crate::inputs`]): the same
 //!   order as `odometry evaluate` and the bridge's replay. Samples beyond the
@@ -68,10 +67,6 @@ use std::time::{Duration, Instant};
 /// How often the notifications of the topics that wake nobody (IMU, GNSS,
 /// heading) are taken: they carry nothing the loop needs at once.
 pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
-
-/// Wheel samples taken per wakeup at most; more waiting (a replay with
-/// `--max`) are taken after the wakeup's housekeeping, without blocking.
-const WHEELS_PER_WAKEUP: usize = 256;
 
 /// A sample this much older than the newest one seen means its publisher
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
@@ -350,27 +345,21 @@ impl Inputs {
         ]
     }
 
-    /// The next wheel sample, if one is waiting, into `sequencer`; returns
-    /// whether there was one. One at a time, so that the empty receive that
-    /// ends a wakeup's samples comes after their poses, not before.
-    fn receive_wheels(&self, sequencer: &mut Sequencer) -> Result<bool, BusError> {
-        let Some(s) = self.wheels.receive()? else {
-            return Ok(false);
-        };
-        sequencer.push(Input::Wheels {
-            t_s: s.header.t_s(),
-            rl_rev: s.rl_rev,
-            rr_rev: s.rr_rev,
-        });
-        Ok(true)
-    }
-
-    /// Every IMU, GNSS and heading sample waiting, into `sequencer`: after
-    /// a wheel sample, every other sample up to its time was published
-    /// before it, so it is in its queue now. (Other streams may run ahead
-    /// of the wheels; the sequencer keeps them until the wheels pass their
-    /// time.)
-    fn drain_side(&self, sequencer: &mut Sequencer) -> Result<(), BusError> {
+    /// Every sensor sample waiting, into `sequencer`: the work on the path
+    /// from a wheel sample to its pose. (The wheel topic's notifications are
+    /// taken after the poses, [`Inputs::wheel_notifications`].)
+    fn drain(&self, sequencer: &mut Sequencer) -> Result<(), BusError> {
+        // Wheels first: every other sample up to the newest wheel time was
+        // published before it, so it is in its queue now and lands in this
+        // batch too. (Other streams may run ahead of the wheels; the
+        // sequencer keeps them until the wheels pass their time.)
+        while let Some(s) = self.wheels.receive()? {
+            sequencer.push(Input::Wheels {
+                t_s: s.header.t_s(),
+                rl_rev: s.rl_rev,
+                rr_rev: s.rr_rev,
+            });
+        }
         while let Some(s) = self.imu.receive()? {
             sequencer.push(Input::Imu {
                 t_s: s.header.t_s(),
@@ -460,6 +449,44 @@ impl Inputs {
             }
         }
         Ok(rejected)
+    }
+}
+
+/// Whether the wheel stream has ended, from the end-of-stream notifications
+/// taken after each wakeup's poses.
+#[derive(Debug, Default)]
+struct StreamEnd {
+    ended: bool,
+    // While wheel samples wait: an end taken, and wheel samples taken, since
+    // the end was last judged.
+    end_pending: bool,
+    got_wheels: bool,
+}
+
+impl StreamEnd {
+    /// After a wakeup that took wheel samples or not (`got_wheels`), then the
+    /// notifications (`end_taken`: one said the stream ended), with a wheel
+    /// sample still waiting or not.
+    fn after_wakeup(&mut self, got_wheels: bool, end_taken: bool, sample_waiting: bool) {
+        self.got_wheels |= got_wheels;
+        self.end_pending |= end_taken;
+        if sample_waiting {
+            // The samples still waiting were sent before that end: judge it
+            // after them.
+            return;
+        }
+        let end = std::mem::take(&mut self.end_pending);
+        if std::mem::take(&mut self.got_wheels) {
+            // A stream that ended may start again (a new replay).
+            self.ended = end;
+        } else {
+            self.ended |= end;
+        }
+    }
+
+    /// The wheel stream's publisher said it ended, and no wheel sample came since.
+    fn ended(&self) -> bool {
+        self.ended
     }
 }
 
@@ -575,9 +602,9 @@ pub fn serve(
     let mut mode = PoseMode::NoFix;
     let mut bias_standstills = 0u64;
     let mut next_status_t: Option<f64> = None;
-    let mut wheels_ended = false;
     // A wheel sample is known to be waiting: the next wait returns at once.
     let mut wheel_sample_waiting = false;
+    let mut wheel_stream = StreamEnd::default();
     // Newest time seen per input stream (wheels, IMU, GNSS, heading).
     let mut latest_t: [Option<f64>; 4] = [None; 4];
 
@@ -598,108 +625,90 @@ pub fn serve(
         } else {
             0
         };
-        // The path from a wheel sample to its pose: one wheel sample, the
-        // other samples up to its time, the filter, the pose; then the next
-        // wheel sample, up to WHEELS_PER_WAKEUP (a publisher that never
-        // pauses must not starve the estimate and stop checks below). A
-        // wakeup without one (estimate, tick) still drains the other topics,
-        // so that their queues never fill.
-        let mut wheels_taken = 0;
-        loop {
-            let wheel =
-                wheels_taken < WHEELS_PER_WAKEUP && inputs.receive_wheels(&mut sequencer)?;
-            if !wheel && wheels_taken > 0 {
-                break;
-            }
-            wheels_taken += usize::from(wheel);
-            inputs.drain_side(&mut sequencer)?;
-            batch.clear();
-            sequencer.release(&mut batch);
-            report_dropped(&sequencer, &mut dropped_reported, &mut summary);
-            for input in &batch {
-                if let Input::Estimate {
-                    version, estimate, ..
-                } = input
-                {
-                    let old = *fusion.params();
-                    let old_version = fusion.estimate_version();
-                    if *version == old_version && estimate.params == old {
-                        continue; // the same estimate again (history on a reconnect)
-                    }
-                    tracing::info!(
+        batch.clear();
+        inputs.drain(&mut sequencer)?;
+        sequencer.release(&mut batch);
+        report_dropped(&sequencer, &mut dropped_reported, &mut summary);
+        for input in &batch {
+            if let Input::Estimate {
+                version, estimate, ..
+            } = input
+            {
+                let old = *fusion.params();
+                let old_version = fusion.estimate_version();
+                if *version == old_version && estimate.params == old {
+                    continue; // the same estimate again (history on a reconnect)
+                }
+                tracing::info!(
                     "odometry: switching estimate v{old_version} -> v{version} between two samples: {}",
                     describe_switch(&old, &estimate.params)
                 );
-                    summary.estimate_switches += 1;
-                }
-                if let Some(k) = stream_index(input) {
-                    let t = input.t_s();
-                    if let Some(previous) = latest_t[k].filter(|p| t < p - RESTART_BACKSTEP_S) {
-                        tracing::warn!(
+                summary.estimate_switches += 1;
+            }
+            if let Some(k) = stream_index(input) {
+                let t = input.t_s();
+                if let Some(previous) = latest_t[k].filter(|p| t < p - RESTART_BACKSTEP_S) {
+                    tracing::warn!(
                         "odometry: {} time went back from {previous:.2} s to {t:.2} s: a publisher \
                          restarted; the filter starts over (NoFix until GNSS)",
                         STREAM_NAMES[k]
                     );
-                        fusion.reset();
-                        latest_t = [None; 4];
-                    }
-                    latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
+                    fusion.reset();
+                    latest_t = [None; 4];
                 }
-                if let Input::Wheels { t_s, .. } = input {
-                    if stale {
-                        stale = false;
-                        tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
-                    }
-                    last_wheel_wall = Some(Instant::now());
-                    summary.wheel_samples += 1;
+                latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
+            }
+            if let Input::Wheels { t_s, .. } = input {
+                if stale {
+                    stale = false;
+                    tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
                 }
-                match fusion.process(input) {
-                    Ok(Some(pose)) => {
-                        let wire = to_wire(&pose);
-                        if config.latency_trace.is_some() {
-                            trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
-                        }
-                        poses.publish(wire)?;
-                        summary.poses += 1;
-                        // Logged after the pose is out: a log line is not worth its latency.
-                        if pose.mode != mode {
-                            log_mode_change(mode, &pose);
-                            mode = pose.mode;
-                        }
-                        let standstills = fusion.stats().gyro_bias_standstills;
-                        if standstills != bias_standstills {
-                            bias_standstills = standstills;
-                            tracing::info!(
+                last_wheel_wall = Some(Instant::now());
+                summary.wheel_samples += 1;
+            }
+            match fusion.process(input) {
+                Ok(Some(pose)) => {
+                    let wire = to_wire(&pose);
+                    if config.latency_trace.is_some() {
+                        trace.push((wire.header.t_ns, woke_wall_ns, wall_clock_ns()));
+                    }
+                    poses.publish(wire)?;
+                    summary.poses += 1;
+                    // Logged after the pose is out: a log line is not worth its latency.
+                    if pose.mode != mode {
+                        log_mode_change(mode, &pose);
+                        mode = pose.mode;
+                    }
+                    let standstills = fusion.stats().gyro_bias_standstills;
+                    if standstills != bias_standstills {
+                        bias_standstills = standstills;
+                        tracing::info!(
                             "odometry: t = {:.2} s: gyro bias measured at standstill; in use now {:.3e} rad/s",
                             pose.t_s,
                             fusion.gyro_bias()
                         );
-                        }
-                        last_wheel_t = Some(pose.t_s);
-                        if config.status_every_s > 0.0 {
-                            let due = next_status_t.get_or_insert(pose.t_s);
-                            if pose.t_s >= *due {
-                                *due = pose.t_s + config.status_every_s;
-                                log_status(&pose, &fusion, &inputs);
-                            }
-                        }
                     }
-                    Ok(None) => {}
-                    Err(ProcessError::Input(e)) => {
-                        summary.skipped += 1;
-                        // The first ten, then every thousandth: a broken stream must not flood the log.
-                        if summary.skipped <= 10 || summary.skipped.is_multiple_of(1000) {
-                            tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
+                    last_wheel_t = Some(pose.t_s);
+                    if config.status_every_s > 0.0 {
+                        let due = next_status_t.get_or_insert(pose.t_s);
+                        if pose.t_s >= *due {
+                            *due = pose.t_s + config.status_every_s;
+                            log_status(&pose, &fusion, &inputs);
                         }
-                    }
-                    Err(e @ ProcessError::Numerical(_)) => {
-                        summary.skipped += 1;
-                        tracing::error!("odometry: {e}");
                     }
                 }
-            }
-            if !wheel {
-                break;
+                Ok(None) => {}
+                Err(ProcessError::Input(e)) => {
+                    summary.skipped += 1;
+                    // The first ten, then every thousandth: a broken stream must not flood the log.
+                    if summary.skipped <= 10 || summary.skipped.is_multiple_of(1000) {
+                        tracing::warn!("odometry: {e} ({} skipped so far)", summary.skipped);
+                    }
+                }
+                Err(e @ ProcessError::Numerical(_)) => {
+                    summary.skipped += 1;
+                    tracing::error!("odometry: {e}");
+                }
             }
         }
         // Off the path from a wheel sample to its pose: the wheel topic's
@@ -717,14 +726,14 @@ pub fn serve(
             side_events,
         )?;
 
-        let (wheels_ended_now, waiting) = inputs.wheel_notifications()?;
+        let (end_taken, waiting) = inputs.wheel_notifications()?;
         wheel_sample_waiting = waiting;
-        // A stream that ended may start again (a new replay).
-        if wheels_taken > 0 {
-            wheels_ended = wheels_ended_now;
-        } else {
-            wheels_ended |= wheels_ended_now;
-        }
+        wheel_stream.after_wakeup(
+            batch.iter().any(|i| matches!(i, Input::Wheels { .. })),
+            end_taken,
+            waiting,
+        );
+        let wheels_ended = wheel_stream.ended();
 
         // Stale inputs: the wheels stopped coming.
         if let (Some(seen), false) = (last_wheel_wall, stale) {
@@ -911,6 +920,31 @@ fn log_status(pose: &FusedPose, fusion: &Fusion, inputs: &Inputs) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_end_of_stream_is_judged_after_the_samples_that_wait_before_it() {
+        // The usual end: the last samples' wakeup, then their end.
+        let mut end = StreamEnd::default();
+        end.after_wakeup(true, false, false);
+        assert!(!end.ended());
+        end.after_wakeup(false, true, false);
+        assert!(end.ended());
+        // The end taken with the last sample's notification while that
+        // sample still waits: not ended until it is taken (it used to be
+        // forgotten when the next wakeup took the sample).
+        let mut end = StreamEnd::default();
+        end.after_wakeup(true, true, true);
+        assert!(!end.ended());
+        end.after_wakeup(true, false, false);
+        assert!(end.ended());
+        // A new run of the stream after its end.
+        end.after_wakeup(true, false, false);
+        assert!(!end.ended());
+        // Wakeups without wheel samples keep the end.
+        end.after_wakeup(false, true, false);
+        end.after_wakeup(false, false, false);
+        assert!(end.ended());
+    }
 
     #[test]
     fn a_latency_trace_reads_back_and_a_bad_line_is_named() {
