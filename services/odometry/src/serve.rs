@@ -472,7 +472,10 @@ impl StreamEnd {
         self.end_pending |= end_taken;
         if sample_waiting {
             // The samples still waiting were sent before that end: judge it
-            // after them.
+            // after them. Samples came, so an earlier end is over.
+            if got_wheels {
+                self.ended = false;
+            }
             return;
         }
         let end = std::mem::take(&mut self.end_pending);
@@ -711,9 +714,8 @@ pub fn serve(
                 }
             }
         }
-        // Off the path from a wheel sample to its pose: the wheel topic's
-        // notifications (taking them before receiving cost a few syscalls on
-        // that path), then the estimate topic, read with the side events too: a new subscriber gets the latest
+        // Off the path from a wheel sample to its pose. The estimate topic is
+        // also read with the side events: a new subscriber gets the latest
         // estimate (history) without a notification.
         let side_events = last_side_events.elapsed() >= SIDE_EVENTS_EVERY;
         if side_events {
@@ -726,6 +728,8 @@ pub fn serve(
             side_events,
         )?;
 
+        // The wheel topic's notifications: taken here, not before receiving,
+        // they cost a few syscalls on the path to a pose.
         let (end_taken, waiting) = inputs.wheel_notifications()?;
         wheel_sample_waiting = waiting;
         wheel_stream.after_wakeup(
@@ -944,6 +948,9 @@ mod tests {
         end.after_wakeup(false, true, false);
         end.after_wakeup(false, false, false);
         assert!(end.ended());
+        // A new run whose first wakeup leaves a sample waiting is not ended.
+        end.after_wakeup(true, false, true);
+        assert!(!end.ended());
     }
 
     #[test]
