@@ -5,7 +5,13 @@
 //! that coverage. At each outage start the pose is taken from the truth;
 //! `start_yaw_source` in the report says which rule applied:
 //! - `truth_yaw`: `truth.csv` has `yaw_rad` around the start: position and
-//!   yaw interpolated (yaw the shortest way round);
+//!   yaw interpolated (yaw the shortest way round). Unless that yaw is not
+//!   the vehicle's: on straight stretches the course of the truth positions
+//!   is the vehicle's yaw, and where `yaw_rad` is off it by more than
+//!   [`TRUTH_YAW_OFFSET_LIMIT_RAD`] (median over the straight stretches, see
+//!   [`truth_yaw_offset`]), a warning says so and the truth's yaw is not
+//!   used (the rules below apply). comma2k19's truth, for one, is the pose of
+//!   the windscreen-mounted device, 15 mrad off the car's course;
 //! - `truth_track_alignment` (truth without yaw, the usual case of a GNSS
 //!   truth): the dead-reckoned track of the last `align_distance_m` (30 m) of
 //!   driving before the start is laid onto the truth positions of the same
@@ -58,6 +64,16 @@ use serde::Serialize;
 
 /// Track movement below this does not add to the arc length, m.
 pub const ARC_DEADBAND_M: f64 = 0.25;
+
+/// A truth yaw further than this from the course of the truth's own
+/// positions on straight stretches (median) is not used, rad.
+pub const TRUTH_YAW_OFFSET_LIMIT_RAD: f64 = 0.005;
+/// Length of a stretch of truth track for the yaw check, m.
+const YAW_CHECK_STRETCH_M: f64 = 10.0;
+/// A stretch is straight when the truth yaw moves less than this along it, rad.
+const YAW_CHECK_STRAIGHT_RAD: f64 = 0.005;
+/// Straight stretches needed before the truth yaw is judged.
+const YAW_CHECK_MIN_STRETCHES: usize = 5;
 
 /// Settings of an evaluation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -195,6 +211,12 @@ pub struct EvaluationReport {
     pub heading: &'static str,
     /// Parameters used.
     pub params: ParamsReport,
+    /// When `truth.csv` has a yaw: its median offset from the course of its
+    /// own positions on straight stretches, rad (`null`: no yaw, or too few
+    /// straight stretches to tell); see [`truth_yaw_offset`].
+    pub truth_yaw_offset_rad: Option<f64>,
+    /// Whether the start poses used the truth's yaw where it has one.
+    pub truth_yaw_used: bool,
     /// What was skipped and why.
     pub warnings: Vec<String>,
 }
@@ -238,6 +260,8 @@ struct TruthTrack<'a> {
     rows: &'a [TruthSample],
     arc_m: Vec<f64>,
     max_gap_s: f64,
+    /// Whether `yaw_at` gives the truth's yaw (false: it is not the vehicle's).
+    use_yaw: bool,
 }
 
 impl<'a> TruthTrack<'a> {
@@ -246,6 +270,7 @@ impl<'a> TruthTrack<'a> {
             rows,
             arc_m: dead_banded_arc_length(rows),
             max_gap_s,
+            use_yaw: true,
         }
     }
 
@@ -283,6 +308,9 @@ impl<'a> TruthTrack<'a> {
     }
 
     fn yaw_at(&self, t_s: f64) -> Option<f64> {
+        if !self.use_yaw {
+            return None;
+        }
         let (i, f) = self.bracket(t_s)?;
         let a = self.rows[i].yaw_rad?;
         let Some(b) = self.rows.get(i + 1) else {
@@ -291,6 +319,48 @@ impl<'a> TruthTrack<'a> {
         let b = b.yaw_rad?;
         Some(wrap_angle(a + f * wrap_angle(b - a)))
     }
+}
+
+/// The truth's yaw minus the course of its own positions, rad: the median
+/// over non-overlapping straight stretches of [`YAW_CHECK_STRETCH_M`] of
+/// track (straight: the yaw moves less than [`YAW_CHECK_STRAIGHT_RAD`] along
+/// it; no gap longer than `max_gap_s`), with the number of stretches. On a
+/// straight stretch every body point moves along the vehicle's yaw, so a
+/// yaw that is the vehicle's gives about 0. `None` with fewer than
+/// [`YAW_CHECK_MIN_STRETCHES`] stretches (or no yaw).
+pub fn truth_yaw_offset(rows: &[TruthSample], max_gap_s: f64) -> Option<(f64, usize)> {
+    let arc = dead_banded_arc_length(rows);
+    let mut offsets = Vec::new();
+    let mut i = 0;
+    while i < rows.len() {
+        let Some(yaw_i) = rows[i].yaw_rad else {
+            i += 1;
+            continue;
+        };
+        let Some(j) = (i + 1..rows.len()).find(|&j| arc[j] - arc[i] >= YAW_CHECK_STRETCH_M) else {
+            break;
+        };
+        let straight = rows[i..=j].windows(2).all(|w| {
+            w[1].t_s - w[0].t_s <= max_gap_s
+                && w[1]
+                    .yaw_rad
+                    .is_some_and(|y| wrap_angle(y - yaw_i).abs() < YAW_CHECK_STRAIGHT_RAD)
+        });
+        if !straight {
+            i += 1;
+            continue;
+        }
+        let (a, b) = (&rows[i], &rows[j]);
+        let course = (b.y_m - a.y_m).atan2(b.x_m - a.x_m);
+        let yaw_j = b.yaw_rad.unwrap_or(yaw_i);
+        let yaw = yaw_i + 0.5 * wrap_angle(yaw_j - yaw_i);
+        offsets.push(wrap_angle(yaw - course));
+        i = j;
+    }
+    if offsets.len() < YAW_CHECK_MIN_STRETCHES {
+        return None;
+    }
+    Some((percentile(&offsets, 0.5)?, offsets.len()))
 }
 
 /// Arc length of a track, counting a move only once it is more than
@@ -417,7 +487,22 @@ pub fn evaluate(
     }
     let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
-    let truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
+    let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
+    let mut warnings = Vec::new();
+    let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
+    if let Some((offset, stretches)) = yaw_offset {
+        if offset.abs() > TRUTH_YAW_OFFSET_LIMIT_RAD {
+            truth.use_yaw = false;
+            warnings.push(format!(
+                "truth.csv: yaw_rad is {:+.1} mrad off the course of its own positions (median over \
+                 {stretches} straight stretches of {YAW_CHECK_STRETCH_M} m), more than {:.1} mrad: \
+                 it is not the vehicle's yaw (a device mounted at an angle?); the start poses come \
+                 from the truth track instead",
+                offset * 1e3,
+                TRUTH_YAW_OFFSET_LIMIT_RAD * 1e3
+            ));
+        }
+    }
 
     let (Some(w0), Some(w1)) = (revs.first(), revs.last()) else {
         return Err(EvaluateError::TooShort {
@@ -472,7 +557,6 @@ pub fn evaluate(
     };
 
     let mut outages = Vec::new();
-    let mut warnings = Vec::new();
     if background_skipped > 0 {
         warnings.push(format!(
             "{background_skipped} wheel or IMU samples with bad values or times skipped"
@@ -512,6 +596,8 @@ pub fn evaluate(
         outages,
         heading: config.odometer.heading.name(),
         params: ParamsReport::from(params),
+        truth_yaw_offset_rad: yaw_offset.map(|(offset, _)| offset),
+        truth_yaw_used: truth.use_yaw && truth_rows.iter().any(|r| r.yaw_rad.is_some()),
         warnings,
     })
 }
@@ -898,11 +984,21 @@ mod tests {
     /// A synthetic drive on a winding path at 8 m/s: true wheels with
     /// circumferences C_RL, C_RR and track TRACK, a perfect gyro, truth at
     /// 5 Hz without yaw.
+    /// A drive at 8 m/s whose truth (every 0.2 s) has no yaw.
     fn winding_drive(seconds: f64) -> Drive {
+        let mut drive = drive_with_yaw_rate(seconds, |t| 0.25 * (0.2 * t).sin());
+        for r in drive.truth.as_mut().unwrap() {
+            r.yaw_rad = None;
+        }
+        drive
+    }
+
+    /// A drive at 8 m/s with the given yaw rate; its truth (every 0.2 s)
+    /// has the true yaw.
+    fn drive_with_yaw_rate(seconds: f64, yaw_rate: impl Fn(f64) -> f64) -> Drive {
         let dt = 0.01;
         let n = (seconds / dt).round() as usize;
         let v = 8.0;
-        let yaw_rate = |t: f64| 0.25 * (0.2 * t).sin();
         let (mut x, mut y, mut yaw, mut rl, mut rr) = (0.0, 0.0, 0.3, 0.0, 0.0);
         let mut wheels = Vec::new();
         let mut imu = Vec::new();
@@ -940,7 +1036,7 @@ mod tests {
                     t_s: t,
                     x_m: x,
                     y_m: y,
-                    yaw_rad: None,
+                    yaw_rad: Some(yaw),
                 });
             }
         }
@@ -1065,13 +1161,69 @@ mod tests {
 
     #[test]
     fn truth_yaw_is_used_when_present() {
-        let mut drive = winding_drive(40.0);
-        for r in drive.truth.as_mut().unwrap() {
+        // Winding all the time: too few straight stretches to check the
+        // yaw, so it is taken as it is.
+        let drive = drive_with_yaw_rate(40.0, |t| 0.25 * (0.2 * t).sin());
+        let report = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        assert_eq!(report.truth_yaw_offset_rad, None);
+        assert!(report.truth_yaw_used);
+        assert_eq!(report.outages[0].start_yaw_source, "truth_yaw");
+        assert_eq!(report.outages[0].start_yaw_rad, 0.3);
+        // A yaw that does not follow the track at all: found out.
+        let mut fixed = drive.clone();
+        for r in fixed.truth.as_mut().unwrap() {
             r.yaw_rad = Some(1.0);
         }
+        let report = evaluate(&fixed, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        assert!(!report.truth_yaw_used);
+        assert!(report.truth_yaw_offset_rad.unwrap().abs() > 0.1);
+    }
+
+    /// Straight for 10 s, then a 0.2 rad/s turn for 10 s, and again.
+    fn straights_and_turns(seconds: f64) -> Drive {
+        drive_with_yaw_rate(seconds, |t| if t % 20.0 < 10.0 { 0.0 } else { 0.2 })
+    }
+
+    #[test]
+    fn a_truth_yaw_off_the_truth_course_is_found_and_not_used() {
+        // The vehicle's own yaw: about 0 off, used.
+        let drive = straights_and_turns(60.0);
+        let rows = drive.truth.as_deref().unwrap();
+        let (offset, stretches) = truth_yaw_offset(rows, 2.0).unwrap();
+        assert!(offset.abs() < 1e-3, "{offset}");
+        // 30 s of straights at 8 m/s: 24 stretches of 10 m, the turns left out.
+        assert!((20..=24).contains(&stretches), "{stretches}");
         let report = evaluate(&drive, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        assert!(report.truth_yaw_used);
+        assert!(report.warnings.is_empty(), "{:?}", report.warnings);
         assert_eq!(report.outages[0].start_yaw_source, "truth_yaw");
-        assert_eq!(report.outages[0].start_yaw_rad, 1.0);
+        assert!(report.median_error_m < 0.15, "{}", report.median_error_m);
+
+        // A yaw 15 mrad off (a device mounted at an angle): found, named and
+        // replaced by the truth track, so the error stays small (taken as
+        // it is, it would put the end of a 240 m outage 3.6 m off).
+        let mut skewed = drive.clone();
+        for r in skewed.truth.as_mut().unwrap() {
+            r.yaw_rad = r.yaw_rad.map(|y| y + 0.015);
+        }
+        let rows = skewed.truth.as_deref().unwrap();
+        let (offset, _) = truth_yaw_offset(rows, 2.0).unwrap();
+        assert!((offset - 0.015).abs() < 1e-3, "{offset}");
+        let report = evaluate(&skewed, &true_params(), &config(HeadingMode::Gyro, 30.0)).unwrap();
+        assert!(!report.truth_yaw_used);
+        assert!(
+            report
+                .warnings
+                .iter()
+                .any(|w| w.contains("truth.csv: yaw_rad is +15.0 mrad off")),
+            "{:?}",
+            report.warnings
+        );
+        assert!(report
+            .outages
+            .iter()
+            .all(|o| o.start_yaw_source.starts_with("truth_track_alignment")));
+        assert!(report.median_error_m < 0.15, "{}", report.median_error_m);
     }
 
     #[test]

@@ -67,3 +67,40 @@ fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
         );
     }
 }
+
+#[test]
+fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
+    let Some(path) = drive_path("comma2k19-seg40") else {
+        return;
+    };
+    let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+    let report = run(&drive, HeadingMode::Gyro);
+    // comma's truth is the pose of the windscreen-mounted device: on the
+    // highway's straight stretches its yaw is 15.5 mrad off the course of its
+    // own positions (the same figure by hand from lat/lon: 15.2 mrad).
+    let offset = report.truth_yaw_offset_rad.expect("offset");
+    assert!((0.012..0.019).contains(&offset), "{offset}");
+    assert!(!report.truth_yaw_used);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("truth.csv: yaw_rad is +15")),
+        "{:?}",
+        report.warnings
+    );
+    assert!(report
+        .outages
+        .iter()
+        .all(|o| o.start_yaw_source.starts_with("truth_track_alignment")));
+    // The WID truths have no yaw: nothing to check there.
+    for name in ["wid-trial02", "wid-trial04"] {
+        let Some(path) = drive_path(name) else {
+            return;
+        };
+        let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+        let report = run(&drive, HeadingMode::Gyro);
+        assert_eq!(report.truth_yaw_offset_rad, None, "{name}");
+        assert!(!report.truth_yaw_used, "{name}");
+    }
+}
