@@ -103,6 +103,10 @@ pub struct FusionConfig {
     pub gyro_bias_walk: f64,
     /// Initial 1-sigma of the residual gyro bias, rad/s.
     pub initial_gyro_bias_sigma: f64,
+    /// Smallest position 1-sigma of a resumed pose ([`Fusion::resume`]), m.
+    pub resume_sigma_m: f64,
+    /// Smallest yaw 1-sigma of a resumed pose, rad.
+    pub resume_yaw_sigma_rad: f64,
 }
 
 impl Default for FusionConfig {
@@ -126,6 +130,8 @@ impl Default for FusionConfig {
             gyro_noise_rad_per_sqrt_s: 0.002,
             gyro_bias_walk: 2e-5,
             initial_gyro_bias_sigma: 1e-3,
+            resume_sigma_m: 0.5,
+            resume_yaw_sigma_rad: 0.02,
         }
     }
 }
@@ -149,6 +155,9 @@ pub enum FusionError {
         /// The step that produced it.
         after: &'static str,
     },
+    /// A pose to resume from ([`Fusion::resume`]) with a value that is NaN or infinite.
+    #[error("the pose to resume from is not finite (position, yaw or covariance)")]
+    ResumeNotFinite,
 }
 
 /// What [`Fusion::process`] reports.
@@ -344,6 +353,40 @@ impl Fusion {
             p[(3, 3)] = self.config.initial_gyro_bias_sigma.powi(2);
         }
         old
+    }
+
+    /// Start from a pose kept from an earlier run (the car was parked there,
+    /// say in a garage, and powers on without GNSS): `Running`, in
+    /// `DeadReckoning` until a fix is accepted. The position and yaw
+    /// variances are at least [`FusionConfig::resume_sigma_m`] and
+    /// [`FusionConfig::resume_yaw_sigma_rad`] squared (what a parked car's
+    /// pose may have lost); the residual gyro bias starts from zero.
+    pub fn resume(&mut self, pose: Pose2, covariance: &[f64; 9]) -> Result<(), FusionError> {
+        let finite = [pose.x, pose.y, pose.yaw]
+            .iter()
+            .chain(covariance)
+            .all(|v| v.is_finite());
+        if !finite {
+            return Err(FusionError::ResumeNotFinite);
+        }
+        let mut p = Mat4::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                p[(i, j)] = covariance[3 * i + j];
+            }
+        }
+        let floors = [
+            self.config.resume_sigma_m.powi(2),
+            self.config.resume_sigma_m.powi(2),
+            self.config.resume_yaw_sigma_rad.powi(2),
+        ];
+        for (i, floor) in floors.into_iter().enumerate() {
+            p[(i, i)] = p[(i, i)].max(floor);
+        }
+        p[(3, 3)] = self.config.initial_gyro_bias_sigma.powi(2);
+        let x = Vec4::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0);
+        self.reset();
+        self.set_running(x, p, 0.0, "resume")
     }
 
     /// The inputs went stale (the service saw no wheel sample for too long):
@@ -990,6 +1033,41 @@ mod tests {
         }
         crate::inputs::sort_inputs(&mut inputs);
         Sim { inputs, truth }
+    }
+
+    #[test]
+    fn a_resumed_pose_dead_reckons_at_once_and_fuses_when_gnss_comes() {
+        // The car stood at the start pose; GNSS only from 10 s on.
+        let sim = simulate(20.0, &|t| t >= 10.0, 0.0, 0.4);
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        let start = sim.truth[0].1;
+        let tiny = [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-8];
+        fusion.resume(start, &tiny).expect("resume");
+        let poses = run(&mut fusion, &sim.inputs);
+        assert_eq!(poses[0].mode, PoseMode::DeadReckoning);
+        // The floors: what a parked car's pose may have lost.
+        assert_eq!(poses[0].covariance[0], 0.25);
+        assert_eq!(poses[0].covariance[8], 0.02f64.powi(2));
+        for (pose, (t, truth)) in poses.iter().zip(&sim.truth) {
+            if *t < 10.0 {
+                assert_eq!(pose.mode, PoseMode::DeadReckoning, "t = {t}");
+                let e = (pose.pose.x - truth.x).hypot(pose.pose.y - truth.y);
+                assert!(e < 0.05, "t = {t}: {e} m");
+            } else if *t > 10.5 {
+                assert_eq!(pose.mode, PoseMode::Fused, "t = {t}");
+            }
+        }
+        assert_eq!(fusion.stats().initialisations, 0);
+        assert_eq!(fusion.stats().gnss_rejected, 0);
+
+        // A pose that is not finite is refused, and the filter stays as it was.
+        let mut fresh = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        let bad = Pose2 {
+            x: f64::NAN,
+            ..start
+        };
+        assert_eq!(fresh.resume(bad, &tiny), Err(FusionError::ResumeNotFinite));
+        assert_eq!(fresh.mode_at(0.0), PoseMode::NoFix);
     }
 
     fn run(fusion: &mut Fusion, inputs: &[Input]) -> Vec<FusedPose> {

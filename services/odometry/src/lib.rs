@@ -8,6 +8,7 @@
 //! - [`inputs`]: the odometry's inputs in processing order.
 //! - [`evaluate`]: simulated GNSS outages scored against the truth.
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
+//! - [`pose_state`]: the last pose, kept across power cycles.
 //! - [`serve`]: the iceoryx2 pose service.
 
 pub mod dead_reckoning;
@@ -15,5 +16,6 @@ pub mod estimate_file;
 pub mod evaluate;
 pub mod fusion;
 pub mod inputs;
+pub mod pose_state;
 pub mod serve;
 pub mod two_wheel;

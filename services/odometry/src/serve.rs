@@ -53,6 +53,7 @@ use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
 use crate::inputs::{Input, Sequencer};
+use crate::pose_state::{self, SavedPose};
 use iceoryx2::prelude::{ipc, CallbackProgression, WaitSetAttachmentId};
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
@@ -71,6 +72,9 @@ pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
 /// A sample this much older than the newest one seen means its publisher
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
 pub const RESTART_BACKSTEP_S: f64 = 1.0;
+
+/// Drive time between two writes of the kept pose (`--pose-state`), s.
+pub const POSE_STATE_EVERY_S: f64 = 10.0;
 
 /// The dead-reckoning flags `odometry serve` and `odometry evaluate` share.
 #[derive(Debug, Clone, clap::Args)]
@@ -134,6 +138,11 @@ pub struct ServeArgs {
     /// can be measured across processes (the clock is the machine's one).
     #[arg(long, value_name = "FILE")]
     pub latency_trace: Option<PathBuf>,
+    /// Keep the last pose in this JSON file (every 10 s of drive time, when
+    /// the inputs go stale, at exit) and start from it: a car parked in a
+    /// garage powers on without GNSS and dead-reckons from where it stood.
+    #[arg(long, value_name = "FILE")]
+    pub pose_state: Option<PathBuf>,
     /// iceoryx2 prefix of the graph (default: $WHEELCAL_IOX_PREFIX, else iceoryx2's).
     #[arg(long, value_name = "PREFIX")]
     pub iox_prefix: Option<String>,
@@ -163,6 +172,8 @@ pub struct ServeConfig {
     pub exit_on_end: bool,
     /// Where to write the publish-time trace at exit (see [`ServeArgs::latency_trace`]).
     pub latency_trace: Option<PathBuf>,
+    /// Where the last pose is kept, and started from (see [`ServeArgs::pose_state`]).
+    pub pose_state: Option<PathBuf>,
 }
 
 impl ServeConfig {
@@ -205,6 +216,7 @@ impl ServeConfig {
             status_every_s: args.status_every.max(0.0),
             exit_on_end: args.exit_on_end,
             latency_trace: args.latency_trace.clone(),
+            pose_state: args.pose_state.clone(),
         })
     }
 }
@@ -452,6 +464,79 @@ impl Inputs {
     }
 }
 
+/// Start the filter from the pose kept in `path`, if there is one. A file
+/// that cannot be read is named in a warning and the service starts without
+/// it: a broken file must not keep the car from localising.
+fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
+    match pose_state::load(path) {
+        Ok(Some(saved)) => match fusion.resume(saved.pose(), &saved.covariance) {
+            Ok(()) => tracing::info!(
+                "odometry: resuming from the pose kept in {}: ({:.2}, {:.2}) m, yaw {:.1} deg \
+                 ({}, t = {:.2} s of its run); DeadReckoning until a GNSS fix is accepted",
+                path.display(),
+                saved.x_m,
+                saved.y_m,
+                saved.yaw_rad.to_degrees(),
+                saved.mode,
+                saved.t_s
+            ),
+            Err(e) => tracing::warn!(
+                "odometry: {}: {e}; starting without the kept pose",
+                path.display()
+            ),
+        },
+        Ok(None) => tracing::info!(
+            "odometry: no pose kept in {} yet; it will be written there",
+            path.display()
+        ),
+        Err(e) => tracing::warn!("odometry: {e}; starting without the kept pose"),
+    }
+}
+
+/// The last pose with a position, for `--pose-state`.
+#[derive(Debug, Default)]
+struct KeptPose {
+    last: Option<SavedPose>,
+    written: bool,
+    next_write_t: Option<f64>,
+}
+
+impl KeptPose {
+    /// After each published pose (a `NoFix` pose keeps the one before).
+    fn update(&mut self, pose: &FusedPose) {
+        if let Some(saved) = SavedPose::from_fused(pose) {
+            self.last = Some(saved);
+            self.written = false;
+        }
+    }
+
+    /// Write when [`POSE_STATE_EVERY_S`] of drive time passed since the last write.
+    fn write_if_due(&mut self, path: &Path) {
+        let Some(t) = self.last.as_ref().map(|p| p.t_s) else {
+            return;
+        };
+        let due = *self.next_write_t.get_or_insert(t);
+        // A restarted stream (time back) is due at once.
+        if t >= due || t < due - POSE_STATE_EVERY_S {
+            self.write(path);
+        }
+    }
+
+    /// Write the last pose now, unless it is written already. A failure is
+    /// logged, not fatal: the poses on the bus matter more.
+    fn write(&mut self, path: &Path) {
+        let Some(saved) = self.last.as_ref().filter(|_| !self.written) else {
+            return;
+        };
+        // Tried again after the same drive time when it fails (no log flood).
+        self.next_write_t = Some(saved.t_s + POSE_STATE_EVERY_S);
+        match pose_state::save(path, saved) {
+            Ok(()) => self.written = true,
+            Err(e) => tracing::warn!("odometry: cannot keep the pose: {e}"),
+        }
+    }
+}
+
 /// Whether the wheel stream has ended, from the end-of-stream notifications
 /// taken after each wakeup's poses.
 #[derive(Debug, Default)]
@@ -557,6 +642,9 @@ pub fn serve(
     };
     let params = *fusion.params();
     params.validate("vehicle parameters")?;
+    if let Some(path) = &config.pose_state {
+        resume_from_kept_pose(&mut fusion, path);
+    }
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
@@ -608,6 +696,8 @@ pub fn serve(
     // A wheel sample is known to be waiting: the next wait returns at once.
     let mut wheel_sample_waiting = false;
     let mut wheel_stream = StreamEnd::default();
+    // With --pose-state: the last pose with a position, and when it is next written.
+    let mut kept = KeptPose::default();
     // Newest time seen per input stream (wheels, IMU, GNSS, heading).
     let mut latest_t: [Option<f64>; 4] = [None; 4];
 
@@ -677,6 +767,9 @@ pub fn serve(
                     }
                     poses.publish(wire)?;
                     summary.poses += 1;
+                    if config.pose_state.is_some() {
+                        kept.update(&pose);
+                    }
                     // Logged after the pose is out: a log line is not worth its latency.
                     if pose.mode != mode {
                         log_mode_change(mode, &pose);
@@ -728,6 +821,9 @@ pub fn serve(
             side_events,
         )?;
 
+        if let Some(path) = &config.pose_state {
+            kept.write_if_due(path);
+        }
         // The wheel topic's notifications: taken here, not before receiving,
         // they cost a few syscalls on the path to a pose.
         let (end_taken, waiting) = inputs.wheel_notifications()?;
@@ -753,6 +849,9 @@ pub fn serve(
                 );
                 fusion.mark_stale();
                 mode = PoseMode::NoFix;
+                if let Some(path) = &config.pose_state {
+                    kept.write(path);
+                }
                 if let Some(t) = last_wheel_t {
                     let marker = FusedPose {
                         t_s: t,
@@ -781,6 +880,9 @@ pub fn serve(
     summary.estimate_version = fusion.estimate_version();
     if let Some(path) = &config.latency_trace {
         write_latency_trace(path, &trace)?;
+    }
+    if let Some(path) = &config.pose_state {
+        kept.write(path);
     }
     let stats = fusion.stats();
     tracing::info!(

@@ -73,6 +73,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
         status_every_s: 0.0,
         exit_on_end: false,
         latency_trace: Some(root.path().join("latency.csv")),
+        pose_state: None,
     };
     let shutdown = Shutdown::new();
     let service = {
@@ -322,4 +323,152 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     drop((wheels, gnss, imu, heading, estimates, poses_sub));
     drop(bus);
     settings.remove_leftovers();
+}
+
+/// One run of the service in its own iceoryx2 prefix: straight east at 10 m/s
+/// for `seconds` (wheels and IMU at 100 Hz from revolution 0; GNSS at 5 Hz
+/// when `gnss`), keeping its pose in `pose_state`. Returns its poses.
+fn drive_east(
+    root: &std::path::Path,
+    pose_state: &std::path::Path,
+    seconds: f64,
+    gnss: bool,
+) -> Vec<Pose> {
+    let settings = BusSettings::isolated("odokept", root);
+    let config = ServeConfig {
+        bus: settings.clone(),
+        vehicle: vehicle(),
+        initial: None,
+        bus_estimates: true,
+        fusion: fusion_config(),
+        stale_after: Duration::from_secs(5),
+        status_every_s: 0.0,
+        exit_on_end: false,
+        latency_trace: None,
+        pose_state: Some(pose_state.to_path_buf()),
+    };
+    let shutdown = Shutdown::new();
+    let service = {
+        let shutdown = shutdown.clone();
+        std::thread::spawn(move || {
+            let bus = Bus::open(&config.bus, "odometry-under-test").expect("odometry bus");
+            serve(&bus, &config, &shutdown)
+        })
+    };
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher().expect("wheels publisher");
+    let mut gnss_pub: TopicPublisher<GnssFix> = bus.publisher().expect("gnss publisher");
+    let mut imu: TopicPublisher<Imu> = bus.publisher().expect("imu publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let start = Instant::now();
+    while wheels.subscriber_count() < 1
+        || imu.subscriber_count() < 1
+        || gnss_pub.subscriber_count() < 1
+    {
+        assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for announce in [wheels.announce(), gnss_pub.announce(), imu.announce()] {
+        announce.expect("announce");
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    let n = (seconds / 0.01).round() as usize;
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        let t = i as f64 * 0.01;
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        imu.publish(Imu {
+            header: Header::from_seconds(t, 0),
+            ..Imu::default()
+        })
+        .expect("publish imu");
+        if gnss && i % 20 == 0 && i > 0 {
+            gnss_pub
+                .publish(GnssFix {
+                    header: Header::from_seconds(t, 0),
+                    x_m: V * t,
+                    y_m: 0.0,
+                    sigma_m: 0.05,
+                    fix: 1,
+                    _pad: [0; 7],
+                })
+                .expect("publish gnss");
+        }
+        let rev = V * t / C;
+        wheels
+            .publish(WheelRotations {
+                header: Header::from_seconds(t, 0),
+                rl_rev: rev,
+                rr_rev: rev,
+                ..WheelRotations::default()
+            })
+            .expect("publish wheels");
+    }
+    collect(&poses_sub, &mut poses, n + 1);
+    shutdown.request();
+    service
+        .join()
+        .expect("service thread")
+        .expect("service result");
+    drop((wheels, gnss_pub, imu, poses_sub));
+    drop(bus);
+    settings.remove_leftovers();
+    poses
+}
+
+#[test]
+fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let kept = root.path().join("pose.json");
+    let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
+
+    // Outside: 6 s east with GNSS. At exit the service keeps its last pose.
+    let outside = drive_east(root.path(), &kept, 6.0, true);
+    assert_eq!(mode(&outside[0]), PoseMode::NoFix);
+    let last = outside.last().expect("poses");
+    assert_eq!(mode(last), PoseMode::Fused);
+    let saved = odometry::pose_state::load(&kept)
+        .expect("state file")
+        .expect("a kept pose");
+    assert_eq!(saved.mode, "Fused");
+    assert_eq!(
+        (saved.x_m, saved.y_m, saved.yaw_rad),
+        (last.x_m, last.y_m, last.yaw_rad)
+    );
+    assert!(
+        (saved.x_m - 60.0).abs() < 0.2 && saved.y_m.abs() < 0.2,
+        "{saved:?}"
+    );
+
+    // Power on in the garage: no GNSS at all. Every pose has a position,
+    // dead-reckoned from the kept one (a new drive: time and wheel
+    // revolutions start again from 0), its uncertainty at least the
+    // resume floor; without the kept pose they would all be NoFix.
+    let garage = drive_east(root.path(), &kept, 3.0, false);
+    assert_eq!(garage.len(), 301);
+    assert!(garage.iter().all(|p| mode(p) == PoseMode::DeadReckoning));
+    let first = &garage[0];
+    assert_eq!(
+        (first.x_m, first.y_m, first.yaw_rad),
+        (saved.x_m, saved.y_m, saved.yaw_rad)
+    );
+    assert!(first.covariance[0] >= 0.25 && first.covariance[8] >= 0.02f64.powi(2));
+    let end = garage.last().expect("poses");
+    assert!((end.x_m - (saved.x_m + 30.0)).abs() < 0.05, "{end:?}");
+    assert!((end.y_m - saved.y_m).abs() < 0.05, "{end:?}");
+    // The garage run keeps its own last pose for the next power-on.
+    let again = odometry::pose_state::load(&kept)
+        .expect("state")
+        .expect("kept");
+    assert_eq!(again.mode, "DeadReckoning");
+    assert_eq!(again.x_m, end.x_m);
+
+    // A broken state file is named in a warning and the service starts
+    // without it (NoFix until GNSS), rather than not at all.
+    std::fs::write(&kept, "not json").expect("write");
+    let broken = drive_east(root.path(), &kept, 1.0, false);
+    assert!(broken.iter().all(|p| mode(p) == PoseMode::NoFix));
 }
