@@ -984,7 +984,6 @@ mod tests {
     /// A synthetic drive on a winding path at 8 m/s: true wheels with
     /// circumferences C_RL, C_RR and track TRACK, a perfect gyro, truth at
     /// 5 Hz without yaw.
-    /// A drive at 8 m/s whose truth (every 0.2 s) has no yaw.
     fn winding_drive(seconds: f64) -> Drive {
         let mut drive = drive_with_yaw_rate(seconds, |t| 0.25 * (0.2 * t).sin());
         for r in drive.truth.as_mut().unwrap() {

@@ -496,7 +496,7 @@ fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
 /// The last pose with a position, for `--pose-state`.
 #[derive(Debug, Default)]
 struct KeptPose {
-    last: Option<SavedPose>,
+    last: Option<FusedPose>,
     written: bool,
     next_write_t: Option<f64>,
 }
@@ -504,15 +504,15 @@ struct KeptPose {
 impl KeptPose {
     /// After each published pose (a `NoFix` pose keeps the one before).
     fn update(&mut self, pose: &FusedPose) {
-        if let Some(saved) = SavedPose::from_fused(pose) {
-            self.last = Some(saved);
+        if pose.mode != PoseMode::NoFix {
+            self.last = Some(*pose);
             self.written = false;
         }
     }
 
     /// Write when [`POSE_STATE_EVERY_S`] of drive time passed since the last write.
     fn write_if_due(&mut self, path: &Path) {
-        let Some(t) = self.last.as_ref().map(|p| p.t_s) else {
+        let Some(t) = self.last.map(|p| p.t_s) else {
             return;
         };
         let due = *self.next_write_t.get_or_insert(t);
@@ -525,12 +525,16 @@ impl KeptPose {
     /// Write the last pose now, unless it is written already. A failure is
     /// logged, not fatal: the poses on the bus matter more.
     fn write(&mut self, path: &Path) {
-        let Some(saved) = self.last.as_ref().filter(|_| !self.written) else {
+        let Some(saved) = self
+            .last
+            .filter(|_| !self.written)
+            .and_then(|p| SavedPose::from_fused(&p))
+        else {
             return;
         };
         // Tried again after the same drive time when it fails (no log flood).
         self.next_write_t = Some(saved.t_s + POSE_STATE_EVERY_S);
-        match pose_state::save(path, saved) {
+        match pose_state::save(path, &saved) {
             Ok(()) => self.written = true,
             Err(e) => tracing::warn!("odometry: cannot keep the pose: {e}"),
         }
