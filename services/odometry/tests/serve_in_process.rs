@@ -11,7 +11,7 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::Input;
-use odometry::serve::{read_latency_trace, serve, ServeConfig, Shutdown};
+use odometry::serve::{read_latency_trace, serve, ServeConfig, ServeError, ServeSummary, Shutdown};
 use odometry::two_wheel::TwoWheelParams;
 use std::time::{Duration, Instant};
 
@@ -58,23 +58,29 @@ fn collect(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, want: usize) {
     }
 }
 
-#[test]
-fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_offline() {
-    interfaces::logging::init();
-    let root = tempfile::tempdir().expect("tempdir");
-    let settings = BusSettings::isolated("odoserve", root.path());
-    let config = ServeConfig {
+/// The service's settings in the bus `settings`, nothing kept or traced.
+fn base_config(settings: &BusSettings) -> ServeConfig {
+    ServeConfig {
         bus: settings.clone(),
         vehicle: vehicle(),
         initial: None,
         bus_estimates: true,
         fusion: fusion_config(),
-        stale_after: Duration::from_millis(400),
+        stale_after: Duration::from_secs(5),
         status_every_s: 0.0,
         exit_on_end: false,
-        latency_trace: Some(root.path().join("latency.csv")),
+        latency_trace: None,
         pose_state: None,
-    };
+    }
+}
+
+/// `serve` in a thread; request the stop with the returned [`Shutdown`].
+fn spawn_service(
+    config: ServeConfig,
+) -> (
+    Shutdown,
+    std::thread::JoinHandle<Result<ServeSummary, ServeError>>,
+) {
     let shutdown = Shutdown::new();
     let service = {
         let shutdown = shutdown.clone();
@@ -83,34 +89,69 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
             serve(&bus, &config, &shutdown)
         })
     };
+    (shutdown, service)
+}
 
+/// The test's sensor publishers.
+struct Sensors {
+    wheels: TopicPublisher<WheelRotations>,
+    gnss: TopicPublisher<GnssFix>,
+    imu: TopicPublisher<Imu>,
+    heading: TopicPublisher<Heading>,
+}
+
+impl Sensors {
+    /// Open them, wait for the service's subscribers, announce, and let
+    /// them attach.
+    fn open_when_subscribed(bus: &Bus) -> Sensors {
+        let sensors = Sensors {
+            wheels: bus.publisher().expect("wheels publisher"),
+            gnss: bus.publisher().expect("gnss publisher"),
+            imu: bus.publisher().expect("imu publisher"),
+            heading: bus.publisher().expect("heading publisher"),
+        };
+        let start = Instant::now();
+        while sensors.wheels.subscriber_count() < 1
+            || sensors.imu.subscriber_count() < 1
+            || sensors.gnss.subscriber_count() < 1
+            || sensors.heading.subscriber_count() < 1
+        {
+            assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        for announce in [
+            sensors.wheels.announce(),
+            sensors.gnss.announce(),
+            sensors.imu.announce(),
+            sensors.heading.announce(),
+        ] {
+            announce.expect("announce");
+        }
+        std::thread::sleep(Duration::from_millis(300));
+        sensors
+    }
+}
+
+#[test]
+fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_offline() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odoserve", root.path());
+    let (shutdown, service) = spawn_service(ServeConfig {
+        stale_after: Duration::from_millis(400),
+        latency_trace: Some(root.path().join("latency.csv")),
+        ..base_config(&settings)
+    });
     let bus = Bus::open(&settings, "test-publisher").expect("test bus");
-    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher().expect("wheels publisher");
-    let mut gnss: TopicPublisher<GnssFix> = bus.publisher().expect("gnss publisher");
-    let mut imu: TopicPublisher<Imu> = bus.publisher().expect("imu publisher");
-    let mut heading: TopicPublisher<Heading> = bus.publisher().expect("heading publisher");
     let mut estimates: TopicPublisher<CircumferenceEstimate> =
         bus.publisher().expect("estimate publisher");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
-    // Wait for the service's subscribers, announce, and let them attach.
-    let start = Instant::now();
-    while wheels.subscriber_count() < 1
-        || imu.subscriber_count() < 1
-        || gnss.subscriber_count() < 1
-        || heading.subscriber_count() < 1
-    {
-        assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    for announce in [
-        wheels.announce(),
-        gnss.announce(),
-        imu.announce(),
-        heading.announce(),
-    ] {
-        announce.expect("announce");
-    }
-    std::thread::sleep(Duration::from_millis(300));
+    let Sensors {
+        mut wheels,
+        mut gnss,
+        mut imu,
+        mut heading,
+    } = Sensors::open_when_subscribed(&bus);
 
     // 20 s straight east at 10 m/s; GNSS and heading (5 Hz) from 0.2 s to 10 s.
     // Everything published is also kept, to run the same filter offline.
@@ -335,43 +376,18 @@ fn drive_east(
     gnss: bool,
 ) -> Vec<Pose> {
     let settings = BusSettings::isolated("odokept", root);
-    let config = ServeConfig {
-        bus: settings.clone(),
-        vehicle: vehicle(),
-        initial: None,
-        bus_estimates: true,
-        fusion: fusion_config(),
-        stale_after: Duration::from_secs(5),
-        status_every_s: 0.0,
-        exit_on_end: false,
-        latency_trace: None,
+    let (shutdown, service) = spawn_service(ServeConfig {
         pose_state: Some(pose_state.to_path_buf()),
-    };
-    let shutdown = Shutdown::new();
-    let service = {
-        let shutdown = shutdown.clone();
-        std::thread::spawn(move || {
-            let bus = Bus::open(&config.bus, "odometry-under-test").expect("odometry bus");
-            serve(&bus, &config, &shutdown)
-        })
-    };
+        ..base_config(&settings)
+    });
     let bus = Bus::open(&settings, "test-publisher").expect("test bus");
-    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher().expect("wheels publisher");
-    let mut gnss_pub: TopicPublisher<GnssFix> = bus.publisher().expect("gnss publisher");
-    let mut imu: TopicPublisher<Imu> = bus.publisher().expect("imu publisher");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
-    let start = Instant::now();
-    while wheels.subscriber_count() < 1
-        || imu.subscriber_count() < 1
-        || gnss_pub.subscriber_count() < 1
-    {
-        assert!(start.elapsed() < WATCHDOG, "the service never subscribed");
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    for announce in [wheels.announce(), gnss_pub.announce(), imu.announce()] {
-        announce.expect("announce");
-    }
-    std::thread::sleep(Duration::from_millis(300));
+    let Sensors {
+        mut wheels,
+        gnss: mut gnss_pub,
+        mut imu,
+        heading,
+    } = Sensors::open_when_subscribed(&bus);
     let n = (seconds / 0.01).round() as usize;
     let mut poses = Vec::new();
     for i in 0..=n {
@@ -412,7 +428,7 @@ fn drive_east(
         .join()
         .expect("service thread")
         .expect("service result");
-    drop((wheels, gnss_pub, imu, poses_sub));
+    drop((wheels, gnss_pub, imu, heading, poses_sub));
     drop(bus);
     settings.remove_leftovers();
     poses
