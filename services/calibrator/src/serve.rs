@@ -680,6 +680,34 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
                 coverage.distance_m,
                 coverage.turn_deg()
             );
+            if !announced_ready {
+                let mut short = Vec::new();
+                if coverage.distance_m < cfg.min_distance_m {
+                    short.push(format!(
+                        "{:.0} m of the {:.0} m (--min-distance)",
+                        coverage.distance_m, cfg.min_distance_m
+                    ));
+                }
+                if coverage.turn_deg() < cfg.min_turn_deg {
+                    short.push(format!(
+                        "{:.0} deg of turning of the {:.0} (--min-turn)",
+                        coverage.turn_deg(),
+                        cfg.min_turn_deg
+                    ));
+                }
+                if builder.gnss_count() < cfg.min_gnss_fixes {
+                    short.push(format!(
+                        "{} GNSS fixes of the {} (--min-fixes)",
+                        builder.gnss_count(),
+                        cfg.min_gnss_fixes
+                    ));
+                }
+                tracing::warn!(
+                    "calibrator: the drive is too short for an attempt: {}; lower the thresholds \
+                     for short drives",
+                    short.join(", ")
+                );
+            }
         }
 
         // A finished attempt?
