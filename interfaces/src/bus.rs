@@ -53,7 +53,7 @@ use iceoryx2::port::{BackpressureAction, BackpressureInfo};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
-use iceoryx2::waitset::WaitSetRunResult;
+use iceoryx2::waitset::{WaitSetRunError, WaitSetRunResult};
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::fmt::Debug;
@@ -235,6 +235,22 @@ pub fn shutdown_requested() -> bool {
 /// Ask every loop of this process to stop.
 pub fn request_shutdown() {
     SHUTDOWN.store(true, Ordering::SeqCst);
+}
+
+/// One round of `waitset`: block until an attachment fires, or, with
+/// `ready_only` (a sample is known to be waiting, its notification possibly
+/// taken already), handle only what is ready now without blocking. Returns
+/// what [`WaitSet::wait_and_process_once`] returns.
+pub fn wait_once<F: FnMut(WaitSetAttachmentId<Ipc>) -> CallbackProgression>(
+    waitset: &WaitSet<Ipc>,
+    ready_only: bool,
+    on_event: F,
+) -> Result<WaitSetRunResult, WaitSetRunError> {
+    if ready_only {
+        waitset.wait_and_process_once_with_timeout(on_event, Duration::ZERO)
+    } else {
+        waitset.wait_and_process_once(on_event)
+    }
 }
 
 /// True when a WaitSet run result means the loop must end (a signal, or a

@@ -82,15 +82,8 @@ fn relay(trace_path: Option<&std::path::Path>) {
     eprintln!("relay ready");
     let mut sample_waiting = false;
     loop {
-        let r = if sample_waiting {
-            waitset.wait_and_process_once_with_timeout(
-                |_| CallbackProgression::Continue,
-                Duration::ZERO,
-            )
-        } else {
-            waitset.wait_and_process_once(|_| CallbackProgression::Continue)
-        }
-        .expect("wait");
+        let r = bus::wait_once(&waitset, sample_waiting, |_| CallbackProgression::Continue)
+            .expect("wait");
         let woke = wall_clock_ns();
         while let Some(w) = wheels.receive().expect("receive") {
             trace.push((w.header.t_ns, woke, wall_clock_ns()));

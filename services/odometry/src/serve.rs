@@ -54,7 +54,7 @@ use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
 use crate::inputs::{Input, Sequencer};
 use crate::pose_state::{self, SavedPose};
-use iceoryx2::prelude::{ipc, CallbackProgression, WaitSetAttachmentId};
+use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
 use interfaces::wire::{
@@ -707,15 +707,10 @@ pub fn serve(
 
     loop {
         let mut estimate_event = false;
-        let on_event = |id: WaitSetAttachmentId<ipc::Service>| {
+        let result = bus::wait_once(&waitset, wheel_sample_waiting, |id| {
             estimate_event |= id.has_event_from(&g_estimate);
             CallbackProgression::Continue
-        };
-        let result = if wheel_sample_waiting {
-            waitset.wait_and_process_once_with_timeout(on_event, Duration::ZERO)
-        } else {
-            waitset.wait_and_process_once(on_event)
-        }
+        })
         .map_err(|e| ws_err("wait", &e))?;
         let woke_wall_ns = if config.latency_trace.is_some() {
             wall_clock_ns()
