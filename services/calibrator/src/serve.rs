@@ -31,6 +31,7 @@ use interfaces::bus::{self, Bus, BusError, TopicPublisher};
 use interfaces::drive::{Drive, VehicleParams};
 use interfaces::effects::Effect;
 use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension, MAX_EXTENSIONS};
+use odometry::estimate_file::antenna_extension;
 use odometry::two_wheel::{step, Pose2, TwoWheelParams};
 use sensor_bridge::record::{DriveBuilder, SensorSubscribers};
 use serde::{Deserialize, Serialize};
@@ -171,6 +172,13 @@ pub struct Accepted {
     pub gyro_scale: f64,
     /// Side-slip gain, rad per m/s^2, when fitted.
     pub side_slip_gain_rad_per_m_s2: Option<f64>,
+    /// GNSS antenna position the fit found (body x forward, y left, from the
+    /// rear-axle centre), m: `gyro.antenna_m` of the calibration, else its
+    /// `gnss_antenna_m`. On the wire the `gnss_lever_arm` extension; the
+    /// odometry uses it unless `vehicle.toml` gives a measured one. Absent in
+    /// state files written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss_antenna_m: Option<[f64; 2]>,
     /// Held-out dead-reckoning error, m.
     pub quality_m: f64,
 }
@@ -188,6 +196,10 @@ impl Accepted {
             };
             count = 1;
         }
+        if let Some(a) = self.gnss_antenna_m {
+            extensions[count] = antenna_extension(a);
+            count += 1;
+        }
         CircumferenceEstimate {
             header: Header::from_seconds(self.t_s, 0),
             version: self.version,
@@ -199,7 +211,7 @@ impl Accepted {
             gyro_bias_rad_s: self.gyro_bias_rad_s,
             gyro_scale: self.gyro_scale,
             quality_m: self.quality_m,
-            extension_count: count,
+            extension_count: count as u32,
             _pad: 0,
             extensions,
         }
@@ -556,6 +568,7 @@ pub fn attempt(
         gyro_bias_rad_s: cal.gyro_bias_rad_s.unwrap_or(0.0),
         gyro_scale: cal.gyro_scale.unwrap_or(0.0),
         side_slip_gain_rad_per_m_s2: cal.side_slip_gain_rad_per_m_s2,
+        gnss_antenna_m: cal.gyro.map(|g| g.antenna_m).or(cal.gnss_antenna_m),
         quality_m: f64::NAN,
     };
     let score = holdout_errors(
@@ -883,6 +896,7 @@ mod tests {
             gyro_bias_rad_s: 0.001,
             gyro_scale: -0.01,
             side_slip_gain_rad_per_m_s2: Some(0.004),
+            gnss_antenna_m: Some([0.5, -0.3]),
             quality_m: 0.8,
         }
     }
@@ -948,6 +962,11 @@ mod tests {
         let est = odometry::estimate_file::Estimate::from_json_str(&text, "state").unwrap();
         assert_eq!(est.params.two_wheel.c_rr, 1.99);
         assert_eq!(est.params.gyro_scale, -0.01);
+        assert_eq!(est.antenna_m, Some([0.5, -0.3]));
+        // A state file from before the antenna field still loads.
+        let old = text.replace("\"gnss_antenna_m\"", "\"unknown_field\"");
+        std::fs::write(&path, old).unwrap();
+        assert_eq!(load_state(&path).unwrap().unwrap().gnss_antenna_m, None);
         std::fs::write(&path, "{\"version\": 1}").unwrap();
         let err = load_state(&path).unwrap_err().to_string();
         assert!(
@@ -962,9 +981,12 @@ mod tests {
         assert_eq!(w.version, 3);
         assert_eq!((w.c_rl_m, w.c_rr_m, w.sigma_rr_m), (1.98, 1.99, 2e-3));
         assert_eq!(w.quality_m, 0.8);
-        assert_eq!(w.extension_count, 1);
+        assert_eq!(w.extension_count, 2);
         assert_eq!(w.extensions[0].effect_code, Effect::SideSlip.code());
         assert_eq!(w.extensions[0].params[0], 0.004);
+        // The odometry reads the antenna back from the second extension.
+        let est = odometry::estimate_file::Estimate::from_wire(&w).unwrap();
+        assert_eq!(est.antenna_m, Some([0.5, -0.3]));
         assert_eq!(w.header.t_ns, 12_500_000_000);
     }
 

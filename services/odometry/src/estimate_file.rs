@@ -9,7 +9,8 @@
 //!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; every
 //!   other field is ignored;
 //! - the wire type [`CircumferenceEstimate`] ([`Estimate::from_wire`],
-//!   [`Estimate::to_wire`]).
+//!   [`Estimate::to_wire`]); the calibrated GNSS antenna position travels in
+//!   it as a `gnss_lever_arm` model extension (x, y).
 //!
 //! Gyro convention (the same as the wire type): the gyro measures
 //! `gz = (1 + gyro_scale) * w + gyro_bias_rad_s`, so the corrected yaw rate is
@@ -17,7 +18,8 @@
 
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
-use interfaces::wire::{CircumferenceEstimate, Header};
+use interfaces::effects::Effect;
+use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -216,7 +218,8 @@ impl Estimate {
                 .gyro
                 .and_then(|g| g.antenna_m)
                 .or(parsed.gnss_antenna_m)
-                .filter(|a| a.iter().all(|v| v.is_finite())),
+                .map(|a| validate_antenna(a, source))
+                .transpose()?,
         })
     }
 
@@ -240,20 +243,28 @@ impl Estimate {
             gyro_bias_rad_s: wire.gyro_bias_rad_s,
             gyro_scale: wire.gyro_scale,
         };
-        params.validate(&format!("estimate version {} on the wire", wire.version))?;
+        let source = format!("estimate version {} on the wire", wire.version);
+        params.validate(&source)?;
+        let used = (wire.extension_count as usize).min(wire.extensions.len());
+        let antenna_m = wire.extensions[..used]
+            .iter()
+            .find(|x| x.effect_code == Effect::GnssLeverArm.code() && x.param_count >= 2)
+            .map(|x| validate_antenna([x.params[0], x.params[1]], &source))
+            .transpose()?;
         Ok(Estimate {
             params,
             sigma_m: Some((wire.sigma_rl_m, wire.sigma_rr_m)),
             quality_m: Some(wire.quality_m),
-            antenna_m: None,
+            antenna_m,
         })
     }
 
-    /// The estimate as the wire type, without model extensions. Unknown sigmas
-    /// and quality are sent as 0 (the wire type has no validity flag for them).
+    /// The estimate as the wire type; of the model extensions only the GNSS
+    /// antenna (`gnss_lever_arm`), when known. Unknown sigmas and quality are
+    /// sent as 0 (the wire type has no validity flag for them).
     pub fn to_wire(&self, header: Header, version: u64) -> CircumferenceEstimate {
         let (sigma_rl_m, sigma_rr_m) = self.sigma_m.unwrap_or((0.0, 0.0));
-        CircumferenceEstimate {
+        let mut wire = CircumferenceEstimate {
             header,
             version,
             c_rl_m: self.params.two_wheel.c_rl,
@@ -265,7 +276,39 @@ impl Estimate {
             gyro_scale: self.params.gyro_scale,
             quality_m: self.quality_m.unwrap_or(0.0),
             ..CircumferenceEstimate::default()
+        };
+        if let Some(a) = self.antenna_m {
+            wire.extensions[0] = antenna_extension(a);
+            wire.extension_count = 1;
         }
+        wire
+    }
+}
+
+/// The wire form of a GNSS antenna position: the `gnss_lever_arm` model
+/// extension with parameters (x, y), m.
+pub fn antenna_extension(antenna_m: [f64; 2]) -> ModelExtension {
+    ModelExtension {
+        effect_code: Effect::GnssLeverArm.code(),
+        param_count: 2,
+        params: [antenna_m[0], antenna_m[1], 0.0, 0.0],
+    }
+}
+
+/// An antenna position must be finite and within 20 m of the rear axle
+/// (the calibrator's own plausibility limit for `vehicle.toml`).
+fn validate_antenna(antenna_m: [f64; 2], source: &str) -> Result<[f64; 2], ParamsError> {
+    match antenna_m
+        .iter()
+        .find(|v| !(v.is_finite() && v.abs() < 20.0))
+    {
+        None => Ok(antenna_m),
+        Some(&value) => Err(ParamsError::Invalid {
+            source_name: source.to_string(),
+            field: "gnss antenna position",
+            value,
+            reason: "must be finite and within 20 m of the rear axle",
+        }),
     }
 }
 
@@ -350,6 +393,49 @@ mod tests {
         let msg = Estimate::from_wire(&broken).unwrap_err().to_string();
         assert!(
             msg.contains("version 7") && msg.contains("track_width_m"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn the_antenna_travels_on_the_wire_as_a_gnss_lever_arm_extension() {
+        let mut e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        e.antenna_m = Some([0.51, -0.31]);
+        e.quality_m = Some(0.7);
+        let wire = e.to_wire(Header::from_seconds(1.0, 0), 2);
+        assert_eq!(wire.extension_count, 1);
+        assert_eq!(wire.extensions[0].effect_code, Effect::GnssLeverArm.code());
+        assert_eq!(Estimate::from_wire(&wire).unwrap(), e);
+        // Another extension before it (the calibrator's side slip) is skipped.
+        let mut two = wire;
+        two.extensions[1] = two.extensions[0];
+        two.extensions[0] = ModelExtension {
+            effect_code: Effect::SideSlip.code(),
+            param_count: 1,
+            params: [0.004, 0.0, 0.0, 0.0],
+        };
+        two.extension_count = 2;
+        assert_eq!(
+            Estimate::from_wire(&two).unwrap().antenna_m,
+            Some([0.51, -0.31])
+        );
+        // A slot beyond extension_count is not read.
+        two.extension_count = 1;
+        assert_eq!(Estimate::from_wire(&two).unwrap().antenna_m, None);
+        // An implausible antenna rejects the estimate, naming it.
+        let mut far = wire;
+        far.extensions[0].params[1] = f64::INFINITY;
+        let msg = Estimate::from_wire(&far).unwrap_err().to_string();
+        assert!(
+            msg.contains("version 2") && msg.contains("antenna"),
+            "{msg}"
+        );
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5, "gnss_antenna_m": [35.0, 0.0]}"#;
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("x.json") && msg.contains("antenna") && msg.contains("35"),
             "{msg}"
         );
     }

@@ -10,7 +10,8 @@
 //!   and slowly random-walks. Without updates the mean is exactly the
 //!   dead-reckoned pose.
 //! - Updates: GNSS positions of the antenna (lever arm from `vehicle.toml`'s
-//!   `[gnss] antenna_x_m/antenna_y_m`, rotated by the yaw), and absolute
+//!   `[gnss] antenna_x_m/antenna_y_m`, else from the estimate, whose
+//!   calibration fits it; rotated by the yaw), and absolute
 //!   headings. Each innovation is tested against a chi-square gate (2 and 1
 //!   degrees of freedom, 99.9 %); a measurement outside it is rejected.
 //! - Measurements are applied at their own time: a fix between two wheel
@@ -66,6 +67,10 @@ pub struct FusionConfig {
     pub odometer: OdometerConfig,
     /// GNSS antenna in the body frame from the rear-axle centre (x forward, y left), m.
     pub lever_arm_m: [f64; 2],
+    /// Take the antenna position from estimates that carry one (the
+    /// calibrator fits it): true unless `lever_arm_m` was measured
+    /// (`vehicle.toml`'s `[gnss]`), which then always wins.
+    pub lever_arm_from_estimates: bool,
     /// Without an accepted fix for longer than this, the mode is DeadReckoning, s.
     pub gnss_timeout_s: f64,
     /// GNSS 1-sigma used when a fix gives none, m.
@@ -114,6 +119,7 @@ impl Default for FusionConfig {
         FusionConfig {
             odometer: OdometerConfig::default(),
             lever_arm_m: [0.0, 0.0],
+            lever_arm_from_estimates: true,
             gnss_timeout_s: 1.0,
             default_gnss_sigma_m: 2.0,
             min_gnss_sigma_m: 0.15,
@@ -158,6 +164,9 @@ pub enum FusionError {
     /// A pose to resume from ([`Fusion::resume`]) with a value that is NaN or infinite.
     #[error("the pose to resume from is not finite (position, yaw or covariance)")]
     ResumeNotFinite,
+    /// A GNSS antenna position ([`Fusion::set_lever_arm`]) that is NaN or infinite.
+    #[error("the GNSS antenna position {0:?} m is not finite")]
+    LeverArmNotFinite([f64; 2]),
 }
 
 /// What [`Fusion::process`] reports.
@@ -335,6 +344,35 @@ impl Fusion {
         &self.config
     }
 
+    /// The GNSS antenna position in use (body x forward, y left, from the
+    /// rear-axle centre), m.
+    pub fn lever_arm(&self) -> [f64; 2] {
+        self.config.lever_arm_m
+    }
+
+    /// Use a new GNSS antenna position. The filter's belief about where the
+    /// antenna is stays as it was, so the rear-axle position moves by the
+    /// change of the arm (rotated by the yaw): a pose fused with the antenna
+    /// assumed at the axle was the antenna's track, and is now the axle's.
+    /// A non-finite position is refused.
+    pub fn set_lever_arm(&mut self, lever_arm_m: [f64; 2]) -> Result<(), FusionError> {
+        if !lever_arm_m.iter().all(|v| v.is_finite()) {
+            return Err(FusionError::LeverArmNotFinite(lever_arm_m));
+        }
+        let State::Running { x, .. } = self.state else {
+            self.config.lever_arm_m = lever_arm_m;
+            return Ok(());
+        };
+        let old = self.lever_arm_world(x[2]);
+        self.config.lever_arm_m = lever_arm_m;
+        let new = self.lever_arm_world(x[2]);
+        if let State::Running { x, .. } = &mut self.state {
+            x[0] += old[0] - new[0];
+            x[1] += old[1] - new[1];
+        }
+        Ok(())
+    }
+
     /// Switch to a new estimate between two samples: the pose does not move,
     /// the next increments use the new parameters, and the residual gyro bias
     /// starts again from zero (the new estimate carries its own bias).
@@ -480,6 +518,12 @@ impl Fusion {
             Input::Estimate {
                 version, estimate, ..
             } => {
+                // The antenna first: a bad one leaves the filter as it was.
+                if let (true, Some(antenna)) =
+                    (self.config.lever_arm_from_estimates, estimate.antenna_m)
+                {
+                    self.set_lever_arm(antenna)?;
+                }
                 self.set_estimate(estimate.params, version);
                 Ok(None)
             }
@@ -955,6 +999,7 @@ fn joseph_update<const M: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::estimate_file::Estimate;
     use crate::two_wheel::TwoWheelParams;
 
     const C: f64 = 2.0;
@@ -1457,13 +1502,9 @@ mod tests {
         );
     }
 
-    #[test]
-    fn lever_arm_is_taken_into_account() {
-        // Antenna 1.2 m ahead of the rear axle: fixes are of the antenna.
-        let sim = simulate(30.0, &|_| true, 0.0, 0.0);
-        let arm = 1.2;
-        let inputs: Vec<Input> = sim
-            .inputs
+    /// `sim`'s inputs with its fixes moved to an antenna at `arm` (body x, y).
+    fn antenna_fixes(sim: &Sim, arm: [f64; 2]) -> Vec<Input> {
+        sim.inputs
             .iter()
             .map(|i| match *i {
                 Input::Gnss {
@@ -1473,25 +1514,125 @@ mod tests {
                     sigma_m,
                 } => {
                     let k = ((t_s - 0.005) / 0.01).round() as usize;
-                    let yaw = sim.truth[k].1.yaw;
+                    let (s, c) = sim.truth[k].1.yaw.sin_cos();
                     Input::Gnss {
                         t_s,
-                        x_m: x_m + arm * yaw.cos(),
-                        y_m: y_m + arm * yaw.sin(),
+                        x_m: x_m + arm[0] * c - arm[1] * s,
+                        y_m: y_m + arm[0] * s + arm[1] * c,
                         sigma_m,
                     }
                 }
                 other => other,
             })
-            .collect();
+            .collect()
+    }
+
+    /// Distance of each pose from the truth at its time, m.
+    fn errors(sim: &Sim, poses: &[FusedPose]) -> Vec<f64> {
+        poses
+            .iter()
+            .map(|p| {
+                let k = (p.t_s / 0.01).round() as usize;
+                let truth = sim.truth[k].1;
+                (p.pose.x - truth.x).hypot(p.pose.y - truth.y)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn lever_arm_is_taken_into_account() {
+        // Antenna 1.2 m ahead of the rear axle: fixes are of the antenna.
+        let sim = simulate(30.0, &|_| true, 0.0, 0.0);
+        let inputs = antenna_fixes(&sim, [1.2, 0.0]);
         let mut cfg = config(HeadingMode::WheelDifference);
-        cfg.lever_arm_m = [arm, 0.0];
+        cfg.lever_arm_m = [1.2, 0.0];
         let mut fusion = Fusion::new(params(), 0, cfg);
         let poses = run(&mut fusion, &inputs);
         let (p, truth) = (poses.last().unwrap().pose, sim.truth.last().unwrap().1);
         assert!(
             (p.x - truth.x).hypot(p.y - truth.y) < 0.2,
             "{p:?} vs {truth:?}"
+        );
+    }
+
+    #[test]
+    fn an_estimates_antenna_moves_the_pose_from_the_antenna_track_to_the_axle() {
+        // No measured antenna: the filter starts with it at the axle, so its
+        // pose is the antenna's track, 1.24 m off. An estimate that carries
+        // the calibrated antenna puts the pose on the axle at once.
+        let arm = [1.2, 0.3];
+        let sim = simulate(30.0, &|_| true, 0.0, 0.0);
+        let inputs = antenna_fixes(&sim, arm);
+        let split = inputs.iter().position(|i| i.t_s() > 15.0).unwrap();
+        let estimate = Input::Estimate {
+            t_s: 15.0,
+            version: 1,
+            estimate: Estimate {
+                params: params(),
+                sigma_m: None,
+                quality_m: None,
+                antenna_m: Some(arm),
+            },
+        };
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        let before = run(&mut fusion, &inputs[..split]);
+        let before_err = errors(&sim, &before[before.len() - 100..]);
+        assert!(
+            before_err.iter().all(|e| (e - 1.237).abs() < 0.1),
+            "{before_err:?}"
+        );
+        run(&mut fusion, &[estimate]);
+        assert_eq!(fusion.lever_arm(), arm);
+        let after = run(&mut fusion, &inputs[split..]);
+        // From 1.24 m to at most 0.2 m at once (the yaw the filter learned
+        // from the antenna's track is off by the arm's share of the course
+        // in turns, which the next fixes mend), then within 5 cm.
+        let after_err = errors(&sim, &after);
+        let worst = after_err.iter().cloned().fold(0.0, f64::max);
+        let tail = &after_err[after_err.len() / 2..];
+        let tail_worst = tail.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            worst < 0.2 && tail_worst < 0.05,
+            "worst {worst} m, in the last half {tail_worst} m"
+        );
+        assert_eq!(fusion.stats().gnss_rejected, 0, "no fix gated by the move");
+
+        // A measured antenna (vehicle.toml) is never replaced by an estimate's.
+        let mut cfg = config(HeadingMode::Gyro);
+        cfg.lever_arm_m = arm;
+        cfg.lever_arm_from_estimates = false;
+        let mut fusion = Fusion::new(params(), 0, cfg);
+        run(&mut fusion, &inputs[..split]);
+        let Input::Estimate {
+            estimate: mut e, ..
+        } = estimate
+        else {
+            unreachable!()
+        };
+        e.antenna_m = Some([0.0, 0.0]);
+        run(
+            &mut fusion,
+            &[Input::Estimate {
+                t_s: 15.0,
+                version: 1,
+                estimate: e,
+            }],
+        );
+        assert_eq!(fusion.lever_arm(), arm);
+        // A non-finite antenna is refused and changes nothing.
+        let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
+        e.antenna_m = Some([f64::NAN, 0.0]);
+        let err = fusion
+            .process(&Input::Estimate {
+                t_s: 0.0,
+                version: 2,
+                estimate: e,
+            })
+            .unwrap_err();
+        assert!(err.to_string().contains("antenna"), "{err}");
+        assert_eq!(
+            (fusion.lever_arm(), fusion.estimate_version()),
+            ([0.0, 0.0], 0)
         );
     }
 

@@ -34,6 +34,15 @@
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
 //!   old and new values.
+//! - The GNSS antenna position (the lever arm of the fixes) is
+//!   `vehicle.toml`'s `[gnss]` when given: measured, it is never replaced.
+//!   Otherwise it comes from the estimate (the calibrator fits it: file
+//!   `gyro.antenna_m` / `gnss_antenna_m`, on the wire the `gnss_lever_arm`
+//!   extension), and until one brings it the antenna is taken to be at the
+//!   rear axle: the pose is then the antenna's track. When an estimate brings
+//!   a new antenna position the pose moves by the change (logged): the
+//!   filter keeps where it believes the antenna is, and the pose is the rear
+//!   axle's from then on.
 //! - Stale inputs: when no wheel sample arrived for `stale_after` (wall
 //!   clock), a warning says so, the filter forgets its pose, and one pose with
 //!   mode `NoFix` (zeros, zero covariance) is published at the last wheel time
@@ -197,12 +206,11 @@ impl ServeConfig {
         if let Some(r) = &args.iox_root {
             settings.root = Some(r.clone());
         }
+        let (lever_arm_m, measured) = gnss_lever_arm(&vehicle, initial.as_ref());
         let fusion = FusionConfig {
             odometer: args.odometer.config(),
-            lever_arm_m: [
-                vehicle.gnss.antenna_x_m.unwrap_or(0.0),
-                vehicle.gnss.antenna_y_m.unwrap_or(0.0),
-            ],
+            lever_arm_m,
+            lever_arm_from_estimates: !measured,
             gnss_timeout_s: positive("--gnss-timeout", args.gnss_timeout)?,
             ..FusionConfig::default()
         };
@@ -218,6 +226,21 @@ impl ServeConfig {
             latency_trace: args.latency_trace.clone(),
             pose_state: args.pose_state.clone(),
         })
+    }
+}
+
+/// The GNSS antenna position to start with, and whether it was measured
+/// (`vehicle.toml`'s `[gnss]`, which then wins over any estimate's);
+/// otherwise the initial estimate's calibrated one, else the rear axle.
+pub fn gnss_lever_arm(vehicle: &VehicleParams, initial: Option<&Estimate>) -> ([f64; 2], bool) {
+    let (x, y) = (vehicle.gnss.antenna_x_m, vehicle.gnss.antenna_y_m);
+    if x.is_some() || y.is_some() {
+        ([x.unwrap_or(0.0), y.unwrap_or(0.0)], true)
+    } else {
+        (
+            initial.and_then(|e| e.antenna_m).unwrap_or([0.0, 0.0]),
+            false,
+        )
     }
 }
 
@@ -736,6 +759,20 @@ pub fn serve(
                     describe_switch(&old, &estimate.params)
                 );
                 summary.estimate_switches += 1;
+                let (from, to) = (fusion.lever_arm(), estimate.antenna_m);
+                if let (true, Some(to)) = (config.fusion.lever_arm_from_estimates, to) {
+                    if to != from {
+                        tracing::info!(
+                            "odometry: GNSS antenna ({:+.3}, {:+.3}) -> ({:+.3}, {:+.3}) m from estimate v{version}: \
+                             the pose moves by {:.3} m onto the rear axle",
+                            from[0],
+                            from[1],
+                            to[0],
+                            to[1],
+                            (to[0] - from[0]).hypot(to[1] - from[1])
+                        );
+                    }
+                }
             }
             if let Some(k) = stream_index(input) {
                 let t = input.t_s();
@@ -1052,6 +1089,34 @@ mod tests {
         // A new run whose first wakeup leaves a sample waiting is not ended.
         end.after_wakeup(true, false, true);
         assert!(!end.ended());
+    }
+
+    #[test]
+    fn a_measured_antenna_wins_over_the_initial_estimates() {
+        let mut vehicle = VehicleParams {
+            name: None,
+            track_width_m: 1.5,
+            nominal_circumference_m: 2.0,
+            wheelbase_m: None,
+            ticks_per_rev: None,
+            gnss: Default::default(),
+        };
+        let estimate = Estimate {
+            params: OdometryParams::nominal(&vehicle),
+            sigma_m: None,
+            quality_m: None,
+            antenna_m: Some([0.5, -0.3]),
+        };
+        assert_eq!(gnss_lever_arm(&vehicle, None), ([0.0, 0.0], false));
+        assert_eq!(
+            gnss_lever_arm(&vehicle, Some(&estimate)),
+            ([0.5, -0.3], false)
+        );
+        vehicle.gnss.antenna_x_m = Some(1.1);
+        assert_eq!(
+            gnss_lever_arm(&vehicle, Some(&estimate)),
+            ([1.1, 0.0], true)
+        );
     }
 
     #[test]

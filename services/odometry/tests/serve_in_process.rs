@@ -488,3 +488,106 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
     let broken = drive_east(root.path(), &kept, 1.0, false);
     assert!(broken.iter().all(|p| mode(p) == PoseMode::NoFix));
 }
+
+#[test]
+fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle() {
+    // Straight east at 10 m/s; the GNSS antenna is 1.2 m ahead and 0.3 m left
+    // of the rear axle, and vehicle.toml does not say so. The pose is then the
+    // antenna's track until the calibrator's estimate brings the antenna
+    // position (the `gnss_lever_arm` extension), from where it is the axle's.
+    interfaces::logging::init();
+    let arm = [1.2, 0.3];
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odoarm", root.path());
+    let (shutdown, service) = spawn_service(base_config(&settings));
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let mut estimates: TopicPublisher<CircumferenceEstimate> =
+        bus.publisher().expect("estimate publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let Sensors {
+        mut wheels,
+        mut gnss,
+        mut imu,
+        heading,
+    } = Sensors::open_when_subscribed(&bus);
+    let (n, switch_at) = (2000usize, 1000usize);
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        let t = i as f64 * 0.01;
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        if i == switch_at {
+            collect(&poses_sub, &mut poses, i);
+            let estimate = Estimate {
+                params: OdometryParams::nominal(&vehicle()),
+                sigma_m: Some((1e-4, 1e-4)),
+                quality_m: Some(0.5),
+                antenna_m: Some(arm),
+            };
+            estimates
+                .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))
+                .expect("publish estimate");
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        imu.publish(Imu {
+            header: Header::from_seconds(t, 0),
+            ..Imu::default()
+        })
+        .expect("publish imu");
+        if i % 20 == 0 && i > 0 {
+            gnss.publish(GnssFix {
+                header: Header::from_seconds(t, 0),
+                x_m: V * t + arm[0],
+                y_m: arm[1],
+                sigma_m: 0.05,
+                fix: 1,
+                _pad: [0; 7],
+            })
+            .expect("publish gnss");
+        }
+        let rev = V * t / C;
+        wheels
+            .publish(WheelRotations {
+                header: Header::from_seconds(t, 0),
+                rl_rev: rev,
+                rr_rev: rev,
+                ..WheelRotations::default()
+            })
+            .expect("publish wheels");
+    }
+    collect(&poses_sub, &mut poses, n + 1);
+    shutdown.request();
+    let summary = service
+        .join()
+        .expect("service thread")
+        .expect("service result");
+    assert_eq!(summary.estimate_switches, 1);
+
+    // Distance of the pose from the rear axle, at t = V t east, y = 0.
+    let off = |k: usize| {
+        let p = &poses[k];
+        assert_eq!(
+            PoseMode::from_code(p.mode),
+            Some(PoseMode::Fused),
+            "pose {k}"
+        );
+        (p.x_m - V * k as f64 * 0.01).hypot(p.y_m)
+    };
+    let offset = arm[0].hypot(arm[1]);
+    for k in [500, 800, switch_at - 1] {
+        assert!(
+            (off(k) - offset).abs() < 0.05,
+            "pose {k}: {} m off the axle",
+            off(k)
+        );
+    }
+    assert_eq!(poses[switch_at - 1].estimate_version, 0);
+    assert_eq!(poses[switch_at].estimate_version, 1);
+    for k in [switch_at, switch_at + 100, 1500, n] {
+        assert!(off(k) < 0.05, "pose {k}: {} m off the axle", off(k));
+    }
+    drop((wheels, gnss, imu, heading, estimates, poses_sub));
+    drop(bus);
+    settings.remove_leftovers();
+}
