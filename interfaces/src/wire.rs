@@ -202,7 +202,10 @@ pub struct CircumferenceEstimate {
     pub extension_count: u32,
     /// Explicit padding, always zero.
     pub _pad: u32,
-    /// Model extensions found by the diagnosis.
+    /// Model extensions found by the diagnosis or fitted by the calibration
+    /// (the first `extension_count`): `side_slip` (k_beta), and
+    /// `gnss_lever_arm` (the antenna's x, y from the rear-axle centre, m, and
+    /// with `param_count` 4 their 1-sigma).
     pub extensions: [ModelExtension; MAX_EXTENSIONS],
 }
 

@@ -112,6 +112,7 @@ fn seeded_state(path: &Path, version: u64) -> Accepted {
         gyro_scale: 0.0,
         side_slip_gain_rad_per_m_s2: None,
         gnss_antenna_m: None,
+        sigma_gnss_antenna_m: None,
         quality_m: 1.0,
     };
     save_state(path, &a).expect("state file");

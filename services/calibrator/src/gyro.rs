@@ -44,8 +44,9 @@ pub const ANTENNA_MEASURED_SIGMA_M: f64 = 0.05;
 
 /// An antenna position whose 1-sigma exceeds this, m, gets the
 /// `antenna_unobservable` warning: a tenth of a metre of lateral offset is
-/// up to 0.2 m of position error when the car turns round.
-pub const ANTENNA_WARN_SIGMA_M: f64 = 0.1;
+/// up to 0.2 m of position error when the car turns round. The same limit
+/// decides whether the odometry uses a calibrated antenna as its lever arm.
+pub const ANTENNA_WARN_SIGMA_M: f64 = odometry::estimate_file::MAX_FUSED_ANTENNA_SIGMA_M;
 
 /// 1-sigma of the prior on the gyro scale error around 0: the physics
 /// catalogue's typical size of `gyro_scale` (0.1-1 %). It only matters on
@@ -253,9 +254,24 @@ pub fn estimate(
         distance_factor: f.g[DISTANCE],
         sigma_distance_factor: sigma(DISTANCE),
         antenna_m: [f.g[ANTENNA], f.g[ANTENNA + 1]],
-        sigma_antenna_m: [sigma(ANTENNA), sigma(ANTENNA + 1)],
+        // Known no better than one fix: a receiver's errors are correlated
+        // over tens of seconds (multipath, atmosphere; a consumer receiver's
+        // by metres), which neither the formal sigma nor the jackknife over
+        // blocks of one drive sees. Without this floor a consumer-grade drive
+        // "determines" an antenna offset of decimetres that is other physics
+        // absorbed (side slip: the catalogue's confusion), and the odometry,
+        // which fuses a determined antenna, would carry it. A coordinate
+        // measured in vehicle.toml keeps its own sigma.
+        sigma_antenna_m: [0, 1].map(|i| {
+            let s = sigma(ANTENNA + i);
+            if p.lever_arm_given[i] {
+                s
+            } else {
+                s.max(r.gnss_sigma_m)
+            }
+        }),
     };
-    if let Some(w) = antenna_warning(&estimate) {
+    if let Some(w) = antenna_warning(&estimate, r.gnss_sigma_m) {
         warnings.push(w);
     }
     Ok(Some(estimate))
@@ -266,14 +282,19 @@ pub fn estimate(
 /// wherever the position is carried between the antenna and the rear axle
 /// (fusion, scoring against a GNSS truth), and a drive with little turning
 /// cannot tell a lateral antenna offset from a position offset.
-fn antenna_warning(g: &GyroEstimate) -> Option<Warning> {
+fn antenna_warning(g: &GyroEstimate, gnss_sigma_m: f64) -> Option<Warning> {
     let [sx, sy] = g.sigma_antenna_m;
+    let why = if gnss_sigma_m > ANTENNA_WARN_SIGMA_M {
+        format!("the GNSS fixes, sigma {gnss_sigma_m:.2} m, cannot resolve it")
+    } else {
+        "the drive turns too little to separate it from a position offset".to_string()
+    };
     (sx.max(sy) > ANTENNA_WARN_SIGMA_M).then(|| {
         Warning::new(
             WarningCode::AntennaUnobservable,
             format!(
                 "the GNSS antenna position ({:+.2}, {:+.2}) m is poorly determined: sigma {:.2} m forward, {:.2} m left \
-                 (limit {:.2} m; the drive turns too little to separate it from a position offset); \
+                 (limit {:.2} m; {why}); the odometry does not use it; \
                  measure it and put it in vehicle.toml [gnss] antenna_x_m / antenna_y_m",
                 g.antenna_m[0], g.antenna_m[1], sx, sy, ANTENNA_WARN_SIGMA_M
             ),

@@ -179,6 +179,10 @@ pub struct Accepted {
     /// state files written before it existed.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gnss_antenna_m: Option<[f64; 2]>,
+    /// Its 1-sigma (x, y), m: the odometry uses the antenna only when both
+    /// are small enough (`odometry::estimate_file::MAX_FUSED_ANTENNA_SIGMA_M`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_gnss_antenna_m: Option<[f64; 2]>,
     /// Held-out dead-reckoning error, m.
     pub quality_m: f64,
 }
@@ -197,7 +201,7 @@ impl Accepted {
             count = 1;
         }
         if let Some(a) = self.gnss_antenna_m {
-            extensions[count] = antenna_extension(a);
+            extensions[count] = antenna_extension(a, self.sigma_gnss_antenna_m);
             count += 1;
         }
         CircumferenceEstimate {
@@ -568,7 +572,12 @@ pub fn attempt(
         gyro_bias_rad_s: cal.gyro_bias_rad_s.unwrap_or(0.0),
         gyro_scale: cal.gyro_scale.unwrap_or(0.0),
         side_slip_gain_rad_per_m_s2: cal.side_slip_gain_rad_per_m_s2,
+        // The antenna and its sigma from the same fit: the gyro model's, else the 2W one's.
         gnss_antenna_m: cal.gyro.map(|g| g.antenna_m).or(cal.gnss_antenna_m),
+        sigma_gnss_antenna_m: cal
+            .gyro
+            .map(|g| g.sigma_antenna_m)
+            .or(cal.sigma_gnss_antenna_m),
         quality_m: f64::NAN,
     };
     let score = holdout_errors(
@@ -897,6 +906,7 @@ mod tests {
             gyro_scale: -0.01,
             side_slip_gain_rad_per_m_s2: Some(0.004),
             gnss_antenna_m: Some([0.5, -0.3]),
+            sigma_gnss_antenna_m: Some([0.02, 0.03]),
             quality_m: 0.8,
         }
     }
@@ -963,8 +973,11 @@ mod tests {
         assert_eq!(est.params.two_wheel.c_rr, 1.99);
         assert_eq!(est.params.gyro_scale, -0.01);
         assert_eq!(est.antenna_m, Some([0.5, -0.3]));
+        assert_eq!(est.antenna_sigma_m, Some([0.02, 0.03]));
         // A state file from before the antenna field still loads.
-        let old = text.replace("\"gnss_antenna_m\"", "\"unknown_field\"");
+        let old = text
+            .replace("\"gnss_antenna_m\"", "\"unknown_field\"")
+            .replace("\"sigma_gnss_antenna_m\"", "\"unknown_field_2\"");
         std::fs::write(&path, old).unwrap();
         assert_eq!(load_state(&path).unwrap().unwrap().gnss_antenna_m, None);
         std::fs::write(&path, "{\"version\": 1}").unwrap();
@@ -987,6 +1000,7 @@ mod tests {
         // The odometry reads the antenna back from the second extension.
         let est = odometry::estimate_file::Estimate::from_wire(&w).unwrap();
         assert_eq!(est.antenna_m, Some([0.5, -0.3]));
+        assert_eq!(est.fusable_antenna(), Some([0.5, -0.3]));
         assert_eq!(w.header.t_ns, 12_500_000_000);
     }
 

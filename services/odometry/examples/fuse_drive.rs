@@ -4,13 +4,24 @@
 //! ```text
 //! cargo run --release -p odometry --example fuse_drive -- DRIVE [gyro|wheels] [EST.json]
 //! ```
+//!
+//! The GNSS antenna is chosen as `odometry serve` does
+//! ([`odometry::serve::gnss_lever_arm`]): `vehicle.toml`'s, else the
+//! estimate's; `FUSION_NO_ANTENNA=1` leaves the estimate's out.
+//! `FUSION_TRUTH_POINT=antenna` scores the antenna point of each pose (for
+//! drives whose truth is the GNSS track, e.g. WID) instead of the rear axle.
+//! `FUSION_OUTAGE=SECONDS` also runs the filter once per GNSS outage of that
+//! length, placed every 10 s from 20 s after the first fix, the fixes inside
+//! it left out, and prints the error at each outage end: the served pose
+//! through an outage, started from the filter's own pose.
 
 use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::Estimate;
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::drive_inputs;
+use odometry::inputs::{drive_inputs, Input};
+use odometry::serve::gnss_lever_arm;
 use std::path::PathBuf;
 
 fn main() -> Result<()> {
@@ -32,11 +43,34 @@ fn main() -> Result<()> {
             heading,
             ..OdometerConfig::default()
         },
-        lever_arm_m: [
-            drive.vehicle.gnss.antenna_x_m.unwrap_or(0.0),
-            drive.vehicle.gnss.antenna_y_m.unwrap_or(0.0),
-        ],
         ..FusionConfig::default()
+    };
+    let estimate = estimate.map(|mut e| {
+        if std::env::var("FUSION_NO_ANTENNA").is_ok_and(|v| v == "1") {
+            e.antenna_m = None;
+        }
+        e
+    });
+    let (lever_arm_m, measured) = gnss_lever_arm(&drive.vehicle, estimate.as_ref());
+    let config = FusionConfig {
+        lever_arm_m,
+        lever_arm_from_estimates: !measured,
+        ..config
+    };
+    let at_antenna = match std::env::var("FUSION_TRUTH_POINT").as_deref() {
+        Ok("antenna") => true,
+        Ok("axle") | Err(_) => false,
+        Ok(other) => bail!("FUSION_TRUTH_POINT={other}: expected axle or antenna"),
+    };
+    // The point of a pose that the truth describes.
+    let scored = |fusion: &Fusion, pose: &odometry::two_wheel::Pose2| {
+        let [lx, ly] = if at_antenna {
+            fusion.lever_arm()
+        } else {
+            [0.0, 0.0]
+        };
+        let (s, c) = pose.yaw.sin_cos();
+        (pose.x + lx * c - ly * s, pose.y + lx * s + ly * c)
     };
     // Tuning experiments: FUSION_DS (distance noise fraction; FUSION_DS_NOMINAL
     // with the nominal circumferences), FUSION_MINSIG
@@ -55,10 +89,22 @@ fn main() -> Result<()> {
     if let Some(v) = env("FUSION_GYRO") {
         config.gyro_noise_rad_per_sqrt_s = v;
     }
-    let mut fusion = match &estimate {
+    let new_fusion = || match &estimate {
         Some(e) => Fusion::new(e.params, 0, config),
         None => Fusion::nominal(&drive.vehicle, config),
     };
+    let mut fusion = new_fusion();
+    println!(
+        "GNSS antenna ({:+.3}, {:+.3}) m ({}), scored at the {}",
+        lever_arm_m[0],
+        lever_arm_m[1],
+        if measured {
+            "vehicle.toml"
+        } else {
+            "estimate or none"
+        },
+        if at_antenna { "antenna" } else { "rear axle" }
+    );
     let params = *fusion.params();
     let truth = drive.truth.clone().unwrap_or_default();
     let mut counts = [0usize; 3];
@@ -87,7 +133,8 @@ fn main() -> Result<()> {
             }
             if let Some(r) = truth.get(ti) {
                 if (r.t_s - pose.t_s).abs() <= 0.005 && pose.mode != PoseMode::NoFix {
-                    errors.push((pose.mode, (pose.pose.x - r.x_m).hypot(pose.pose.y - r.y_m)));
+                    let (x, y) = scored(&fusion, &pose.pose);
+                    errors.push((pose.mode, (x - r.x_m).hypot(y - r.y_m)));
                 }
             }
         }
@@ -113,6 +160,70 @@ fn main() -> Result<()> {
                 e[(e.len() * 9) / 10],
                 e[e.len() - 1],
                 e.len()
+            );
+        }
+    }
+    if let Some(length) = env("FUSION_OUTAGE") {
+        let inputs = drive_inputs(&drive)?;
+        let first_fix = inputs
+            .iter()
+            .find(|i| matches!(i, Input::Gnss { .. }))
+            .map(Input::t_s);
+        let last = inputs.last().map(Input::t_s);
+        let (Some(first_fix), Some(last)) = (first_fix, last) else {
+            bail!("FUSION_OUTAGE needs GNSS fixes");
+        };
+        let mut ends = Vec::new();
+        let mut start = first_fix + 20.0;
+        while start + length <= last {
+            let mut fusion = new_fusion();
+            let (mut end, mut mode_at_start) = (None, PoseMode::NoFix);
+            for input in &inputs {
+                let t = input.t_s();
+                if matches!(input, Input::Gnss { .. }) && (start..start + length).contains(&t) {
+                    continue;
+                }
+                if let Some(pose) = fusion.process(input)? {
+                    if pose.t_s < start {
+                        mode_at_start = pose.mode;
+                    }
+                    if pose.t_s <= start + length {
+                        end = Some((pose, scored(&fusion, &pose.pose)));
+                    }
+                }
+            }
+            if mode_at_start != PoseMode::Fused {
+                println!(
+                    "outage {start:.1}-{:.1} s: not counted, the filter was {mode_at_start:?} at its start",
+                    start + length
+                );
+                start += 10.0;
+                continue;
+            }
+            let truth_end = truth.iter().min_by(|a, b| {
+                (a.t_s - start - length)
+                    .abs()
+                    .total_cmp(&(b.t_s - start - length).abs())
+            });
+            let truth_end = truth_end.filter(|r| (r.t_s - start - length).abs() <= 0.2);
+            if let (Some((pose, (x, y))), Some(r)) = (end, truth_end) {
+                let error = (x - r.x_m).hypot(y - r.y_m);
+                println!(
+                    "outage {start:.1}-{:.1} s: {:?} at its end, error {error:.3} m",
+                    start + length,
+                    pose.mode
+                );
+                ends.push(error);
+            }
+            start += 10.0;
+        }
+        ends.sort_by(f64::total_cmp);
+        if !ends.is_empty() {
+            println!(
+                "{length} s outages in the filter: median error at the end {:.3} m, max {:.3} m ({} outages)",
+                (ends[(ends.len() - 1) / 2] + ends[ends.len() / 2]) / 2.0,
+                ends[ends.len() - 1],
+                ends.len()
             );
         }
     }

@@ -120,7 +120,17 @@ pub struct Estimate {
     /// from the rear-axle centre), m, when it has one: `gyro.antenna_m`, else
     /// `gnss_antenna_m` of the calibrator's JSON.
     pub antenna_m: Option<[f64; 2]>,
+    /// Its 1-sigma (x, y), m, when given (`gyro.sigma_antenna_m`, else
+    /// `sigma_gnss_antenna_m`).
+    pub antenna_sigma_m: Option<[f64; 2]>,
 }
+
+/// An antenna position whose 1-sigma is larger than this in either axis is
+/// not used as the filter's lever arm ([`Estimate::fusable_antenna`]): the
+/// calibrator's `antenna_unobservable` threshold. A drive that turns little,
+/// or a consumer-grade GNSS, leaves it undetermined, and a wrong arm does
+/// more harm than none.
+pub const MAX_FUSED_ANTENNA_SIGMA_M: f64 = 0.1;
 
 /// Why parameters could not be read.
 #[derive(Debug, thiserror::Error)]
@@ -181,6 +191,8 @@ struct EstimateJson {
     gyro: Option<GyroJson>,
     #[serde(default)]
     gnss_antenna_m: Option<[f64; 2]>,
+    #[serde(default)]
+    sigma_gnss_antenna_m: Option<[f64; 2]>,
 }
 
 /// The part of the calibrator's `gyro` object the odometry uses.
@@ -188,6 +200,8 @@ struct EstimateJson {
 struct GyroJson {
     #[serde(default)]
     antenna_m: Option<[f64; 2]>,
+    #[serde(default)]
+    sigma_antenna_m: Option<[f64; 2]>,
 }
 
 impl Estimate {
@@ -210,16 +224,20 @@ impl Estimate {
             gyro_scale: parsed.gyro_scale.unwrap_or(0.0),
         };
         params.validate(source)?;
+        // The antenna and its sigma from the same fit: the gyro model's, else the 2W one's.
+        let (antenna_m, antenna_sigma_m) = match parsed.gyro {
+            Some(GyroJson {
+                antenna_m: Some(a),
+                sigma_antenna_m,
+            }) => (Some(a), sigma_antenna_m),
+            _ => (parsed.gnss_antenna_m, parsed.sigma_gnss_antenna_m),
+        };
         Ok(Estimate {
             params,
             sigma_m: parsed.sigma_m.map(|s| (s.rl, s.rr)),
             quality_m: None,
-            antenna_m: parsed
-                .gyro
-                .and_then(|g| g.antenna_m)
-                .or(parsed.gnss_antenna_m)
-                .map(|a| validate_antenna(a, source))
-                .transpose()?,
+            antenna_m: antenna_m.map(|a| validate_antenna(a, source)).transpose()?,
+            antenna_sigma_m,
         })
     }
 
@@ -246,16 +264,21 @@ impl Estimate {
         let source = format!("estimate version {} on the wire", wire.version);
         params.validate(&source)?;
         let used = (wire.extension_count as usize).min(wire.extensions.len());
-        let antenna_m = wire.extensions[..used]
+        let antenna = wire.extensions[..used]
             .iter()
-            .find(|x| x.effect_code == Effect::GnssLeverArm.code() && x.param_count >= 2)
+            .find(|x| x.effect_code == Effect::GnssLeverArm.code() && x.param_count >= 2);
+        let antenna_m = antenna
             .map(|x| validate_antenna([x.params[0], x.params[1]], &source))
             .transpose()?;
+        let antenna_sigma_m = antenna
+            .filter(|x| x.param_count >= 4)
+            .map(|x| [x.params[2], x.params[3]]);
         Ok(Estimate {
             params,
             sigma_m: Some((wire.sigma_rl_m, wire.sigma_rr_m)),
             quality_m: Some(wire.quality_m),
             antenna_m,
+            antenna_sigma_m,
         })
     }
 
@@ -278,20 +301,32 @@ impl Estimate {
             ..CircumferenceEstimate::default()
         };
         if let Some(a) = self.antenna_m {
-            wire.extensions[0] = antenna_extension(a);
+            wire.extensions[0] = antenna_extension(a, self.antenna_sigma_m);
             wire.extension_count = 1;
         }
         wire
     }
+
+    /// The antenna position to use as the filter's GNSS lever arm: the
+    /// calibrated one when its sigma is at most [`MAX_FUSED_ANTENNA_SIGMA_M`]
+    /// in both axes, or when no sigma is given (a position written by hand).
+    pub fn fusable_antenna(&self) -> Option<[f64; 2]> {
+        let determined = self
+            .antenna_sigma_m
+            .is_none_or(|s| s.iter().all(|v| *v <= MAX_FUSED_ANTENNA_SIGMA_M));
+        self.antenna_m.filter(|_| determined)
+    }
 }
 
 /// The wire form of a GNSS antenna position: the `gnss_lever_arm` model
-/// extension with parameters (x, y), m.
-pub fn antenna_extension(antenna_m: [f64; 2]) -> ModelExtension {
+/// extension with parameters (x, y) and, when known, their 1-sigma
+/// (`param_count` 4), m.
+pub fn antenna_extension(antenna_m: [f64; 2], sigma_m: Option<[f64; 2]>) -> ModelExtension {
+    let [sx, sy] = sigma_m.unwrap_or([0.0, 0.0]);
     ModelExtension {
         effect_code: Effect::GnssLeverArm.code(),
-        param_count: 2,
-        params: [antenna_m[0], antenna_m[1], 0.0, 0.0],
+        param_count: if sigma_m.is_some() { 4 } else { 2 },
+        params: [antenna_m[0], antenna_m[1], sx, sy],
     }
 }
 
@@ -401,11 +436,17 @@ mod tests {
     fn the_antenna_travels_on_the_wire_as_a_gnss_lever_arm_extension() {
         let mut e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
         e.antenna_m = Some([0.51, -0.31]);
+        e.antenna_sigma_m = Some([0.03, 0.04]);
         e.quality_m = Some(0.7);
         let wire = e.to_wire(Header::from_seconds(1.0, 0), 2);
         assert_eq!(wire.extension_count, 1);
         assert_eq!(wire.extensions[0].effect_code, Effect::GnssLeverArm.code());
         assert_eq!(Estimate::from_wire(&wire).unwrap(), e);
+        let mut no_sigma = e;
+        no_sigma.antenna_sigma_m = None;
+        let wire2 = no_sigma.to_wire(Header::from_seconds(1.0, 0), 2);
+        assert_eq!(wire2.extensions[0].param_count, 2);
+        assert_eq!(Estimate::from_wire(&wire2).unwrap(), no_sigma);
         // Another extension before it (the calibrator's side slip) is skipped.
         let mut two = wire;
         two.extensions[1] = two.extensions[0];
@@ -476,5 +517,29 @@ mod tests {
         assert_eq!(a(&gyro), Some([0.5, -0.3]));
         assert_eq!(a(&top), Some([1.0, 0.0]));
         assert_eq!(a(&none), None);
+    }
+
+    #[test]
+    fn only_a_determined_antenna_is_fused() {
+        let base = r#""circumference_m": {"rl": 1.83, "rr": 1.83}, "track_width_m": 1.45"#;
+        let est = |gyro: &str| {
+            Estimate::from_json_str(&format!(r#"{{{base}, "gyro": {gyro}}}"#), "test").unwrap()
+        };
+        let sharp = est(r#"{"antenna_m": [0.5, -0.3], "sigma_antenna_m": [0.03, 0.04]}"#);
+        assert_eq!(sharp.antenna_sigma_m, Some([0.03, 0.04]));
+        assert_eq!(sharp.fusable_antenna(), Some([0.5, -0.3]));
+        // wid-trial04's case: the lateral position is not determined.
+        let vague = est(r#"{"antenna_m": [0.62, -0.04], "sigma_antenna_m": [0.05, 0.15]}"#);
+        assert_eq!(vague.antenna_m, Some([0.62, -0.04]), "still reported");
+        assert_eq!(vague.fusable_antenna(), None);
+        let by_hand = est(r#"{"antenna_m": [1.1, 0.0]}"#);
+        assert_eq!(by_hand.fusable_antenna(), Some([1.1, 0.0]));
+        // The top-level pair goes with its own sigma.
+        let top = format!(
+            r#"{{{base}, "gnss_antenna_m": [1.0, 0.0], "sigma_gnss_antenna_m": [0.2, 0.2]}}"#
+        );
+        let top = Estimate::from_json_str(&top, "test").unwrap();
+        assert_eq!(top.antenna_sigma_m, Some([0.2, 0.2]));
+        assert_eq!(top.fusable_antenna(), None);
     }
 }

@@ -519,9 +519,10 @@ impl Fusion {
                 version, estimate, ..
             } => {
                 // The antenna first: a bad one leaves the filter as it was.
-                if let (true, Some(antenna)) =
-                    (self.config.lever_arm_from_estimates, estimate.antenna_m)
-                {
+                if let (true, Some(antenna)) = (
+                    self.config.lever_arm_from_estimates,
+                    estimate.fusable_antenna(),
+                ) {
                     self.set_lever_arm(antenna)?;
                 }
                 self.set_estimate(estimate.params, version);
@@ -1572,6 +1573,7 @@ mod tests {
                 sigma_m: None,
                 quality_m: None,
                 antenna_m: Some(arm),
+                antenna_sigma_m: None,
             },
         };
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));

@@ -390,6 +390,7 @@ mod tests {
                 sigma_m: None,
                 quality_m: None,
                 antenna_m: None,
+                antenna_sigma_m: None,
             },
         };
         seq.push(estimate);

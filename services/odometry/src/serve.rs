@@ -238,7 +238,9 @@ pub fn gnss_lever_arm(vehicle: &VehicleParams, initial: Option<&Estimate>) -> ([
         ([x.unwrap_or(0.0), y.unwrap_or(0.0)], true)
     } else {
         (
-            initial.and_then(|e| e.antenna_m).unwrap_or([0.0, 0.0]),
+            initial
+                .and_then(Estimate::fusable_antenna)
+                .unwrap_or([0.0, 0.0]),
             false,
         )
     }
@@ -687,6 +689,18 @@ pub fn serve(
             "nominal"
         },
     );
+    let [ax, ay] = fusion.lever_arm();
+    let antenna_source = match (
+        config.fusion.lever_arm_from_estimates,
+        config.initial.as_ref().and_then(Estimate::fusable_antenna),
+    ) {
+        (false, _) => "vehicle.toml [gnss], measured: estimates do not change it",
+        (true, Some(_)) => "calibrated, from the initial estimate",
+        (true, None) => "not known: the pose is the antenna's track until an estimate brings it",
+    };
+    tracing::info!(
+        "odometry: GNSS antenna at ({ax:+.3}, {ay:+.3}) m from the rear axle ({antenna_source})"
+    );
 
     let waitset = bus.waitset()?;
     let ws_err = |action: &'static str, e: &dyn std::fmt::Debug| BusError::Service {
@@ -759,7 +773,7 @@ pub fn serve(
                     describe_switch(&old, &estimate.params)
                 );
                 summary.estimate_switches += 1;
-                let (from, to) = (fusion.lever_arm(), estimate.antenna_m);
+                let (from, to) = (fusion.lever_arm(), estimate.fusable_antenna());
                 if let (true, Some(to)) = (config.fusion.lever_arm_from_estimates, to) {
                     if to != from {
                         tracing::info!(
@@ -1106,6 +1120,7 @@ mod tests {
             sigma_m: None,
             quality_m: None,
             antenna_m: Some([0.5, -0.3]),
+            antenna_sigma_m: None,
         };
         assert_eq!(gnss_lever_arm(&vehicle, None), ([0.0, 0.0], false));
         assert_eq!(

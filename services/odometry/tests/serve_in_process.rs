@@ -180,6 +180,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 sigma_m: Some((1e-4, 1e-4)),
                 quality_m: Some(0.5),
                 antenna_m: None,
+                antenna_sigma_m: None,
             };
             estimates
                 .publish(new.to_wire(Header::from_seconds(t, 0), 1))
@@ -524,6 +525,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
                 sigma_m: Some((1e-4, 1e-4)),
                 quality_m: Some(0.5),
                 antenna_m: Some(arm),
+                antenna_sigma_m: Some([0.02, 0.02]),
             };
             estimates
                 .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))
