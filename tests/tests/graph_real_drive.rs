@@ -9,23 +9,10 @@
 
 use integration_tests::graph::{drain, wait_until, Bin, Graph};
 use interfaces::wire::Pose;
-use std::path::{Path, PathBuf};
-
-const REAL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/real");
-
-fn real_drive(name: &str) -> Option<PathBuf> {
-    let path = Path::new(REAL).join(name);
-    if path.is_dir() {
-        Some(path)
-    } else {
-        eprintln!("skipping: {} not found", path.display());
-        None
-    }
-}
 
 #[test]
 fn a_real_drive_is_calibrated_live_and_the_odometry_takes_the_estimate() {
-    let Some(path) = real_drive("wid-trial02") else {
+    let Some(path) = sensor_bridge::dev_data::real_drive("wid-trial02") else {
         return;
     };
     let drive_s = path.to_str().expect("utf-8 path").to_string();

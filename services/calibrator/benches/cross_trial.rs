@@ -81,12 +81,7 @@ fn main() -> Result<()> {
         .skip(1)
         .find(|a| !a.starts_with('-'))
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/../../../shared/data/real"
-            ))
-        });
+        .unwrap_or_else(sensor_bridge::dev_data::real_data_dir);
     if !TRIALS.iter().all(|t| dir.join(t).exists()) {
         eprintln!(
             "cross_trial skipped: the WID drives are not under {}",

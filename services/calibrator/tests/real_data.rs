@@ -6,8 +6,8 @@ mod common;
 use calibrator::{calibrate, CalibrationConfig, WarningCode};
 
 fn load(name: &str) -> Option<interfaces::drive::Drive> {
-    let dir = common::real_data()?;
-    match sensor_bridge::read_drive(&dir.join(name)) {
+    let path = sensor_bridge::dev_data::real_drive(name)?;
+    match sensor_bridge::read_drive(&path) {
         Ok(loaded) => Some(loaded.drive),
         Err(e) => panic!("cannot read {name}: {e}"),
     }

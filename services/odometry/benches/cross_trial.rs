@@ -22,9 +22,6 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::OdometryParams;
 use odometry::evaluate::{evaluate, EvaluateConfig};
 use odometry::two_wheel::TwoWheelParams;
-use std::path::Path;
-
-const REAL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/real");
 
 fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) -> EvaluateConfig {
     EvaluateConfig {
@@ -171,7 +168,8 @@ fn fitted_model(drive: &interfaces::drive::Drive, fit_arm: bool) -> Model {
 }
 
 fn main() {
-    let root = Path::new(REAL);
+    let root_dir = sensor_bridge::dev_data::real_data_dir();
+    let root = root_dir.as_path();
     if !root.join("wid-trial02").is_dir() || !root.join("wid-trial04").is_dir() {
         eprintln!("skipping: {} not found", root.display());
         return;

@@ -19,8 +19,9 @@ use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::Estimate;
+use odometry::fused_outages::{fused_outages, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::{drive_inputs, Input};
+use odometry::inputs::drive_inputs;
 use odometry::serve::gnss_lever_arm;
 use std::path::PathBuf;
 
@@ -164,66 +165,26 @@ fn main() -> Result<()> {
         }
     }
     if let Some(length) = env("FUSION_OUTAGE") {
-        let inputs = drive_inputs(&drive)?;
-        let first_fix = inputs
-            .iter()
-            .find(|i| matches!(i, Input::Gnss { .. }))
-            .map(Input::t_s);
-        let last = inputs.last().map(Input::t_s);
-        let (Some(first_fix), Some(last)) = (first_fix, last) else {
-            bail!("FUSION_OUTAGE needs GNSS fixes");
+        let config = FusedOutageConfig {
+            length_s: length,
+            at_antenna,
+            ..FusedOutageConfig::default()
         };
-        let mut ends = Vec::new();
-        let mut start = first_fix + 20.0;
-        while start + length <= last {
-            let mut fusion = new_fusion();
-            let (mut end, mut mode_at_start) = (None, PoseMode::NoFix);
-            for input in &inputs {
-                let t = input.t_s();
-                if matches!(input, Input::Gnss { .. }) && (start..start + length).contains(&t) {
-                    continue;
-                }
-                if let Some(pose) = fusion.process(input)? {
-                    if pose.t_s < start {
-                        mode_at_start = pose.mode;
-                    }
-                    if pose.t_s <= start + length {
-                        end = Some((pose, scored(&fusion, &pose.pose)));
-                    }
-                }
+        let outages = fused_outages(&drive_inputs(&drive)?, &truth, &new_fusion, &config)?;
+        for o in &outages {
+            let end = o.t_start_s + length;
+            match o.error_m {
+                Some(e) => println!("outage {:.1}-{end:.1} s: error {e:.3} m at its end", o.t_start_s),
+                None => println!(
+                    "outage {:.1}-{end:.1} s: not counted (the filter was {:?} at its start, or no truth at its end)",
+                    o.t_start_s, o.mode_at_start
+                ),
             }
-            if mode_at_start != PoseMode::Fused {
-                println!(
-                    "outage {start:.1}-{:.1} s: not counted, the filter was {mode_at_start:?} at its start",
-                    start + length
-                );
-                start += 10.0;
-                continue;
-            }
-            let truth_end = truth.iter().min_by(|a, b| {
-                (a.t_s - start - length)
-                    .abs()
-                    .total_cmp(&(b.t_s - start - length).abs())
-            });
-            let truth_end = truth_end.filter(|r| (r.t_s - start - length).abs() <= 0.2);
-            if let (Some((pose, (x, y))), Some(r)) = (end, truth_end) {
-                let error = (x - r.x_m).hypot(y - r.y_m);
-                println!(
-                    "outage {start:.1}-{:.1} s: {:?} at its end, error {error:.3} m",
-                    start + length,
-                    pose.mode
-                );
-                ends.push(error);
-            }
-            start += 10.0;
         }
-        ends.sort_by(f64::total_cmp);
-        if !ends.is_empty() {
+        if let Some(m) = median_error(&outages) {
+            let n = outages.iter().filter(|o| o.error_m.is_some()).count();
             println!(
-                "{length} s outages in the filter: median error at the end {:.3} m, max {:.3} m ({} outages)",
-                (ends[(ends.len() - 1) / 2] + ends[ends.len() / 2]) / 2.0,
-                ends[ends.len() - 1],
-                ends.len()
+                "{length} s outages in the filter: median error at the end {m:.3} m ({n} outages)"
             );
         }
     }

@@ -8,12 +8,14 @@
 //! - [`inputs`]: the odometry's inputs in processing order.
 //! - [`evaluate`]: simulated GNSS outages scored against the truth.
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
+//! - [`fused_outages`]: GNSS outages through the filter (the served pose).
 //! - [`pose_state`]: the last pose, kept across power cycles.
 //! - [`serve`]: the iceoryx2 pose service.
 
 pub mod dead_reckoning;
 pub mod estimate_file;
 pub mod evaluate;
+pub mod fused_outages;
 pub mod fusion;
 pub mod inputs;
 pub mod pose_state;

@@ -6,19 +6,6 @@
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::OdometryParams;
 use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
-use std::path::{Path, PathBuf};
-
-const REAL: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/real");
-
-fn drive_path(name: &str) -> Option<PathBuf> {
-    let path = Path::new(REAL).join(name);
-    if path.is_dir() {
-        Some(path)
-    } else {
-        eprintln!("skipping: {} not found", path.display());
-        None
-    }
-}
 
 fn run(drive: &interfaces::drive::Drive, heading: HeadingMode) -> EvaluationReport {
     let config = EvaluateConfig {
@@ -35,7 +22,7 @@ fn run(drive: &interfaces::drive::Drive, heading: HeadingMode) -> EvaluationRepo
 #[test]
 fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
     for name in ["wid-trial02", "wid-trial04"] {
-        let Some(path) = drive_path(name) else {
+        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
             return;
         };
         let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
@@ -70,7 +57,7 @@ fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
 
 #[test]
 fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
-    let Some(path) = drive_path("comma2k19-seg40") else {
+    let Some(path) = sensor_bridge::dev_data::real_drive("comma2k19-seg40") else {
         return;
     };
     let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
@@ -95,7 +82,7 @@ fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
         .all(|o| o.start_yaw_source.starts_with("truth_track_alignment")));
     // The WID truths have no yaw: nothing to check there.
     for name in ["wid-trial02", "wid-trial04"] {
-        let Some(path) = drive_path(name) else {
+        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
             return;
         };
         let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;

@@ -12,10 +12,7 @@ use std::process::Command;
 const DRIVES: [&str; 3] = ["wid-trial02", "wid-trial04", "comma2k19-seg40"];
 
 fn real_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/real"
-    ));
+    let dir = sensor_bridge::dev_data::real_data_dir();
     if dir.is_dir() {
         Some(dir)
     } else {

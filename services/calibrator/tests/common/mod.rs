@@ -225,17 +225,3 @@ pub fn errors_mm(cal: &calibrator::Calibration, s: &Synth) -> (f64, f64) {
         1000.0 * (cal.circumference_m.rr - s.c_rr),
     )
 }
-
-/// The real-data folder, or `None` (with the reason printed) when absent.
-pub fn real_data() -> Option<std::path::PathBuf> {
-    let dir = std::path::PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/real"
-    ));
-    if dir.exists() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} is absent", dir.display());
-        None
-    }
-}

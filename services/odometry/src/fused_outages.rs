@@ -1,0 +1,231 @@
+//! GNSS outages through the filter: the served pose, not the dead-reckoner
+//! alone.
+//!
+//! `odometry evaluate` starts each outage from the truth pose, which measures
+//! the dead-reckoning and nothing else. Here the whole [`Fusion`] runs over
+//! the drive once per outage with the fixes inside the outage left out, so the
+//! outage starts from the filter's own pose, heading and gyro bias, as
+//! `odometry serve` would live. Each outage is scored at its end against the
+//! truth, at the body point the truth follows.
+
+use crate::fusion::{Fusion, FusionError, ProcessError};
+use crate::inputs::Input;
+use interfaces::drive::TruthSample;
+use interfaces::wire::PoseMode;
+
+/// Where the outages go and how they are scored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusedOutageConfig {
+    /// Length of each outage, s.
+    pub length_s: f64,
+    /// Time between outage starts, s.
+    pub spacing_s: f64,
+    /// The first outage starts this long after the first fix, s.
+    pub first_after_fix_s: f64,
+    /// Score the antenna point of the pose (the filter's lever arm), for
+    /// drives whose truth is the GNSS track; else the rear-axle centre.
+    pub at_antenna: bool,
+    /// A truth row farther than this from the outage end does not score it, s.
+    pub max_truth_gap_s: f64,
+}
+
+impl Default for FusedOutageConfig {
+    fn default() -> Self {
+        FusedOutageConfig {
+            length_s: 30.0,
+            spacing_s: 10.0,
+            first_after_fix_s: 20.0,
+            at_antenna: false,
+            max_truth_gap_s: 0.2,
+        }
+    }
+}
+
+/// One outage through the filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusedOutage {
+    /// Start, s.
+    pub t_start_s: f64,
+    /// The filter's mode at the last pose before the outage.
+    pub mode_at_start: PoseMode,
+    /// Position error at the outage end, m; `None` when the filter had no
+    /// fused pose at the start (it claims nothing to carry through) or no
+    /// truth is near the end.
+    pub error_m: Option<f64>,
+}
+
+/// Run a fresh filter from `new_fusion` over `inputs` (processing order) once
+/// per outage. Outages start `first_after_fix_s` after the first fix and every
+/// `spacing_s` after it, as long as they end within the inputs.
+pub fn fused_outages(
+    inputs: &[Input],
+    truth: &[TruthSample],
+    new_fusion: &dyn Fn() -> Fusion,
+    config: &FusedOutageConfig,
+) -> Result<Vec<FusedOutage>, FusionError> {
+    let first_fix = inputs
+        .iter()
+        .find(|i| matches!(i, Input::Gnss { .. }))
+        .map(Input::t_s);
+    let (Some(first_fix), Some(last)) = (first_fix, inputs.last().map(Input::t_s)) else {
+        return Ok(Vec::new());
+    };
+    let mut out = Vec::new();
+    let mut start = first_fix + config.first_after_fix_s;
+    while start + config.length_s <= last {
+        let end_t = start + config.length_s;
+        let mut fusion = new_fusion();
+        let (mut mode_at_start, mut end) = (PoseMode::NoFix, None);
+        for input in inputs {
+            let t = input.t_s();
+            if matches!(input, Input::Gnss { .. }) && (start..end_t).contains(&t) {
+                continue;
+            }
+            match fusion.process(input) {
+                Ok(Some(pose)) => {
+                    if pose.t_s < start {
+                        mode_at_start = pose.mode;
+                    }
+                    if pose.t_s <= end_t {
+                        let [lx, ly] = if config.at_antenna {
+                            fusion.lever_arm()
+                        } else {
+                            [0.0, 0.0]
+                        };
+                        let (s, c) = pose.pose.yaw.sin_cos();
+                        end = Some((pose.pose.x + lx * c - ly * s, pose.pose.y + lx * s + ly * c));
+                    }
+                }
+                Ok(None) | Err(ProcessError::Input(_)) => {}
+                Err(ProcessError::Numerical(e)) => return Err(e),
+            }
+        }
+        let truth_end = truth
+            .iter()
+            .min_by(|a, b| (a.t_s - end_t).abs().total_cmp(&(b.t_s - end_t).abs()))
+            .filter(|r| (r.t_s - end_t).abs() <= config.max_truth_gap_s);
+        let error_m = match (mode_at_start, end, truth_end) {
+            (PoseMode::Fused, Some((x, y)), Some(r)) => Some((x - r.x_m).hypot(y - r.y_m)),
+            _ => None,
+        };
+        out.push(FusedOutage {
+            t_start_s: start,
+            mode_at_start,
+            error_m,
+        });
+        start += config.spacing_s;
+    }
+    Ok(out)
+}
+
+/// Median of the scored outages' errors, m (`None` when none was scored).
+pub fn median_error(outages: &[FusedOutage]) -> Option<f64> {
+    let mut e: Vec<f64> = outages.iter().filter_map(|o| o.error_m).collect();
+    if e.is_empty() {
+        return None;
+    }
+    e.sort_by(f64::total_cmp);
+    Some((e[(e.len() - 1) / 2] + e[e.len() / 2]) / 2.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dead_reckoning::{HeadingMode, OdometerConfig};
+    use crate::estimate_file::OdometryParams;
+    use crate::fusion::FusionConfig;
+    use crate::two_wheel::TwoWheelParams;
+
+    /// Straight east at 10 m/s for 100 s: wheels and gyro at 100 Hz, fixes at
+    /// 5 Hz of an antenna 1 m ahead of the axle; the wheels read 1 % long.
+    fn drive() -> (Vec<Input>, Vec<TruthSample>) {
+        let mut inputs = Vec::new();
+        let mut truth = Vec::new();
+        for k in 0..=10_000 {
+            let t = k as f64 * 0.01;
+            inputs.push(Input::Imu {
+                t_s: t,
+                gz_rad_s: 0.0,
+            });
+            if k % 20 == 0 {
+                inputs.push(Input::Gnss {
+                    t_s: t,
+                    x_m: 10.0 * t + 1.0,
+                    y_m: 0.0,
+                    sigma_m: Some(0.05),
+                });
+                inputs.push(Input::Heading {
+                    t_s: t,
+                    yaw_rad: 0.0,
+                    sigma_rad: Some(0.01),
+                });
+            }
+            let rev = 10.0 * t * 1.01 / 2.0;
+            inputs.push(Input::Wheels {
+                t_s: t,
+                rl_rev: rev,
+                rr_rev: rev,
+            });
+            truth.push(TruthSample {
+                t_s: t,
+                x_m: 10.0 * t,
+                y_m: 0.0,
+                yaw_rad: Some(0.0),
+            });
+        }
+        (inputs, truth)
+    }
+
+    #[test]
+    fn outages_are_placed_scored_at_the_chosen_point_and_start_from_the_filter() {
+        let (inputs, truth) = drive();
+        let params = OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: 2.0,
+                c_rr: 2.0,
+                track_width: 1.5,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        };
+        let config = FusionConfig {
+            odometer: OdometerConfig {
+                heading: HeadingMode::Gyro,
+                ..OdometerConfig::default()
+            },
+            lever_arm_m: [1.0, 0.0],
+            ..FusionConfig::default()
+        };
+        let new_fusion = || Fusion::new(params, 0, config);
+        let at_axle = FusedOutageConfig::default();
+        let outages = fused_outages(&inputs, &truth, &new_fusion, &at_axle).unwrap();
+        // Starts at 20, 30, ..., 70 s (the last ends at 100 s).
+        let starts: Vec<f64> = outages.iter().map(|o| o.t_start_s).collect();
+        assert_eq!(starts, vec![20.0, 30.0, 40.0, 50.0, 60.0, 70.0]);
+        // 300 m dead-reckoned on wheels that read 1 % long: 3 m at the end,
+        // plus the few decimetres the filter leads its fixes by with them.
+        for o in &outages {
+            assert_eq!(o.mode_at_start, PoseMode::Fused);
+            let e = o.error_m.unwrap();
+            assert!((2.9..3.5).contains(&e), "{o:?}");
+        }
+        let axle = median_error(&outages).unwrap();
+        // Scored at the antenna, 1 m ahead, against a truth that is the axle's: 1 m more.
+        let at_antenna = FusedOutageConfig {
+            at_antenna: true,
+            ..at_axle
+        };
+        let outages = fused_outages(&inputs, &truth, &new_fusion, &at_antenna).unwrap();
+        let m = median_error(&outages).unwrap();
+        assert!((m - axle - 1.0).abs() < 0.01, "{m} vs {axle}");
+        // An outage that starts before the first fix has no fused pose to carry.
+        let early = FusedOutageConfig {
+            first_after_fix_s: -10.0,
+            ..at_axle
+        };
+        let outages = fused_outages(&inputs, &truth, &new_fusion, &early).unwrap();
+        assert_eq!(outages[0].t_start_s, -10.0);
+        assert_eq!(outages[0].error_m, None);
+        assert_eq!(median_error(&[]), None);
+    }
+}
