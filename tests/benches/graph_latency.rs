@@ -32,6 +32,7 @@
 
 use iceoryx2::prelude::CallbackProgression;
 use integration_tests::graph::{Bin, Graph};
+use integration_tests::latency::{quantile, CpuLatencyZero};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
 use odometry::serve::{read_latency_trace, wall_clock_ns, write_latency_trace};
@@ -263,13 +264,7 @@ fn stats(latencies: &[Option<f64>]) -> Stats {
         }
     }
     lat.sort_by(f64::total_cmp);
-    let q = |p: f64| {
-        if lat.is_empty() {
-            f64::NAN
-        } else {
-            lat[((lat.len() - 1) as f64 * p).round() as usize]
-        }
-    };
+    let q = |p: f64| quantile(&lat, p);
     Stats {
         n: lat.len(),
         p50: q(0.5),
@@ -326,25 +321,6 @@ fn phase(
     (round_trip(&sent, arrivals), sent)
 }
 
-/// Holds the machine's PM QoS CPU latency request at 0 while alive (what
-/// `tuned`'s latency-performance profile and cyclictest do): idle cores poll
-/// instead of halting, so a wakeup does not wait for a core to come out of
-/// its idle state. The request ends when the file is closed.
-struct CpuLatencyZero(#[allow(dead_code)] std::fs::File);
-
-impl CpuLatencyZero {
-    fn hold() -> CpuLatencyZero {
-        use std::io::Write as _;
-        let mut f = std::fs::OpenOptions::new()
-            .write(true)
-            .open("/dev/cpu_dma_latency")
-            .expect("--cpu-latency-zero needs write access to /dev/cpu_dma_latency (root)");
-        f.write_all(&0i32.to_ne_bytes())
-            .expect("write the PM QoS request");
-        CpuLatencyZero(f)
-    }
-}
-
 /// One consumer's latencies, pooled over the rounds.
 #[derive(Default)]
 struct Pooled {
@@ -364,7 +340,10 @@ impl Pooled {
 }
 
 fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
-    let _pm_qos = cpu_latency_zero.then(CpuLatencyZero::hold);
+    let _pm_qos = cpu_latency_zero.then(|| {
+        CpuLatencyZero::hold()
+            .expect("--cpu-latency-zero needs write access to /dev/cpu_dma_latency (root)")
+    });
     let mut g = Graph::new("lat");
     let drive = simulate(&SimConfig::new(Scenario::Mixed, 1)).expect("simulate");
     let folder = g.path("drive");
