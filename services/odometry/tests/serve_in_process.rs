@@ -101,6 +101,40 @@ struct Sensors {
 }
 
 impl Sensors {
+    /// One instant `i` (0.01 s apart) of a car driving straight east at `V`
+    /// from revolution 0: the IMU (no turn), with `antenna` a fix every 20th
+    /// instant of an antenna there (body x, y, sigma 0.05 m), then the wheels.
+    fn east_instant(&mut self, i: usize, antenna: Option<[f64; 2]>) {
+        let t = i as f64 * 0.01;
+        self.imu
+            .publish(Imu {
+                header: Header::from_seconds(t, 0),
+                ..Imu::default()
+            })
+            .expect("publish imu");
+        if let (Some([ax, ay]), true) = (antenna, i.is_multiple_of(20) && i > 0) {
+            self.gnss
+                .publish(GnssFix {
+                    header: Header::from_seconds(t, 0),
+                    x_m: V * t + ax,
+                    y_m: ay,
+                    sigma_m: 0.05,
+                    fix: 1,
+                    _pad: [0; 7],
+                })
+                .expect("publish gnss");
+        }
+        let rev = V * t / C;
+        self.wheels
+            .publish(WheelRotations {
+                header: Header::from_seconds(t, 0),
+                rl_rev: rev,
+                rr_rev: rev,
+                ..WheelRotations::default()
+            })
+            .expect("publish wheels");
+    }
+
     /// Open them, wait for the service's subscribers, announce, and let
     /// them attach.
     fn open_when_subscribed(bus: &Bus) -> Sensors {
@@ -383,45 +417,14 @@ fn drive_east(
     });
     let bus = Bus::open(&settings, "test-publisher").expect("test bus");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
-    let Sensors {
-        mut wheels,
-        gnss: mut gnss_pub,
-        mut imu,
-        heading,
-    } = Sensors::open_when_subscribed(&bus);
+    let mut sensors = Sensors::open_when_subscribed(&bus);
     let n = (seconds / 0.01).round() as usize;
     let mut poses = Vec::new();
     for i in 0..=n {
-        let t = i as f64 * 0.01;
         while let Some(p) = poses_sub.receive().expect("receive pose") {
             poses.push(p);
         }
-        imu.publish(Imu {
-            header: Header::from_seconds(t, 0),
-            ..Imu::default()
-        })
-        .expect("publish imu");
-        if gnss && i % 20 == 0 && i > 0 {
-            gnss_pub
-                .publish(GnssFix {
-                    header: Header::from_seconds(t, 0),
-                    x_m: V * t,
-                    y_m: 0.0,
-                    sigma_m: 0.05,
-                    fix: 1,
-                    _pad: [0; 7],
-                })
-                .expect("publish gnss");
-        }
-        let rev = V * t / C;
-        wheels
-            .publish(WheelRotations {
-                header: Header::from_seconds(t, 0),
-                rl_rev: rev,
-                rr_rev: rev,
-                ..WheelRotations::default()
-            })
-            .expect("publish wheels");
+        sensors.east_instant(i, gnss.then_some([0.0, 0.0]));
     }
     collect(&poses_sub, &mut poses, n + 1);
     shutdown.request();
@@ -429,7 +432,7 @@ fn drive_east(
         .join()
         .expect("service thread")
         .expect("service result");
-    drop((wheels, gnss_pub, imu, heading, poses_sub));
+    drop((sensors, poses_sub));
     drop(bus);
     settings.remove_leftovers();
     poses
@@ -505,12 +508,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
     let mut estimates: TopicPublisher<CircumferenceEstimate> =
         bus.publisher().expect("estimate publisher");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
-    let Sensors {
-        mut wheels,
-        mut gnss,
-        mut imu,
-        heading,
-    } = Sensors::open_when_subscribed(&bus);
+    let mut sensors = Sensors::open_when_subscribed(&bus);
     let (n, switch_at) = (2000usize, 1000usize);
     let mut poses = Vec::new();
     for i in 0..=n {
@@ -532,31 +530,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
                 .expect("publish estimate");
             std::thread::sleep(Duration::from_millis(200));
         }
-        imu.publish(Imu {
-            header: Header::from_seconds(t, 0),
-            ..Imu::default()
-        })
-        .expect("publish imu");
-        if i % 20 == 0 && i > 0 {
-            gnss.publish(GnssFix {
-                header: Header::from_seconds(t, 0),
-                x_m: V * t + arm[0],
-                y_m: arm[1],
-                sigma_m: 0.05,
-                fix: 1,
-                _pad: [0; 7],
-            })
-            .expect("publish gnss");
-        }
-        let rev = V * t / C;
-        wheels
-            .publish(WheelRotations {
-                header: Header::from_seconds(t, 0),
-                rl_rev: rev,
-                rr_rev: rev,
-                ..WheelRotations::default()
-            })
-            .expect("publish wheels");
+        sensors.east_instant(i, Some(arm));
     }
     collect(&poses_sub, &mut poses, n + 1);
     shutdown.request();
@@ -589,7 +563,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
     for k in [switch_at, switch_at + 100, 1500, n] {
         assert!(off(k) < 0.05, "pose {k}: {} m off the axle", off(k));
     }
-    drop((wheels, gnss, imu, heading, estimates, poses_sub));
+    drop((sensors, estimates, poses_sub));
     drop(bus);
     settings.remove_leftovers();
 }
