@@ -29,12 +29,18 @@ pub struct SavedPose {
     pub mode: String,
     /// Version of the estimate in use then (0 = nominal).
     pub estimate_version: u64,
+    /// The GNSS antenna position the filter used then (body x, y from the
+    /// rear-axle centre, m): the pose is the rear axle's for that antenna. A
+    /// service that starts from the pose takes this antenna too, unless
+    /// `vehicle.toml` gives a measured one. Absent in files written before it.
+    #[serde(default)]
+    pub gnss_antenna_m: Option<[f64; 2]>,
 }
 
 impl SavedPose {
-    /// The pose to keep from a filter output; `None` for a `NoFix` pose,
-    /// which has no position.
-    pub fn from_fused(pose: &FusedPose) -> Option<SavedPose> {
+    /// The pose to keep from a filter output and the antenna position the
+    /// filter used for it; `None` for a `NoFix` pose, which has no position.
+    pub fn from_fused(pose: &FusedPose, gnss_antenna_m: [f64; 2]) -> Option<SavedPose> {
         let mode = match pose.mode {
             PoseMode::NoFix => return None,
             PoseMode::Fused => "Fused",
@@ -48,6 +54,7 @@ impl SavedPose {
             covariance: pose.covariance,
             mode: mode.to_string(),
             estimate_version: pose.estimate_version,
+            gnss_antenna_m: Some(gnss_antenna_m),
         })
     }
 
@@ -141,8 +148,11 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("pose.json");
         assert_eq!(load(&path).unwrap(), None);
-        assert_eq!(SavedPose::from_fused(&fused(PoseMode::NoFix)), None);
-        let saved = SavedPose::from_fused(&fused(PoseMode::DeadReckoning)).unwrap();
+        assert_eq!(
+            SavedPose::from_fused(&fused(PoseMode::NoFix), [0.0; 2]),
+            None
+        );
+        let saved = SavedPose::from_fused(&fused(PoseMode::DeadReckoning), [0.5, -0.3]).unwrap();
         save(&path, &saved).unwrap();
         assert_eq!(load(&path).unwrap(), Some(saved.clone()));
         assert_eq!(saved.mode, "DeadReckoning");
@@ -152,6 +162,16 @@ mod tests {
         save(&path, &newer).unwrap();
         assert_eq!(load(&path).unwrap().unwrap().x_m, 11.0);
         assert!(!dir.path().join("pose.json.tmp").exists());
+        assert_eq!(
+            load(&path).unwrap().unwrap().gnss_antenna_m,
+            Some([0.5, -0.3])
+        );
+        // A file from before the antenna field reads without it.
+        let old = serde_json::to_string(&newer)
+            .unwrap()
+            .replace("\"gnss_antenna_m\"", "\"unknown\"");
+        std::fs::write(&path, old).unwrap();
+        assert_eq!(load(&path).unwrap().unwrap().gnss_antenna_m, None);
     }
 
     #[test]
@@ -163,7 +183,7 @@ mod tests {
         assert!(e.contains("pose.json: invalid type"), "{e}");
         assert!(e.contains("line 3"), "{e}");
         // A number too large for a float is not taken as infinity.
-        let saved = SavedPose::from_fused(&fused(PoseMode::Fused)).unwrap();
+        let saved = SavedPose::from_fused(&fused(PoseMode::Fused), [0.0; 2]).unwrap();
         let text = serde_json::to_string(&saved)
             .unwrap()
             .replace("\"y_m\":-2.0", "\"y_m\":1e999");

@@ -60,7 +60,7 @@
 
 use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
-use crate::fusion::{FusedPose, Fusion, FusionConfig, ProcessError};
+use crate::fusion::{FusedPose, Fusion, FusionConfig, FusionError, ProcessError};
 use crate::inputs::{Input, Sequencer};
 use crate::pose_state::{self, SavedPose};
 use iceoryx2::prelude::CallbackProgression;
@@ -494,7 +494,7 @@ impl Inputs {
 /// it: a broken file must not keep the car from localising.
 fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
     match pose_state::load(path) {
-        Ok(Some(saved)) => match fusion.resume(saved.pose(), &saved.covariance) {
+        Ok(Some(saved)) => match resume(fusion, &saved) {
             Ok(()) => tracing::info!(
                 "odometry: resuming from the pose kept in {}: ({:.2}, {:.2}) m, yaw {:.1} deg \
                  ({}, t = {:.2} s of its run); DeadReckoning until a GNSS fix is accepted",
@@ -518,26 +518,39 @@ fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
     }
 }
 
+/// Resume from `saved` with the antenna it was kept with (the pose is the
+/// rear axle's for that antenna), unless the antenna is measured.
+fn resume(fusion: &mut Fusion, saved: &SavedPose) -> Result<(), FusionError> {
+    if let (true, Some(antenna)) = (
+        fusion.config().lever_arm_from_estimates,
+        saved.gnss_antenna_m,
+    ) {
+        fusion.set_lever_arm(antenna)?;
+    }
+    fusion.resume(saved.pose(), &saved.covariance)
+}
+
 /// The last pose with a position, for `--pose-state`.
 #[derive(Debug, Default)]
 struct KeptPose {
-    last: Option<FusedPose>,
+    /// The pose and the GNSS antenna position the filter used for it.
+    last: Option<(FusedPose, [f64; 2])>,
     written: bool,
     next_write_t: Option<f64>,
 }
 
 impl KeptPose {
     /// After each published pose (a `NoFix` pose keeps the one before).
-    fn update(&mut self, pose: &FusedPose) {
+    fn update(&mut self, pose: &FusedPose, gnss_antenna_m: [f64; 2]) {
         if pose.mode != PoseMode::NoFix {
-            self.last = Some(*pose);
+            self.last = Some((*pose, gnss_antenna_m));
             self.written = false;
         }
     }
 
     /// Write when [`POSE_STATE_EVERY_S`] of drive time passed since the last write.
     fn write_if_due(&mut self, path: &Path) {
-        let Some(t) = self.last.map(|p| p.t_s) else {
+        let Some(t) = self.last.map(|(p, _)| p.t_s) else {
             return;
         };
         let due = *self.next_write_t.get_or_insert(t);
@@ -553,7 +566,7 @@ impl KeptPose {
         let Some(saved) = self
             .last
             .filter(|_| !self.written)
-            .and_then(|p| SavedPose::from_fused(&p))
+            .and_then(|(p, antenna)| SavedPose::from_fused(&p, antenna))
         else {
             return;
         };
@@ -818,7 +831,7 @@ pub fn serve(
                     poses.publish(wire)?;
                     summary.poses += 1;
                     if config.pose_state.is_some() {
-                        kept.update(&pose);
+                        kept.update(&pose, fusion.lever_arm());
                     }
                     // Logged after the pose is out: a log line is not worth its latency.
                     if pose.mode != mode {
@@ -1132,6 +1145,61 @@ mod tests {
             gnss_lever_arm(&vehicle, Some(&estimate)),
             ([1.1, 0.0], true)
         );
+    }
+
+    #[test]
+    fn a_kept_pose_resumes_with_the_antenna_it_was_kept_with_unless_measured() {
+        let vehicle = VehicleParams {
+            name: None,
+            track_width_m: 1.5,
+            nominal_circumference_m: 2.0,
+            wheelbase_m: None,
+            ticks_per_rev: None,
+            gnss: Default::default(),
+        };
+        let saved = SavedPose {
+            t_s: 12.0,
+            x_m: 10.0,
+            y_m: -2.0,
+            yaw_rad: 0.5,
+            covariance: [0.01, 0.0, 0.0, 0.0, 0.01, 0.0, 0.0, 0.0, 1e-4],
+            mode: "Fused".to_string(),
+            estimate_version: 1,
+            gnss_antenna_m: Some([0.5, -0.3]),
+        };
+        // The antenna it was kept with comes back, and the pose with it: a
+        // later estimate with the same antenna then moves nothing.
+        let mut fusion = Fusion::nominal(&vehicle, FusionConfig::default());
+        resume(&mut fusion, &saved).unwrap();
+        assert_eq!(fusion.lever_arm(), [0.5, -0.3]);
+        let before = fusion
+            .process(&Input::Wheels {
+                t_s: 12.01,
+                rl_rev: 0.0,
+                rr_rev: 0.0,
+            })
+            .unwrap()
+            .unwrap();
+        assert_eq!((before.pose.x, before.pose.y), (10.0, -2.0));
+        fusion.set_lever_arm([0.5, -0.3]).unwrap();
+        let after = fusion
+            .process(&Input::Wheels {
+                t_s: 12.02,
+                rl_rev: 0.0,
+                rr_rev: 0.0,
+            })
+            .unwrap()
+            .unwrap();
+        assert_eq!((after.pose.x, after.pose.y), (10.0, -2.0));
+        // A measured antenna stays.
+        let measured = FusionConfig {
+            lever_arm_m: [1.0, 0.0],
+            lever_arm_from_estimates: false,
+            ..FusionConfig::default()
+        };
+        let mut fusion = Fusion::nominal(&vehicle, measured);
+        resume(&mut fusion, &saved).unwrap();
+        assert_eq!(fusion.lever_arm(), [1.0, 0.0]);
     }
 
     #[test]
