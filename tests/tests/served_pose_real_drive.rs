@@ -56,7 +56,7 @@ fn the_calibrated_antenna_cuts_the_served_error_through_outages_on_wid_trial02()
             },
         )
         .expect("filter");
-        assert!(outages.iter().filter(|o| o.error_m.is_some()).count() >= 8);
+        assert!(outages.iter().filter(|o| o.counted()).count() >= 8);
         median_error(&outages).expect("scored outages")
     };
     let with = median(estimate);

@@ -174,7 +174,14 @@ fn main() -> Result<()> {
         for o in &outages {
             let end = o.t_start_s + length;
             match o.error_m {
-                Some(e) => println!("outage {:.1}-{end:.1} s: error {e:.3} m at its end", o.t_start_s),
+                Some(e) if o.counted() => {
+                    println!("outage {:.1}-{end:.1} s: error {e:.3} m at its end", o.t_start_s)
+                }
+                Some(e) => println!(
+                    "outage {:.1}-{end:.1} s: error {e:.3} m at its end; not counted: the filter was \
+                     already dead-reckoning at its start (fixes gated out before it)",
+                    o.t_start_s
+                ),
                 None => println!(
                     "outage {:.1}-{end:.1} s: not counted (the filter was {:?} at its start, or no truth at its end)",
                     o.t_start_s, o.mode_at_start
@@ -182,7 +189,7 @@ fn main() -> Result<()> {
             }
         }
         if let Some(m) = median_error(&outages) {
-            let n = outages.iter().filter(|o| o.error_m.is_some()).count();
+            let n = outages.iter().filter(|o| o.counted()).count();
             println!(
                 "{length} s outages in the filter: median error at the end {m:.3} m ({n} outages)"
             );

@@ -366,6 +366,14 @@ impl Odometer {
             / (prior_information + self.bias.information)
     }
 
+    /// Variance of [`Odometer::gyro_bias`], (rad/s)^2: the calibrated bias's
+    /// prior ([`OdometerConfig::gyro_bias_prior_sigma_rad_s`]) combined with
+    /// every standstill so far. A filter that keeps a residual bias on top of
+    /// this one starts it with this variance.
+    pub fn gyro_bias_variance(&self) -> f64 {
+        1.0 / (self.config.gyro_bias_prior_sigma_rad_s.powi(-2) + self.bias.information)
+    }
+
     /// The last standstill's gyro bias measurement, once (`None` if there was
     /// none since the last call).
     pub fn take_bias_observation(&mut self) -> Option<BiasObservation> {

@@ -49,9 +49,18 @@ pub struct FusedOutage {
     /// The filter's mode at the last pose before the outage.
     pub mode_at_start: PoseMode,
     /// Position error at the outage end, m; `None` when the filter had no
-    /// fused pose at the start (it claims nothing to carry through) or no
-    /// truth is near the end.
+    /// pose at the start (`NoFix`: it claims nothing to carry through) or no
+    /// truth is near the end. An outage that starts in `DeadReckoning` (the
+    /// fixes just before it were gated out) is scored too, but
+    /// [`median_error`] leaves it out: it is longer than `length_s`.
     pub error_m: Option<f64>,
+}
+
+impl FusedOutage {
+    /// Whether it counts in [`median_error`]: scored and started `Fused`.
+    pub fn counted(&self) -> bool {
+        self.error_m.is_some() && self.mode_at_start == PoseMode::Fused
+    }
 }
 
 /// Run a fresh filter from `new_fusion` over `inputs` (processing order) once
@@ -105,7 +114,9 @@ pub fn fused_outages(
             .min_by(|a, b| (a.t_s - end_t).abs().total_cmp(&(b.t_s - end_t).abs()))
             .filter(|r| (r.t_s - end_t).abs() <= config.max_truth_gap_s);
         let error_m = match (mode_at_start, end, truth_end) {
-            (PoseMode::Fused, Some((x, y)), Some(r)) => Some((x - r.x_m).hypot(y - r.y_m)),
+            (PoseMode::Fused | PoseMode::DeadReckoning, Some((x, y)), Some(r)) => {
+                Some((x - r.x_m).hypot(y - r.y_m))
+            }
             _ => None,
         };
         out.push(FusedOutage {
@@ -118,9 +129,14 @@ pub fn fused_outages(
     Ok(out)
 }
 
-/// Median of the scored outages' errors, m (`None` when none was scored).
+/// Median of the errors of the outages that count ([`FusedOutage::counted`]),
+/// m (`None` when none does).
 pub fn median_error(outages: &[FusedOutage]) -> Option<f64> {
-    let mut e: Vec<f64> = outages.iter().filter_map(|o| o.error_m).collect();
+    let mut e: Vec<f64> = outages
+        .iter()
+        .filter(|o| o.counted())
+        .filter_map(|o| o.error_m)
+        .collect();
     if e.is_empty() {
         return None;
     }
@@ -227,5 +243,23 @@ mod tests {
         assert_eq!(outages[0].t_start_s, -10.0);
         assert_eq!(outages[0].error_m, None);
         assert_eq!(median_error(&[]), None);
+
+        // No fixes from 35 s to 40 s: the outage from 40 s starts in
+        // DeadReckoning. It is scored (its error has grown for 5 s longer)
+        // but left out of the median.
+        let gap: Vec<Input> = inputs
+            .iter()
+            .filter(|i| !(matches!(i, Input::Gnss { .. }) && (35.0..40.0).contains(&i.t_s())))
+            .copied()
+            .collect();
+        let outages = fused_outages(&gap, &truth, &new_fusion, &at_axle).unwrap();
+        let late = outages.iter().find(|o| o.t_start_s == 40.0).unwrap();
+        assert_eq!(late.mode_at_start, PoseMode::DeadReckoning);
+        let e = late.error_m.unwrap();
+        assert!((3.2..4.2).contains(&e), "{late:?}");
+        assert!(!late.counted());
+        for o in &outages {
+            assert_eq!(o.counted(), o.mode_at_start == PoseMode::Fused, "{o:?}");
+        }
     }
 }
