@@ -12,14 +12,14 @@
 //! drives whose truth is the GNSS track, e.g. WID) instead of the rear axle.
 //! `FUSION_OUTAGE=SECONDS` also runs the filter once per GNSS outage of that
 //! length, placed every 10 s from 20 s after the first fix, the fixes inside
-//! it left out, and prints the error at each outage end: the served pose
-//! through an outage, started from the filter's own pose.
+//! it (its end included) left out, and prints the error at each outage end:
+//! the served pose through an outage, started from the filter's own pose.
 
 use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::Estimate;
-use odometry::fused_outages::{fused_outages, median_error, FusedOutageConfig};
+use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::drive_inputs;
 use odometry::serve::gnss_lever_arm;
@@ -75,7 +75,9 @@ fn main() -> Result<()> {
     };
     // Tuning experiments: FUSION_DS (distance noise fraction; FUSION_DS_NOMINAL
     // with the nominal circumferences), FUSION_MINSIG
-    // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)).
+    // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)),
+    // FUSION_SCALE_SIGMA (1-sigma of the distance scale error of calibrated
+    // wheels, the filter's consider state).
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
     let mut config = config;
     if let Some(v) = env("FUSION_DS") {
@@ -89,6 +91,9 @@ fn main() -> Result<()> {
     }
     if let Some(v) = env("FUSION_GYRO") {
         config.gyro_noise_rad_per_sqrt_s = v;
+    }
+    if let Some(v) = env("FUSION_SCALE_SIGMA") {
+        config.distance_scale_sigma = v;
     }
     let new_fusion = || match &estimate {
         Some(e) => Fusion::new(e.params, 0, config),
@@ -174,9 +179,11 @@ fn main() -> Result<()> {
         for o in &outages {
             let end = o.t_start_s + length;
             match o.error_m {
-                Some(e) if o.counted() => {
-                    println!("outage {:.1}-{end:.1} s: error {e:.3} m at its end", o.t_start_s)
-                }
+                Some(e) if o.counted() => println!(
+                    "outage {:.1}-{end:.1} s: error {e:.3} m at its end (chi-square {})",
+                    o.t_start_s,
+                    o.error_chi2.map_or("-".to_string(), |c| format!("{c:.2}"))
+                ),
                 Some(e) => println!(
                     "outage {:.1}-{end:.1} s: error {e:.3} m at its end; not counted: the filter was \
                      already dead-reckoning at its start (fixes gated out before it)",
@@ -192,6 +199,10 @@ fn main() -> Result<()> {
             let n = outages.iter().filter(|o| o.counted()).count();
             println!(
                 "{length} s outages in the filter: median error at the end {m:.3} m ({n} outages)"
+            );
+            let (inside, counted) = inside_95(&outages);
+            println!(
+                "{inside} of {counted} end inside the 95 % ellipse of the pose's own covariance"
             );
         }
     }

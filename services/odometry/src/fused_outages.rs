@@ -3,12 +3,13 @@
 //!
 //! `odometry evaluate` starts each outage from the truth pose, which measures
 //! the dead-reckoning and nothing else. Here the whole [`Fusion`] runs over
-//! the drive once per outage with the fixes inside the outage left out, so the
-//! outage starts from the filter's own pose, heading and gyro bias, as
-//! `odometry serve` would live. Each outage is scored at its end against the
-//! truth, at the body point the truth follows.
+//! the drive once per outage with the fixes inside the outage (its end
+//! included) left out, so the outage starts from the filter's own pose,
+//! heading and gyro bias, as `odometry serve` would live. Each outage is
+//! scored at its end against the truth, at the body point the truth follows,
+//! and against the pose's own covariance ([`FusedOutage::error_chi2`]).
 
-use crate::fusion::{Fusion, FusionError, ProcessError};
+use crate::fusion::{FusedPose, Fusion, FusionError, ProcessError};
 use crate::inputs::Input;
 use interfaces::drive::TruthSample;
 use interfaces::wire::PoseMode;
@@ -54,6 +55,11 @@ pub struct FusedOutage {
     /// fixes just before it were gated out) is scored too, but
     /// [`median_error`] leaves it out: it is longer than `length_s`.
     pub error_m: Option<f64>,
+    /// That error against the pose's own position covariance at the scored
+    /// point, e^T P^-1 e: chi-square with 2 degrees of freedom when the
+    /// published covariance is honest (at most [`CHI2_2DOF_95`] in 95 % of
+    /// outages). `None` when `error_m` is, or the covariance is singular.
+    pub error_chi2: Option<f64>,
 }
 
 impl FusedOutage {
@@ -87,7 +93,7 @@ pub fn fused_outages(
         let (mut mode_at_start, mut end) = (PoseMode::NoFix, None);
         for input in inputs {
             let t = input.t_s();
-            if matches!(input, Input::Gnss { .. }) && (start..end_t).contains(&t) {
+            if matches!(input, Input::Gnss { .. }) && (start..=end_t).contains(&t) {
                 continue;
             }
             match fusion.process(input) {
@@ -101,8 +107,7 @@ pub fn fused_outages(
                         } else {
                             [0.0, 0.0]
                         };
-                        let (s, c) = pose.pose.yaw.sin_cos();
-                        end = Some((pose.pose.x + lx * c - ly * s, pose.pose.y + lx * s + ly * c));
+                        end = Some(scored_point(&pose, [lx, ly]));
                     }
                 }
                 Ok(None) | Err(ProcessError::Input(_)) => {}
@@ -113,20 +118,73 @@ pub fn fused_outages(
             .iter()
             .min_by(|a, b| (a.t_s - end_t).abs().total_cmp(&(b.t_s - end_t).abs()))
             .filter(|r| (r.t_s - end_t).abs() <= config.max_truth_gap_s);
-        let error_m = match (mode_at_start, end, truth_end) {
-            (PoseMode::Fused | PoseMode::DeadReckoning, Some((x, y)), Some(r)) => {
-                Some((x - r.x_m).hypot(y - r.y_m))
+        let (error_m, error_chi2) = match (mode_at_start, end, truth_end) {
+            (PoseMode::Fused | PoseMode::DeadReckoning, Some(([x, y], cov)), Some(r)) => {
+                let e = [x - r.x_m, y - r.y_m];
+                (Some(e[0].hypot(e[1])), chi2(e, cov))
             }
-            _ => None,
+            _ => (None, None),
         };
         out.push(FusedOutage {
             t_start_s: start,
             mode_at_start,
             error_m,
+            error_chi2,
         });
         start += config.spacing_s;
     }
     Ok(out)
+}
+
+/// 95 % quantile of chi-square with 2 degrees of freedom.
+pub const CHI2_2DOF_95: f64 = 5.991;
+
+/// The point of `pose` at `arm` (body frame, m) from the rear-axle centre,
+/// and that point's position covariance (the pose's, with the yaw's share
+/// through the arm).
+fn scored_point(pose: &FusedPose, arm: [f64; 2]) -> ([f64; 2], [f64; 4]) {
+    let [lx, ly] = arm;
+    let (s, c) = pose.pose.yaw.sin_cos();
+    let point = [pose.pose.x + lx * c - ly * s, pose.pose.y + lx * s + ly * c];
+    // d(point)/d(x, y, yaw), rows x and y.
+    let a = [[1.0, 0.0, -lx * s - ly * c], [0.0, 1.0, lx * c - ly * s]];
+    let p = &pose.covariance;
+    let mut cov = [0.0; 4];
+    for i in 0..2 {
+        for j in 0..2 {
+            let mut sum = 0.0;
+            for k in 0..3 {
+                for l in 0..3 {
+                    sum += a[i][k] * p[3 * k + l] * a[j][l];
+                }
+            }
+            cov[2 * i + j] = sum;
+        }
+    }
+    (point, cov)
+}
+
+/// e^T P^-1 e for a 2-vector and a 2x2 covariance (row-major); `None` when P
+/// cannot be inverted.
+fn chi2(e: [f64; 2], p: [f64; 4]) -> Option<f64> {
+    let det = p[0] * p[3] - p[1] * p[2];
+    if !(det.is_finite() && det > 0.0) {
+        return None;
+    }
+    let v = (e[0] * (p[3] * e[0] - p[1] * e[1]) + e[1] * (p[0] * e[1] - p[2] * e[0])) / det;
+    v.is_finite().then_some(v)
+}
+
+/// Of the outages that count, how many end inside the 95 % ellipse of the
+/// pose's own covariance, and how many count: an honest covariance holds
+/// about 95 % of them (fewer: the served pose claims more than it knows).
+pub fn inside_95(outages: &[FusedOutage]) -> (usize, usize) {
+    let counted: Vec<&FusedOutage> = outages.iter().filter(|o| o.counted()).collect();
+    let inside = counted
+        .iter()
+        .filter(|o| o.error_chi2.is_some_and(|c| c <= CHI2_2DOF_95))
+        .count();
+    (inside, counted.len())
 }
 
 /// Median of the errors of the outages that count ([`FusedOutage::counted`]),
@@ -224,7 +282,14 @@ mod tests {
             assert_eq!(o.mode_at_start, PoseMode::Fused);
             let e = o.error_m.unwrap();
             assert!((2.9..3.5).contains(&e), "{o:?}");
+            // The covariance knows it: a 1 % scale error is 2 sigma of the
+            // filter's 0.5 % distance scale, inside the 95 % ellipse (with
+            // white distance noise alone the along-track sigma after 300 m
+            // was about 0.1 m: chi-square 818).
+            let chi2 = o.error_chi2.unwrap();
+            assert!((1.0..CHI2_2DOF_95).contains(&chi2), "{o:?}");
         }
+        assert_eq!(inside_95(&outages), (6, 6));
         let axle = median_error(&outages).unwrap();
         // Scored at the antenna, 1 m ahead, against a truth that is the axle's: 1 m more.
         let at_antenna = FusedOutageConfig {

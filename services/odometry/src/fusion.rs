@@ -1,7 +1,14 @@
 //! The pose filter of the odometry service: an EKF on the 2W model.
 //!
-//! State: position x, y of the rear-axle centre (ENU, m), yaw (rad), and a
-//! residual yaw-rate gyro bias b (rad/s) on top of the calibrated one.
+//! State: position x, y of the rear-axle centre (ENU, m), yaw (rad), a
+//! residual yaw-rate gyro bias b (rad/s) on top of the calibrated one, and
+//! the wheels' distance scale error s, a consider state (Schmidt-Kalman): it
+//! stays 0 and is never updated (its row of every gain is zeroed), but its
+//! variance ([`FusionConfig::distance_scale_sigma`]) enters the pose
+//! covariance through the prediction, so the along-track uncertainty grows
+//! with the distance as a scale error's does. Estimating s from the fixes
+//! instead was tried and made the outages on wid-trial04 worse (its RTK
+//! fixes jump by decimetres; BENCHMARKS.md).
 //!
 //! - Prediction: the increments of the same [`Odometer`] that `odometry
 //!   evaluate` dead-reckons with (distance from the calibrated rear wheels,
@@ -10,8 +17,8 @@
 //!   and slowly random-walks. It starts at zero with
 //!   [`FusionConfig::initial_gyro_bias_sigma`], or, once a standstill has
 //!   measured the bias (before the first fix too), with what the odometer
-//!   knows of it ([`Odometer::gyro_bias_variance`]) grown by the walk since. Without updates the mean is exactly the
-//!   dead-reckoned pose.
+//!   knows of it ([`Odometer::gyro_bias_variance`]) grown by the walk since.
+//!   Without updates the mean is exactly the dead-reckoned pose.
 //! - Updates: GNSS positions of the antenna (lever arm from `vehicle.toml`'s
 //!   `[gnss] antenna_x_m/antenna_y_m`, else from the estimate, whose
 //!   calibration fits it; rotated by the yaw), and absolute
@@ -52,8 +59,12 @@ use interfaces::drive::VehicleParams;
 use interfaces::wire::PoseMode;
 use nalgebra::{SMatrix, SVector};
 
-type Mat4 = SMatrix<f64, 4, 4>;
-type Vec4 = SVector<f64, 4>;
+/// State: x, y, yaw, residual gyro bias, residual distance scale.
+const N: usize = 5;
+/// Index of the residual distance scale in the state.
+const SCALE: usize = 4;
+type StateMat = SMatrix<f64, N, N>;
+type StateVec = SVector<f64, N>;
 
 /// Measurements waiting for a wheel sample, at most.
 pub const MAX_PENDING: usize = 256;
@@ -103,6 +114,17 @@ pub struct FusionConfig {
     /// guess can be several percent off (the paper's 2.2 m for 2.04 m, 8 %),
     /// and a filter that trusted it to 2 % would gate out good fixes.
     pub nominal_distance_noise_frac: f64,
+    /// 1-sigma of the scale error s of calibrated wheels (their distance is
+    /// (1 + s) times what they say). On the WID drives the scale moves by
+    /// about 0.5 % between stretches of a few hundred metres (tyre
+    /// temperature, road). A scale error is not white noise: its position
+    /// error grows with the distance, not with its square root, and without
+    /// it the covariance after an outage claimed centimetres along the track
+    /// where the pose was decimetres off. It is a consider state: it widens
+    /// the covariance but is never estimated (see the module docs).
+    pub distance_scale_sigma: f64,
+    /// The same while the circumferences are the nominal guess.
+    pub nominal_distance_scale_sigma: f64,
     /// Wheel-difference heading noise, rad per metre driven (1-sigma).
     pub wheel_yaw_noise_rad_per_m: f64,
     /// Gyro angle random walk, rad/sqrt(s).
@@ -138,6 +160,8 @@ impl Default for FusionConfig {
             max_measurement_delay_s: 0.2,
             distance_noise_frac: 0.02,
             nominal_distance_noise_frac: 0.1,
+            distance_scale_sigma: 0.005,
+            nominal_distance_scale_sigma: 0.1,
             wheel_yaw_noise_rad_per_m: 0.003,
             gyro_noise_rad_per_sqrt_s: 0.002,
             gyro_bias_walk: 2e-5,
@@ -266,7 +290,7 @@ enum State {
         local: Pose2,
     },
     /// Running.
-    Running { x: Vec4, p: Mat4 },
+    Running { x: StateVec, p: StateMat },
 }
 
 /// The EKF with its mode logic. Feed every [`Input`] in processing order
@@ -392,13 +416,16 @@ impl Fusion {
         self.nominal = false;
         self.estimate_version = version;
         let bias_variance = self.fresh_bias_variance(self.last_wheels.map_or(0.0, |w| w.0));
+        let scale_variance = self.fresh_scale_variance();
         if let State::Running { x, p } = &mut self.state {
-            x[3] = 0.0;
-            for i in 0..4 {
-                p[(i, 3)] = 0.0;
-                p[(3, i)] = 0.0;
+            for (k, variance) in [(3, bias_variance), (SCALE, scale_variance)] {
+                x[k] = 0.0;
+                for i in 0..N {
+                    p[(i, k)] = 0.0;
+                    p[(k, i)] = 0.0;
+                }
+                p[(k, k)] = variance;
             }
-            p[(3, 3)] = bias_variance;
         }
         old
     }
@@ -417,7 +444,7 @@ impl Fusion {
         if !finite {
             return Err(FusionError::ResumeNotFinite);
         }
-        let mut p = Mat4::zeros();
+        let mut p = StateMat::zeros();
         for i in 0..3 {
             for j in 0..3 {
                 p[(i, j)] = covariance[3 * i + j];
@@ -432,7 +459,8 @@ impl Fusion {
             p[(i, i)] = p[(i, i)].max(floor);
         }
         p[(3, 3)] = self.config.initial_gyro_bias_sigma.powi(2);
-        let x = Vec4::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0);
+        p[(SCALE, SCALE)] = self.fresh_scale_variance();
+        let x = StateVec::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0);
         self.reset();
         self.set_running(x, p, 0.0, "resume")
     }
@@ -656,6 +684,16 @@ impl Fusion {
         }
     }
 
+    /// Variance of the distance scale state: the nominal guess's, or a
+    /// calibration's.
+    fn fresh_scale_variance(&self) -> f64 {
+        if self.nominal {
+            self.config.nominal_distance_scale_sigma.powi(2)
+        } else {
+            self.config.distance_scale_sigma.powi(2)
+        }
+    }
+
     /// A standstill measured the gyro bias: update the residual bias with it,
     /// then move the residual onto the odometer's new bias, so that the total
     /// (odometer bias + residual) is the filter's estimate, not the odometer's.
@@ -667,7 +705,7 @@ impl Fusion {
             return Ok(());
         };
         let nu = SVector::<f64, 1>::new(obs.mean_rad_s - obs.bias_before_rad_s - x[3]);
-        let mut h = SMatrix::<f64, 1, 4>::zeros();
+        let mut h = SMatrix::<f64, 1, N>::zeros();
         h[(0, 3)] = 1.0;
         let r = SMatrix::<f64, 1, 1>::new(obs.variance);
         let s = (h * p * h.transpose() + r)[(0, 0)];
@@ -700,15 +738,18 @@ impl Fusion {
                 let course = x[2] + 0.5 * dyaw;
                 let (s, c) = course.sin_cos();
                 let ds = inc.ds_m;
+                // The scale state is always 0 (never estimated): ds as measured.
                 x[0] += ds * c;
                 x[1] += ds * s;
                 x[2] += dyaw;
-                let mut f = Mat4::identity();
+                let mut f = StateMat::identity();
                 f[(0, 2)] = -ds * s;
                 f[(1, 2)] = ds * c;
                 f[(0, 3)] = -ds * s * 0.5 * dyaw_db;
                 f[(1, 3)] = ds * c * 0.5 * dyaw_db;
                 f[(2, 3)] = dyaw_db;
+                f[(0, SCALE)] = ds * c;
+                f[(1, SCALE)] = ds * s;
                 // Noise of (ds, dyaw) mapped into the state, plus the bias walk.
                 let noise_frac = if self.nominal {
                     config.nominal_distance_noise_frac
@@ -721,7 +762,7 @@ impl Fusion {
                 } else {
                     config.wheel_yaw_noise_rad_per_m * ds.abs()
                 };
-                let mut g = SMatrix::<f64, 4, 2>::zeros();
+                let mut g = SMatrix::<f64, N, 2>::zeros();
                 g[(0, 0)] = c;
                 g[(1, 0)] = s;
                 g[(0, 1)] = -0.5 * ds * s;
@@ -840,13 +881,14 @@ impl Fusion {
             return;
         };
         let arm = self.lever_arm_world(yaw);
-        let x = Vec4::new(x_m - arm[0], y_m - arm[1], yaw, 0.0);
+        let x = StateVec::new(x_m - arm[0], y_m - arm[1], yaw, 0.0, 0.0);
         let sigma_pos = sigma_m + 0.5 * lever;
-        let p = Mat4::from_diagonal(&Vec4::new(
+        let p = StateMat::from_diagonal(&StateVec::new(
             sigma_pos * sigma_pos,
             sigma_pos * sigma_pos,
             sigma_yaw * sigma_yaw,
             self.fresh_bias_variance(t_s),
+            self.fresh_scale_variance(),
         ));
         self.state = State::Running { x, p };
         self.stats.initialisations += 1;
@@ -873,7 +915,7 @@ impl Fusion {
         let (s, c) = x[2].sin_cos();
         let predicted = [x[0] + lx * c - ly * s, x[1] + lx * s + ly * c];
         let nu = SVector::<f64, 2>::new(x_m - predicted[0], y_m - predicted[1]);
-        let mut h = SMatrix::<f64, 2, 4>::zeros();
+        let mut h = SMatrix::<f64, 2, N>::zeros();
         h[(0, 0)] = 1.0;
         h[(1, 1)] = 1.0;
         h[(0, 2)] = -lx * s - ly * c;
@@ -914,7 +956,7 @@ impl Fusion {
             x[0] = x_m - (lx * c - ly * s);
             x[1] = y_m - (lx * s + ly * c);
             let var = (sigma_m + 0.5 * lx.hypot(ly)).powi(2);
-            for i in 0..4 {
+            for i in 0..N {
                 for j in 0..2 {
                     p[(i, j)] = 0.0;
                     p[(j, i)] = 0.0;
@@ -938,7 +980,7 @@ impl Fusion {
             return Ok(());
         };
         let nu = SVector::<f64, 1>::new(wrap_angle(yaw_rad - x[2]));
-        let mut h = SMatrix::<f64, 1, 4>::zeros();
+        let mut h = SMatrix::<f64, 1, N>::zeros();
         h[(0, 2)] = 1.0;
         let r = SMatrix::<f64, 1, 1>::new(sigma_rad * sigma_rad);
         let s_mat = h * p * h.transpose() + r;
@@ -962,8 +1004,8 @@ impl Fusion {
 
     fn set_running(
         &mut self,
-        x: Vec4,
-        mut p: Mat4,
+        x: StateVec,
+        mut p: StateMat,
         t_s: f64,
         after: &'static str,
     ) -> Result<(), FusionError> {
@@ -1006,22 +1048,27 @@ impl Fusion {
     }
 }
 
-fn symmetrise(p: &mut Mat4) {
+fn symmetrise(p: &mut StateMat) {
     let t = p.transpose();
     *p = (*p + t) * 0.5;
 }
 
-/// Kalman update in Joseph form (stays symmetric positive semi-definite).
+/// Kalman update in Joseph form (stays symmetric positive semi-definite,
+/// for any gain). The distance scale is a consider state (Schmidt-Kalman):
+/// its row of the gain is zeroed, so it is never estimated and keeps its
+/// variance, and only widens the pose covariance through the cross terms.
 fn joseph_update<const M: usize>(
-    x: Vec4,
-    p: Mat4,
-    gain: &SMatrix<f64, 4, M>,
-    h: &SMatrix<f64, M, 4>,
+    x: StateVec,
+    p: StateMat,
+    gain: &SMatrix<f64, N, M>,
+    h: &SMatrix<f64, M, N>,
     r: &SMatrix<f64, M, M>,
     nu: &SVector<f64, M>,
-) -> (Vec4, Mat4) {
+) -> (StateVec, StateMat) {
+    let mut gain = *gain;
+    gain.row_mut(SCALE).fill(0.0);
     let x = x + gain * nu;
-    let i_kh = Mat4::identity() - gain * h;
+    let i_kh = StateMat::identity() - gain * h;
     let p = i_kh * p * i_kh.transpose() + gain * r * gain.transpose();
     (x, p)
 }
@@ -1355,10 +1402,10 @@ mod tests {
     fn a_standstill_bias_measurement_updates_the_total_bias_once() {
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
         // Running, with a residual bias of 2e-4 +- 1e-4 on top of the odometer's 0.
-        let mut p = Mat4::identity() * 0.01;
+        let mut p = StateMat::identity() * 0.01;
         p[(3, 3)] = 1e-8;
         fusion.state = State::Running {
-            x: Vec4::new(0.0, 0.0, 0.0, 2e-4),
+            x: StateVec::new(0.0, 0.0, 0.0, 2e-4, 0.0),
             p,
         };
         // The standstill says 1e-3 +- 1e-4; the odometer moved its own bias to 5e-4.
@@ -1385,11 +1432,11 @@ mod tests {
         // Wheel heading: the bias is not the filter's business.
         let mut wheels = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
         wheels.state = State::Running {
-            x: Vec4::zeros(),
-            p: Mat4::identity(),
+            x: StateVec::zeros(),
+            p: StateMat::identity(),
         };
         wheels.observe_bias(&obs).unwrap();
-        assert!(matches!(wheels.state, State::Running { x, .. } if x == Vec4::zeros()));
+        assert!(matches!(wheels.state, State::Running { x, .. } if x == StateVec::zeros()));
     }
 
     #[test]
@@ -1732,8 +1779,8 @@ mod tests {
     fn broken_covariance_is_a_typed_error_not_a_panic() {
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::WheelDifference));
         fusion.state = State::Running {
-            x: Vec4::zeros(),
-            p: Mat4::from_element(f64::NAN),
+            x: StateVec::zeros(),
+            p: StateMat::from_element(f64::NAN),
         };
         fusion
             .process(&Input::Gnss {
