@@ -59,9 +59,9 @@ use interfaces::drive::VehicleParams;
 use interfaces::wire::PoseMode;
 use nalgebra::{SMatrix, SVector};
 
-/// State: x, y, yaw, residual gyro bias, residual distance scale.
+/// State: x, y, yaw, residual gyro bias, distance scale error (consider).
 const N: usize = 5;
-/// Index of the residual distance scale in the state.
+/// Index of the distance scale error in the state.
 const SCALE: usize = 4;
 type StateMat = SMatrix<f64, N, N>;
 type StateVec = SVector<f64, N>;
@@ -668,11 +668,12 @@ impl Fusion {
 
     /// Variance of a residual gyro bias that starts from zero at `t_s`: after
     /// a standstill, the odometer's bias variance grown by the bias walk
-    /// since (at most [`FusionConfig::initial_gyro_bias_sigma`] squared). Without this, a standstill before the filter
-    /// is initialised would be forgotten, and the first turns, whose GNSS
-    /// course differs from the gyro's for a while (side slip, decimetre RTK
-    /// jumps), would pull a bias that is in fact well known (wid-trial04: 2.9e-3
-    /// rad/s learned against 7e-5 measured, 10 m off after a 30 s outage).
+    /// since (at most [`FusionConfig::initial_gyro_bias_sigma`] squared).
+    /// Without this, a standstill before the filter is initialised would be
+    /// forgotten, and the first turns, whose GNSS course differs from the
+    /// gyro's for a while (side slip, decimetre RTK jumps), would pull a bias
+    /// that is in fact well known (wid-trial04: 2.9e-3 rad/s learned against
+    /// 7e-5 measured, 10 m off after a 30 s outage).
     fn fresh_bias_variance(&self, t_s: f64) -> f64 {
         let initial = self.config.initial_gyro_bias_sigma.powi(2);
         match self.last_standstill_bias_s {
@@ -750,6 +751,9 @@ impl Fusion {
                 f[(2, 3)] = dyaw_db;
                 f[(0, SCALE)] = ds * c;
                 f[(1, SCALE)] = ds * s;
+                // A common scale error of both wheels scales their heading
+                // difference too; the gyro's heading does not see it.
+                f[(2, SCALE)] = if gyro { 0.0 } else { inc.dyaw_rad };
                 // Noise of (ds, dyaw) mapped into the state, plus the bias walk.
                 let noise_frac = if self.nominal {
                     config.nominal_distance_noise_frac
