@@ -121,7 +121,7 @@ pub fn fused_outages(
         let (error_m, error_chi2) = match (mode_at_start, end, truth_end) {
             (PoseMode::Fused | PoseMode::DeadReckoning, Some(([x, y], cov)), Some(r)) => {
                 let e = [x - r.x_m, y - r.y_m];
-                (Some(e[0].hypot(e[1])), chi2(e, cov))
+                (Some(e[0].hypot(e[1])), position_chi2(e, cov))
             }
             _ => (None, None),
         };
@@ -164,9 +164,10 @@ fn scored_point(pose: &FusedPose, arm: [f64; 2]) -> ([f64; 2], [f64; 4]) {
     (point, cov)
 }
 
-/// e^T P^-1 e for a 2-vector and a 2x2 covariance (row-major); `None` when P
-/// cannot be inverted.
-fn chi2(e: [f64; 2], p: [f64; 4]) -> Option<f64> {
+/// e^T P^-1 e for a position error `e` and its 2x2 covariance `p`
+/// (row-major): chi-square with 2 degrees of freedom when the covariance is
+/// honest. `None` when `p` cannot be inverted.
+pub fn position_chi2(e: [f64; 2], p: [f64; 4]) -> Option<f64> {
     let det = p[0] * p[3] - p[1] * p[2];
     if !(det.is_finite() && det > 0.0) {
         return None;

@@ -16,6 +16,7 @@ use interfaces::drive::{Drive, TruthSample};
 use interfaces::wire::{CircumferenceEstimate, Pose, PoseMode};
 use odometry::dead_reckoning::{DeadReckoner, HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
+use odometry::fused_outages::{position_chi2, CHI2_2DOF_95};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::{drive_inputs, sort_inputs, Input};
 use odometry::two_wheel::Pose2;
@@ -69,6 +70,11 @@ pub struct LiveResult {
     pub end_error_m: f64,
     /// Largest position error inside the outage, m.
     pub max_error_m: f64,
+    /// The end error against the last pose's own position covariance,
+    /// e^T P^-1 e (inside its 95 % ellipse when at most 5.99).
+    pub end_chi2: Option<f64>,
+    /// Semi-major axis of that pose's 95 % ellipse, m.
+    pub end_ellipse_95_m: f64,
 }
 
 /// Dead-reckoning through the outage from the same start with both parameter sets.
@@ -329,6 +335,13 @@ pub fn outage_report(
     let live = inside.last().map(|last| {
         let err =
             |p: &Pose| truth_at(truth, p.header.t_s()).map(|(x, y)| (p.x_m - x).hypot(p.y_m - y));
+        let c = &last.covariance;
+        let cov = [c[0], c[1], c[3], c[4]];
+        let end_chi2 = truth_at(truth, last.header.t_s())
+            .and_then(|(x, y)| position_chi2([last.x_m - x, last.y_m - y], cov));
+        // Largest eigenvalue of the 2x2 position covariance.
+        let mean = 0.5 * (cov[0] + cov[3]);
+        let largest = mean + (0.25 * (cov[0] - cov[3]).powi(2) + cov[1] * cov[1]).sqrt();
         LiveResult {
             estimate_version: last.estimate_version,
             poses: inside.len(),
@@ -338,6 +351,8 @@ pub fn outage_report(
                 .count(),
             end_error_m: err(last).unwrap_or(f64::NAN),
             max_error_m: inside.iter().filter_map(|p| err(p)).fold(0.0, f64::max),
+            end_chi2,
+            end_ellipse_95_m: (CHI2_2DOF_95 * largest.max(0.0)).sqrt(),
         }
     });
     Ok(OutageReport {
@@ -431,6 +446,16 @@ impl OutageReport {
                     l.max_error_m,
                     l.dead_reckoning_poses,
                     l.poses
+                );
+                let inside = match l.end_chi2 {
+                    Some(c) if c <= CHI2_2DOF_95 => "inside it",
+                    Some(_) => "OUTSIDE it",
+                    None => "not judged (singular covariance)",
+                };
+                let _ = writeln!(
+                    s,
+                    "  {:<34} 95 % ellipse of its own covariance at the end: {:.2} m semi-major, the error {inside}",
+                    "", l.end_ellipse_95_m
                 );
             }
             None => {
