@@ -77,7 +77,8 @@ fn main() -> Result<()> {
     // with the nominal circumferences), FUSION_MINSIG
     // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)),
     // FUSION_SCALE_SIGMA (1-sigma of the distance scale error of calibrated
-    // wheels, the filter's consider state).
+    // wheels, the filter's consider state), FUSION_WHEEL_DIFF_SIGMA (of their
+    // relative circumference error).
     let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
     let mut config = config;
     if let Some(v) = env("FUSION_DS") {
@@ -94,6 +95,9 @@ fn main() -> Result<()> {
     }
     if let Some(v) = env("FUSION_SCALE_SIGMA") {
         config.distance_scale_sigma = v;
+    }
+    if let Some(v) = env("FUSION_WHEEL_DIFF_SIGMA") {
+        config.wheel_difference_sigma = v;
     }
     let new_fusion = || match &estimate {
         Some(e) => Fusion::new(e.params, 0, config),

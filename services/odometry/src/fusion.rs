@@ -59,10 +59,14 @@ use interfaces::drive::VehicleParams;
 use interfaces::wire::PoseMode;
 use nalgebra::{SMatrix, SVector};
 
-/// State: x, y, yaw, residual gyro bias, distance scale error (consider).
-const N: usize = 5;
+/// State: x, y, yaw, residual gyro bias, and two consider states: the
+/// distance scale error and the rear wheels' relative circumference error.
+const N: usize = 6;
 /// Index of the distance scale error in the state.
 const SCALE: usize = 4;
+/// Index of the relative circumference error (right minus left, as a
+/// fraction) in the state: it turns the wheel-difference heading.
+const WHEEL_DIFF: usize = 5;
 type StateMat = SMatrix<f64, N, N>;
 type StateVec = SVector<f64, N>;
 
@@ -125,6 +129,17 @@ pub struct FusionConfig {
     pub distance_scale_sigma: f64,
     /// The same while the circumferences are the nominal guess.
     pub nominal_distance_scale_sigma: f64,
+    /// 1-sigma of the rear wheels' relative circumference error with a
+    /// calibration (right minus left, as a fraction of the circumference):
+    /// in wheel heading it turns the heading by that fraction of the
+    /// distance over the track, a yaw error that grows with the distance.
+    /// A consider state like the scale. The two WID calibrations of the same
+    /// car differ by 0.08 % in it; at 0.1 % the wheel-heading covariance
+    /// holds 31 of 34 outage ends on them in its 95 % ellipse (BENCHMARKS.md).
+    pub wheel_difference_sigma: f64,
+    /// The same while the circumferences are the nominal guess (both wheels
+    /// the same tyre-size value).
+    pub nominal_wheel_difference_sigma: f64,
     /// Wheel-difference heading noise, rad per metre driven (1-sigma).
     pub wheel_yaw_noise_rad_per_m: f64,
     /// Gyro angle random walk, rad/sqrt(s).
@@ -162,6 +177,8 @@ impl Default for FusionConfig {
             nominal_distance_noise_frac: 0.1,
             distance_scale_sigma: 0.005,
             nominal_distance_scale_sigma: 0.1,
+            wheel_difference_sigma: 0.001,
+            nominal_wheel_difference_sigma: 0.005,
             wheel_yaw_noise_rad_per_m: 0.003,
             gyro_noise_rad_per_sqrt_s: 0.002,
             gyro_bias_walk: 2e-5,
@@ -280,6 +297,9 @@ impl Measurement {
     }
 }
 
+// One per filter, on the stack and copied on purpose: boxing the running
+// state would put a heap allocation into every update.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum State {
     /// Waiting for a first fix (and a baseline to get the yaw).
@@ -416,9 +436,13 @@ impl Fusion {
         self.nominal = false;
         self.estimate_version = version;
         let bias_variance = self.fresh_bias_variance(self.last_wheels.map_or(0.0, |w| w.0));
-        let scale_variance = self.fresh_scale_variance();
+        let [scale_variance, difference_variance] = self.fresh_consider_variances();
         if let State::Running { x, p } = &mut self.state {
-            for (k, variance) in [(3, bias_variance), (SCALE, scale_variance)] {
+            for (k, variance) in [
+                (3, bias_variance),
+                (SCALE, scale_variance),
+                (WHEEL_DIFF, difference_variance),
+            ] {
                 x[k] = 0.0;
                 for i in 0..N {
                     p[(i, k)] = 0.0;
@@ -459,8 +483,10 @@ impl Fusion {
             p[(i, i)] = p[(i, i)].max(floor);
         }
         p[(3, 3)] = self.config.initial_gyro_bias_sigma.powi(2);
-        p[(SCALE, SCALE)] = self.fresh_scale_variance();
-        let x = StateVec::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0);
+        let [scale_variance, difference_variance] = self.fresh_consider_variances();
+        p[(SCALE, SCALE)] = scale_variance;
+        p[(WHEEL_DIFF, WHEEL_DIFF)] = difference_variance;
+        let x = StateVec::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, 0.0);
         self.reset();
         self.set_running(x, p, 0.0, "resume")
     }
@@ -685,14 +711,19 @@ impl Fusion {
         }
     }
 
-    /// Variance of the distance scale state: the nominal guess's, or a
-    /// calibration's.
-    fn fresh_scale_variance(&self) -> f64 {
-        if self.nominal {
-            self.config.nominal_distance_scale_sigma.powi(2)
+    /// Variances of the two consider states (distance scale, relative
+    /// circumference error): the nominal guess's, or a calibration's.
+    fn fresh_consider_variances(&self) -> [f64; 2] {
+        let c = &self.config;
+        let sigmas = if self.nominal {
+            [
+                c.nominal_distance_scale_sigma,
+                c.nominal_wheel_difference_sigma,
+            ]
         } else {
-            self.config.distance_scale_sigma.powi(2)
-        }
+            [c.distance_scale_sigma, c.wheel_difference_sigma]
+        };
+        sigmas.map(|s| s * s)
     }
 
     /// A standstill measured the gyro bias: update the residual bias with it,
@@ -725,6 +756,7 @@ impl Fusion {
     fn predict(&mut self, inc: &Increment) -> Result<(), FusionError> {
         let config = self.config;
         let scale = 1.0 + self.odometer.params().gyro_scale;
+        let track = self.odometer.params().two_wheel.track_width;
         match &mut self.state {
             State::Uninitialised { local, .. } => {
                 *local = crate::two_wheel::step(*local, inc.ds_m, inc.dyaw_rad, 0.0);
@@ -754,6 +786,14 @@ impl Fusion {
                 // A common scale error of both wheels scales their heading
                 // difference too; the gyro's heading does not see it.
                 f[(2, SCALE)] = if gyro { 0.0 } else { inc.dyaw_rad };
+                // A relative circumference error e turns the wheel-difference
+                // heading by e ds / track (and the course of this step by half).
+                if !gyro {
+                    let dyaw_de = ds / track;
+                    f[(0, WHEEL_DIFF)] = -ds * s * 0.5 * dyaw_de;
+                    f[(1, WHEEL_DIFF)] = ds * c * 0.5 * dyaw_de;
+                    f[(2, WHEEL_DIFF)] = dyaw_de;
+                }
                 // Noise of (ds, dyaw) mapped into the state, plus the bias walk.
                 let noise_frac = if self.nominal {
                     config.nominal_distance_noise_frac
@@ -885,14 +925,16 @@ impl Fusion {
             return;
         };
         let arm = self.lever_arm_world(yaw);
-        let x = StateVec::new(x_m - arm[0], y_m - arm[1], yaw, 0.0, 0.0);
+        let x = StateVec::new(x_m - arm[0], y_m - arm[1], yaw, 0.0, 0.0, 0.0);
+        let [scale_variance, difference_variance] = self.fresh_consider_variances();
         let sigma_pos = sigma_m + 0.5 * lever;
         let p = StateMat::from_diagonal(&StateVec::new(
             sigma_pos * sigma_pos,
             sigma_pos * sigma_pos,
             sigma_yaw * sigma_yaw,
             self.fresh_bias_variance(t_s),
-            self.fresh_scale_variance(),
+            scale_variance,
+            difference_variance,
         ));
         self.state = State::Running { x, p };
         self.stats.initialisations += 1;
@@ -1071,6 +1113,7 @@ fn joseph_update<const M: usize>(
 ) -> (StateVec, StateMat) {
     let mut gain = *gain;
     gain.row_mut(SCALE).fill(0.0);
+    gain.row_mut(WHEEL_DIFF).fill(0.0);
     let x = x + gain * nu;
     let i_kh = StateMat::identity() - gain * h;
     let p = i_kh * p * i_kh.transpose() + gain * r * gain.transpose();
@@ -1278,6 +1321,54 @@ mod tests {
     }
 
     #[test]
+    fn a_wheel_heading_through_an_outage_knows_its_wheels_may_differ() {
+        // The right wheel is 0.1 % larger than calibrated: in wheel heading
+        // the yaw turns by 0.001 ds / track, 0.2 rad over 300 m, and a 30 s
+        // outage ends 32 m off. That end is inside the 95 % ellipse of the
+        // pose's covariance with the relative circumference error considered
+        // (1-sigma 0.1 %; chi-square 3.0), far outside it with white heading
+        // noise alone (121).
+        let sim = simulate(60.0, &|t| t < 30.0, 0.0, 0.3);
+        let uneven: Vec<Input> = sim
+            .inputs
+            .iter()
+            .map(|i| match *i {
+                Input::Wheels {
+                    t_s,
+                    rl_rev,
+                    rr_rev,
+                } => Input::Wheels {
+                    t_s,
+                    rl_rev,
+                    rr_rev: rr_rev / 1.001,
+                },
+                other => other,
+            })
+            .collect();
+        let truth = sim.truth.last().expect("truth").1;
+        let chi2_at_end = |config: FusionConfig| {
+            let mut fusion = Fusion::new(params(), 0, config);
+            let end = *run(&mut fusion, &uneven).last().expect("poses");
+            assert_eq!(end.mode, PoseMode::DeadReckoning);
+            let e = [end.pose.x - truth.x, end.pose.y - truth.y];
+            let c = end.covariance;
+            let chi2 = crate::fused_outages::position_chi2(e, [c[0], c[1], c[3], c[4]]);
+            (e[0].hypot(e[1]), chi2.expect("invertible"))
+        };
+        let (err, chi2) = chi2_at_end(config(HeadingMode::WheelDifference));
+        assert!(err > 20.0, "{err} m");
+        assert!(
+            chi2 < crate::fused_outages::CHI2_2DOF_95,
+            "{chi2} ({err} m)"
+        );
+        let (_, white) = chi2_at_end(FusionConfig {
+            wheel_difference_sigma: 0.0,
+            ..config(HeadingMode::WheelDifference)
+        });
+        assert!(white > 10.0 * crate::fused_outages::CHI2_2DOF_95, "{white}");
+    }
+
+    #[test]
     fn dead_reckoning_mean_equals_the_dead_reckoner() {
         // Fixes only for the first 10 s; afterwards the filter mean must follow
         // exactly the dead-reckoner started from the same pose.
@@ -1449,7 +1540,7 @@ mod tests {
         let mut p = StateMat::identity() * 0.01;
         p[(3, 3)] = 1e-8;
         fusion.state = State::Running {
-            x: StateVec::new(0.0, 0.0, 0.0, 2e-4, 0.0),
+            x: StateVec::new(0.0, 0.0, 0.0, 2e-4, 0.0, 0.0),
             p,
         };
         // The standstill says 1e-3 +- 1e-4; the odometer moved its own bias to 5e-4.
