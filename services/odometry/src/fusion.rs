@@ -8,7 +8,11 @@
 //! covariance through the prediction, so the along-track uncertainty grows
 //! with the distance as a scale error's does. Estimating s from the fixes
 //! instead was tried and made the outages on wid-trial04 worse (its RTK
-//! fixes jump by decimetres; BENCHMARKS.md).
+//! fixes jump by decimetres; BENCHMARKS.md). A second consider state, the
+//! rear wheels' relative circumference error
+//! ([`FusionConfig::wheel_difference_sigma`]), does the same for the yaw in
+//! wheel heading, which it turns by that fraction of the distance over the
+//! track.
 //!
 //! - Prediction: the increments of the same [`Odometer`] that `odometry
 //!   evaluate` dead-reckons with (distance from the calibrated rear wheels,
