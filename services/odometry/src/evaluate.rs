@@ -69,11 +69,11 @@ pub const ARC_DEADBAND_M: f64 = 0.25;
 /// positions on straight stretches (median) is not used, rad.
 pub const TRUTH_YAW_OFFSET_LIMIT_RAD: f64 = 0.005;
 /// Length of a stretch of truth track for the yaw check, m.
-const YAW_CHECK_STRETCH_M: f64 = 10.0;
+pub const YAW_CHECK_STRETCH_M: f64 = 10.0;
 /// A stretch is straight when the truth yaw moves less than this along it, rad.
-const YAW_CHECK_STRAIGHT_RAD: f64 = 0.005;
+pub const YAW_CHECK_STRAIGHT_RAD: f64 = 0.005;
 /// Straight stretches needed before the truth yaw is judged.
-const YAW_CHECK_MIN_STRETCHES: usize = 5;
+pub const YAW_CHECK_MIN_STRETCHES: usize = 5;
 
 /// Settings of an evaluation.
 #[derive(Debug, Clone, Copy, PartialEq)]
