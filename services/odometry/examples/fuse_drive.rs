@@ -73,8 +73,7 @@ fn main() -> Result<()> {
         let (s, c) = pose.yaw.sin_cos();
         (pose.x + lx * c - ly * s, pose.y + lx * s + ly * c)
     };
-    // Tuning experiments: FUSION_DS (distance noise fraction; FUSION_DS_NOMINAL
-    // with the nominal circumferences), FUSION_MINSIG
+    // Tuning experiments: FUSION_DS (distance white noise fraction), FUSION_MINSIG
     // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)),
     // FUSION_SCALE_SIGMA (1-sigma of the distance scale error of calibrated
     // wheels, the filter's consider state), FUSION_WHEEL_DIFF_SIGMA (of their
@@ -83,9 +82,6 @@ fn main() -> Result<()> {
     let mut config = config;
     if let Some(v) = env("FUSION_DS") {
         config.distance_noise_frac = v;
-    }
-    if let Some(v) = env("FUSION_DS_NOMINAL") {
-        config.nominal_distance_noise_frac = v;
     }
     if let Some(v) = env("FUSION_MINSIG") {
         config.min_gnss_sigma_m = v;

@@ -114,14 +114,9 @@ pub struct FusionConfig {
     pub reset_after_rejected_s: f64,
     /// Measurements older than the filter by more than this are dropped, s.
     pub max_measurement_delay_s: f64,
-    /// Wheel distance noise, fraction of the distance (1-sigma), with
-    /// calibrated circumferences.
+    /// Wheel distance white noise, fraction of each step's distance
+    /// (1-sigma). The wheels' scale error is the consider state below.
     pub distance_noise_frac: f64,
-    /// The same while the circumferences are the nominal `vehicle.toml` guess
-    /// ([`Fusion::nominal`], until the first estimate arrives): a tyre-size
-    /// guess can be several percent off (the paper's 2.2 m for 2.04 m, 8 %),
-    /// and a filter that trusted it to 2 % would gate out good fixes.
-    pub nominal_distance_noise_frac: f64,
     /// 1-sigma of the scale error s of calibrated wheels (their distance is
     /// (1 + s) times what they say). On the WID drives the scale moves by
     /// about 0.5 % between stretches of a few hundred metres (tyre
@@ -131,7 +126,11 @@ pub struct FusionConfig {
     /// where the pose was decimetres off. It is a consider state: it widens
     /// the covariance but is never estimated (see the module docs).
     pub distance_scale_sigma: f64,
-    /// The same while the circumferences are the nominal guess.
+    /// The same while the circumferences are the nominal `vehicle.toml`
+    /// guess ([`Fusion::nominal`], until the first estimate arrives): a
+    /// tyre-size guess can be several percent off (the paper's 2.2 m for
+    /// 2.04 m, 8 %), and a filter that trusted it like a calibration would
+    /// gate out good fixes.
     pub nominal_distance_scale_sigma: f64,
     /// 1-sigma of the rear wheels' relative circumference error with a
     /// calibration (right minus left, as a fraction of the circumference):
@@ -178,7 +177,6 @@ impl Default for FusionConfig {
             reset_after_rejected_s: 10.0,
             max_measurement_delay_s: 0.2,
             distance_noise_frac: 0.02,
-            nominal_distance_noise_frac: 0.1,
             distance_scale_sigma: 0.005,
             nominal_distance_scale_sigma: 0.1,
             wheel_difference_sigma: 0.001,
@@ -363,8 +361,8 @@ impl Fusion {
     }
 
     /// A filter on the nominal `vehicle.toml` values (estimate version 0),
-    /// trusting the wheel distance only to
-    /// [`FusionConfig::nominal_distance_noise_frac`] until an estimate arrives.
+    /// trusting the wheels' scale only to
+    /// [`FusionConfig::nominal_distance_scale_sigma`] until an estimate arrives.
     pub fn nominal(vehicle: &VehicleParams, config: FusionConfig) -> Fusion {
         let mut fusion = Fusion::new(OdometryParams::nominal(vehicle), 0, config);
         fusion.nominal = true;
@@ -799,12 +797,7 @@ impl Fusion {
                     f[(2, WHEEL_DIFF)] = dyaw_de;
                 }
                 // Noise of (ds, dyaw) mapped into the state, plus the bias walk.
-                let noise_frac = if self.nominal {
-                    config.nominal_distance_noise_frac
-                } else {
-                    config.distance_noise_frac
-                };
-                let sigma_ds = noise_frac * ds.abs();
+                let sigma_ds = config.distance_noise_frac * ds.abs();
                 let sigma_dyaw = if gyro {
                     config.gyro_noise_rad_per_sqrt_s * dt.max(0.0).sqrt()
                 } else {
@@ -1629,11 +1622,12 @@ mod tests {
         let truth = sim.truth.last().unwrap().1;
         let err = (end.pose.x - truth.x).hypot(end.pose.y - truth.y);
         println!("nominal filter: {err:.2} m from the truth at the end");
-        // It lags the fixes along the track (no scale state), by about a
-        // metre here, but follows them.
+        // It lags the fixes along the track (its scale is considered, not
+        // estimated), by about a metre here, but follows them.
         assert!(err < 2.0, "{end:?}");
-        // A filter trusting the guess to 2 % drifts 0.8 m/s along the track,
-        // gates out most fixes and dead-reckons between position resets.
+        // A filter trusting the guess like a calibration (0.5 % scale) drifts
+        // 0.8 m/s along the track, gates out most fixes and dead-reckons
+        // between position resets.
         assert!(t.gnss_rejected > 100 && t.position_resets >= 1, "{t:?}");
         assert!(dead(&trusting_poses) > 1000);
     }
