@@ -405,6 +405,13 @@ impl Fusion {
         self.config.lever_arm_m
     }
 
+    /// The antenna position the filter takes from an estimate or a kept
+    /// pose that brings `candidate`: the candidate, unless the antenna is
+    /// measured ([`FusionConfig::lever_arm_from_estimates`] false).
+    pub fn antenna_to_take(&self, candidate: Option<[f64; 2]>) -> Option<[f64; 2]> {
+        candidate.filter(|_| self.config.lever_arm_from_estimates)
+    }
+
     /// Use a new GNSS antenna position. The filter's belief about where the
     /// antenna is stays as it was, so the rear-axle position moves by the
     /// change of the arm (rotated by the yaw): a pose fused with the antenna
@@ -585,10 +592,7 @@ impl Fusion {
                 version, estimate, ..
             } => {
                 // The antenna first: a bad one leaves the filter as it was.
-                if let (true, Some(antenna)) = (
-                    self.config.lever_arm_from_estimates,
-                    estimate.fusable_antenna(),
-                ) {
+                if let Some(antenna) = self.antenna_to_take(estimate.fusable_antenna()) {
                     self.set_lever_arm(antenna)?;
                 }
                 self.set_estimate(estimate.params, version);
@@ -1277,6 +1281,26 @@ mod tests {
         assert_eq!(s.gnss_rejected, 0, "{s:?}");
     }
 
+    /// `inputs` with the rear-left and rear-right revolutions divided by
+    /// `rl` and `rr`: wheels larger than the parameters say by those factors.
+    fn with_larger_wheels(inputs: &[Input], rl: f64, rr: f64) -> Vec<Input> {
+        inputs
+            .iter()
+            .map(|i| match *i {
+                Input::Wheels {
+                    t_s,
+                    rl_rev,
+                    rr_rev,
+                } => Input::Wheels {
+                    t_s,
+                    rl_rev: rl_rev / rl,
+                    rr_rev: rr_rev / rr,
+                },
+                other => other,
+            })
+            .collect()
+    }
+
     #[test]
     fn after_an_outage_on_wheels_half_a_percent_off_the_first_fixes_are_taken() {
         // The calibration says 2.0 m; the wheels are 2.01 m (0.5 %, a scale
@@ -1286,22 +1310,7 @@ mod tests {
         // 0.1 m there and gated out every fix for 10 s (52 fixes; 2.8 m off
         // at 65 s) until it reset its position.
         let sim = simulate(80.0, &|t| !(30.0..60.0).contains(&t), 0.0, 0.3);
-        let long: Vec<Input> = sim
-            .inputs
-            .iter()
-            .map(|i| match *i {
-                Input::Wheels {
-                    t_s,
-                    rl_rev,
-                    rr_rev,
-                } => Input::Wheels {
-                    t_s,
-                    rl_rev: rl_rev / 1.005,
-                    rr_rev: rr_rev / 1.005,
-                },
-                other => other,
-            })
-            .collect();
+        let long = with_larger_wheels(&sim.inputs, 1.005, 1.005);
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
         let poses = run(&mut fusion, &long);
         let at = |t: f64| ((t / 0.01).round()) as usize;
@@ -1326,22 +1335,7 @@ mod tests {
         // (1-sigma 0.1 %; chi-square 3.0), far outside it with white heading
         // noise alone (121).
         let sim = simulate(60.0, &|t| t < 30.0, 0.0, 0.3);
-        let uneven: Vec<Input> = sim
-            .inputs
-            .iter()
-            .map(|i| match *i {
-                Input::Wheels {
-                    t_s,
-                    rl_rev,
-                    rr_rev,
-                } => Input::Wheels {
-                    t_s,
-                    rl_rev,
-                    rr_rev: rr_rev / 1.001,
-                },
-                other => other,
-            })
-            .collect();
+        let uneven = with_larger_wheels(&sim.inputs, 1.0, 1.001);
         let truth = sim.truth.last().expect("truth").1;
         let chi2_at_end = |config: FusionConfig| {
             let mut fusion = Fusion::new(params(), 0, config);

@@ -521,10 +521,7 @@ fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
 /// Resume from `saved` with the antenna it was kept with (the pose is the
 /// rear axle's for that antenna), unless the antenna is measured.
 fn resume(fusion: &mut Fusion, saved: &SavedPose) -> Result<(), FusionError> {
-    if let (true, Some(antenna)) = (
-        fusion.config().lever_arm_from_estimates,
-        saved.gnss_antenna_m,
-    ) {
+    if let Some(antenna) = fusion.antenna_to_take(saved.gnss_antenna_m) {
         fusion.set_lever_arm(antenna)?;
     }
     fusion.resume(saved.pose(), &saved.covariance)
@@ -786,8 +783,8 @@ pub fn serve(
                     describe_switch(&old, &estimate.params)
                 );
                 summary.estimate_switches += 1;
-                let (from, to) = (fusion.lever_arm(), estimate.fusable_antenna());
-                if let (true, Some(to)) = (config.fusion.lever_arm_from_estimates, to) {
+                let from = fusion.lever_arm();
+                if let Some(to) = fusion.antenna_to_take(estimate.fusable_antenna()) {
                     if to != from {
                         tracing::info!(
                             "odometry: GNSS antenna ({:+.3}, {:+.3}) -> ({:+.3}, {:+.3}) m from estimate v{version}: \
@@ -1172,25 +1169,21 @@ mod tests {
         let mut fusion = Fusion::nominal(&vehicle, FusionConfig::default());
         resume(&mut fusion, &saved).unwrap();
         assert_eq!(fusion.lever_arm(), [0.5, -0.3]);
-        let before = fusion
-            .process(&Input::Wheels {
-                t_s: 12.01,
-                rl_rev: 0.0,
-                rr_rev: 0.0,
-            })
-            .unwrap()
-            .unwrap();
-        assert_eq!((before.pose.x, before.pose.y), (10.0, -2.0));
+        // The pose at a standing wheel sample at `t_s`.
+        let standing = |fusion: &mut Fusion, t_s: f64| {
+            let pose = fusion
+                .process(&Input::Wheels {
+                    t_s,
+                    rl_rev: 0.0,
+                    rr_rev: 0.0,
+                })
+                .unwrap()
+                .unwrap();
+            (pose.pose.x, pose.pose.y)
+        };
+        assert_eq!(standing(&mut fusion, 12.01), (10.0, -2.0));
         fusion.set_lever_arm([0.5, -0.3]).unwrap();
-        let after = fusion
-            .process(&Input::Wheels {
-                t_s: 12.02,
-                rl_rev: 0.0,
-                rr_rev: 0.0,
-            })
-            .unwrap()
-            .unwrap();
-        assert_eq!((after.pose.x, after.pose.y), (10.0, -2.0));
+        assert_eq!(standing(&mut fusion, 12.02), (10.0, -2.0));
         // A measured antenna stays.
         let measured = FusionConfig {
             lever_arm_m: [1.0, 0.0],

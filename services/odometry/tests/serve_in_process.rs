@@ -92,6 +92,21 @@ fn spawn_service(
     (shutdown, service)
 }
 
+/// Publish the wheel sample at `t` of a car driving straight east at `V`
+/// from revolution 0; returns the revolutions of each rear wheel.
+fn publish_east_wheels(wheels: &mut TopicPublisher<WheelRotations>, t: f64) -> f64 {
+    let rev = V * t / C;
+    wheels
+        .publish(WheelRotations {
+            header: Header::from_seconds(t, 0),
+            rl_rev: rev,
+            rr_rev: rev,
+            ..WheelRotations::default()
+        })
+        .expect("publish wheels");
+    rev
+}
+
 /// The test's sensor publishers.
 struct Sensors {
     wheels: TopicPublisher<WheelRotations>,
@@ -124,15 +139,7 @@ impl Sensors {
                 })
                 .expect("publish gnss");
         }
-        let rev = V * t / C;
-        self.wheels
-            .publish(WheelRotations {
-                header: Header::from_seconds(t, 0),
-                rl_rev: rev,
-                rr_rev: rev,
-                ..WheelRotations::default()
-            })
-            .expect("publish wheels");
+        publish_east_wheels(&mut self.wheels, t);
     }
 
     /// Open them, wait for the service's subscribers, announce, and let
@@ -279,15 +286,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 sigma_rad: Some(0.03),
             });
         }
-        let rev = V * t / C;
-        wheels
-            .publish(WheelRotations {
-                header: Header::from_seconds(t, 0),
-                rl_rev: rev,
-                rr_rev: rev,
-                ..WheelRotations::default()
-            })
-            .expect("publish wheels");
+        let rev = publish_east_wheels(&mut wheels, t);
         sent.push(Input::Wheels {
             t_s: Header::from_seconds(t, 0).t_s(),
             rl_rev: rev,
