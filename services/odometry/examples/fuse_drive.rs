@@ -65,13 +65,12 @@ fn main() -> Result<()> {
     };
     // The point of a pose that the truth describes.
     let scored = |fusion: &Fusion, pose: &odometry::two_wheel::Pose2| {
-        let [lx, ly] = if at_antenna {
+        let arm = if at_antenna {
             fusion.lever_arm()
         } else {
             [0.0, 0.0]
         };
-        let (s, c) = pose.yaw.sin_cos();
-        (pose.x + lx * c - ly * s, pose.y + lx * s + ly * c)
+        pose.point_at(arm)
     };
     // Tuning experiments: FUSION_DS (distance white noise fraction), FUSION_MINSIG
     // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)),
@@ -139,7 +138,7 @@ fn main() -> Result<()> {
             }
             if let Some(r) = truth.get(ti) {
                 if (r.t_s - pose.t_s).abs() <= 0.005 && pose.mode != PoseMode::NoFix {
-                    let (x, y) = scored(&fusion, &pose.pose);
+                    let [x, y] = scored(&fusion, &pose.pose);
                     errors.push((pose.mode, (x - r.x_m).hypot(y - r.y_m)));
                 }
             }

@@ -717,15 +717,6 @@ fn dead_reckon_span(
     })
 }
 
-/// Where the truth point is for a rear-axle pose.
-fn truth_point(pose: &Pose2, arm: [f64; 2]) -> [f64; 2] {
-    let (s, c) = pose.yaw.sin_cos();
-    [
-        pose.x + arm[0] * c - arm[1] * s,
-        pose.y + arm[0] * s + arm[1] * c,
-    ]
-}
-
 /// Position of a dead-reckoned track at `t_s`, interpolated linearly.
 fn track_position_at(track: &[(f64, Pose2)], t_s: f64, arm: [f64; 2]) -> Option<[f64; 2]> {
     let n = track.len();
@@ -733,11 +724,11 @@ fn track_position_at(track: &[(f64, Pose2)], t_s: f64, arm: [f64; 2]) -> Option<
         return None;
     }
     if n == 1 {
-        return Some(truth_point(&track[0].1, arm));
+        return Some(track[0].1.point_at(arm));
     }
     let i = track.partition_point(|(t, _)| *t <= t_s).clamp(1, n - 1) - 1;
     let ((ta, a), (tb, b)) = (track[i], track[i + 1]);
-    let (a, b) = (truth_point(&a, arm), truth_point(&b, arm));
+    let (a, b) = (a.point_at(arm), b.point_at(arm));
     let f = if tb > ta { (t_s - ta) / (tb - ta) } else { 0.0 };
     Some([a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1])])
 }
@@ -822,7 +813,7 @@ fn aligned_start(
         span.track.last()?
     };
     debug_assert!(*t_end == t0);
-    let d0 = truth_point(end, arm);
+    let d0 = end.point_at(arm);
     let (s, c) = rotation.sin_cos();
     let (dx, dy) = (d0[0] - dm[0], d0[1] - dm[1]);
     let position = [gm[0] + c * dx - s * dy, gm[1] + s * dx + c * dy];
@@ -910,14 +901,12 @@ fn run_outage(
         )
     };
     // The rear-axle pose whose truth point is at the truth.
-    let arm = truth_point(
-        &Pose2 {
-            x: 0.0,
-            y: 0.0,
-            yaw,
-        },
-        config.truth_point_m,
-    );
+    let arm = Pose2 {
+        x: 0.0,
+        y: 0.0,
+        yaw,
+    }
+    .point_at(config.truth_point_m);
     let pose0 = Pose2 {
         x: start[0] - arm[0],
         y: start[1] - arm[1],
@@ -935,7 +924,7 @@ fn run_outage(
         .last()
         .map(|(_, p)| *p)
         .ok_or("empty dead-reckoning")?;
-    let end_point = truth_point(&pose, config.truth_point_m);
+    let end_point = pose.point_at(config.truth_point_m);
     let mut track = Vec::new();
     if config.keep_tracks {
         let first = truth.rows.partition_point(|r| r.t_s < t0);

@@ -145,7 +145,7 @@ pub const CHI2_2DOF_95: f64 = 5.991;
 fn scored_point(pose: &FusedPose, arm: [f64; 2]) -> ([f64; 2], [f64; 4]) {
     let [lx, ly] = arm;
     let (s, c) = pose.pose.yaw.sin_cos();
-    let point = [pose.pose.x + lx * c - ly * s, pose.pose.y + lx * s + ly * c];
+    let point = pose.pose.point_at(arm);
     // d(point)/d(x, y, yaw), rows x and y.
     let a = [[1.0, 0.0, -lx * s - ly * c], [0.0, 1.0, lx * c - ly * s]];
     let p = &pose.covariance;

@@ -25,6 +25,18 @@ pub struct Pose2 {
     pub yaw: f64,
 }
 
+impl Pose2 {
+    /// Where the body point `arm` (x forward, y left from the rear-axle
+    /// centre, m) is in the world: a GNSS antenna, a truth point.
+    pub fn point_at(&self, arm: [f64; 2]) -> [f64; 2] {
+        let (s, c) = self.yaw.sin_cos();
+        [
+            self.x + arm[0] * c - arm[1] * s,
+            self.y + arm[0] * s + arm[1] * c,
+        ]
+    }
+}
+
 /// Parameters of the 2W model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TwoWheelParams {
