@@ -10,6 +10,7 @@
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
 //! - [`fused_outages`]: GNSS outages through the filter (the served pose).
 //! - [`pose_state`]: the last pose, kept across power cycles.
+//! - [`rewind`]: samples that arrive late, taken in order by going back.
 //! - [`serve`]: the iceoryx2 pose service.
 
 pub mod dead_reckoning;
@@ -19,5 +20,6 @@ pub mod fused_outages;
 pub mod fusion;
 pub mod inputs;
 pub mod pose_state;
+pub mod rewind;
 pub mod serve;
 pub mod two_wheel;

@@ -60,9 +60,10 @@
 
 use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
-use crate::fusion::{FusedPose, Fusion, FusionConfig, FusionError, ProcessError};
+use crate::fusion::{FusedPose, Fusion, FusionConfig, FusionError, FusionStats, ProcessError};
 use crate::inputs::{Input, Sequencer};
 use crate::pose_state::{self, SavedPose};
+use crate::rewind::{RewindConfig, RewindStats, RewindingFusion};
 use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
@@ -135,6 +136,12 @@ pub struct ServeArgs {
     /// Without a wheel sample for this long (wall clock), the inputs are stale, s.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub stale_after: f64,
+    /// A sample that arrives up to this much drive time after newer ones (a
+    /// GNSS receiver's delivery latency, a separate publisher) is taken in
+    /// its place: the filter goes back and processes again, s (0 = apply
+    /// late samples when they come).
+    #[arg(long, value_name = "S", default_value_t = RewindConfig::default().window_s)]
+    pub rewind_window: f64,
     /// Log a status line every this many seconds of drive time (0 = never).
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub status_every: f64,
@@ -173,6 +180,8 @@ pub struct ServeConfig {
     pub bus_estimates: bool,
     /// Filter settings.
     pub fusion: FusionConfig,
+    /// How far back late samples are taken in order.
+    pub rewind: RewindConfig,
     /// Wall-clock time without wheel samples after which the inputs are stale.
     pub stale_after: Duration,
     /// Drive-time period of the status line, s (0 = none).
@@ -199,6 +208,15 @@ impl ServeConfig {
                 )))
             }
         };
+        let non_negative = |name: &str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(v)
+            } else {
+                Err(ServeError::Config(format!(
+                    "{name} {v} must be zero or a positive number of seconds"
+                )))
+            }
+        };
         let mut settings = BusSettings::from_env();
         if let Some(p) = &args.iox_prefix {
             settings.prefix = Some(p.clone());
@@ -220,6 +238,10 @@ impl ServeConfig {
             initial,
             bus_estimates: !args.no_bus_estimate,
             fusion,
+            rewind: RewindConfig {
+                window_s: non_negative("--rewind-window", args.rewind_window)?,
+                ..RewindConfig::default()
+            },
             stale_after: Duration::from_secs_f64(positive("--stale-after", args.stale_after)?),
             status_every_s: args.status_every.max(0.0),
             exit_on_end: args.exit_on_end,
@@ -344,6 +366,10 @@ pub struct ServeSummary {
     pub skipped: u64,
     /// Version of the estimate in use at the end.
     pub estimate_version: u64,
+    /// What taking late samples in order did ([`crate::rewind`]).
+    pub rewind: RewindStats,
+    /// The filter's counters at the end.
+    pub fusion: FusionStats,
 }
 
 /// `odometry serve`: read the files, join the graph, run until stopped.
@@ -684,6 +710,9 @@ pub fn serve(
     if let Some(path) = &config.pose_state {
         resume_from_kept_pose(&mut fusion, path);
     }
+    // The filter, behind the log that lets it take late samples in order;
+    // `fusion()` to read it.
+    let mut filter = RewindingFusion::new(fusion, config.rewind);
     let inputs = Inputs::open(bus)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
@@ -699,7 +728,7 @@ pub fn serve(
             "nominal"
         },
     );
-    let [ax, ay] = fusion.lever_arm();
+    let [ax, ay] = filter.fusion().lever_arm();
     let antenna_source = match (
         config.fusion.lever_arm_from_estimates,
         config.initial.as_ref().and_then(Estimate::fusable_antenna),
@@ -773,8 +802,8 @@ pub fn serve(
                 version, estimate, ..
             } = input
             {
-                let old = *fusion.params();
-                let old_version = fusion.estimate_version();
+                let old = *filter.fusion().params();
+                let old_version = filter.fusion().estimate_version();
                 if *version == old_version && estimate.params == old {
                     continue; // the same estimate again (history on a reconnect)
                 }
@@ -783,8 +812,8 @@ pub fn serve(
                     describe_switch(&old, &estimate.params)
                 );
                 summary.estimate_switches += 1;
-                let from = fusion.lever_arm();
-                if let Some(to) = fusion.antenna_to_take(estimate.fusable_antenna()) {
+                let from = filter.fusion().lever_arm();
+                if let Some(to) = filter.fusion().antenna_to_take(estimate.fusable_antenna()) {
                     if to != from {
                         tracing::info!(
                             "odometry: GNSS antenna ({:+.3}, {:+.3}) -> ({:+.3}, {:+.3}) m from estimate v{version}: \
@@ -806,7 +835,7 @@ pub fn serve(
                          restarted; the filter starts over (NoFix until GNSS)",
                         STREAM_NAMES[k]
                     );
-                    fusion.reset();
+                    filter.fusion_mut().reset();
                     latest_t = [None; 4];
                 }
                 latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
@@ -819,7 +848,7 @@ pub fn serve(
                 last_wheel_wall = Some(Instant::now());
                 summary.wheel_samples += 1;
             }
-            match fusion.process(input) {
+            match filter.process(input) {
                 Ok(Some(pose)) => {
                     let wire = to_wire(&pose);
                     if config.latency_trace.is_some() {
@@ -828,20 +857,20 @@ pub fn serve(
                     poses.publish(wire)?;
                     summary.poses += 1;
                     if config.pose_state.is_some() {
-                        kept.update(&pose, fusion.lever_arm());
+                        kept.update(&pose, filter.fusion().lever_arm());
                     }
                     // Logged after the pose is out: a log line is not worth its latency.
                     if pose.mode != mode {
                         log_mode_change(mode, &pose);
                         mode = pose.mode;
                     }
-                    let standstills = fusion.stats().gyro_bias_standstills;
+                    let standstills = filter.fusion().stats().gyro_bias_standstills;
                     if standstills != bias_standstills {
                         bias_standstills = standstills;
                         tracing::info!(
                             "odometry: t = {:.2} s: gyro bias measured at standstill; in use now {:.3e} rad/s",
                             pose.t_s,
-                            fusion.gyro_bias()
+                            filter.fusion().gyro_bias()
                         );
                     }
                     last_wheel_t = Some(pose.t_s);
@@ -849,7 +878,7 @@ pub fn serve(
                         let due = next_status_t.get_or_insert(pose.t_s);
                         if pose.t_s >= *due {
                             *due = pose.t_s + config.status_every_s;
-                            log_status(&pose, &fusion, &inputs);
+                            log_status(&pose, filter.fusion(), &inputs);
                         }
                     }
                 }
@@ -907,7 +936,7 @@ pub fn serve(
                     quiet.as_secs_f64(),
                     last_wheel_t.unwrap_or(f64::NAN)
                 );
-                fusion.mark_stale();
+                filter.fusion_mut().mark_stale();
                 mode = PoseMode::NoFix;
                 if let Some(path) = &config.pose_state {
                     kept.write(path);
@@ -918,7 +947,7 @@ pub fn serve(
                         pose: Default::default(),
                         covariance: [0.0; 9],
                         mode: PoseMode::NoFix,
-                        estimate_version: fusion.estimate_version(),
+                        estimate_version: filter.fusion().estimate_version(),
                     };
                     poses.publish(to_wire(&marker))?;
                     summary.poses += 1;
@@ -937,17 +966,20 @@ pub fn serve(
         }
     }
     summary.lost = inputs.lost();
-    summary.estimate_version = fusion.estimate_version();
+    summary.estimate_version = filter.fusion().estimate_version();
     if let Some(path) = &config.latency_trace {
         write_latency_trace(path, &trace)?;
     }
     if let Some(path) = &config.pose_state {
         kept.write(path);
     }
-    let stats = fusion.stats();
+    let stats = filter.fusion().stats();
+    summary.fusion = stats;
+    summary.rewind = filter.stats();
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
-         GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s))",
+         GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \
+         {} late sample(s) taken in order ({} inputs processed again), {} later than the {} s window",
         summary.wheel_samples,
         summary.poses,
         summary.estimate_switches,
@@ -956,8 +988,12 @@ pub fn serve(
         stats.gnss_rejected,
         stats.heading_accepted,
         stats.heading_rejected,
-        fusion.gyro_bias(),
-        stats.gyro_bias_standstills
+        filter.fusion().gyro_bias(),
+        stats.gyro_bias_standstills,
+        summary.rewind.rewinds,
+        summary.rewind.reprocessed,
+        summary.rewind.beyond_window,
+        config.rewind.window_s,
     );
     Ok(summary)
 }

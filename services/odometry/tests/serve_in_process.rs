@@ -11,6 +11,7 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::Input;
+use odometry::rewind::RewindConfig;
 use odometry::serve::{read_latency_trace, serve, ServeConfig, ServeError, ServeSummary, Shutdown};
 use odometry::two_wheel::TwoWheelParams;
 use std::time::{Duration, Instant};
@@ -66,6 +67,7 @@ fn base_config(settings: &BusSettings) -> ServeConfig {
         initial: None,
         bus_estimates: true,
         fusion: fusion_config(),
+        rewind: RewindConfig::default(),
         stale_after: Duration::from_secs(5),
         status_every_s: 0.0,
         exit_on_end: false,
@@ -565,4 +567,149 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
     drop((sensors, estimates, poses_sub));
     drop(bus);
     settings.remove_leftovers();
+}
+
+/// How late the fixes of [`late_fixes_east`] are delivered, in instants of 0.01 s.
+const FIX_LATE: usize = 15;
+
+/// The service in its own prefix with `rewind_window_s`, fed 10 s straight
+/// east at 10 m/s whose fixes (5 Hz, a few cm of noise) come from their own
+/// publisher 0.15 s late, as a GNSS receiver delivers them. Returns the
+/// poses, the summary and the samples in processing order.
+fn late_fixes_east(
+    root: &std::path::Path,
+    rewind_window_s: f64,
+) -> (Vec<Pose>, ServeSummary, Vec<Input>) {
+    let settings = BusSettings::isolated("odolate", root);
+    let mut config = base_config(&settings);
+    config.rewind.window_s = rewind_window_s;
+    let (shutdown, service) = spawn_service(config);
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let mut sensors = Sensors::open_when_subscribed(&bus);
+    let n = 1000usize;
+    let fix = |j: usize| {
+        let t = Header::from_seconds(j as f64 * 0.01, 0).t_s();
+        let k = j as f64;
+        (t, V * t + 0.03 * (1.7 * k).sin(), 0.03 * (2.3 * k).cos())
+    };
+    let mut sent = Vec::new();
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        let t = i as f64 * 0.01;
+        let t_s = Header::from_seconds(t, 0).t_s();
+        sensors
+            .imu
+            .publish(Imu {
+                header: Header::from_seconds(t, 0),
+                ..Imu::default()
+            })
+            .expect("publish imu");
+        sent.push(Input::Imu { t_s, gz_rad_s: 0.0 });
+        // Processing order: the fix of this instant before its wheels (if
+        // it is delivered before the drive ends).
+        if i.is_multiple_of(20) && i > 0 && i + FIX_LATE <= n {
+            let (t_s, x_m, y_m) = fix(i);
+            sent.push(Input::Gnss {
+                t_s,
+                x_m,
+                y_m,
+                sigma_m: Some(0.05),
+            });
+        }
+        // Delivery: the fix of FIX_LATE instants ago.
+        if let Some(j) = i.checked_sub(FIX_LATE) {
+            if j.is_multiple_of(20) && j > 0 {
+                let (_, x_m, y_m) = fix(j);
+                sensors
+                    .gnss
+                    .publish(GnssFix {
+                        header: Header::from_seconds(j as f64 * 0.01, 0),
+                        x_m,
+                        y_m,
+                        sigma_m: 0.05,
+                        fix: 1,
+                        _pad: [0; 7],
+                    })
+                    .expect("publish gnss");
+            }
+        }
+        let rev = publish_east_wheels(&mut sensors.wheels, t);
+        sent.push(Input::Wheels {
+            t_s,
+            rl_rev: rev,
+            rr_rev: rev,
+        });
+        // In step with the service: each wheel sample's pose is out before
+        // the next instant, so a late fix always comes after the poses of
+        // its time (batched in one wakeup, the service would sort it in).
+        collect(&poses_sub, &mut poses, i + 1);
+    }
+    shutdown.request();
+    let summary = service
+        .join()
+        .expect("service thread")
+        .expect("service result");
+    drop((sensors, poses_sub));
+    drop(bus);
+    settings.remove_leftovers();
+    (poses, summary, sent)
+}
+
+#[test]
+fn fixes_delivered_late_by_their_own_publisher_are_taken_in_their_place() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let (poses, summary, sent) = late_fixes_east(root.path(), 1.0);
+    let mut offline = Fusion::nominal(&vehicle(), fusion_config());
+    let expected: Vec<_> = sent
+        .iter()
+        .filter_map(|i| offline.process(i).expect("offline input"))
+        .collect();
+    assert_eq!(poses.len(), expected.len());
+    // A pose is complete when no fix of the last 0.15 s was still on its way.
+    let complete = |i: usize| !((i.saturating_sub(FIX_LATE - 1))..=i).any(|j| j % 20 == 0 && j > 0);
+    let (mut same_complete, mut differing_incomplete) = (0, 0);
+    for (i, (p, e)) in poses.iter().zip(&expected).enumerate() {
+        let same = p.x_m == e.pose.x
+            && p.y_m == e.pose.y
+            && p.yaw_rad == e.pose.yaw
+            && p.covariance == e.covariance
+            && p.mode == e.mode as u8;
+        if complete(i) {
+            assert!(same, "pose {i}: service {p:?} vs in order {e:?}");
+            same_complete += 1;
+        } else if !same {
+            differing_incomplete += 1;
+        }
+    }
+    assert!(same_complete > 200, "{same_complete}");
+    assert!(differing_incomplete > 100, "{differing_incomplete}");
+    // Every fix went back once (49: the last one would come after the end);
+    // none was gated out.
+    assert_eq!(summary.rewind.rewinds, 49);
+    assert_eq!(summary.rewind.beyond_window, 0);
+    assert_eq!(summary.fusion.gnss_rejected, 0);
+    assert_eq!(summary.fusion, offline.stats());
+
+    // The same with late samples applied when they come: each fix is 1.5 m
+    // behind the car.
+    let (plain, plain_summary, _) = late_fixes_east(root.path(), 0.0);
+    let along = |poses: &[Pose]| {
+        let mut e: Vec<f64> = poses[300..]
+            .iter()
+            .map(|p| (p.x_m - V * p.header.t_s()).abs())
+            .collect();
+        e.sort_by(f64::total_cmp);
+        e[e.len() / 2]
+    };
+    let (went_back, applied_late) = (along(&poses), along(&plain));
+    eprintln!(
+        "median along-track error: {went_back:.3} m going back, {applied_late:.3} m applied late \
+         ({} of 49 gated out)",
+        plain_summary.fusion.gnss_rejected
+    );
+    assert!(went_back < 0.05, "{went_back:.3} m");
+    assert!(applied_late > 0.3, "{applied_late:.3} m");
+    assert_eq!(plain_summary.rewind.rewinds, 0);
 }
