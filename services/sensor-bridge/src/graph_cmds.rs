@@ -9,7 +9,7 @@ use clap::Args;
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
-use sensor_bridge::replay::{publish_drive, Pacing, ReplayOptions};
+use sensor_bridge::replay::{publish_drive, DeliveryLatency, Pacing, ReplayOptions};
 use sensor_bridge::{read_drive, write_drive, DriveError};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -47,6 +47,10 @@ pub struct ReplayArgs {
     /// Log progress every SECONDS of drive time (0: never).
     #[arg(long, value_name = "SECONDS", default_value_t = 30.0)]
     pub progress: f64,
+    /// Publish streams this long after their time stamps, as sensors whose
+    /// drivers deliver late: `gnss=0.15[,imu=0.01,heading=..,wheels=..]`, s.
+    #[arg(long, value_name = "STREAM=S,...")]
+    pub deliver_late: Option<String>,
 }
 
 /// Arguments of `sensor-bridge record`.
@@ -93,6 +97,13 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
         settle: positive_seconds("settle", args.settle)?,
         linger: positive_seconds("linger", args.linger)?,
         progress_every_s: args.progress,
+        latency: args
+            .deliver_late
+            .as_deref()
+            .map(DeliveryLatency::parse)
+            .transpose()
+            .map_err(|e| anyhow::anyhow!("--deliver-late {e}"))?
+            .unwrap_or_default(),
         ..defaults
     };
     publish_drive(&loaded.drive, &opts, "sensor-bridge")

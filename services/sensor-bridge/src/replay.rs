@@ -8,7 +8,9 @@
 //!
 //! Order: by time; at equal times IMU, GNSS, heading, then wheels, so a wheel
 //! sample comes after every other sample of its instant (the order the
-//! odometry processes its inputs in).
+//! odometry processes its inputs in). With a [`DeliveryLatency`], a stream is
+//! published that much after its time stamps, as a sensor whose driver
+//! delivers late (a GNSS receiver: 50-200 ms): by delivery time, the same ties.
 
 use interfaces::bus::{self, Bus, BusError, TopicPublisher};
 use interfaces::drive::{Drive, WheelConversionError};
@@ -43,6 +45,68 @@ pub struct ReplayOptions {
     pub linger: Duration,
     /// Log progress every this many seconds of drive time (0 = never).
     pub progress_every_s: f64,
+    /// Publish each stream this long after its time stamps.
+    pub latency: DeliveryLatency,
+}
+
+/// How long after its time stamp each stream's samples are delivered, s
+/// (`--deliver-late gnss=0.15,imu=0.01`). The time stamps stay as recorded.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct DeliveryLatency {
+    /// IMU samples.
+    pub imu_s: f64,
+    /// GNSS fixes.
+    pub gnss_s: f64,
+    /// Headings.
+    pub heading_s: f64,
+    /// Wheel samples.
+    pub wheels_s: f64,
+}
+
+impl DeliveryLatency {
+    /// Parse `STREAM=SECONDS[,STREAM=SECONDS...]` (streams imu, gnss,
+    /// heading, wheels; seconds zero or more).
+    pub fn parse(text: &str) -> Result<DeliveryLatency, String> {
+        let mut out = DeliveryLatency::default();
+        for part in text.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            let (name, value) = part
+                .split_once('=')
+                .ok_or_else(|| format!("`{part}`: expected STREAM=SECONDS"))?;
+            let seconds: f64 = value
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{part}`: `{value}` is not a number of seconds"))?;
+            if !(seconds.is_finite() && seconds >= 0.0) {
+                return Err(format!(
+                    "`{part}`: the latency must be zero or more seconds"
+                ));
+            }
+            let slot = match name.trim() {
+                "imu" => &mut out.imu_s,
+                "gnss" => &mut out.gnss_s,
+                "heading" => &mut out.heading_s,
+                "wheels" => &mut out.wheels_s,
+                other => {
+                    return Err(format!(
+                        "`{part}`: unknown stream `{other}` (imu, gnss, heading, wheels)"
+                    ))
+                }
+            };
+            *slot = seconds;
+        }
+        Ok(out)
+    }
+
+    /// The latency of `stream`, ns.
+    pub fn of_ns(&self, stream: Stream) -> i64 {
+        let s = match stream {
+            Stream::Imu => self.imu_s,
+            Stream::Gnss => self.gnss_s,
+            Stream::Heading => self.heading_s,
+            Stream::Wheels => self.wheels_s,
+        };
+        interfaces::wire::seconds_to_ns(s)
+    }
 }
 
 impl Default for ReplayOptions {
@@ -54,6 +118,7 @@ impl Default for ReplayOptions {
             settle: Duration::from_millis(300),
             linger: Duration::from_secs(1),
             progress_every_s: 30.0,
+            latency: DeliveryLatency::default(),
         }
     }
 }
@@ -117,9 +182,15 @@ pub enum Stream {
 }
 
 impl WireDrive {
-    /// Every sample as `(stream, index)` in publishing order: by time, ties
-    /// broken IMU, GNSS, heading, wheels.
+    /// Every sample as `(stream, index)` in time order, ties broken IMU,
+    /// GNSS, heading, wheels: the publishing order without latencies.
     pub fn merged(&self) -> Vec<(Stream, usize)> {
+        self.delivery_order(&DeliveryLatency::default())
+    }
+
+    /// Every sample as `(stream, index)` in publishing order: by time plus
+    /// its stream's `latency`, ties broken IMU, GNSS, heading, wheels.
+    pub fn delivery_order(&self, latency: &DeliveryLatency) -> Vec<(Stream, usize)> {
         let streams: [(Stream, Vec<i64>); 4] = [
             (
                 Stream::Imu,
@@ -143,8 +214,9 @@ impl WireDrive {
         let mut cursor = [0usize; 4];
         loop {
             let mut best: Option<(i64, usize)> = None;
-            for (k, (_, times)) in streams.iter().enumerate() {
+            for (k, (stream, times)) in streams.iter().enumerate() {
                 if let Some(&t) = times.get(cursor[k]) {
+                    let t = t + latency.of_ns(*stream);
                     // Strict `<` keeps the earlier stream (the tie order) on ties.
                     if best.is_none_or(|(bt, _)| t < bt) {
                         best = Some((t, k));
@@ -398,7 +470,7 @@ pub fn replay(
         });
     }
 
-    let order = wire.merged();
+    let order = wire.delivery_order(&opts.latency);
     let (t0, t_end) = wire.time_span_ns().ok_or(ReplayError::NoWheels)?;
     let mut stats = ReplayStats {
         drive_s: (t_end - t0) as f64 * 1e-9,
@@ -416,6 +488,16 @@ pub fn replay(
             Pacing::Max => "as fast as the subscribers take it".to_string(),
         }
     );
+    if opts.latency != DeliveryLatency::default() {
+        let l = opts.latency;
+        tracing::info!(
+            "delivering late, time stamps as recorded: IMU {} s, GNSS {} s, heading {} s, wheels {} s",
+            l.imu_s,
+            l.gnss_s,
+            l.heading_s,
+            l.wheels_s
+        );
+    }
     let start = Instant::now();
     let mut next_progress_s = opts.progress_every_s;
     let mut last_gnss_ns: Option<i64> = None;
@@ -427,7 +509,7 @@ pub fn replay(
             Stream::Imu => wire.imu[i].header.t_ns,
             Stream::Heading => wire.heading[i].header.t_ns,
         };
-        let drive_elapsed_s = (t_ns - t0) as f64 * 1e-9;
+        let drive_elapsed_s = (t_ns + opts.latency.of_ns(stream) - t0) as f64 * 1e-9;
         if let Pacing::Speed(f) = opts.pacing {
             let due = Duration::from_secs_f64(drive_elapsed_s / f);
             let now = start.elapsed();
@@ -650,6 +732,64 @@ mod tests {
             })
             .collect();
         assert!(times.windows(2).all(|p| p[0] <= p[1]));
+    }
+
+    #[test]
+    fn a_late_stream_is_published_after_the_samples_of_its_delivery_time() {
+        let w = to_wire(&drive()).unwrap();
+        let late = DeliveryLatency::parse("gnss=0.25").unwrap();
+        let order = w.delivery_order(&late);
+        assert_eq!(order.len(), w.merged().len());
+        // The fix of t = 0 comes at 0.25 s: after the wheels of 0, 0.1 and
+        // 0.2 s, before those of 0.3 s.
+        let delivered: Vec<i64> = order
+            .iter()
+            .map(|&(s, i)| {
+                late.of_ns(s)
+                    + match s {
+                        Stream::Wheels => w.wheels[i].header.t_ns,
+                        Stream::Gnss => w.gnss[i].header.t_ns,
+                        Stream::Imu => w.imu[i].header.t_ns,
+                        Stream::Heading => w.heading[i].header.t_ns,
+                    }
+            })
+            .collect();
+        assert!(delivered.windows(2).all(|p| p[0] <= p[1]), "{delivered:?}");
+        let first_fix = order.iter().position(|o| *o == (Stream::Gnss, 0)).unwrap();
+        let wheels_before = order[..first_fix]
+            .iter()
+            .filter(|(s, _)| *s == Stream::Wheels)
+            .count();
+        assert_eq!(wheels_before, 3, "{order:?}");
+        // Each stream keeps its own order.
+        let fixes: Vec<usize> = order
+            .iter()
+            .filter(|(s, _)| *s == Stream::Gnss)
+            .map(|(_, i)| *i)
+            .collect();
+        assert_eq!(fixes, (0..w.gnss.len()).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_delivery_latency_is_read_or_named_in_its_error() {
+        let l = DeliveryLatency::parse("gnss=0.15, imu=0.01").unwrap();
+        assert_eq!(
+            (l.gnss_s, l.imu_s, l.heading_s, l.wheels_s),
+            (0.15, 0.01, 0.0, 0.0)
+        );
+        assert_eq!(
+            DeliveryLatency::parse("").unwrap(),
+            DeliveryLatency::default()
+        );
+        let err = |t: &str| DeliveryLatency::parse(t).unwrap_err();
+        assert!(
+            err("gps=0.1").contains("unknown stream `gps`"),
+            "{}",
+            err("gps=0.1")
+        );
+        assert!(err("gnss").contains("STREAM=SECONDS"));
+        assert!(err("gnss=soon").contains("`soon` is not a number"));
+        assert!(err("gnss=-0.1").contains("zero or more"));
     }
 
     #[test]

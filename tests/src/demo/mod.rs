@@ -353,6 +353,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         settle: Duration::from_millis(300),
         linger: Duration::from_millis(500),
         progress_every_s: 60.0,
+        ..ReplayOptions::default()
     };
     let stats = replay(&bus, &wire, &replay_opts);
     let interrupted =
