@@ -14,6 +14,10 @@
 //! length, placed every 10 s from 20 s after the first fix, the fixes inside
 //! it (its end included) left out, and prints the error at each outage end:
 //! the served pose through an outage, started from the filter's own pose.
+//! `FUSION_GNSS_LATE=SECONDS` delivers every fix that long after its time
+//! stamp, as a GNSS receiver does, to the filter behind the service's
+//! [`odometry::rewind::RewindingFusion`]; `FUSION_REWIND_WINDOW=SECONDS`
+//! sets its window (default 1 s; 0: late fixes applied when they come).
 
 use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
@@ -21,7 +25,8 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::Estimate;
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::drive_inputs;
+use odometry::inputs::{drive_inputs, Input};
+use odometry::rewind::{RewindConfig, RewindingFusion};
 use odometry::serve::gnss_lever_arm;
 use std::path::PathBuf;
 
@@ -98,7 +103,12 @@ fn main() -> Result<()> {
         Some(e) => Fusion::new(e.params, 0, config),
         None => Fusion::nominal(&drive.vehicle, config),
     };
-    let mut fusion = new_fusion();
+    let rewind = RewindConfig {
+        window_s: env("FUSION_REWIND_WINDOW").unwrap_or(RewindConfig::default().window_s),
+        ..RewindConfig::default()
+    };
+    let gnss_late_s = env("FUSION_GNSS_LATE").unwrap_or(0.0);
+    let mut filter = RewindingFusion::new(new_fusion(), rewind);
     println!(
         "GNSS antenna ({:+.3}, {:+.3}) m ({}), scored at the {}",
         lever_arm_m[0],
@@ -110,16 +120,23 @@ fn main() -> Result<()> {
         },
         if at_antenna { "antenna" } else { "rear axle" }
     );
-    let params = *fusion.params();
+    let params = *filter.fusion().params();
     let truth = drive.truth.clone().unwrap_or_default();
     let mut counts = [0usize; 3];
     let mut errors = Vec::new();
     let mut ti = 0usize;
     let verbose = std::env::var("FUSION_VERBOSE").is_ok();
-    for input in drive_inputs(&drive)? {
-        let before = fusion.stats();
-        let out = fusion.process(&input)?;
-        let after = fusion.stats();
+    // In the order they are delivered: the fixes `gnss_late_s` after their time.
+    let mut delivered = drive_inputs(&drive)?;
+    let delivery = |i: &Input| match i {
+        Input::Gnss { t_s, .. } => t_s + gnss_late_s,
+        other => other.t_s(),
+    };
+    delivered.sort_by(|a, b| delivery(a).total_cmp(&delivery(b)));
+    for input in delivered {
+        let before = filter.fusion().stats();
+        let out = filter.process(&input)?;
+        let after = filter.fusion().stats();
         if verbose
             && (after.gnss_rejected > before.gnss_rejected
                 || after.position_resets > before.position_resets)
@@ -138,14 +155,21 @@ fn main() -> Result<()> {
             }
             if let Some(r) = truth.get(ti) {
                 if (r.t_s - pose.t_s).abs() <= 0.005 && pose.mode != PoseMode::NoFix {
-                    let [x, y] = scored(&fusion, &pose.pose);
+                    let [x, y] = scored(filter.fusion(), &pose.pose);
                     errors.push((pose.mode, (x - r.x_m).hypot(y - r.y_m)));
                 }
             }
         }
     }
-    let s = fusion.stats();
+    let s = filter.fusion().stats();
     println!("heading {heading}, parameters {params}");
+    if gnss_late_s > 0.0 {
+        println!(
+            "fixes delivered {gnss_late_s} s late, rewind window {} s: {:?}",
+            rewind.window_s,
+            filter.stats()
+        );
+    }
     println!(
         "poses: NoFix {}, Fused {}, DeadReckoning {}",
         counts[0], counts[1], counts[2]
