@@ -208,12 +208,14 @@ impl ServeConfig {
                 )))
             }
         };
-        let non_negative = |name: &str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
+        // Beyond RESTART_BACKSTEP_S a late sample means a restarted publisher.
+        let rewind_window = |v: f64| {
+            if v.is_finite() && (0.0..=RESTART_BACKSTEP_S).contains(&v) {
                 Ok(v)
             } else {
                 Err(ServeError::Config(format!(
-                    "{name} {v} must be zero or a positive number of seconds"
+                    "--rewind-window {v} must be 0 to {RESTART_BACKSTEP_S} s: a sample older \
+                     than that means its publisher restarted, and the filter starts over"
                 )))
             }
         };
@@ -239,7 +241,7 @@ impl ServeConfig {
             bus_estimates: !args.no_bus_estimate,
             fusion,
             rewind: RewindConfig {
-                window_s: non_negative("--rewind-window", args.rewind_window)?,
+                window_s: rewind_window(args.rewind_window)?,
                 ..RewindConfig::default()
             },
             stale_after: Duration::from_secs_f64(positive("--stale-after", args.stale_after)?),
@@ -1122,6 +1124,43 @@ fn log_status(pose: &FusedPose, fusion: &Fusion, inputs: &Inputs) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use clap::Parser;
+
+    #[derive(clap::Parser)]
+    struct Cli {
+        #[command(flatten)]
+        serve: ServeArgs,
+    }
+
+    #[test]
+    fn the_rewind_window_is_read_and_one_beyond_a_restart_is_refused() {
+        let vehicle = tempfile::tempdir().expect("tempdir");
+        let toml = vehicle.path().join("vehicle.toml");
+        std::fs::write(
+            &toml,
+            "track_width_m = 1.5\nnominal_circumference_m = 2.0\n",
+        )
+        .expect("write");
+        let config = |window: &str| {
+            let cli = Cli::try_parse_from([
+                "serve",
+                "--vehicle",
+                toml.to_str().expect("utf-8"),
+                &format!("--rewind-window={window}"),
+            ])
+            .expect("arguments");
+            ServeConfig::from_args(&cli.serve)
+        };
+        assert_eq!(config("0.3").expect("valid").rewind.window_s, 0.3);
+        assert_eq!(config("0").expect("off").rewind.window_s, 0.0);
+        for bad in ["1.5", "-0.1", "NaN"] {
+            let err = config(bad).expect_err(bad).to_string();
+            assert!(
+                err.contains("--rewind-window") && err.contains("restarted"),
+                "{err}"
+            );
+        }
+    }
 
     #[test]
     fn the_end_of_stream_is_judged_after_the_samples_that_wait_before_it() {
