@@ -320,7 +320,7 @@ fn same_drive_replayed_twice_gives_identical_pose_streams() {
         .collect();
     let waiting_for_a_fix = |t: i64| fixes.iter().any(|&f| f <= t && t < f + FIX_LATE_NS);
     assert_eq!(runs[2].len(), runs[0].len());
-    let (mut complete, mut differing) = (0, 0);
+    let mut complete = 0;
     for (i, (a, b)) in runs[0].iter().zip(&runs[2]).enumerate() {
         if !waiting_for_a_fix(a.header.t_ns) {
             assert_eq!(
@@ -329,12 +329,9 @@ fn same_drive_replayed_twice_gives_identical_pose_streams() {
                 "pose {i}: in order {a:?}, late fixes {b:?}"
             );
             complete += 1;
-        } else if bits(a) != bits(b) {
-            differing += 1;
         }
     }
-    assert!(complete > runs[0].len() / 4, "{complete} complete poses");
-    assert!(differing > 0, "no pose was published before its fix came");
+    assert!(complete > runs[0].len() / 3, "{complete} complete poses");
     let taken = late_log
         .lines()
         .find(|l| l.contains("late sample(s) taken in order"))

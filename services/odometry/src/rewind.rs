@@ -84,11 +84,10 @@ pub struct RewindingFusion {
     log: VecDeque<Input>,
     /// Log position of `log[0]`.
     log_start: u64,
-    /// Log position of the first input since the start (or the last
-    /// [`RewindingFusion::fusion_mut`]): while `log_start` is still there,
-    /// the log holds every input, and a sample older than all of them can
-    /// go first.
-    history_start: u64,
+    /// The log holds every input the filter has taken since it was made (or
+    /// changed by [`RewindingFusion::fusion_mut`]), so a sample older than
+    /// all of them can go first.
+    log_is_complete: bool,
     /// Oldest first; the first is at or before `log_start`.
     checkpoints: VecDeque<Checkpoint>,
     /// Copies no longer needed, kept for their allocations.
@@ -121,7 +120,7 @@ impl RewindingFusion {
             config,
             log: VecDeque::new(),
             log_start: 0,
-            history_start: 0,
+            log_is_complete: true,
             checkpoints: VecDeque::new(),
             spare: Vec::new(),
             again: Vec::new(),
@@ -168,6 +167,12 @@ impl RewindingFusion {
                 return result;
             }
             self.stats.beyond_window += 1;
+            // The filter takes it now, out of order, which the log cannot
+            // repeat: going back past this point would lose it.
+            let newest = self.newest;
+            self.forget();
+            self.newest = newest;
+            self.log_is_complete = false;
         }
         if late || self.config.window_s <= 0.0 {
             return self.fusion.process(input);
@@ -222,8 +227,11 @@ impl RewindingFusion {
         }
         if let Some(first) = self.checkpoints.front() {
             let drop = (first.at.saturating_sub(self.log_start) as usize).min(self.log.len());
-            self.log.drain(..drop);
-            self.log_start += drop as u64;
+            if drop > 0 {
+                self.log.drain(..drop);
+                self.log_start += drop as u64;
+                self.log_is_complete = false;
+            }
         }
     }
 
@@ -241,7 +249,7 @@ impl RewindingFusion {
             .rposition(|logged| key(logged).is_some_and(|lk| !before(k, lk)))
         {
             Some(i) => i + 1,
-            None if self.log_start == self.history_start => 0,
+            None if self.log_is_complete => 0,
             None => return None,
         };
         let at = self.log_start + place as u64;
@@ -281,7 +289,7 @@ impl RewindingFusion {
     /// Forget the log and the checkpoints.
     fn forget(&mut self) {
         self.log_start += self.log.len() as u64;
-        self.history_start = self.log_start;
+        self.log_is_complete = true;
         self.log.clear();
         while let Some(c) = self.checkpoints.pop_back() {
             self.spare.push(c.fusion);
