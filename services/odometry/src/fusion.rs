@@ -1127,8 +1127,7 @@ mod tests {
     use crate::estimate_file::Estimate;
     use crate::two_wheel::TwoWheelParams;
 
-    const C: f64 = 2.0;
-    const TRACK: f64 = 1.5;
+    use crate::test_drive::{C, TRACK};
 
     fn params() -> OdometryParams {
         OdometryParams {
@@ -1153,55 +1152,29 @@ mod tests {
     }
 
     /// Inputs of a drive on a gentle left curve at 10 m/s: wheels and gyro at
-    /// 100 Hz, GNSS at 5 Hz from `gnss_from` to `gnss_to` (s), truth returned too.
+    /// 100 Hz, GNSS at 5 Hz (stamped 5 ms after the wheel instant) where
+    /// `gnss` lets it through, truth returned too.
     struct Sim {
         inputs: Vec<Input>,
         truth: Vec<(f64, Pose2)>,
     }
 
     fn simulate(seconds: f64, gnss: &dyn Fn(f64) -> bool, gyro_bias: f64, yaw0: f64) -> Sim {
-        let dt = 0.01;
-        let v = 10.0;
-        let w = |t: f64| 0.1 * (0.3 * t).sin();
-        let mut pose = Pose2 {
-            x: 100.0,
-            y: -50.0,
-            yaw: yaw0,
+        let curve = crate::test_drive::Curve {
+            seconds,
+            speed_m_s: 10.0,
+            yaw_rate: |t| 0.1 * (0.3 * t).sin(),
+            start: Pose2 {
+                x: 100.0,
+                y: -50.0,
+                yaw: yaw0,
+            },
+            gyro_bias,
+            fix_offset_s: 0.005,
+            fix_error_m: 0.0,
+            fix_sigma_m: 0.3,
         };
-        let (mut rl, mut rr) = (0.0, 0.0);
-        let mut inputs = Vec::new();
-        let mut truth = Vec::new();
-        let n = (seconds / dt).round() as usize;
-        for i in 0..=n {
-            let t = i as f64 * dt;
-            if i > 0 {
-                let dyaw = w(t - dt / 2.0) * dt;
-                let ds = v * dt;
-                pose = crate::two_wheel::step(pose, ds, dyaw, 0.0);
-                rl += (ds - dyaw * TRACK / 2.0) / C;
-                rr += (ds + dyaw * TRACK / 2.0) / C;
-            }
-            inputs.push(Input::Imu {
-                t_s: t,
-                gz_rad_s: w(t) + gyro_bias,
-            });
-            // Fixes at 5 Hz, stamped 5 ms after the wheel instant.
-            if i % 20 == 0 && gnss(t) {
-                inputs.push(Input::Gnss {
-                    t_s: t + 0.005,
-                    x_m: pose.x + 0.005 * v * pose.yaw.cos(),
-                    y_m: pose.y + 0.005 * v * pose.yaw.sin(),
-                    sigma_m: Some(0.3),
-                });
-            }
-            inputs.push(Input::Wheels {
-                t_s: t,
-                rl_rev: rl,
-                rr_rev: rr,
-            });
-            truth.push((t, pose));
-        }
-        crate::inputs::sort_inputs(&mut inputs);
+        let (inputs, truth) = crate::test_drive::simulate(&curve, gnss);
         Sim { inputs, truth }
     }
 

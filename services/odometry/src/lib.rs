@@ -22,4 +22,6 @@ pub mod inputs;
 pub mod pose_state;
 pub mod rewind;
 pub mod serve;
+#[cfg(test)]
+mod test_drive;
 pub mod two_wheel;

@@ -303,11 +303,9 @@ mod tests {
     use super::*;
     use crate::estimate_file::{Estimate, OdometryParams};
     use crate::fusion::FusionConfig;
-    use crate::inputs::sort_inputs;
     use crate::two_wheel::{Pose2, TwoWheelParams};
 
-    const C: f64 = 2.0;
-    const TRACK: f64 = 1.5;
+    use crate::test_drive::{C, TRACK};
 
     fn params(c: f64) -> OdometryParams {
         OdometryParams {
@@ -326,45 +324,20 @@ mod tests {
     }
 
     /// A drive at 15 m/s on a weaving road: wheels and gyro at 100 Hz, fixes
-    /// at 5 Hz with a few centimetres of noise (so that every fix moves the
+    /// at 5 Hz with a few centimetres of error (so that every fix moves the
     /// filter). Inputs in processing order, and the true positions.
     fn drive(seconds: f64) -> (Vec<Input>, Vec<(f64, Pose2)>) {
-        let (dt, v) = (0.01, 15.0);
-        let w = |t: f64| 0.15 * (0.4 * t).sin();
-        let mut pose = Pose2::default();
-        let (mut rl, mut rr) = (0.0, 0.0);
-        let (mut inputs, mut truth) = (Vec::new(), Vec::new());
-        for i in 0..=(seconds / dt).round() as usize {
-            let t = i as f64 * dt;
-            if i > 0 {
-                let dyaw = w(t - dt / 2.0) * dt;
-                let ds = v * dt;
-                pose = crate::two_wheel::step(pose, ds, dyaw, 0.0);
-                rl += (ds - dyaw * TRACK / 2.0) / C;
-                rr += (ds + dyaw * TRACK / 2.0) / C;
-            }
-            inputs.push(Input::Imu {
-                t_s: t,
-                gz_rad_s: w(t),
-            });
-            if i % 20 == 0 {
-                let k = i as f64;
-                inputs.push(Input::Gnss {
-                    t_s: t,
-                    x_m: pose.x + 0.03 * (1.7 * k).sin(),
-                    y_m: pose.y + 0.03 * (2.3 * k).cos(),
-                    sigma_m: Some(0.05),
-                });
-            }
-            inputs.push(Input::Wheels {
-                t_s: t,
-                rl_rev: rl,
-                rr_rev: rr,
-            });
-            truth.push((t, pose));
-        }
-        sort_inputs(&mut inputs);
-        (inputs, truth)
+        let curve = crate::test_drive::Curve {
+            seconds,
+            speed_m_s: 15.0,
+            yaw_rate: |t| 0.15 * (0.4 * t).sin(),
+            start: Pose2::default(),
+            gyro_bias: 0.0,
+            fix_offset_s: 0.0,
+            fix_error_m: 0.03,
+            fix_sigma_m: 0.05,
+        };
+        crate::test_drive::simulate(&curve, &|_| true)
     }
 
     /// The order the inputs arrive in when each is delivered `late(input)`

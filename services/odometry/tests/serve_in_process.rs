@@ -94,6 +94,18 @@ fn spawn_service(
     (shutdown, service)
 }
 
+/// Ask the service to stop and wait for its summary.
+fn stop_service(
+    shutdown: &Shutdown,
+    service: std::thread::JoinHandle<Result<ServeSummary, ServeError>>,
+) -> ServeSummary {
+    shutdown.request();
+    service
+        .join()
+        .expect("service thread")
+        .expect("service result")
+}
+
 /// Publish the wheel sample at `t` of a car driving straight east at `V`
 /// from revolution 0; returns the revolutions of each rear wheel.
 fn publish_east_wheels(wheels: &mut TopicPublisher<WheelRotations>, t: f64) -> f64 {
@@ -302,11 +314,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
     while let Some(p) = poses_sub.receive().expect("receive") {
         poses.push(p);
     }
-    shutdown.request();
-    let summary = service
-        .join()
-        .expect("service thread")
-        .expect("service result");
+    let summary = stop_service(&shutdown, service);
 
     assert_eq!(
         poses.len(),
@@ -428,11 +436,7 @@ fn drive_east(
         sensors.east_instant(i, gnss.then_some([0.0, 0.0]));
     }
     collect(&poses_sub, &mut poses, n + 1);
-    shutdown.request();
-    service
-        .join()
-        .expect("service thread")
-        .expect("service result");
+    stop_service(&shutdown, service);
     drop((sensors, poses_sub));
     drop(bus);
     settings.remove_leftovers();
@@ -534,11 +538,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
         sensors.east_instant(i, Some(arm));
     }
     collect(&poses_sub, &mut poses, n + 1);
-    shutdown.request();
-    let summary = service
-        .join()
-        .expect("service thread")
-        .expect("service result");
+    let summary = stop_service(&shutdown, service);
     assert_eq!(summary.estimate_switches, 1);
 
     // Distance of the pose from the rear axle, at t = V t east, y = 0.
@@ -645,11 +645,7 @@ fn late_fixes_east(
         // its time (batched in one wakeup, the service would sort it in).
         collect(&poses_sub, &mut poses, i + 1);
     }
-    shutdown.request();
-    let summary = service
-        .join()
-        .expect("service thread")
-        .expect("service result");
+    let summary = stop_service(&shutdown, service);
     drop((sensors, poses_sub));
     drop(bus);
     settings.remove_leftovers();
