@@ -168,12 +168,7 @@ fn publish(p: &mut Publishers, wire: &WireDrive, seconds: f64) -> Vec<Sent> {
     let start = Instant::now();
     let mut sent = Vec::new();
     for (stream, i) in order {
-        let t_ns = match stream {
-            Stream::Wheels => wire.wheels[i].header.t_ns,
-            Stream::Gnss => wire.gnss[i].header.t_ns,
-            Stream::Imu => wire.imu[i].header.t_ns,
-            Stream::Heading => wire.heading[i].header.t_ns,
-        };
+        let t_ns = wire.time_ns(stream, i);
         let due = (t_ns - t0) as f64 * 1e-9;
         if due > seconds {
             break;

@@ -16,7 +16,7 @@
 //! Skips with a message when `shared/data/real` is absent.
 
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::{drive_inputs, Input};
+use odometry::inputs::{drive_inputs, gnss_late, sort_by_delivery, Input};
 use odometry::rewind::{RewindConfig, RewindingFusion};
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -25,11 +25,7 @@ const RUNS: usize = 5;
 
 fn delivered(inputs: &[Input], gnss_late_s: f64) -> Vec<Input> {
     let mut out = inputs.to_vec();
-    let at = |i: &Input| match i {
-        Input::Gnss { t_s, .. } => t_s + gnss_late_s,
-        other => other.t_s(),
-    };
-    out.sort_by(|a, b| at(a).total_cmp(&at(b)));
+    sort_by_delivery(&mut out, gnss_late(gnss_late_s));
     out
 }
 

@@ -25,7 +25,7 @@ use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::Estimate;
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::{drive_inputs, Input};
+use odometry::inputs::{drive_inputs, gnss_late, sort_by_delivery};
 use odometry::rewind::{RewindConfig, RewindingFusion};
 use odometry::serve::gnss_lever_arm;
 use std::path::PathBuf;
@@ -128,11 +128,7 @@ fn main() -> Result<()> {
     let verbose = std::env::var("FUSION_VERBOSE").is_ok();
     // In the order they are delivered: the fixes `gnss_late_s` after their time.
     let mut delivered = drive_inputs(&drive)?;
-    let delivery = |i: &Input| match i {
-        Input::Gnss { t_s, .. } => t_s + gnss_late_s,
-        other => other.t_s(),
-    };
-    delivered.sort_by(|a, b| delivery(a).total_cmp(&delivery(b)));
+    sort_by_delivery(&mut delivered, gnss_late(gnss_late_s));
     for input in delivered {
         let before = filter.fusion().stats();
         let out = filter.process(&input)?;

@@ -90,6 +90,23 @@ pub fn sort_inputs(inputs: &mut [Input]) {
     inputs.sort_by(|a, b| a.t_s().total_cmp(&b.t_s()).then(a.rank().cmp(&b.rank())));
 }
 
+/// Sort inputs that are in processing order into the order they are
+/// delivered in when each comes `late(input)` seconds after its time (a GNSS
+/// receiver's latency, say). Stable: equal delivery times keep the
+/// processing order. What [`crate::rewind`] puts back in order.
+pub fn sort_by_delivery(inputs: &mut [Input], late: impl Fn(&Input) -> f64) {
+    inputs.sort_by(|a, b| (a.t_s() + late(a)).total_cmp(&(b.t_s() + late(b))));
+}
+
+/// Every fix `gnss_late_s` late, every other sample on time: a `late` for
+/// [`sort_by_delivery`].
+pub fn gnss_late(gnss_late_s: f64) -> impl Fn(&Input) -> f64 {
+    move |input: &Input| match input {
+        Input::Gnss { .. } => gnss_late_s,
+        _ => 0.0,
+    }
+}
+
 /// Samples a [`Sequencer`] holds at most; beyond it the oldest are dropped
 /// (and counted). Far more than one wakeup brings (the bus buffers 1024
 /// samples per topic), so it only bites when the wheel stream is gone while

@@ -344,8 +344,7 @@ mod tests {
     /// seconds after its time: by delivery time, ties in processing order.
     fn arrival(inputs: &[Input], late: impl Fn(&Input) -> f64) -> Vec<Input> {
         let mut out = inputs.to_vec();
-        // Stable: equal delivery times keep the processing order.
-        out.sort_by(|a, b| (a.t_s() + late(a)).total_cmp(&(b.t_s() + late(b))));
+        crate::inputs::sort_by_delivery(&mut out, late);
         out
     }
 
@@ -449,10 +448,7 @@ mod tests {
     #[test]
     fn a_sample_older_than_the_window_goes_to_the_filter_as_it_came() {
         let (inputs, _) = drive(5.0);
-        let arrived = arrival(
-            &inputs,
-            |i| if let Input::Gnss { .. } = i { 0.5 } else { 0.0 },
-        );
+        let arrived = arrival(&inputs, crate::inputs::gnss_late(0.5));
         let config = RewindConfig {
             window_s: 0.3,
             ..RewindConfig::default()

@@ -188,35 +188,38 @@ impl WireDrive {
         self.delivery_order(&DeliveryLatency::default())
     }
 
+    /// Time stamp of sample `i` of `stream`, ns.
+    pub fn time_ns(&self, stream: Stream, i: usize) -> i64 {
+        match stream {
+            Stream::Wheels => self.wheels[i].header.t_ns,
+            Stream::Gnss => self.gnss[i].header.t_ns,
+            Stream::Imu => self.imu[i].header.t_ns,
+            Stream::Heading => self.heading[i].header.t_ns,
+        }
+    }
+
     /// Every sample as `(stream, index)` in publishing order: by time plus
     /// its stream's `latency`, ties broken IMU, GNSS, heading, wheels.
     pub fn delivery_order(&self, latency: &DeliveryLatency) -> Vec<(Stream, usize)> {
+        // Delivery times per stream, in the order of equal-time ties.
+        let delivered = |stream: Stream, len: usize| -> (Stream, Vec<i64>) {
+            let late = latency.of_ns(stream);
+            let times = (0..len).map(|i| self.time_ns(stream, i) + late).collect();
+            (stream, times)
+        };
         let streams: [(Stream, Vec<i64>); 4] = [
-            (
-                Stream::Imu,
-                self.imu.iter().map(|s| s.header.t_ns).collect(),
-            ),
-            (
-                Stream::Gnss,
-                self.gnss.iter().map(|s| s.header.t_ns).collect(),
-            ),
-            (
-                Stream::Heading,
-                self.heading.iter().map(|s| s.header.t_ns).collect(),
-            ),
-            (
-                Stream::Wheels,
-                self.wheels.iter().map(|s| s.header.t_ns).collect(),
-            ),
+            delivered(Stream::Imu, self.imu.len()),
+            delivered(Stream::Gnss, self.gnss.len()),
+            delivered(Stream::Heading, self.heading.len()),
+            delivered(Stream::Wheels, self.wheels.len()),
         ];
         let total = streams.iter().map(|(_, t)| t.len()).sum();
         let mut out = Vec::with_capacity(total);
         let mut cursor = [0usize; 4];
         loop {
             let mut best: Option<(i64, usize)> = None;
-            for (k, (stream, times)) in streams.iter().enumerate() {
+            for (k, (_, times)) in streams.iter().enumerate() {
                 if let Some(&t) = times.get(cursor[k]) {
-                    let t = t + latency.of_ns(*stream);
                     // Strict `<` keeps the earlier stream (the tie order) on ties.
                     if best.is_none_or(|(bt, _)| t < bt) {
                         best = Some((t, k));
@@ -503,12 +506,7 @@ pub fn replay(
     let mut last_gnss_ns: Option<i64> = None;
     let mut in_outage = false;
     for (stream, i) in order {
-        let t_ns = match stream {
-            Stream::Wheels => wire.wheels[i].header.t_ns,
-            Stream::Gnss => wire.gnss[i].header.t_ns,
-            Stream::Imu => wire.imu[i].header.t_ns,
-            Stream::Heading => wire.heading[i].header.t_ns,
-        };
+        let t_ns = wire.time_ns(stream, i);
         let drive_elapsed_s = (t_ns + opts.latency.of_ns(stream) - t0) as f64 * 1e-9;
         if let Pacing::Speed(f) = opts.pacing {
             let due = Duration::from_secs_f64(drive_elapsed_s / f);
@@ -722,15 +720,7 @@ mod tests {
             &order[3..6],
             &[(Stream::Imu, 0), (Stream::Gnss, 1), (Stream::Wheels, 2)]
         );
-        let times: Vec<i64> = order
-            .iter()
-            .map(|&(s, i)| match s {
-                Stream::Wheels => w.wheels[i].header.t_ns,
-                Stream::Gnss => w.gnss[i].header.t_ns,
-                Stream::Imu => w.imu[i].header.t_ns,
-                Stream::Heading => w.heading[i].header.t_ns,
-            })
-            .collect();
+        let times: Vec<i64> = order.iter().map(|&(s, i)| w.time_ns(s, i)).collect();
         assert!(times.windows(2).all(|p| p[0] <= p[1]));
     }
 
@@ -744,15 +734,7 @@ mod tests {
         // 0.2 s, before those of 0.3 s.
         let delivered: Vec<i64> = order
             .iter()
-            .map(|&(s, i)| {
-                late.of_ns(s)
-                    + match s {
-                        Stream::Wheels => w.wheels[i].header.t_ns,
-                        Stream::Gnss => w.gnss[i].header.t_ns,
-                        Stream::Imu => w.imu[i].header.t_ns,
-                        Stream::Heading => w.heading[i].header.t_ns,
-                    }
-            })
+            .map(|&(s, i)| w.time_ns(s, i) + late.of_ns(s))
             .collect();
         assert!(delivered.windows(2).all(|p| p[0] <= p[1]), "{delivered:?}");
         let first_fix = order.iter().position(|o| *o == (Stream::Gnss, 0)).unwrap();
