@@ -9,7 +9,7 @@ use interfaces::wire::{
 };
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::{Estimate, OdometryParams};
-use odometry::fusion::{Fusion, FusionConfig};
+use odometry::fusion::{FusedPose, Fusion, FusionConfig};
 use odometry::inputs::Input;
 use odometry::rewind::RewindConfig;
 use odometry::serve::{read_latency_trace, serve, ServeConfig, ServeError, ServeSummary, Shutdown};
@@ -92,6 +92,16 @@ fn spawn_service(
         })
     };
     (shutdown, service)
+}
+
+/// Whether the service's wire pose is exactly the filter's pose `e`.
+fn same_pose(p: &Pose, e: &FusedPose) -> bool {
+    p.x_m == e.pose.x
+        && p.y_m == e.pose.y
+        && p.yaw_rad == e.pose.yaw
+        && p.covariance == e.covariance
+        && p.mode == e.mode as u8
+        && p.estimate_version == e.estimate_version
 }
 
 /// Ask the service to stop and wait for its summary.
@@ -370,13 +380,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
         .collect();
     assert_eq!(expected.len(), n + 1);
     for (k, (p, e)) in poses.iter().zip(&expected).enumerate() {
-        let same = p.x_m == e.pose.x
-            && p.y_m == e.pose.y
-            && p.yaw_rad == e.pose.yaw
-            && p.covariance == e.covariance
-            && p.mode == e.mode as u8
-            && p.estimate_version == e.estimate_version;
-        assert!(same, "pose {k}: service {p:?} vs offline {e:?}");
+        assert!(same_pose(p, e), "pose {k}: service {p:?} vs offline {e:?}");
     }
 
     assert_eq!(summary.wheel_samples, n as u64 + 1);
@@ -667,11 +671,7 @@ fn fixes_delivered_late_by_their_own_publisher_are_taken_in_their_place() {
     let complete = |i: usize| !((i.saturating_sub(FIX_LATE - 1))..=i).any(|j| j % 20 == 0 && j > 0);
     let (mut same_complete, mut differing_incomplete) = (0, 0);
     for (i, (p, e)) in poses.iter().zip(&expected).enumerate() {
-        let same = p.x_m == e.pose.x
-            && p.y_m == e.pose.y
-            && p.yaw_rad == e.pose.yaw
-            && p.covariance == e.covariance
-            && p.mode == e.mode as u8;
+        let same = same_pose(p, e);
         if complete(i) {
             assert!(same, "pose {i}: service {p:?} vs in order {e:?}");
             same_complete += 1;
