@@ -20,7 +20,7 @@
 use nalgebra::{DMatrix, DVector};
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::OdometryParams;
-use odometry::evaluate::{evaluate, EvaluateConfig};
+use odometry::evaluate::{evaluate, EvaluateConfig, TruthPoint, TruthPointSource};
 use odometry::two_wheel::TwoWheelParams;
 
 fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) -> EvaluateConfig {
@@ -31,7 +31,10 @@ fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) ->
             heading,
             ..OdometerConfig::default()
         },
-        truth_point_m: arm,
+        truth_point: TruthPoint {
+            point_m: arm,
+            source: TruthPointSource::Given,
+        },
         ..EvaluateConfig::default()
     }
 }

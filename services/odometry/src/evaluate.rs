@@ -94,11 +94,10 @@ pub struct EvaluateConfig {
     pub align_distance_m: f64,
     /// Longest time before the outage the alignment may reach back, s.
     pub align_max_s: f64,
-    /// Body-frame position (x forward, y left) of the point `truth.csv`
-    /// follows, from the rear-axle centre, m. The drive format says truth is
-    /// the rear-axle centre ([0, 0]); real recordings whose truth is a GNSS
-    /// antenna set the antenna's position here.
-    pub truth_point_m: [f64; 2],
+    /// The body point `truth.csv` follows, scored at the outage ends: the
+    /// rear-axle centre unless set ([`choose_truth_point`] picks it the way
+    /// `odometry evaluate` does).
+    pub truth_point: TruthPoint,
     /// Keep the dead-reckoned track of every outage in the report.
     pub keep_tracks: bool,
 }
@@ -114,7 +113,7 @@ impl Default for EvaluateConfig {
             min_distance_for_pct_m: 5.0,
             align_distance_m: 30.0,
             align_max_s: 30.0,
-            truth_point_m: [0.0, 0.0],
+            truth_point: TruthPoint::AXLE,
             keep_tracks: false,
         }
     }
@@ -217,6 +216,13 @@ pub struct EvaluationReport {
     pub truth_yaw_offset_rad: Option<f64>,
     /// Whether the start poses used the truth's yaw where it has one.
     pub truth_yaw_used: bool,
+    /// The body point scored against `truth.csv`, and where its position
+    /// came from.
+    pub truth_point: TruthPoint,
+    /// Whether `truth.csv` is the GNSS track itself ([`truth_is_the_gnss_track`]):
+    /// then it follows the antenna, and a score at the rear axle includes the
+    /// antenna's lever arm.
+    pub truth_is_gnss_track: bool,
     /// What was skipped and why.
     pub warnings: Vec<String>,
 }
@@ -571,7 +577,7 @@ pub fn evaluate(
                     &revs,
                     &inputs,
                     from,
-                    config.truth_point_m,
+                    config.truth_point.point_m,
                     ta,
                     tb,
                     t0,
@@ -598,8 +604,167 @@ pub fn evaluate(
         params: ParamsReport::from(params),
         truth_yaw_offset_rad: yaw_offset.map(|(offset, _)| offset),
         truth_yaw_used: truth.use_yaw && truth_rows.iter().any(|r| r.yaw_rad.is_some()),
+        truth_point: config.truth_point,
+        truth_is_gnss_track: truth_is_the_gnss_track(drive),
         warnings,
     })
+}
+
+/// A GNSS fix and a truth row this close in time are at the same instant, s.
+const SAME_INSTANT_S: f64 = 1e-6;
+/// A truth row this close to the fix of its instant is at the fix, m.
+const SAME_POINT_M: f64 = 1e-3;
+/// Fixes with a truth row at their instant needed to call the truth the GNSS track.
+const MIN_COINCIDENT_FIXES: usize = 10;
+
+/// How many GNSS fixes have a truth row at their instant, and at how many of
+/// those the truth row is at the fix (within 1 mm).
+pub fn truth_gnss_coincidence(drive: &Drive) -> (usize, usize) {
+    let (Some(truth), Some(gnss)) = (&drive.truth, &drive.gnss) else {
+        return (0, 0);
+    };
+    let (mut same_instant, mut same_point) = (0, 0);
+    let mut k = 0;
+    for fix in gnss {
+        // Both files are in time order (the drive reader checks it).
+        while k < truth.len() && truth[k].t_s < fix.t_s - SAME_INSTANT_S {
+            k += 1;
+        }
+        let Some(row) = truth.get(k).filter(|r| r.t_s <= fix.t_s + SAME_INSTANT_S) else {
+            continue;
+        };
+        same_instant += 1;
+        if (row.x_m - fix.x_m).hypot(row.y_m - fix.y_m) <= SAME_POINT_M {
+            same_point += 1;
+        }
+    }
+    (same_instant, same_point)
+}
+
+/// Whether `truth.csv` is the GNSS track itself: at least
+/// `MIN_COINCIDENT_FIXES` (10) fixes have a truth row at their instant, and
+/// every one of those rows is at its fix. An RTK receiver's track given as
+/// the truth (the WID drives) is such a truth: it follows the GNSS antenna,
+/// not the rear-axle centre. A truth of the rear axle (the simulator's) or of
+/// an INS (comma2k19's) is not.
+pub fn truth_is_the_gnss_track(drive: &Drive) -> bool {
+    let (same_instant, same_point) = truth_gnss_coincidence(drive);
+    same_instant >= MIN_COINCIDENT_FIXES && same_point == same_instant
+}
+
+/// Where the scored body point's position comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TruthPointSource {
+    /// The rear-axle centre.
+    Axle,
+    /// Given by the user (`--truth-point X,Y`).
+    Given,
+    /// The GNSS antenna as `vehicle.toml`'s `[gnss]` measures it.
+    MeasuredAntenna,
+    /// The GNSS antenna as the estimate's calibration found it.
+    EstimatedAntenna,
+}
+
+/// The body point scored against `truth.csv`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct TruthPoint {
+    /// Body-frame position (x forward, y left) from the rear-axle centre, m.
+    pub point_m: [f64; 2],
+    /// Where it comes from.
+    pub source: TruthPointSource,
+}
+
+impl TruthPoint {
+    /// The rear-axle centre.
+    pub const AXLE: TruthPoint = TruthPoint {
+        point_m: [0.0, 0.0],
+        source: TruthPointSource::Axle,
+    };
+}
+
+/// How the scored body point is asked for (`odometry evaluate --truth-point`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TruthPointChoice {
+    /// The GNSS antenna when `truth.csv` is the GNSS track
+    /// ([`truth_is_the_gnss_track`]) and the antenna's position is known,
+    /// else the rear-axle centre.
+    Auto,
+    /// The rear-axle centre.
+    Axle,
+    /// The GNSS antenna (measured in `vehicle.toml`, else the estimate's).
+    Antenna,
+    /// A given body point, m.
+    At([f64; 2]),
+}
+
+impl std::str::FromStr for TruthPointChoice {
+    type Err = EvaluateError;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let bad = || {
+            EvaluateError::Config(format!(
+                "truth point `{text}`: expected auto, axle, antenna or X,Y in metres"
+            ))
+        };
+        match text {
+            "auto" => Ok(TruthPointChoice::Auto),
+            "axle" => Ok(TruthPointChoice::Axle),
+            "antenna" => Ok(TruthPointChoice::Antenna),
+            xy => {
+                let v: Vec<f64> = xy
+                    .split(',')
+                    .map(|s| s.trim().parse::<f64>())
+                    .collect::<Result<_, _>>()
+                    .map_err(|_| bad())?;
+                match v[..] {
+                    [x, y] if x.is_finite() && y.is_finite() => Ok(TruthPointChoice::At([x, y])),
+                    _ => Err(bad()),
+                }
+            }
+        }
+    }
+}
+
+/// The body point to score `drive` at, as `choice` asks: the antenna is the
+/// one `vehicle.toml` measures (`[gnss] antenna_x_m, antenna_y_m`), else
+/// `estimated_antenna` (the estimate's calibration). `Antenna` with neither is
+/// an error; `Auto` with neither falls back to the rear axle (the report's
+/// `truth_is_gnss_track` then tells that the score includes the lever arm).
+pub fn choose_truth_point(
+    drive: &Drive,
+    choice: TruthPointChoice,
+    estimated_antenna: Option<[f64; 2]>,
+) -> Result<TruthPoint, EvaluateError> {
+    let gnss = &drive.vehicle.gnss;
+    let antenna = match (gnss.antenna_x_m, gnss.antenna_y_m) {
+        (Some(x), Some(y)) => Some(TruthPoint {
+            point_m: [x, y],
+            source: TruthPointSource::MeasuredAntenna,
+        }),
+        _ => estimated_antenna.map(|point_m| TruthPoint {
+            point_m,
+            source: TruthPointSource::EstimatedAntenna,
+        }),
+    };
+    match choice {
+        TruthPointChoice::Axle => Ok(TruthPoint::AXLE),
+        TruthPointChoice::At(point_m) => Ok(TruthPoint {
+            point_m,
+            source: TruthPointSource::Given,
+        }),
+        TruthPointChoice::Antenna => antenna.ok_or_else(|| {
+            EvaluateError::Config(
+                "the antenna's position is not known: vehicle.toml has no [gnss] antenna_x_m, \
+                 antenna_y_m and the estimate has none (gyro.antenna_m or gnss_antenna_m)"
+                    .to_string(),
+            )
+        }),
+        TruthPointChoice::Auto => Ok(match antenna {
+            Some(a) if truth_is_the_gnss_track(drive) => a,
+            _ => TruthPoint::AXLE,
+        }),
+    }
 }
 
 /// The odometer as it was at one instant: fed every input before it, and the
@@ -906,7 +1071,7 @@ fn run_outage(
         y: 0.0,
         yaw,
     }
-    .point_at(config.truth_point_m);
+    .point_at(config.truth_point.point_m);
     let pose0 = Pose2 {
         x: start[0] - arm[0],
         y: start[1] - arm[1],
@@ -924,12 +1089,12 @@ fn run_outage(
         .last()
         .map(|(_, p)| *p)
         .ok_or("empty dead-reckoning")?;
-    let end_point = pose.point_at(config.truth_point_m);
+    let end_point = pose.point_at(config.truth_point.point_m);
     let mut track = Vec::new();
     if config.keep_tracks {
         let first = truth.rows.partition_point(|r| r.t_s < t0);
         for r in truth.rows[first..].iter().take_while(|r| r.t_s <= t1) {
-            if let Some(d) = track_position_at(&span.track, r.t_s, config.truth_point_m) {
+            if let Some(d) = track_position_at(&span.track, r.t_s, config.truth_point.point_m) {
                 track.push(TrackPoint {
                     t_s: r.t_s,
                     dead_reckoned_m: d,
@@ -1307,5 +1472,134 @@ mod tests {
         let p90 = percentile(&(1..=11).map(f64::from).collect::<Vec<_>>(), 0.9).unwrap();
         assert!((p90 - 10.0).abs() < 1e-12);
         assert_eq!(percentile(&[], 0.5), None);
+    }
+
+    const ANTENNA: [f64; 2] = [0.6, -0.3];
+
+    /// The winding drive with an RTK-like truth: truth.csv is the track of an
+    /// antenna at ANTENNA, and gnss.csv is the same track (as on the WID
+    /// drives); with `gnss_offset_m`, every fix is that far east of it.
+    fn antenna_truth_drive(gnss_offset_m: f64) -> Drive {
+        let mut drive = drive_with_yaw_rate(120.0, |t| 0.25 * (0.2 * t).sin());
+        let truth = drive.truth.as_mut().unwrap();
+        for r in truth.iter_mut() {
+            let yaw = r.yaw_rad.take().unwrap();
+            [r.x_m, r.y_m] = Pose2 {
+                x: r.x_m,
+                y: r.y_m,
+                yaw,
+            }
+            .point_at(ANTENNA);
+        }
+        drive.gnss = Some(
+            truth
+                .iter()
+                .map(|r| interfaces::drive::GnssSample {
+                    t_s: r.t_s,
+                    x_m: r.x_m + gnss_offset_m,
+                    y_m: r.y_m,
+                    sigma_m: Some(0.02),
+                })
+                .collect(),
+        );
+        drive
+    }
+
+    #[test]
+    fn a_truth_that_is_the_gnss_track_is_scored_at_the_antenna() {
+        let drive = antenna_truth_drive(0.0);
+        assert_eq!(truth_gnss_coincidence(&drive), (601, 601));
+        assert!(truth_is_the_gnss_track(&drive));
+        // Auto: the estimate's antenna, since vehicle.toml measures none.
+        let point = choose_truth_point(&drive, TruthPointChoice::Auto, Some(ANTENNA)).unwrap();
+        assert_eq!(
+            point,
+            TruthPoint {
+                point_m: ANTENNA,
+                source: TruthPointSource::EstimatedAntenna
+            }
+        );
+        let at = |truth_point| {
+            evaluate(
+                &drive,
+                &true_params(),
+                &EvaluateConfig {
+                    truth_point,
+                    ..config(HeadingMode::Gyro, 30.0)
+                },
+            )
+            .unwrap()
+        };
+        let antenna = at(point);
+        let axle = at(TruthPoint::AXLE);
+        assert!(antenna.truth_is_gnss_track && axle.truth_is_gnss_track);
+        assert_eq!(antenna.truth_point, point);
+        // The true parameters at the point the truth follows: only the
+        // integration's own error. At the rear axle: the lever arm, turned by
+        // the heading change of each outage.
+        assert!(antenna.median_error_m < 0.05, "{}", antenna.median_error_m);
+        assert!(
+            axle.median_error_m > 10.0 * antenna.median_error_m.max(0.01),
+            "axle {} antenna {}",
+            axle.median_error_m,
+            antenna.median_error_m
+        );
+        // No antenna known: Auto falls back to the axle; Antenna is an error.
+        assert_eq!(
+            choose_truth_point(&drive, TruthPointChoice::Auto, None).unwrap(),
+            TruthPoint::AXLE
+        );
+        let err = choose_truth_point(&drive, TruthPointChoice::Antenna, None).unwrap_err();
+        assert!(err.to_string().contains("[gnss]"), "{err}");
+    }
+
+    #[test]
+    fn a_measured_antenna_wins_and_a_truth_apart_from_the_fixes_stays_at_the_axle() {
+        let mut drive = antenna_truth_drive(0.0);
+        drive.vehicle.gnss.antenna_x_m = Some(0.5);
+        drive.vehicle.gnss.antenna_y_m = Some(-0.25);
+        let measured = TruthPoint {
+            point_m: [0.5, -0.25],
+            source: TruthPointSource::MeasuredAntenna,
+        };
+        for choice in [TruthPointChoice::Auto, TruthPointChoice::Antenna] {
+            assert_eq!(
+                choose_truth_point(&drive, choice, Some(ANTENNA)).unwrap(),
+                measured
+            );
+        }
+        // Fixes 2 cm off the truth: the truth is not the GNSS track.
+        let apart = antenna_truth_drive(0.02);
+        assert_eq!(truth_gnss_coincidence(&apart), (601, 0));
+        assert!(!truth_is_the_gnss_track(&apart));
+        assert_eq!(
+            choose_truth_point(&apart, TruthPointChoice::Auto, Some(ANTENNA)).unwrap(),
+            TruthPoint::AXLE
+        );
+        // No fixes at all (a drive with a truth but no gnss.csv).
+        assert!(!truth_is_the_gnss_track(&winding_drive(60.0)));
+        assert_eq!(
+            choose_truth_point(&drive, TruthPointChoice::At([1.0, 0.5]), None).unwrap(),
+            TruthPoint {
+                point_m: [1.0, 0.5],
+                source: TruthPointSource::Given
+            }
+        );
+    }
+
+    #[test]
+    fn truth_point_choices_are_read_and_bad_ones_named() {
+        let read = |s: &str| s.parse::<TruthPointChoice>();
+        assert_eq!(read("auto").unwrap(), TruthPointChoice::Auto);
+        assert_eq!(read("axle").unwrap(), TruthPointChoice::Axle);
+        assert_eq!(read("antenna").unwrap(), TruthPointChoice::Antenna);
+        assert_eq!(
+            read(" 0.5, -0.2").unwrap(),
+            TruthPointChoice::At([0.5, -0.2])
+        );
+        for bad in ["0.5", "x,y", "nan,0", "1,2,3", "Antenna"] {
+            let err = read(bad).unwrap_err().to_string();
+            assert!(err.contains(&format!("`{bad}`")), "{err}");
+        }
     }
 }

@@ -3,7 +3,10 @@
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use odometry::estimate_file::{Estimate, OdometryParams};
-use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
+use odometry::evaluate::{
+    choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
+    TruthPointSource,
+};
 use std::path::PathBuf;
 
 #[derive(Debug, Parser)]
@@ -48,33 +51,14 @@ struct EvaluateArgs {
     /// Dead-reckoning settings.
     #[command(flatten)]
     odometer: odometry::serve::OdometerArgs,
-    /// The body point truth.csv follows: `axle` (the rear-axle centre, as the
-    /// drive format says), `antenna` (the GNSS antenna position in the
-    /// estimate: for drives whose truth is the GNSS track, e.g. WID), or `X,Y`
-    /// in metres (x forward, y left of the rear-axle centre).
-    #[arg(long, default_value = "axle")]
-    truth_point: String,
-}
-
-/// The body point `--truth-point` names.
-fn truth_point(arg: &str, antenna: Option<[f64; 2]>) -> Result<[f64; 2]> {
-    match arg {
-        "axle" => Ok([0.0, 0.0]),
-        "antenna" => antenna.context(
-            "--truth-point antenna needs an estimate with an antenna position (gyro.antenna_m or gnss_antenna_m)",
-        ),
-        xy => {
-            let v: Vec<f64> = xy
-                .split(',')
-                .map(|s| s.trim().parse::<f64>())
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("--truth-point `{xy}`: expected axle, antenna or X,Y"))?;
-            match v[..] {
-                [x, y] if x.is_finite() && y.is_finite() => Ok([x, y]),
-                _ => anyhow::bail!("--truth-point `{xy}`: expected axle, antenna or X,Y"),
-            }
-        }
-    }
+    /// The body point truth.csv follows, scored at the outage ends: `auto`
+    /// (the GNSS antenna when truth.csv is the GNSS track itself, as an RTK
+    /// truth is, and the antenna's position is known; else the rear-axle
+    /// centre), `axle`, `antenna` (vehicle.toml's measured `[gnss]`, else
+    /// the estimate's calibrated one), or `X,Y` in metres (x forward, y left
+    /// of the rear-axle centre).
+    #[arg(long, default_value = "auto")]
+    truth_point: TruthPointChoice,
 }
 
 fn main() -> Result<()> {
@@ -112,12 +96,13 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             None,
         ),
     };
-    let truth_point_m = truth_point(&args.truth_point, antenna)?;
+    let truth_point =
+        choose_truth_point(&drive, args.truth_point, antenna).context("--truth-point")?;
     let config = EvaluateConfig {
         outage_s: args.outage,
         spacing_s: args.spacing,
         odometer: args.odometer.config(),
-        truth_point_m,
+        truth_point,
         ..EvaluateConfig::default()
     };
     let report = evaluate(&drive, &params, &config)
@@ -140,6 +125,28 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
         p.c_rl_m, p.c_rr_m, p.track_width_m, p.gyro_bias_rad_s, p.gyro_scale
     );
     println!("heading    {}", report.heading);
+    let [x, y] = report.truth_point.point_m;
+    let point = match report.truth_point.source {
+        TruthPointSource::Axle => "the rear-axle centre".to_string(),
+        TruthPointSource::Given => format!("({x:+.3}, {y:+.3}) m, as given"),
+        TruthPointSource::MeasuredAntenna => {
+            format!("the GNSS antenna at ({x:+.3}, {y:+.3}) m, measured (vehicle.toml [gnss])")
+        }
+        TruthPointSource::EstimatedAntenna => {
+            format!("the GNSS antenna at ({x:+.3}, {y:+.3}) m, calibrated (the estimate)")
+        }
+    };
+    println!("scored at  {point}");
+    if report.truth_is_gnss_track {
+        println!(
+            "           (truth.csv is the GNSS track itself: it follows the antenna{})",
+            if report.truth_point.source == TruthPointSource::Axle {
+                ", so a score at the rear axle includes the antenna's lever arm"
+            } else {
+                ""
+            }
+        );
+    }
     println!();
     println!(
         "  start s  length s  distance m   error m  error %  gyro bias rad/s (standstills)  start pose from"
