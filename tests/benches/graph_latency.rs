@@ -25,8 +25,12 @@
 //! The two consumers take turns (four each, a quarter of the time each), so
 //! that the machine's drift during a run falls on both alike.
 //!
-//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--cpu-latency-zero]`
-//! (default 60 s of drive per consumer). `--cpu-latency-zero` holds the
+//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--cpu-latency-zero]
+//! [--deliver-late STREAM=S,...]` (default 60 s of drive per consumer).
+//! `--deliver-late` publishes those streams that long after their time
+//! stamps, as `sensor-bridge replay --deliver-late` does: with late GNSS
+//! fixes, the odometry goes back in its log at each fix, and the figures
+//! include that work. `--cpu-latency-zero` holds the
 //! machine's PM QoS CPU latency request at 0 during the run (a deployment
 //! setting: idle cores poll instead of halting; needs root).
 
@@ -36,7 +40,7 @@ use integration_tests::latency::{quantile, CpuLatencyZero};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
 use odometry::serve::{read_latency_trace, wall_clock_ns, write_latency_trace};
-use sensor_bridge::replay::{to_wire, Stream, WireDrive};
+use sensor_bridge::replay::{to_wire, DeliveryLatency, Stream, WireDrive};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
 use sensor_bridge::write_drive;
 use std::collections::HashMap;
@@ -60,9 +64,21 @@ fn main() {
     let seconds: f64 = args
         .iter()
         .skip(1)
+        .take_while(|a| *a != "--deliver-late")
         .find_map(|a| a.parse().ok())
         .unwrap_or(60.0);
-    run(seconds, 4, args.iter().any(|a| a == "--cpu-latency-zero"));
+    let latency = args
+        .iter()
+        .position(|a| a == "--deliver-late")
+        .and_then(|i| args.get(i + 1))
+        .map(|v| DeliveryLatency::parse(v).expect("--deliver-late"))
+        .unwrap_or_default();
+    run(
+        seconds,
+        4,
+        args.iter().any(|a| a == "--cpu-latency-zero"),
+        &latency,
+    );
 }
 
 /// The bare relay: wheels in, the same header out as a pose, nothing else;
@@ -160,16 +176,23 @@ fn receiver(
     }
 }
 
-/// Publish the first `seconds` of `wire` in real time; returns the publish
-/// instants of the wheel samples by time stamp.
-fn publish(p: &mut Publishers, wire: &WireDrive, seconds: f64) -> Vec<Sent> {
-    let order = wire.merged();
+/// Publish the first `seconds` of `wire` in real time, each stream
+/// `latency` after its time stamps; returns the publish instants of the
+/// wheel samples by time stamp.
+fn publish(
+    p: &mut Publishers,
+    wire: &WireDrive,
+    seconds: f64,
+    latency: &DeliveryLatency,
+) -> Vec<Sent> {
+    let order = wire.delivery_order(latency);
     let t0 = wire.time_span_ns().expect("span").0;
     let start = Instant::now();
     let mut sent = Vec::new();
+    let mut fix_since_wheels = false;
     for (stream, i) in order {
         let t_ns = wire.time_ns(stream, i);
-        let due = (t_ns - t0) as f64 * 1e-9;
+        let due = (t_ns + latency.of_ns(stream) - t0) as f64 * 1e-9;
         if due > seconds {
             break;
         }
@@ -182,10 +205,16 @@ fn publish(p: &mut Publishers, wire: &WireDrive, seconds: f64) -> Vec<Sent> {
                 let wall_ns = wall_clock_ns();
                 let at = Instant::now();
                 p.wheels.publish(wire.wheels[i]).expect("publish");
-                sent.push(Sent { t_ns, at, wall_ns });
+                sent.push(Sent {
+                    t_ns,
+                    at,
+                    wall_ns,
+                    with_fix: std::mem::take(&mut fix_since_wheels),
+                });
             }
             Stream::Gnss => {
                 p.gnss.publish(wire.gnss[i]).expect("publish");
+                fix_since_wheels = true;
             }
             Stream::Imu => {
                 p.imu.publish(wire.imu[i]).expect("publish");
@@ -205,6 +234,10 @@ struct Sent {
     at: Instant,
     /// Just before publishing (wall clock, ns, to compare with the consumer's trace).
     wall_ns: i128,
+    /// A GNSS fix was published since the previous wheel sample: the
+    /// consumer's wakeup for this one takes it too (late, it makes the
+    /// odometry go back in its log).
+    with_fix: bool,
 }
 
 struct Stats {
@@ -270,6 +303,18 @@ fn stats(latencies: &[Option<f64>]) -> Stats {
     }
 }
 
+/// The count of late samples `odometry serve` took in their place, from its
+/// exit line ("... N late sample(s) taken in order ...").
+fn late_samples_taken_in_order(log: &str) -> u64 {
+    const MARK: &str = " late sample(s) taken in order";
+    log.lines()
+        .filter_map(|line| {
+            let head = &line[..line.find(MARK)?];
+            head.rsplit(' ').next()?.parse::<u64>().ok()
+        })
+        .sum()
+}
+
 /// Wait (watchdog 60 s) until `who` subscribes to IMU, GNSS and heading too.
 fn wait_for_sensor_subscribers(p: &Publishers, who: &str) {
     let start = Instant::now();
@@ -290,6 +335,7 @@ fn phase(
     p: &mut Publishers,
     wire: &WireDrive,
     seconds: f64,
+    latency: &DeliveryLatency,
     arrivals: &Arrivals,
 ) -> (Latencies, Vec<Sent>) {
     // Wait until the consumer subscribes to every sensor topic it reads and
@@ -310,7 +356,7 @@ fn phase(
     }
     std::thread::sleep(Duration::from_millis(300));
     arrivals.lock().expect("lock").clear();
-    let sent = publish(p, wire, seconds);
+    let sent = publish(p, wire, seconds, latency);
     std::thread::sleep(Duration::from_millis(500));
     let _ = g;
     (round_trip(&sent, arrivals), sent)
@@ -323,10 +369,14 @@ struct Pooled {
     hop: Latencies,
     wake: Latencies,
     work: Latencies,
+    /// Per entry: the wakeup took a GNSS fix too ([`Sent::with_fix`]).
+    with_fix: Vec<bool>,
 }
 
 impl Pooled {
-    fn add(&mut self, round_trip: Latencies, [hop, wake, work]: [Latencies; 3]) {
+    fn add(&mut self, round_trip: Latencies, sent: &[Sent], [hop, wake, work]: [Latencies; 3]) {
+        self.with_fix
+            .extend(sent.iter().skip(WARMUP).map(|s| s.with_fix));
         self.round_trip.extend(round_trip);
         self.hop.extend(hop);
         self.wake.extend(wake);
@@ -334,7 +384,7 @@ impl Pooled {
     }
 }
 
-fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
+fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool, latency: &DeliveryLatency) {
     let _pm_qos = cpu_latency_zero.then(|| {
         CpuLatencyZero::hold()
             .expect("--cpu-latency-zero needs write access to /dev/cpu_dma_latency (root)")
@@ -363,6 +413,7 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
     let exe = std::env::current_exe().expect("exe");
     let vehicle = folder.join("vehicle.toml");
     let per_phase = seconds / rounds as f64;
+    let mut rewinds = 0u64;
     let (mut bare, mut odometry) = (Pooled::default(), Pooled::default());
     // The two consumers take turns, so that a drift of the machine's state
     // during the run falls on both alike.
@@ -373,10 +424,10 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
             &exe,
             &["--relay", "--trace", trace_bare.to_str().expect("utf-8")],
         );
-        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, &arrivals);
+        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
         g.terminate(relay);
         g.wait_exit(relay);
-        bare.add(rt, one_hop(&sent, &read_trace(&trace_bare)));
+        bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace_bare)));
 
         let trace_odometry = g.path(&format!("trace-odometry-{round}.csv"));
         let odo = g.spawn(
@@ -392,10 +443,11 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
             ],
         );
         wait_for_sensor_subscribers(&p, "odometry");
-        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, &arrivals);
+        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
         g.terminate(odo);
         g.wait_exit(odo);
-        odometry.add(rt, one_hop(&sent, &read_trace(&trace_odometry)));
+        odometry.add(rt, &sent, one_hop(&sent, &read_trace(&trace_odometry)));
+        rewinds += late_samples_taken_in_order(&g.log(odo));
     }
     stop.store(true, Ordering::SeqCst);
     let _ = handle.join();
@@ -409,6 +461,13 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
             "none (the machine's default)"
         }
     );
+    if *latency != DeliveryLatency::default() {
+        println!(
+            "delivered late (time stamps as recorded): GNSS {} s, IMU {} s, heading {} s, wheels {} s; \
+             the odometry went back {rewinds} time(s) for late samples",
+            latency.gnss_s, latency.imu_s, latency.heading_s, latency.wheels_s
+        );
+    }
     let [bare_rt, bare_hop, bare_wake, bare_work] =
         [&bare.round_trip, &bare.hop, &bare.wake, &bare.work].map(|l| stats(l));
     let [odometry_rt, odometry_hop, odometry_wake, odometry_work] = [
@@ -435,6 +494,23 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool) {
             &odometry_work,
         ),
     ] {
+        println!(
+            "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
+            s.n, s.p50, s.p99, s.p999, s.max, s.missing
+        );
+    }
+    for (name, with_fix) in [
+        ("  of which wakeups that took a GNSS fix", true),
+        ("  of which wakeups without one", false),
+    ] {
+        let part: Latencies = odometry
+            .work
+            .iter()
+            .zip(&odometry.with_fix)
+            .filter(|(_, &f)| f == with_fix)
+            .map(|(l, _)| *l)
+            .collect();
+        let s = stats(&part);
         println!(
             "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
             s.n, s.p50, s.p99, s.p999, s.max, s.missing

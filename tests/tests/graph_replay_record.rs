@@ -66,7 +66,11 @@ fn replay_into_record(name: &str, extra: &[&str]) {
         g.log(replay)
     );
     if !extra.is_empty() {
-        assert!(g.log(replay).contains("delivering late"), "{}", g.log(replay));
+        assert!(
+            g.log(replay).contains("delivering late"),
+            "{}",
+            g.log(replay)
+        );
     }
     let rec = finish_recording(&mut g, record, &out);
     assert_recording_matches(&drive, &rec);
