@@ -2,7 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use odometry::estimate_file::{Estimate, OdometryParams};
+use odometry::estimate_file::{Estimate, OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
 use odometry::evaluate::{
     choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
     TruthPointSource,
@@ -81,18 +81,20 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
-    let (params, source, antenna) = match &args.estimate {
+    let (params, source, antenna, antenna_sigma) = match &args.estimate {
         Some(path) => {
             let estimate = Estimate::load(path).context("cannot use the estimate")?;
             (
                 estimate.params,
                 path.display().to_string(),
                 estimate.antenna_m,
+                estimate.antenna_sigma_m,
             )
         }
         None => (
             OdometryParams::nominal(&drive.vehicle),
             "nominal (vehicle.toml)".to_string(),
+            None,
             None,
         ),
     };
@@ -107,7 +109,12 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     };
     let report = evaluate(&drive, &params, &config)
         .with_context(|| format!("cannot evaluate {}", args.drive.display()))?;
-    print_report(&report, &source, &args.drive.display().to_string());
+    print_report(
+        &report,
+        &source,
+        &args.drive.display().to_string(),
+        antenna_sigma,
+    );
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&report).context("cannot serialise the report")?;
         std::fs::write(path, text + "\n")
@@ -116,7 +123,13 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     Ok(())
 }
 
-fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
+/// `antenna_sigma`: the estimate's 1-sigma of its antenna position, m.
+fn print_report(
+    report: &EvaluationReport,
+    source: &str,
+    drive: &str,
+    antenna_sigma: Option<[f64; 2]>,
+) {
     println!("drive      {drive}");
     println!("parameters {source}");
     let p = &report.params;
@@ -133,7 +146,14 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
             format!("the GNSS antenna at ({x:+.3}, {y:+.3}) m, measured (vehicle.toml [gnss])")
         }
         TruthPointSource::EstimatedAntenna => {
-            format!("the GNSS antenna at ({x:+.3}, {y:+.3}) m, calibrated (the estimate)")
+            let sigma = match antenna_sigma {
+                Some([sx, sy]) if sx.max(sy) > MAX_FUSED_ANTENNA_SIGMA_M => format!(
+                    ", 1-sigma ({sx:.2}, {sy:.2}) m: poorly determined, the score carries its error"
+                ),
+                Some([sx, sy]) => format!(", 1-sigma ({sx:.2}, {sy:.2}) m"),
+                None => String::new(),
+            };
+            format!("the GNSS antenna at ({x:+.3}, {y:+.3}) m, calibrated (the estimate){sigma}")
         }
     };
     println!("scored at  {point}");
@@ -141,7 +161,8 @@ fn print_report(report: &EvaluationReport, source: &str, drive: &str) {
         println!(
             "           (truth.csv is the GNSS track itself: it follows the antenna{})",
             if report.truth_point.source == TruthPointSource::Axle {
-                ", so a score at the rear axle includes the antenna's lever arm"
+                ", so a score at the rear axle includes the antenna's lever arm; to compare with \
+                 a calibrated run, score both at its antenna: --truth-point X,Y"
             } else {
                 ""
             }

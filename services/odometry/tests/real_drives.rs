@@ -5,7 +5,10 @@
 
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::estimate_file::OdometryParams;
-use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
+use odometry::evaluate::{
+    choose_truth_point, evaluate, truth_gnss_coincidence, truth_is_the_gnss_track, EvaluateConfig,
+    EvaluationReport, TruthPoint, TruthPointChoice, TruthPointSource,
+};
 
 fn run(drive: &interfaces::drive::Drive, heading: HeadingMode) -> EvaluationReport {
     let config = EvaluateConfig {
@@ -90,4 +93,36 @@ fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
         assert_eq!(report.truth_yaw_offset_rad, None, "{name}");
         assert!(!report.truth_yaw_used, "{name}");
     }
+}
+
+/// The WID truth is the RTK receiver's track: every fix has its truth row,
+/// at the fix, so `odometry evaluate` scores the antenna there by default.
+/// comma2k19's truth is its device's fused pose, not its fixes: scored at
+/// the axle.
+#[test]
+fn the_wid_truth_is_the_gnss_track_and_comma2k19s_is_not() {
+    let antenna = Some([0.5, -0.3]);
+    for (name, fixes) in [("wid-trial02", 609), ("wid-trial04", 698)] {
+        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
+            return;
+        };
+        let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+        assert_eq!(truth_gnss_coincidence(&drive), (fixes, fixes), "{name}");
+        assert!(truth_is_the_gnss_track(&drive), "{name}");
+        let point = choose_truth_point(&drive, TruthPointChoice::Auto, antenna).expect("point");
+        assert_eq!(point.source, TruthPointSource::EstimatedAntenna, "{name}");
+        assert_eq!(Some(point.point_m), antenna, "{name}");
+    }
+    let Some(path) = sensor_bridge::dev_data::real_drive("comma2k19-seg40") else {
+        return;
+    };
+    let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+    // Its fixes (about 11 Hz) fall between the truth's rows (20 Hz): not one
+    // shares an instant, let alone a position.
+    assert_eq!(truth_gnss_coincidence(&drive), (0, 0));
+    assert!(!truth_is_the_gnss_track(&drive));
+    assert_eq!(
+        choose_truth_point(&drive, TruthPointChoice::Auto, antenna).expect("point"),
+        TruthPoint::AXLE
+    );
 }
