@@ -3,12 +3,15 @@
 //!
 //! The parent stamps the wall clock and sends a sample every 10 ms; a child
 //! process blocked in its wait stamps the wall clock once the wait returned and
-//! it has the sample. Three mechanisms, taking turns (four each):
+//! it has the sample. Four mechanisms, taking turns (four each):
 //! - **socket**: a Unix datagram socket, the child blocked in `recv` (the
 //!   kernel path under iceoryx2's default event, without iceoryx2);
 //! - **iceoryx2 WaitSet**: iceoryx2 publish-subscribe plus its event service,
 //!   the child in a WaitSet on the listener: the wakeup of `odometry serve` and
 //!   of `graph_latency`'s bare pair;
+//! - **iceoryx2 listener**: the same iceoryx2 services, the child blocked in
+//!   the listener's own `timed_wait` (100 ms timeout) instead of a
+//!   WaitSet: one topic's event and a timeout, no reactor;
 //! - **iceoryx2 semaphore**: the same with an event service whose event is a
 //!   semaphore in shared memory (a futex), the child in the listener's
 //!   `blocking_wait`. A WaitSet cannot wait on it (no file descriptor), so a
@@ -73,16 +76,23 @@ impl iceoryx2::service::internal::ServiceInternal<IpcSemaphoreEvent> for IpcSema
 enum Mechanism {
     Socket,
     WaitSet,
+    Listener,
     Semaphore,
 }
 
 impl Mechanism {
-    const ALL: [Mechanism; 3] = [Mechanism::Socket, Mechanism::WaitSet, Mechanism::Semaphore];
+    const ALL: [Mechanism; 4] = [
+        Mechanism::Socket,
+        Mechanism::WaitSet,
+        Mechanism::Listener,
+        Mechanism::Semaphore,
+    ];
 
     fn arg(self) -> &'static str {
         match self {
             Mechanism::Socket => "socket",
             Mechanism::WaitSet => "waitset",
+            Mechanism::Listener => "listener",
             Mechanism::Semaphore => "semaphore",
         }
     }
@@ -91,6 +101,7 @@ impl Mechanism {
         match self {
             Mechanism::Socket => "Unix datagram socket, blocking recv",
             Mechanism::WaitSet => "iceoryx2 (socket event), WaitSet",
+            Mechanism::Listener => "iceoryx2 (socket event), timed_wait",
             Mechanism::Semaphore => "iceoryx2 (semaphore event), blocking_wait",
         }
     }
@@ -187,7 +198,9 @@ fn turn(kind: Mechanism, name: &str, out: &Path, dir: &Path, n: usize) -> Vec<f6
                 s.send_to(&v.to_ne_bytes(), &socket_path).expect("send");
             })
         }
-        Mechanism::WaitSet => iceoryx2_sender::<ipc::Service>(name, &mut child),
+        Mechanism::WaitSet | Mechanism::Listener => {
+            iceoryx2_sender::<ipc::Service>(name, &mut child)
+        }
         Mechanism::Semaphore => iceoryx2_sender::<IpcSemaphoreEvent>(name, &mut child),
     };
     let mut send = send;
@@ -290,6 +303,24 @@ fn child(kind: Mechanism, target: &str, out: &Path) {
                     }
                 }
                 listener.try_wait(|_| {}).expect("take events");
+            }
+            drop(node);
+        }
+        Mechanism::Listener => {
+            let (node, pubsub, event) = open::<ipc::Service>(target);
+            let subscriber = pubsub.subscriber_builder().create().expect("subscriber");
+            let listener = event.listener_builder().create().expect("listener");
+            println!("ready");
+            'outer: loop {
+                // A timeout, as a service with a tick would wait.
+                listener
+                    .timed_wait(|_| {}, Duration::from_millis(100))
+                    .expect("wait");
+                while let Some(s) = subscriber.receive().expect("receive") {
+                    if !record(*s) {
+                        break 'outer;
+                    }
+                }
             }
             drop(node);
         }
