@@ -55,7 +55,6 @@ use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 use iceoryx2::waitset::{WaitSetRunError, WaitSetRunResult};
 use std::cell::RefCell;
-use std::collections::HashMap;
 use std::fmt::Debug;
 use std::path::{Path as StdPath, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -871,7 +870,11 @@ impl<T: Topic> TopicSubscriber<T> {
 /// publisher restarted (counted, not a loss).
 #[derive(Debug, Clone, Default)]
 pub struct SeqTracker {
-    next: HashMap<u128, u64>,
+    /// (publisher id, next expected number), the latest-seen publisher first.
+    /// A topic has one or two publishers at a time, so a short list searched
+    /// from the front beats a hash map on the receive path (no hashing of
+    /// the 128-bit id per sample).
+    next: Vec<(u128, u64)>,
     lost: u64,
     received: u64,
     restarts: u64,
@@ -881,13 +884,25 @@ impl SeqTracker {
     /// Record sequence number `seq` from publisher `publisher`.
     pub fn observe(&mut self, publisher: u128, seq: u64) {
         self.received += 1;
-        match self.next.get(&publisher) {
-            Some(&expected) if seq > expected => self.lost += seq - expected,
-            Some(&expected) if seq < expected => self.restarts += 1,
-            None if seq > 0 => self.lost += seq,
-            _ => {}
+        match self.next.iter().position(|&(id, _)| id == publisher) {
+            Some(k) => {
+                let expected = self.next[k].1;
+                if seq > expected {
+                    self.lost += seq - expected;
+                } else if seq < expected {
+                    self.restarts += 1;
+                }
+                self.next[k].1 = seq + 1;
+                // Keep the publisher being read at the front.
+                if k > 0 {
+                    self.next.swap(0, k);
+                }
+            }
+            None => {
+                self.lost += seq;
+                self.next.insert(0, (publisher, seq + 1));
+            }
         }
-        self.next.insert(publisher, seq + 1);
     }
 
     /// Samples missing so far (a first sample numbered n > 0 counts n missing).
@@ -954,6 +969,11 @@ mod tests {
         t.observe(9, 3);
         assert_eq!(t.lost(), 5);
         assert_eq!(t.received(), 7);
+        // Two publishers read in turns: each keeps its own count.
+        for (publisher, s) in [(7, 1), (9, 4), (7, 2), (9, 5), (7, 4), (9, 6)] {
+            t.observe(publisher, s);
+        }
+        assert_eq!((t.lost(), t.restarts(), t.received()), (6, 1, 13));
     }
 
     #[test]
