@@ -62,7 +62,9 @@ pub struct RecordArgs {
     /// (folder or .mcap) to take them from. The bus does not carry them.
     #[arg(long, value_name = "PATH")]
     pub vehicle: PathBuf,
-    /// Stop when the publisher announces the end of its stream (default: at Ctrl-C).
+    /// Stop when the publishers announce the end of their streams: the wheels',
+    /// then every other topic's (or it is gone, or 2 s passed) (default: at
+    /// Ctrl-C).
     #[arg(long)]
     pub until_end: bool,
 }

@@ -250,6 +250,9 @@ pub struct DrainOutcome {
     pub end_of_stream: bool,
     /// A sensor publisher went away (dropped or dead).
     pub publisher_gone: bool,
+    /// Per topic (wheels, gnss, imu, heading): its publisher announced the
+    /// end of its stream.
+    pub ended: [bool; 4],
 }
 
 impl SensorSubscribers {
@@ -271,16 +274,17 @@ impl SensorSubscribers {
     /// Consume the notifications and every waiting sample into `builder`.
     pub fn drain_into(&self, builder: &mut DriveBuilder) -> Result<DrainOutcome, BusError> {
         let mut out = DrainOutcome::default();
-        let ev = self.wheels.take_events()?;
-        out.end_of_stream = ev.end_of_stream;
-        out.publisher_gone = ev.publisher_gone;
-        for e in [
+        let events = [
+            self.wheels.take_events()?,
             self.gnss.take_events()?,
             self.imu.take_events()?,
             self.heading.take_events()?,
-        ] {
+        ];
+        for (k, e) in events.iter().enumerate() {
+            out.ended[k] = e.end_of_stream;
             out.publisher_gone |= e.publisher_gone;
         }
+        out.end_of_stream = out.ended[0];
         // Everything sent before the end-of-stream event is already in the
         // buffers (delivery happens at send), so one drain after it is complete.
         while let Some(s) = self.gnss.receive()? {
@@ -300,6 +304,16 @@ impl SensorSubscribers {
             out.received += 1;
         }
         Ok(out)
+    }
+
+    /// Publishers per topic right now: wheels, gnss, imu, heading.
+    pub fn publisher_counts(&self) -> [usize; 4] {
+        [
+            self.wheels.publisher_count(),
+            self.gnss.publisher_count(),
+            self.imu.publisher_count(),
+            self.heading.publisher_count(),
+        ]
     }
 
     /// Samples missing by sequence number: wheels, gnss, imu, heading.
@@ -328,11 +342,18 @@ impl SensorSubscribers {
 pub struct RecordOptions {
     /// Vehicle parameters written into the recording.
     pub vehicle: VehicleParams,
-    /// Stop when the wheel publisher announces the end of its stream (or goes away).
+    /// Stop when the wheel publisher announces the end of its stream (or goes
+    /// away) and every other topic's publisher has ended its stream too, or
+    /// gone, or [`END_OF_STREAM_GRACE`] has passed since the wheels ended.
     pub until_end_of_stream: bool,
     /// Log progress every this long (zero = never).
     pub progress_every: Duration,
 }
+
+/// How long `record --until-end` waits, after the wheel stream ended, for the
+/// other topics' publishers to end theirs: a driver of its own (a GNSS
+/// receiver) may still deliver the samples of the drive's last instants.
+pub const END_OF_STREAM_GRACE: Duration = Duration::from_secs(2);
 
 /// Why a recording failed.
 #[derive(Debug, thiserror::Error)]
@@ -386,6 +407,9 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
         })?;
     let mut builder = DriveBuilder::new(opts.vehicle.clone());
     let mut last_progress = Instant::now();
+    // Topics whose publisher ended its stream; when the wheel stream ended.
+    let mut ended = [false; 4];
+    let mut wheels_ended_at: Option<Instant> = None;
     tracing::info!("recording every sensor topic; Ctrl-C ends the recording");
     loop {
         let result = waitset
@@ -407,9 +431,35 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
         if bus::stop_requested_by(result) {
             break;
         }
-        if opts.until_end_of_stream && (outcome.end_of_stream || outcome.publisher_gone) {
-            if outcome.publisher_gone && !outcome.end_of_stream {
-                tracing::warn!("record: a sensor publisher went away without ending its stream");
+        for (e, now) in ended.iter_mut().zip(outcome.ended) {
+            *e |= now;
+        }
+        if !opts.until_end_of_stream {
+            continue;
+        }
+        let publishers = subs.publisher_counts();
+        if wheels_ended_at.is_none() && (ended[0] || publishers[0] == 0 && outcome.publisher_gone) {
+            if !ended[0] {
+                tracing::warn!("record: the wheel publisher went away without ending its stream");
+            }
+            wheels_ended_at = Some(Instant::now());
+        }
+        let Some(at) = wheels_ended_at else {
+            continue;
+        };
+        // The other topics are done when their publisher ended its stream or
+        // is gone (or never was).
+        let open: Vec<&str> = (1..4)
+            .filter(|&k| !ended[k] && publishers[k] > 0)
+            .map(|k| NAMES[k])
+            .collect();
+        if open.is_empty() || at.elapsed() >= END_OF_STREAM_GRACE {
+            if !open.is_empty() {
+                tracing::warn!(
+                    "record: the wheel stream ended {:.1} s ago and {} did not end theirs; recording stops",
+                    at.elapsed().as_secs_f64(),
+                    open.join(", ")
+                );
             }
             // One more drain for anything that raced with the event.
             subs.drain_into(&mut builder)?;
