@@ -64,7 +64,6 @@ fn main() {
     let seconds: f64 = args
         .iter()
         .skip(1)
-        .take_while(|a| *a != "--deliver-late")
         .find_map(|a| a.parse().ok())
         .unwrap_or(60.0);
     let latency = args
