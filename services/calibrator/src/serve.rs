@@ -695,7 +695,7 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
         }
         seen = builder.wheel_count();
         publisher.update_connections()?;
-        if outcome.end_of_stream && !ended {
+        if outcome.end_of_stream() && !ended {
             ended = true;
             tracing::info!(
                 "calibrator: sensor stream ended after {:.0} m, {:.0} deg of turning",

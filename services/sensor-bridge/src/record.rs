@@ -246,13 +246,18 @@ pub struct SensorSubscribers {
 pub struct DrainOutcome {
     /// Samples received, all topics.
     pub received: u64,
-    /// The wheel publisher announced the end of its stream.
-    pub end_of_stream: bool,
     /// A sensor publisher went away (dropped or dead).
     pub publisher_gone: bool,
     /// Per topic (wheels, gnss, imu, heading): its publisher announced the
     /// end of its stream.
     pub ended: [bool; 4],
+}
+
+impl DrainOutcome {
+    /// The wheel publisher announced the end of its stream.
+    pub fn end_of_stream(&self) -> bool {
+        self.ended[0]
+    }
 }
 
 impl SensorSubscribers {
@@ -284,7 +289,6 @@ impl SensorSubscribers {
             out.ended[k] = e.end_of_stream;
             out.publisher_gone |= e.publisher_gone;
         }
-        out.end_of_stream = out.ended[0];
         // Everything sent before the end-of-stream event is already in the
         // buffers (delivery happens at send), so one drain after it is complete.
         while let Some(s) = self.gnss.receive()? {
@@ -437,8 +441,9 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
         if !opts.until_end_of_stream {
             continue;
         }
-        let publishers = subs.publisher_counts();
-        if wheels_ended_at.is_none() && (ended[0] || publishers[0] == 0 && outcome.publisher_gone) {
+        if wheels_ended_at.is_none()
+            && (ended[0] || outcome.publisher_gone && subs.wheels.publisher_count() == 0)
+        {
             if !ended[0] {
                 tracing::warn!("record: the wheel publisher went away without ending its stream");
             }
@@ -449,6 +454,7 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
         };
         // The other topics are done when their publisher ended its stream or
         // is gone (or never was).
+        let publishers = subs.publisher_counts();
         let open: Vec<&str> = (1..4)
             .filter(|&k| !ended[k] && publishers[k] > 0)
             .map(|k| NAMES[k])
