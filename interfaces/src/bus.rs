@@ -89,6 +89,11 @@ pub const LATEST_BUFFER: usize = 4;
 pub const MAX_SUBSCRIBERS: usize = 8;
 /// Maximum publishers per topic (2: a restarted publisher beside a dead one not yet cleaned up).
 pub const MAX_PUBLISHERS: usize = 2;
+
+/// Connections of publishers gone with samples unread that a subscriber
+/// keeps (to read those samples) per topic; see [`BusSettings::iceoryx_config`].
+pub const EXPIRED_CONNECTIONS: usize = 4 * MAX_PUBLISHERS;
+
 /// Maximum nodes per service.
 pub const MAX_NODES: usize = 32;
 
@@ -344,6 +349,16 @@ impl BusSettings {
     /// is set in code, so all processes agree whatever files a machine has.
     pub fn iceoryx_config(&self) -> Result<Config, BusError> {
         let mut config = Config::default();
+        // A subscriber keeps the connections of publishers that went away
+        // with samples still unread in a buffer of this many, and its every
+        // receive walks the whole table of connections (this buffer plus the
+        // publishers): iceoryx2's 128 made a receive walk 130 slots, a third
+        // of its instructions, on the path to every pose. A few publishers
+        // of one topic gone with unread samples at once is plenty here.
+        config
+            .defaults
+            .publish_subscribe
+            .subscriber_expired_connection_buffer = EXPIRED_CONNECTIONS;
         if let Some(prefix) = &self.prefix {
             config.global.prefix =
                 FileName::new(prefix.as_bytes()).map_err(|e| BusError::InvalidSetting {

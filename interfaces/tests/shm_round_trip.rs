@@ -339,6 +339,42 @@ fn lossless_stream_loses_nothing_to_a_slow_subscriber() {
     settings.remove_leftovers();
 }
 
+/// Publishers that go away with samples unread (a bridge restarted while
+/// the consumer was busy): their samples are still received, in order, for
+/// as many gone publishers as the bus keeps connections of
+/// (`EXPIRED_CONNECTIONS`, which our configuration makes far smaller than
+/// iceoryx2's default, to keep every receive short).
+#[test]
+fn samples_of_publishers_gone_unread_are_still_received() {
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("expired", root.path());
+    let bus = Bus::open(&settings, "expired_test").expect("bus");
+    let sub = bus.subscriber::<WheelRotations>().expect("subscriber");
+    const PER_PUBLISHER: u64 = 5;
+    let runs = interfaces::bus::EXPIRED_CONNECTIONS as u64;
+    for run in 0..runs {
+        let mut publisher = bus.publisher::<WheelRotations>().expect("publisher");
+        sub.connect().expect("connect"); // the subscriber sees it, reads nothing
+        for i in 0..PER_PUBLISHER {
+            publisher.publish(wheels(run * 100 + i)).expect("publish");
+        }
+    }
+    let mut got = Vec::new();
+    while let Some(s) = sub.receive().expect("receive") {
+        got.push((s.header.seq, s.rl_rev));
+    }
+    // Each publisher numbers its samples from 0; the values tell them apart.
+    let want: Vec<(u64, f64)> = (0..runs)
+        .flat_map(|run| (0..PER_PUBLISHER).map(move |i| (i, wheels(run * 100 + i).rl_rev)))
+        .collect();
+    let mut sorted = got.clone();
+    sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    assert_eq!(sorted, want, "every sample of every gone publisher arrives");
+    assert_eq!(sub.lost(), 0);
+    drop((sub, bus));
+    settings.remove_leftovers();
+}
+
 /// Child mode: publish the samples of one type, then stay (updating
 /// connections so late subscribers get the history) until stdin closes.
 #[test]

@@ -26,7 +26,10 @@
 //! that the machine's drift during a run falls on both alike.
 //!
 //! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--cpu-latency-zero]
-//! [--deliver-late STREAM=S,...]` (default 60 s of drive per consumer).
+//! [--deliver-late STREAM=S,...] [--baseline-odometry EXE]` (default 60 s of drive per
+//! consumer). `--baseline-odometry` adds a third consumer taking turns with the other
+//! two: another build of `odometry serve` (a copy of the binary before a change), so
+//! that a change is compared with what it replaces in the same run.
 //! `--deliver-late` publishes those streams that long after their time
 //! stamps, as `sensor-bridge replay --deliver-late` does: with late GNSS
 //! fixes, the odometry goes back in its log at each fix, and the figures
@@ -72,11 +75,17 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map(|v| DeliveryLatency::parse(v).expect("--deliver-late"))
         .unwrap_or_default();
+    let baseline = args
+        .iter()
+        .position(|a| a == "--baseline-odometry")
+        .and_then(|i| args.get(i + 1))
+        .map(std::path::PathBuf::from);
     run(
         seconds,
         4,
         args.iter().any(|a| a == "--cpu-latency-zero"),
         &latency,
+        baseline.as_deref(),
     );
 }
 
@@ -383,7 +392,13 @@ impl Pooled {
     }
 }
 
-fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool, latency: &DeliveryLatency) {
+fn run(
+    seconds: f64,
+    rounds: usize,
+    cpu_latency_zero: bool,
+    latency: &DeliveryLatency,
+    baseline: Option<&std::path::Path>,
+) {
     let _pm_qos = cpu_latency_zero.then(|| {
         CpuLatencyZero::hold()
             .expect("--cpu-latency-zero needs write access to /dev/cpu_dma_latency (root)")
@@ -414,6 +429,7 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool, latency: &DeliveryLa
     let per_phase = seconds / rounds as f64;
     let mut rewinds = 0u64;
     let (mut bare, mut odometry) = (Pooled::default(), Pooled::default());
+    let mut baseline_odometry = Pooled::default();
     // The two consumers take turns, so that a drift of the machine's state
     // during the run falls on both alike.
     for round in 0..rounds {
@@ -447,6 +463,27 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool, latency: &DeliveryLa
         g.wait_exit(odo);
         odometry.add(rt, &sent, one_hop(&sent, &read_trace(&trace_odometry)));
         rewinds += late_samples_taken_in_order(&g.log(odo));
+
+        if let Some(exe) = baseline {
+            let trace_baseline = g.path(&format!("trace-baseline-{round}.csv"));
+            let odo = g.spawn_exe(
+                "baseline-odometry",
+                exe,
+                &[
+                    "serve",
+                    "--vehicle",
+                    vehicle.to_str().expect("utf-8"),
+                    "--no-bus-estimate",
+                    "--latency-trace",
+                    trace_baseline.to_str().expect("utf-8"),
+                ],
+            );
+            wait_for_sensor_subscribers(&p, "baseline odometry");
+            let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
+            g.terminate(odo);
+            g.wait_exit(odo);
+            baseline_odometry.add(rt, &sent, one_hop(&sent, &read_trace(&trace_baseline)));
+        }
     }
     stop.store(true, Ordering::SeqCst);
     let _ = handle.join();
@@ -513,6 +550,33 @@ fn run(seconds: f64, rounds: usize, cpu_latency_zero: bool, latency: &DeliveryLa
         println!(
             "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
             s.n, s.p50, s.p99, s.p999, s.max, s.missing
+        );
+    }
+    if let Some(exe) = baseline {
+        let [hop, wake, work] = [
+            &baseline_odometry.hop,
+            &baseline_odometry.wake,
+            &baseline_odometry.work,
+        ]
+        .map(|l| stats(l));
+        println!(
+            "baseline odometry, {} (--baseline-odometry):",
+            exe.display()
+        );
+        for (name, s) in [
+            ("publish -> baseline's pose publish (1 hop)", &hop),
+            ("  of which publish -> baseline's wakeup", &wake),
+            ("  of which wakeup -> baseline's pose publish", &work),
+        ] {
+            println!(
+                "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
+                s.n, s.p50, s.p99, s.p999, s.max, s.missing
+            );
+        }
+        println!(
+            "one hop, baseline odometry / bare pair: p50 {:.2}, p99 {:.2}",
+            hop.p50 / bare_hop.p50,
+            hop.p99 / bare_hop.p99
         );
     }
     println!(
