@@ -79,6 +79,11 @@ pub const EVENT_PUBLISHER_DEAD: usize = 4;
 /// Event id: a publisher connected; subscribers attach to it (see
 /// [`TopicPublisher::announce`]).
 pub const EVENT_CONNECT: usize = 5;
+/// The largest event id a topic's event service takes. A listener's wait
+/// drains one counter per possible id: iceoryx2's default of 255 made every
+/// `take_notifications` walk 256 counters (2.5 k instructions).
+pub const EVENT_ID_MAX: usize = 7;
+const _: () = assert!(EVENT_CONNECT <= EVENT_ID_MAX && EVENT_PUBLISHER_DEAD <= EVENT_ID_MAX);
 
 /// Subscriber buffer of the lossless streams, samples. At 100 Hz this is 10 s of
 /// data: a paced replay never waits, `--max` waits on the slowest subscriber.
@@ -536,6 +541,7 @@ impl Bus {
                 .max_notifiers(2 * MAX_PUBLISHERS)
                 .max_listeners(2 * MAX_SUBSCRIBERS)
                 .max_nodes(MAX_NODES)
+                .event_id_max_value(EVENT_ID_MAX)
                 .notifier_dropped_event(EventId::new(EVENT_PUBLISHER_DROPPED))
                 .notifier_dead_event(EventId::new(EVENT_PUBLISHER_DEAD))
                 .open_or_create();
