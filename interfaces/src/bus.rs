@@ -357,7 +357,7 @@ impl BusSettings {
         // A subscriber keeps the connections of publishers that went away
         // with samples still unread in a buffer of this many, and its every
         // receive walks the whole table of connections (this buffer plus the
-        // publishers): iceoryx2's 128 made a receive walk 130 slots, a third
+        // publishers): iceoryx2's 128 made a receive walk 130 slots, most
         // of its instructions, on the path to every pose. A few publishers
         // of one topic gone with unread samples at once is plenty here.
         config

@@ -340,7 +340,7 @@ fn lossless_stream_loses_nothing_to_a_slow_subscriber() {
 }
 
 /// Publishers that go away with samples unread (a bridge restarted while
-/// the consumer was busy): their samples are still received, in order, for
+/// the consumer was busy): their samples are still received, every one, for
 /// as many gone publishers as the bus keeps connections of
 /// (`EXPIRED_CONNECTIONS`, which our configuration makes far smaller than
 /// iceoryx2's default, to keep every receive short).

@@ -38,7 +38,7 @@
 //! setting: idle cores poll instead of halting; needs root).
 
 use iceoryx2::prelude::CallbackProgression;
-use integration_tests::graph::{Bin, Graph};
+use integration_tests::graph::{bin, Bin, Graph};
 use integration_tests::latency::{quantile, CpuLatencyZero};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
@@ -338,14 +338,16 @@ fn wait_for_sensor_subscribers(p: &Publishers, who: &str) {
     }
 }
 
-fn phase(
-    g: &Graph,
-    p: &mut Publishers,
-    wire: &WireDrive,
+/// What every turn publishes, and where the poses it brings are stamped.
+struct Feed<'a> {
+    wire: &'a WireDrive,
+    /// Seconds of drive per turn.
     seconds: f64,
-    latency: &DeliveryLatency,
-    arrivals: &Arrivals,
-) -> (Latencies, Vec<Sent>) {
+    latency: &'a DeliveryLatency,
+    arrivals: &'a Arrivals,
+}
+
+fn phase(p: &mut Publishers, feed: &Feed) -> (Latencies, Vec<Sent>) {
     // Wait until the consumer subscribes to every sensor topic it reads and
     // attaches (announce + settle, as the bridge does).
     let start = Instant::now();
@@ -363,11 +365,43 @@ fn phase(
         r.expect("announce");
     }
     std::thread::sleep(Duration::from_millis(300));
-    arrivals.lock().expect("lock").clear();
-    let sent = publish(p, wire, seconds, latency);
+    feed.arrivals.lock().expect("lock").clear();
+    let sent = publish(p, feed.wire, feed.seconds, feed.latency);
     std::thread::sleep(Duration::from_millis(500));
-    let _ = g;
-    (round_trip(&sent, arrivals), sent)
+    (round_trip(&sent, feed.arrivals), sent)
+}
+
+/// One turn of an `odometry serve` build `exe` with the drive's `vehicle`
+/// file: start it, publish, stop it; its latencies go into `into`. Returns
+/// the late samples it took in order.
+fn odometry_turn(
+    g: &mut Graph,
+    p: &mut Publishers,
+    feed: &Feed,
+    exe: &std::path::Path,
+    label: &str,
+    vehicle: &std::path::Path,
+    into: &mut Pooled,
+) -> u64 {
+    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns));
+    let odo = g.spawn_exe(
+        label,
+        exe,
+        &[
+            "serve",
+            "--vehicle",
+            vehicle.to_str().expect("utf-8"),
+            "--no-bus-estimate",
+            "--latency-trace",
+            trace.to_str().expect("utf-8"),
+        ],
+    );
+    wait_for_sensor_subscribers(p, label);
+    let (rt, sent) = phase(p, feed);
+    g.terminate(odo);
+    g.wait_exit(odo);
+    into.add(rt, &sent, one_hop(&sent, &read_trace(&trace)));
+    late_samples_taken_in_order(&g.log(odo))
 }
 
 /// One consumer's latencies, pooled over the rounds.
@@ -379,6 +413,8 @@ struct Pooled {
     work: Latencies,
     /// Per entry: the wakeup took a GNSS fix too ([`Sent::with_fix`]).
     with_fix: Vec<bool>,
+    /// Turns added so far.
+    turns: usize,
 }
 
 impl Pooled {
@@ -389,6 +425,7 @@ impl Pooled {
         self.hop.extend(hop);
         self.wake.extend(wake);
         self.work.extend(work);
+        self.turns += 1;
     }
 }
 
@@ -432,6 +469,13 @@ fn run(
     let mut baseline_odometry = Pooled::default();
     // The two consumers take turns, so that a drift of the machine's state
     // during the run falls on both alike.
+    let feed = Feed {
+        wire: &wire,
+        seconds: per_phase,
+        latency,
+        arrivals: &arrivals,
+    };
+    let odometry_exe = bin(Bin::Odometry);
     for round in 0..rounds {
         let trace_bare = g.path(&format!("trace-bare-{round}.csv"));
         let relay = g.spawn_exe(
@@ -439,50 +483,30 @@ fn run(
             &exe,
             &["--relay", "--trace", trace_bare.to_str().expect("utf-8")],
         );
-        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
+        let (rt, sent) = phase(&mut p, &feed);
         g.terminate(relay);
         g.wait_exit(relay);
         bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace_bare)));
 
-        let trace_odometry = g.path(&format!("trace-odometry-{round}.csv"));
-        let odo = g.spawn(
+        rewinds += odometry_turn(
+            &mut g,
+            &mut p,
+            &feed,
+            &odometry_exe,
             "odometry",
-            Bin::Odometry,
-            &[
-                "serve",
-                "--vehicle",
-                vehicle.to_str().expect("utf-8"),
-                "--no-bus-estimate",
-                "--latency-trace",
-                trace_odometry.to_str().expect("utf-8"),
-            ],
+            &vehicle,
+            &mut odometry,
         );
-        wait_for_sensor_subscribers(&p, "odometry");
-        let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
-        g.terminate(odo);
-        g.wait_exit(odo);
-        odometry.add(rt, &sent, one_hop(&sent, &read_trace(&trace_odometry)));
-        rewinds += late_samples_taken_in_order(&g.log(odo));
-
-        if let Some(exe) = baseline {
-            let trace_baseline = g.path(&format!("trace-baseline-{round}.csv"));
-            let odo = g.spawn_exe(
+        if let Some(baseline) = baseline {
+            odometry_turn(
+                &mut g,
+                &mut p,
+                &feed,
+                baseline,
                 "baseline-odometry",
-                exe,
-                &[
-                    "serve",
-                    "--vehicle",
-                    vehicle.to_str().expect("utf-8"),
-                    "--no-bus-estimate",
-                    "--latency-trace",
-                    trace_baseline.to_str().expect("utf-8"),
-                ],
+                &vehicle,
+                &mut baseline_odometry,
             );
-            wait_for_sensor_subscribers(&p, "baseline odometry");
-            let (rt, sent) = phase(&g, &mut p, &wire, per_phase, latency, &arrivals);
-            g.terminate(odo);
-            g.wait_exit(odo);
-            baseline_odometry.add(rt, &sent, one_hop(&sent, &read_trace(&trace_baseline)));
         }
     }
     stop.store(true, Ordering::SeqCst);
