@@ -31,6 +31,12 @@
 //!   gives them a moment before it floods them.
 //! - Sequence numbers: [`TopicPublisher::publish`] numbers every sample from 0;
 //!   [`TopicSubscriber`] counts the gaps per publisher ([`TopicSubscriber::lost`]).
+//! - Two iceoryx2 defaults are narrowed because every receive or wait pays for
+//!   their size: a subscriber keeps [`EXPIRED_CONNECTIONS`] connections of
+//!   publishers gone with samples unread (not 128), and event ids go up to
+//!   [`EVENT_ID_MAX`] (not 255). The first took the odometry's path from a
+//!   wakeup to its pose from about 10 k to 7 k instructions, the second 2.2 k
+//!   off taking a topic's notifications (BENCHMARKS.md).
 //!
 //! # Termination
 //!
