@@ -311,6 +311,14 @@ fn stats(latencies: &[Option<f64>]) -> Stats {
     }
 }
 
+/// One row of the result table: `name`, then the count and the quantiles.
+fn print_row(name: &str, s: &Stats) {
+    println!(
+        "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
+        s.n, s.p50, s.p99, s.p999, s.max, s.missing
+    );
+}
+
 /// The count of late samples `odometry serve` took in their place, from its
 /// exit line ("... N late sample(s) taken in order ...").
 fn late_samples_taken_in_order(log: &str) -> u64 {
@@ -554,10 +562,7 @@ fn run(
             &odometry_work,
         ),
     ] {
-        println!(
-            "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
-            s.n, s.p50, s.p99, s.p999, s.max, s.missing
-        );
+        print_row(name, s);
     }
     for (name, with_fix) in [
         ("  of which wakeups that took a GNSS fix", true),
@@ -570,11 +575,7 @@ fn run(
             .filter(|(_, &f)| f == with_fix)
             .map(|(l, _)| *l)
             .collect();
-        let s = stats(&part);
-        println!(
-            "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
-            s.n, s.p50, s.p99, s.p999, s.max, s.missing
-        );
+        print_row(name, &stats(&part));
     }
     if let Some(exe) = baseline {
         let [hop, wake, work] = [
@@ -592,10 +593,7 @@ fn run(
             ("  of which publish -> baseline's wakeup", &wake),
             ("  of which wakeup -> baseline's pose publish", &work),
         ] {
-            println!(
-                "{name:<44} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8}",
-                s.n, s.p50, s.p99, s.p999, s.max, s.missing
-            );
+            print_row(name, s);
         }
         println!(
             "one hop, baseline odometry / bare pair: p50 {:.2}, p99 {:.2}",
