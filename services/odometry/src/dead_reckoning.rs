@@ -238,17 +238,17 @@ impl GyroIntegral {
         i.checked_sub(1).and_then(|i| self.history.get(i))
     }
 
-    /// Raw integral at `t_s` from the samples at or before `t_s` only (the
-    /// last rate held after them), so that the value does not depend on
-    /// whether later samples have arrived yet; `None` without such a sample.
-    fn at(&self, t_s: f64) -> Option<f64> {
+    /// The gyro at `t_s` from the samples at or before `t_s` only (the last
+    /// rate held after them), so that it does not depend on whether later
+    /// samples have arrived yet; `None` without such a sample. Fresh when
+    /// that sample is at most `max_gap_s` old.
+    fn seen_at(&self, t_s: f64, max_gap_s: f64) -> Option<GyroAt> {
         let p = self.last_at_or_before(t_s)?;
-        Some(p.integral_rad + p.gz_rad_s * (t_s - p.t_s))
-    }
-
-    /// Raw rate at `t_s` (the last sample at or before it).
-    fn rate_at(&self, t_s: f64) -> Option<f64> {
-        self.last_at_or_before(t_s).map(|p| p.gz_rad_s)
+        Some(GyroAt {
+            rate_rad_s: p.gz_rad_s,
+            integral_rad: p.integral_rad + p.gz_rad_s * (t_s - p.t_s),
+            fresh: t_s - p.t_s <= max_gap_s,
+        })
     }
 
     /// Forget samples no longer needed for times at or after `t_s`.
@@ -256,6 +256,25 @@ impl GyroIntegral {
         while self.history.len() > 1 && self.history[1].t_s <= t_s {
             self.history.pop_front();
         }
+    }
+}
+
+/// The gyro as seen from one wheel instant ([`GyroIntegral::seen_at`]): one
+/// lookup serves the standstill watch, the increment and the next mark.
+#[derive(Debug, Clone, Copy)]
+struct GyroAt {
+    /// Raw rate of the last sample at or before the instant, rad/s.
+    rate_rad_s: f64,
+    /// Raw integral at the instant, rad.
+    integral_rad: f64,
+    /// The last sample is at most `max_gyro_gap_s` old.
+    fresh: bool,
+}
+
+impl GyroAt {
+    /// The integral when the gyro is fresh.
+    fn fresh_integral(gyro: Option<GyroAt>) -> Option<f64> {
+        gyro.filter(|g| g.fresh).map(|g| g.integral_rad)
     }
 }
 
@@ -415,13 +434,17 @@ impl Odometer {
 
     /// Watch for standstill over the raw increment and learn the offsets.
     /// Returns true while the vehicle stands.
-    fn watch_standstill(&mut self, t_s: f64, dt: f64, dn_rl: f64, dn_rr: f64) -> bool {
+    fn watch_standstill(
+        &mut self,
+        t_s: f64,
+        dt: f64,
+        dn_rl: f64,
+        dn_rr: f64,
+        gyro: Option<GyroAt>,
+    ) -> bool {
         let c = &self.config;
         let bias = self.gyro_bias();
-        let gyro_still = self
-            .gyro
-            .rate_at(t_s)
-            .is_none_or(|gz| (gz - bias).abs() < c.standstill_gyro_rad_s);
+        let gyro_still = gyro.is_none_or(|g| (g.rate_rad_s - bias).abs() < c.standstill_gyro_rad_s);
         let still = dn_rl.abs() < c.standstill_rate_rev_s * dt
             && dn_rr.abs() < c.standstill_rate_rev_s * dt
             && gyro_still;
@@ -431,10 +454,10 @@ impl Odometer {
             return false;
         }
         // The gyro over this increment, when it covers the whole of it.
-        let gyro_rad = match (self.gyro_mark, self.gyro_fresh_at(t_s)) {
-            (Some(mark), true) => self.gyro.at(t_s).map(|now| now - mark),
-            _ => None,
-        };
+        let gyro_rad = self
+            .gyro_mark
+            .zip(GyroAt::fresh_integral(gyro))
+            .map(|(mark, now)| now - mark);
         let s = &mut self.standstill;
         s.duration_s += dt;
         s.rl_rev += dn_rl;
@@ -500,13 +523,6 @@ impl Odometer {
         self.gyro.push(t_s, gz_rad_s)
     }
 
-    /// A gyro sample at or before `t_s`, at most `max_gyro_gap_s` old.
-    fn gyro_fresh_at(&self, t_s: f64) -> bool {
-        self.gyro
-            .last_at_or_before(t_s)
-            .is_some_and(|p| t_s - p.t_s <= self.config.max_gyro_gap_s)
-    }
-
     /// Take a wheel sample (cumulative revolutions of the rear wheels). Returns
     /// the increment since the previous wheel sample, or `None` for the first.
     pub fn wheels(
@@ -521,6 +537,7 @@ impl Odometer {
                 t_s,
             });
         }
+        let gyro = self.gyro.seen_at(t_s, self.config.max_gyro_gap_s);
         let increment = match self.last_wheels {
             Some((t0, _, _)) if t_s <= t0 => {
                 return Err(InputError::OutOfOrder {
@@ -535,18 +552,16 @@ impl Odometer {
                 let (mut dn_rl, mut dn_rr) = (rl_rev - rl0, rr_rev - rr0);
                 let mut standing = false;
                 if self.config.learn_wheel_offsets || self.config.learn_gyro_bias {
-                    standing = self.watch_standstill(t_s, dt, dn_rl, dn_rr);
+                    standing = self.watch_standstill(t_s, dt, dn_rl, dn_rr, gyro);
                     dn_rl -= self.offsets.rl_rev_s * dt;
                     dn_rr -= self.offsets.rr_rev_s * dt;
                 }
                 let (ds_m, dyaw_wheels) = self.params.two_wheel.increments(dn_rl, dn_rr);
                 let gyro_dyaw = match (self.config.heading, self.gyro_mark) {
-                    (HeadingMode::Gyro, Some(mark)) if self.gyro_fresh_at(t_s) => {
-                        self.gyro.at(t_s).map(|now| {
-                            (now - mark - self.gyro_bias() * (t_s - t0))
-                                / (1.0 + self.params.gyro_scale)
-                        })
-                    }
+                    (HeadingMode::Gyro, Some(mark)) => GyroAt::fresh_integral(gyro).map(|now| {
+                        (now - mark - self.gyro_bias() * (t_s - t0))
+                            / (1.0 + self.params.gyro_scale)
+                    }),
                     _ => None,
                 };
                 let (ds_m, dyaw_rad, heading_source) = match gyro_dyaw {
@@ -571,11 +586,7 @@ impl Odometer {
             }
         };
         self.last_wheels = Some((t_s, rl_rev, rr_rev));
-        self.gyro_mark = if self.gyro_fresh_at(t_s) {
-            self.gyro.at(t_s)
-        } else {
-            None
-        };
+        self.gyro_mark = GyroAt::fresh_integral(gyro);
         self.gyro.prune_before(t_s);
         Ok(increment)
     }
