@@ -51,15 +51,14 @@ pub struct ServeArgs {
     pub exit_on_end: bool,
 }
 
+/// Vehicle parameters from a vehicle.toml or a drive; warnings to the log.
 fn load_vehicle(path: &Path) -> Result<VehicleParams> {
-    if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        return toml::from_str(&text).with_context(|| format!("parsing {}", path.display()));
-    }
-    let loaded = sensor_bridge::read_drive(path)
+    let loaded = sensor_bridge::read_vehicle(path)
         .with_context(|| format!("reading vehicle parameters from {}", path.display()))?;
-    Ok(loaded.drive.vehicle)
+    for warning in &loaded.warnings {
+        tracing::warn!("calibrator: {warning}");
+    }
+    Ok(loaded.vehicle)
 }
 
 /// Run `calibrator serve`.

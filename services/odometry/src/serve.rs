@@ -270,19 +270,17 @@ pub fn gnss_lever_arm(vehicle: &VehicleParams, initial: Option<&Estimate>) -> ([
     }
 }
 
-/// Read vehicle parameters from a vehicle.toml or a drive.
+/// Read vehicle parameters from a vehicle.toml or a drive
+/// ([`sensor_bridge::read_vehicle`]); its warnings go to the log.
 pub fn load_vehicle(path: &Path) -> Result<VehicleParams, ServeError> {
-    let vehicle_error = |detail: String| ServeError::Vehicle {
+    let loaded = sensor_bridge::read_vehicle(path).map_err(|e| ServeError::Vehicle {
         path: path.to_path_buf(),
-        detail,
-    };
-    if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
-        let text = std::fs::read_to_string(path).map_err(|e| vehicle_error(e.to_string()))?;
-        return toml::from_str(&text).map_err(|e| vehicle_error(e.to_string()));
+        detail: e.to_string(),
+    })?;
+    for warning in &loaded.warnings {
+        tracing::warn!("odometry: {warning}");
     }
-    sensor_bridge::read_drive(path)
-        .map(|loaded| loaded.drive.vehicle)
-        .map_err(|e| vehicle_error(e.to_string()))
+    Ok(loaded.vehicle)
 }
 
 /// Why the service could not run.

@@ -10,7 +10,7 @@ use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
 use sensor_bridge::replay::{publish_drive, DeliveryLatency, Pacing, ReplayOptions};
-use sensor_bridge::{read_drive, write_drive, DriveError};
+use sensor_bridge::{read_drive, read_vehicle, write_drive};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -113,22 +113,14 @@ pub fn run_replay(args: &ReplayArgs) -> Result<()> {
     Ok(())
 }
 
-/// Vehicle parameters from a vehicle.toml or a drive.
+/// Vehicle parameters from a vehicle.toml or a drive; warnings to the log.
 fn load_vehicle(path: &Path) -> Result<VehicleParams> {
-    if path.is_file() && path.extension().is_some_and(|e| e == "toml") {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        return toml::from_str(&text).with_context(|| format!("parsing {}", path.display()));
+    let loaded = read_vehicle(path)
+        .with_context(|| format!("reading vehicle parameters from {}", path.display()))?;
+    for warning in &loaded.warnings {
+        tracing::warn!("sensor-bridge: {warning}");
     }
-    match read_drive(path) {
-        Ok(l) => Ok(l.drive.vehicle),
-        Err(DriveError::TruncatedMcap {
-            partial: Some(p), ..
-        }) => Ok(p.drive.vehicle),
-        Err(e) => {
-            Err(e).with_context(|| format!("reading vehicle parameters from {}", path.display()))
-        }
-    }
+    Ok(loaded.vehicle)
 }
 
 /// `sensor-bridge record`.

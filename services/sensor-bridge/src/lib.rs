@@ -6,4 +6,7 @@ pub mod drive_io;
 pub mod record;
 pub mod replay;
 pub mod sim;
-pub use drive_io::{read_drive, summarize, write_drive, DriveError, DriveSummary, LoadedDrive};
+pub use drive_io::{
+    read_drive, read_vehicle, summarize, write_drive, DriveError, DriveSummary, LoadedDrive,
+    LoadedVehicle,
+};

@@ -352,3 +352,39 @@ fn the_error_type_stays_small() {
         std::mem::size_of::<DriveError>()
     );
 }
+
+/// A service's `--vehicle` file is checked as a drive's `vehicle.toml` is,
+/// and a drive folder gives the vehicle `read_drive` gives.
+#[test]
+fn a_vehicle_file_for_a_service_is_checked_like_a_drives() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("car.toml");
+    std::fs::write(&path, format!("{VEHICLE}wheel_base_m = 2.6\n")).unwrap();
+    let loaded = sensor_bridge::read_vehicle(&path).unwrap();
+    assert_eq!(loaded.vehicle.track_width_m, 1.5);
+    assert_eq!(loaded.vehicle.nominal_circumference_m, 2.0);
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    assert_contains(&loaded.warnings[0], &["car.toml", "wheel_base_m"]);
+
+    std::fs::write(
+        &path,
+        "track_width_m = nan\nnominal_circumference_m = 2.0\n",
+    )
+    .unwrap();
+    let msg = sensor_bridge::read_vehicle(&path).unwrap_err().to_string();
+    assert_contains(&msg, &["car.toml", "track_width_m", "not a finite number"]);
+
+    let msg = sensor_bridge::read_vehicle(&dir.path().join("absent.toml"))
+        .unwrap_err()
+        .to_string();
+    assert_contains(&msg, &["absent.toml"]);
+
+    // A folder with lat/lon fixes and no origin: the origin is the first fix.
+    let drive = folder(&[(
+        "gnss.csv",
+        "t_s,lat_deg,lon_deg\n0.0,47.5,19.0\n0.1,47.5,19.0\n",
+    )]);
+    let from_folder = sensor_bridge::read_vehicle(drive.path()).unwrap().vehicle;
+    assert_eq!(from_folder, read_drive(drive.path()).unwrap().drive.vehicle);
+    assert_eq!(from_folder.gnss.origin_lat_deg, Some(47.5));
+}

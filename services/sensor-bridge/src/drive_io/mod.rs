@@ -19,7 +19,7 @@ pub use recording::{
     FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, TRUTH_TOPIC, WHEELS_TOPIC,
 };
 
-use interfaces::drive::Drive;
+use interfaces::drive::{Drive, VehicleParams};
 use std::path::Path;
 
 /// A drive read from disk, with the warnings its reading produced (skipped
@@ -52,6 +52,46 @@ pub fn read_drive(path: &Path) -> Result<LoadedDrive, DriveError> {
             reason: "a file without the MCAP magic bytes".to_string(),
         })
     }
+}
+
+/// Vehicle parameters read for a service, with the warnings their reading
+/// produced (unknown keys, rows skipped in the drive).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedVehicle {
+    /// The parameters.
+    pub vehicle: VehicleParams,
+    /// Human-readable warnings, each naming the file.
+    pub warnings: Vec<String>,
+}
+
+/// Vehicle parameters from a `vehicle.toml` file (any `*.toml`), or from a
+/// drive folder or recording (what [`read_drive`] gives as the drive's
+/// vehicle, the ENU origin derived from the first fix included; a truncated
+/// recording's vehicle is as good as a whole one's). A `*.toml` is checked
+/// as a drive's `vehicle.toml` is: unknown keys are a warning, a non-finite
+/// value is an error naming the key.
+pub fn read_vehicle(path: &Path) -> Result<LoadedVehicle, DriveError> {
+    let is_toml = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    if is_toml && !path.is_dir() {
+        let text = std::fs::read_to_string(path).map_err(|e| DriveError::io(path, e))?;
+        let mut warnings = Vec::new();
+        let vehicle = folder::parse_vehicle_toml(path, &text, &mut warnings)?;
+        return Ok(LoadedVehicle { vehicle, warnings });
+    }
+    let loaded = match read_drive(path) {
+        Ok(loaded) => loaded,
+        Err(DriveError::TruncatedMcap {
+            partial: Some(partial),
+            ..
+        }) => *partial,
+        Err(e) => return Err(e),
+    };
+    Ok(LoadedVehicle {
+        vehicle: loaded.drive.vehicle,
+        warnings: loaded.warnings,
+    })
 }
 
 /// Write a drive: as an MCAP recording when `path` ends in `.mcap` (any case),
