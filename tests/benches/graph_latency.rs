@@ -22,12 +22,13 @@
 //! that brought the wheel sample, which splits the hop into the wakeup
 //! (iceoryx2 and the scheduler) and the consumer's own work.
 //!
-//! The two consumers take turns (four each, a quarter of the time each), so
-//! that the machine's drift during a run falls on both alike.
+//! The consumers take turns (`--turns N`, default four each, each turn the
+//! drive's first SECONDS / N seconds), so that the machine's drift during a run
+//! falls on all alike; more turns even it out more finely.
 //!
-//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--cpu-latency-zero]
-//! [--deliver-late STREAM=S,...] [--baseline-odometry EXE]` (default 60 s of drive per
-//! consumer). `--baseline-odometry` adds a third consumer taking turns with the other
+//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--turns N]
+//! [--cpu-latency-zero] [--deliver-late STREAM=S,...] [--baseline-odometry EXE]`
+//! (default 60 s of drive per consumer). `--baseline-odometry` adds a third consumer taking turns with the other
 //! two: another build of `odometry serve` (a copy of the binary before a change), so
 //! that a change is compared with what it replaces in the same run.
 //! `--deliver-late` publishes those streams that long after their time
@@ -55,34 +56,34 @@ const WARMUP: usize = 300;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let trace = args
-        .iter()
-        .position(|a| a == "--trace")
-        .and_then(|i| args.get(i + 1))
-        .map(std::path::PathBuf::from);
+    let value_of = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+    };
     if args.iter().any(|a| a == "--relay") {
-        relay(trace.as_deref());
+        relay(value_of("--trace").map(std::path::Path::new));
         return;
     }
+    let turns: usize = value_of("--turns")
+        .map(|v| v.parse().expect("--turns N, a whole number"))
+        .unwrap_or(4);
+    assert!(turns > 0, "--turns must be at least 1");
+    // The first plain number that is not the value of a flag.
     let seconds: f64 = args
         .iter()
+        .enumerate()
         .skip(1)
-        .find_map(|a| a.parse().ok())
+        .filter(|(i, _)| args[i - 1] != "--turns")
+        .find_map(|(_, a)| a.parse().ok())
         .unwrap_or(60.0);
-    let latency = args
-        .iter()
-        .position(|a| a == "--deliver-late")
-        .and_then(|i| args.get(i + 1))
+    let latency = value_of("--deliver-late")
         .map(|v| DeliveryLatency::parse(v).expect("--deliver-late"))
         .unwrap_or_default();
-    let baseline = args
-        .iter()
-        .position(|a| a == "--baseline-odometry")
-        .and_then(|i| args.get(i + 1))
-        .map(std::path::PathBuf::from);
+    let baseline = value_of("--baseline-odometry").map(std::path::PathBuf::from);
     run(
         seconds,
-        4,
+        turns,
         args.iter().any(|a| a == "--cpu-latency-zero"),
         &latency,
         baseline.as_deref(),
