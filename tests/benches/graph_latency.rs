@@ -28,9 +28,10 @@
 //!
 //! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--turns N]
 //! [--cpu-latency-zero] [--deliver-late STREAM=S,...] [--baseline-odometry EXE]`
-//! (default 60 s of drive per consumer). `--baseline-odometry` adds a third consumer taking turns with the other
-//! two: another build of `odometry serve` (a copy of the binary before a change), so
-//! that a change is compared with what it replaces in the same run.
+//! (default 60 s of drive per consumer). `--baseline-odometry` adds a third
+//! consumer taking turns with the other two: another build of `odometry
+//! serve` (a copy of the binary before a change), so that a change is
+//! compared with what it replaces in the same run.
 //! `--deliver-late` publishes those streams that long after their time
 //! stamps, as `sensor-bridge replay --deliver-late` does: with late GNSS
 //! fixes, the odometry goes back in its log at each fix, and the figures
@@ -54,6 +55,14 @@ use std::time::{Duration, Instant};
 
 const WARMUP: usize = 300;
 
+/// The flags followed by a value (which is not the SECONDS argument).
+const FLAGS_WITH_VALUE: [&str; 4] = [
+    "--trace",
+    "--turns",
+    "--deliver-late",
+    "--baseline-odometry",
+];
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let value_of = |flag: &str| {
@@ -74,7 +83,7 @@ fn main() {
         .iter()
         .enumerate()
         .skip(1)
-        .filter(|(i, _)| args[i - 1] != "--turns")
+        .filter(|(i, _)| !FLAGS_WITH_VALUE.contains(&args[i - 1].as_str()))
         .find_map(|(_, a)| a.parse().ok())
         .unwrap_or(60.0);
     let latency = value_of("--deliver-late")
@@ -476,8 +485,8 @@ fn run(
     let mut rewinds = 0u64;
     let (mut bare, mut odometry) = (Pooled::default(), Pooled::default());
     let mut baseline_odometry = Pooled::default();
-    // The two consumers take turns, so that a drift of the machine's state
-    // during the run falls on both alike.
+    // The consumers take turns, so that a drift of the machine's state
+    // during the run falls on all alike.
     let feed = Feed {
         wire: &wire,
         seconds: per_phase,
