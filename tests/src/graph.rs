@@ -59,12 +59,17 @@ fn build_all_once() {
             return; // not run by cargo: use what is there
         };
         let profile_dir = target_profile_dir();
-        let release = profile_dir.file_name().is_some_and(|n| n == "release");
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut cmd = Command::new(cargo);
         cmd.args(["build", "-q", "--manifest-path"]).arg(manifest);
-        if release {
-            cmd.arg("--release");
+        // The binaries of the same profile as this executable: target/debug
+        // is the dev profile's folder, any other is named after its profile
+        // (release, or deploy for `cargo bench --profile deploy`).
+        match profile_dir.file_name().and_then(|n| n.to_str()) {
+            Some("debug") | None => {}
+            Some(profile) => {
+                cmd.args(["--profile", profile]);
+            }
         }
         for b in [Bin::SensorBridge, Bin::Calibrator, Bin::Odometry] {
             cmd.args(["--bin", b.name()]);
@@ -89,7 +94,7 @@ pub fn bin(b: Bin) -> PathBuf {
     let path = target_profile_dir().join(b.name());
     assert!(
         path.is_file(),
-        "{} not found: build the workspace binaries first (cargo build --release --workspace)",
+        "{} not found: build the workspace binaries with this executable's profile first (cargo build --release --workspace)",
         path.display()
     );
     path
