@@ -26,9 +26,11 @@
 //! drive's first SECONDS / N seconds), so that the machine's drift during a run
 //! falls on all alike; more turns even it out more finely.
 //!
-//! `cargo bench -p integration-tests --bench graph_latency [-- SECONDS] [--turns N]
-//! [--cpu-latency-zero] [--deliver-late STREAM=S,...] [--baseline-odometry EXE]`
-//! (default 60 s of drive per consumer). `--baseline-odometry` adds a third
+//! `cargo bench -p integration-tests --bench graph_latency [--profile deploy]
+//! [-- SECONDS] [--turns N] [--cpu-latency-zero] [--deliver-late STREAM=S,...]
+//! [--baseline-odometry EXE]` (default 60 s of drive per consumer).
+//! `--profile deploy` builds the relay and the odometry as they are built for
+//! the vehicle (fat LTO, one codegen unit; without it, the release profile). `--baseline-odometry` adds a third
 //! consumer taking turns with the other two: another build of `odometry
 //! serve` (a copy of the binary before a change), so that a change is
 //! compared with what it replaces in the same run.
