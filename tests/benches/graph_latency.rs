@@ -30,10 +30,11 @@
 //! [-- SECONDS] [--turns N] [--cpu-latency-zero] [--deliver-late STREAM=S,...]
 //! [--baseline-odometry EXE]` (default 60 s of drive per consumer).
 //! `--profile deploy` builds the relay and the odometry as they are built for
-//! the vehicle (fat LTO, one codegen unit; without it, the release profile). `--baseline-odometry` adds a third
-//! consumer taking turns with the other two: another build of `odometry
-//! serve` (a copy of the binary before a change), so that a change is
-//! compared with what it replaces in the same run.
+//! the vehicle (fat LTO, one codegen unit; without it, the release profile).
+//! `--baseline-odometry` adds a third consumer taking turns with the other
+//! two: another build of `odometry serve` (a copy of the binary before a
+//! change), so that a change is compared with what it replaces in the same
+//! run.
 //! `--deliver-late` publishes those streams that long after their time
 //! stamps, as `sensor-bridge replay --deliver-late` does: with late GNSS
 //! fixes, the odometry goes back in its log at each fix, and the figures

@@ -52,6 +52,16 @@ pub fn target_profile_dir() -> PathBuf {
     deps.parent().expect("profile dir").to_path_buf()
 }
 
+/// The cargo profile the running executable was built with: target/debug
+/// holds the dev profile's builds, any other folder is named after its
+/// profile (release, or deploy for `cargo bench --profile deploy`).
+fn profile_name() -> String {
+    match target_profile_dir().file_name().and_then(|n| n.to_str()) {
+        Some("debug") | None => "dev".to_string(),
+        Some(profile) => profile.to_string(),
+    }
+}
+
 fn build_all_once() {
     static BUILT: OnceLock<()> = OnceLock::new();
     BUILT.get_or_init(|| {
@@ -62,15 +72,8 @@ fn build_all_once() {
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut cmd = Command::new(cargo);
         cmd.args(["build", "-q", "--manifest-path"]).arg(manifest);
-        // The binaries of the same profile as this executable: target/debug
-        // is the dev profile's folder, any other is named after its profile
-        // (release, or deploy for `cargo bench --profile deploy`).
-        match profile_dir.file_name().and_then(|n| n.to_str()) {
-            Some("debug") | None => {}
-            Some(profile) => {
-                cmd.args(["--profile", profile]);
-            }
-        }
+        // The binaries of the same profile as this executable.
+        cmd.args(["--profile", &profile_name()]);
         for b in [Bin::SensorBridge, Bin::Calibrator, Bin::Odometry] {
             cmd.args(["--bin", b.name()]);
         }
@@ -94,8 +97,10 @@ pub fn bin(b: Bin) -> PathBuf {
     let path = target_profile_dir().join(b.name());
     assert!(
         path.is_file(),
-        "{} not found: build the workspace binaries with this executable's profile first (cargo build --release --workspace)",
-        path.display()
+        "{} not found: build the workspace binaries with this executable's profile first \
+         (cargo build --workspace --profile {})",
+        path.display(),
+        profile_name()
     );
     path
 }
