@@ -252,19 +252,18 @@ pub fn request_shutdown() {
     SHUTDOWN.store(true, Ordering::SeqCst);
 }
 
-/// One round of `waitset`: block until an attachment fires, or, with
-/// `ready_only` (a sample is known to be waiting, its notification possibly
-/// taken already), handle only what is ready now without blocking. Returns
-/// what [`WaitSet::wait_and_process_once`] returns.
+/// One round of `waitset`: block until an attachment fires, or at most
+/// `timeout` (`Some(Duration::ZERO)` when a sample is known to be waiting, its
+/// notification possibly taken already: handle only what is ready now).
+/// Returns what [`WaitSet::wait_and_process_once`] returns.
 pub fn wait_once<F: FnMut(WaitSetAttachmentId<Ipc>) -> CallbackProgression>(
     waitset: &WaitSet<Ipc>,
-    ready_only: bool,
+    timeout: Option<Duration>,
     on_event: F,
 ) -> Result<WaitSetRunResult, WaitSetRunError> {
-    if ready_only {
-        waitset.wait_and_process_once_with_timeout(on_event, Duration::ZERO)
-    } else {
-        waitset.wait_and_process_once(on_event)
+    match timeout {
+        Some(t) => waitset.wait_and_process_once_with_timeout(on_event, t),
+        None => waitset.wait_and_process_once(on_event),
     }
 }
 

@@ -47,6 +47,7 @@ use integration_tests::graph::{bin, Bin, Graph};
 use integration_tests::latency::{quantile, CpuLatencyZero};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
+use odometry::cadence::WheelCadence;
 use odometry::serve::{read_latency_trace, wall_clock_ns, write_latency_trace};
 use sensor_bridge::replay::{to_wire, DeliveryLatency, Stream, WireDrive};
 use sensor_bridge::sim::{simulate, Scenario, SimConfig};
@@ -59,8 +60,9 @@ use std::time::{Duration, Instant};
 const WARMUP: usize = 300;
 
 /// The flags followed by a value (which is not the SECONDS argument).
-const FLAGS_WITH_VALUE: [&str; 4] = [
+const FLAGS_WITH_VALUE: [&str; 5] = [
     "--trace",
+    "--early-wakeup-ms",
     "--turns",
     "--deliver-late",
     "--baseline-odometry",
@@ -74,7 +76,13 @@ fn main() {
             .and_then(|i| args.get(i + 1))
     };
     if args.iter().any(|a| a == "--relay") {
-        relay(value_of("--trace").map(std::path::Path::new));
+        let early = value_of("--early-wakeup-ms")
+            .map(|v| v.parse().expect("--early-wakeup-ms N"))
+            .unwrap_or(0);
+        relay(
+            value_of("--trace").map(std::path::Path::new),
+            Duration::from_millis(early),
+        );
         return;
     }
     let turns: usize = value_of("--turns")
@@ -99,13 +107,15 @@ fn main() {
         args.iter().any(|a| a == "--cpu-latency-zero"),
         &latency,
         baseline.as_deref(),
+        args.iter().any(|a| a == "--early-relay"),
     );
 }
 
 /// The bare relay: wheels in, the same header out as a pose, nothing else;
 /// the same wakeup as the odometry (a WaitSet on the wheel topic's event and
-/// an interval).
-fn relay(trace_path: Option<&std::path::Path>) {
+/// an interval), with `early` the odometry's early wakeup before each sample
+/// too (`--early-relay`; zero: none).
+fn relay(trace_path: Option<&std::path::Path>, early: Duration) {
     let mut trace: Vec<(i64, i128, i128)> = Vec::new();
     let bus = Bus::from_env("bench-relay").expect("bus");
     let wheels = bus.subscriber::<WheelRotations>().expect("wheels");
@@ -119,11 +129,18 @@ fn relay(trace_path: Option<&std::path::Path>) {
         .expect("tick");
     eprintln!("relay ready");
     let mut sample_waiting = false;
+    let mut cadence = WheelCadence::new(early);
     loop {
-        let r = bus::wait_once(&waitset, sample_waiting, |_| CallbackProgression::Continue)
-            .expect("wait");
+        let timeout = if sample_waiting {
+            Some(Duration::ZERO)
+        } else {
+            cadence.wait_for_early_wakeup(Instant::now())
+        };
+        let r = bus::wait_once(&waitset, timeout, |_| CallbackProgression::Continue).expect("wait");
         let woke = wall_clock_ns();
+        let mut got_wheels = false;
         while let Some(w) = wheels.receive().expect("receive") {
+            got_wheels = true;
             trace.push((w.header.t_ns, woke, wall_clock_ns()));
             poses
                 .publish(Pose {
@@ -135,6 +152,9 @@ fn relay(trace_path: Option<&std::path::Path>) {
         // As the odometry: the notifications after the poses.
         wheels.take_notifications().expect("events");
         sample_waiting = wheels.has_samples().expect("has samples");
+        if got_wheels {
+            cadence.wheels_at(Instant::now());
+        }
         if bus::stop_requested_by(r) {
             break;
         }
@@ -456,6 +476,7 @@ fn run(
     cpu_latency_zero: bool,
     latency: &DeliveryLatency,
     baseline: Option<&std::path::Path>,
+    early_relay: bool,
 ) {
     let _pm_qos = cpu_latency_zero.then(|| {
         CpuLatencyZero::hold()
@@ -488,6 +509,7 @@ fn run(
     let mut rewinds = 0u64;
     let (mut bare, mut odometry) = (Pooled::default(), Pooled::default());
     let mut baseline_odometry = Pooled::default();
+    let mut early_bare = Pooled::default();
     // The consumers take turns, so that a drift of the machine's state
     // during the run falls on all alike.
     let feed = Feed {
@@ -508,6 +530,24 @@ fn run(
         g.terminate(relay);
         g.wait_exit(relay);
         bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace_bare)));
+        if early_relay {
+            let trace = g.path(&format!("trace-early-bare-{round}.csv"));
+            let relay = g.spawn_exe(
+                "early-relay",
+                &exe,
+                &[
+                    "--relay",
+                    "--early-wakeup-ms",
+                    "1",
+                    "--trace",
+                    trace.to_str().expect("utf-8"),
+                ],
+            );
+            let (rt, sent) = phase(&mut p, &feed);
+            g.terminate(relay);
+            g.wait_exit(relay);
+            early_bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace)));
+        }
 
         rewinds += odometry_turn(
             &mut g,
@@ -612,6 +652,23 @@ fn run(
             "one hop, baseline odometry / bare pair: p50 {:.2}, p99 {:.2}",
             hop.p50 / bare_hop.p50,
             hop.p99 / bare_hop.p99
+        );
+    }
+    if early_relay {
+        let [hop, wake, work] =
+            [&early_bare.hop, &early_bare.wake, &early_bare.work].map(|l| stats(l));
+        println!("bare pair with the odometry's early wakeup, 1 ms (--early-relay):");
+        for (name, s) in [
+            ("publish -> early relay's publish (1 hop)", &hop),
+            ("  of which publish -> early relay's wakeup", &wake),
+            ("  of which wakeup -> early relay's publish", &work),
+        ] {
+            print_row(name, s);
+        }
+        println!(
+            "one hop, odometry / bare pair with early wakeup: p50 {:.2}, p99 {:.2}",
+            odometry_hop.p50 / hop.p50,
+            odometry_hop.p99 / hop.p99
         );
     }
     println!(

@@ -2,6 +2,7 @@
 //! that keeps the pose while GNSS is good.
 //!
 //! - [`two_wheel`]: the paper's 2W model, eq. (1)-(2).
+//! - [`cadence`]: when the next wheel sample is due (the serving loop wakes before it).
 //! - [`estimate_file`]: odometry parameters from `vehicle.toml`, the
 //!   calibrator's JSON or the wire estimate.
 //! - [`dead_reckoning`]: the sample-by-sample dead-reckoner (wheel or gyro heading).
@@ -13,6 +14,7 @@
 //! - [`rewind`]: samples that arrive late, taken in order by going back.
 //! - [`serve`]: the iceoryx2 pose service.
 
+pub mod cadence;
 pub mod dead_reckoning;
 pub mod estimate_file;
 pub mod evaluate;

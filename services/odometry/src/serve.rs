@@ -58,6 +58,7 @@
 //! - SIGINT/SIGTERM end the WaitSet loop; [`Shutdown`] does the same for a
 //!   caller in the same process (tests).
 
+use crate::cadence::WheelCadence;
 use crate::dead_reckoning::{HeadingMode, OdometerConfig};
 use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
 use crate::fusion::{FusedPose, Fusion, FusionConfig, FusionError, FusionStats, ProcessError};
@@ -142,6 +143,11 @@ pub struct ServeArgs {
     /// late samples when they come).
     #[arg(long, value_name = "S", default_value_t = RewindConfig::default().window_s)]
     pub rewind_window: f64,
+    /// Wake this many ms (to one more) before the next wheel sample is due and
+    /// pass once through the serving loop without it, so that the sample's own
+    /// pass runs on warm caches (0 = only wake for samples; see the README).
+    #[arg(long, value_name = "MS", default_value_t = 1)]
+    pub early_wakeup_ms: u64,
     /// Log a status line every this many seconds of drive time (0 = never).
     #[arg(long, value_name = "S", default_value_t = 10.0)]
     pub status_every: f64,
@@ -184,6 +190,8 @@ pub struct ServeConfig {
     pub rewind: RewindConfig,
     /// Wall-clock time without wheel samples after which the inputs are stale.
     pub stale_after: Duration,
+    /// How long before the next wheel sample the loop wakes (zero: not early).
+    pub early_wakeup: Duration,
     /// Drive-time period of the status line, s (0 = none).
     pub status_every_s: f64,
     /// Stop when the wheel stream ends.
@@ -245,6 +253,7 @@ impl ServeConfig {
                 ..RewindConfig::default()
             },
             stale_after: Duration::from_secs_f64(positive("--stale-after", args.stale_after)?),
+            early_wakeup: Duration::from_millis(args.early_wakeup_ms),
             status_every_s: args.status_every.max(0.0),
             exit_on_end: args.exit_on_end,
             latency_trace: args.latency_trace.clone(),
@@ -359,6 +368,8 @@ pub struct ServeSummary {
     pub estimate_switches: u64,
     /// Times the inputs went stale.
     pub stale_events: u64,
+    /// Early wakeups before a wheel sample ([`crate::cadence`]).
+    pub early_wakeups: u64,
     /// Samples missing in the sequence numbers, per input topic
     /// (wheels, gnss, imu, heading, estimate).
     pub lost: [u64; 5],
@@ -781,9 +792,17 @@ pub fn serve(
     // Newest time seen per input stream (wheels, IMU, GNSS, heading).
     let mut latest_t: [Option<f64>; 4] = [None; 4];
 
+    let mut cadence = WheelCadence::new(config.early_wakeup);
     loop {
         let mut estimate_event = false;
-        let result = bus::wait_once(&waitset, wheel_sample_waiting, |id| {
+        let mut any_event = false;
+        let timeout = if wheel_sample_waiting {
+            Some(Duration::ZERO)
+        } else {
+            cadence.wait_for_early_wakeup(Instant::now())
+        };
+        let result = bus::wait_once(&waitset, timeout, |id| {
+            any_event = true;
             estimate_event |= id.has_event_from(&g_estimate);
             CallbackProgression::Continue
         })
@@ -793,6 +812,11 @@ pub fn serve(
         } else {
             0
         };
+        if !any_event && timeout.is_some_and(|t| !t.is_zero()) {
+            // The early wakeup: the rest of this pass finds no sample (as a
+            // rule) and warms what the sample's pass will touch.
+            summary.early_wakeups += 1;
+        }
         batch.clear();
         inputs.drain(&mut sequencer)?;
         sequencer.release(&mut batch);
@@ -917,11 +941,11 @@ pub fn serve(
         // they cost a few syscalls on the path to a pose.
         let (end_taken, waiting) = inputs.wheel_notifications()?;
         wheel_sample_waiting = waiting;
-        wheel_stream.after_wakeup(
-            batch.iter().any(|i| matches!(i, Input::Wheels { .. })),
-            end_taken,
-            waiting,
-        );
+        let got_wheels = batch.iter().any(|i| matches!(i, Input::Wheels { .. }));
+        if got_wheels {
+            cadence.wheels_at(Instant::now());
+        }
+        wheel_stream.after_wakeup(got_wheels, end_taken, waiting);
         let wheels_ended = wheel_stream.ended();
 
         // Stale inputs: the wheels stopped coming.
@@ -979,7 +1003,8 @@ pub fn serve(
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
          GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \
-         {} late sample(s) taken in order ({} inputs processed again), {} later than the {} s window",
+         {} late sample(s) taken in order ({} inputs processed again), {} later than the {} s window; \
+         {} early wakeup(s) before a wheel sample",
         summary.wheel_samples,
         summary.poses,
         summary.estimate_switches,
@@ -994,6 +1019,7 @@ pub fn serve(
         summary.rewind.reprocessed,
         summary.rewind.beyond_window,
         config.rewind.window_s,
+        summary.early_wakeups,
     );
     Ok(summary)
 }
