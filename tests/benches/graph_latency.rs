@@ -28,13 +28,18 @@
 //!
 //! `cargo bench -p integration-tests --bench graph_latency [--profile deploy]
 //! [-- SECONDS] [--turns N] [--cpu-latency-zero] [--deliver-late STREAM=S,...]
-//! [--baseline-odometry EXE]` (default 60 s of drive per consumer).
+//! [--baseline-odometry EXE] [--early-relay]` (default 60 s of drive per consumer).
 //! `--profile deploy` builds the relay and the odometry as they are built for
 //! the vehicle (fat LTO, one codegen unit; without it, the release profile).
 //! `--baseline-odometry` adds a third consumer taking turns with the other
 //! two: another build of `odometry serve` (a copy of the binary before a
 //! change), so that a change is compared with what it replaces in the same
 //! run.
+//! `--early-relay` adds a consumer taking turns with the others: the bare
+//! relay with the odometry's early wakeup (`odometry serve
+//! --early-wakeup-ms`, default 1: it wakes 1-2 ms before each wheel sample
+//! is due), so that the odometry is also compared with a bare pair that
+//! wakes early as it does.
 //! `--deliver-late` publishes those streams that long after their time
 //! stamps, as `sensor-bridge replay --deliver-late` does: with late GNSS
 //! fixes, the odometry goes back in its log at each fix, and the figures
