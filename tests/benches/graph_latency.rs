@@ -357,6 +357,16 @@ fn print_row(name: &str, s: &Stats) {
     );
 }
 
+/// The rows of `who`'s one hop and its two parts (`published`: what it
+/// publishes); returns the one hop's figures.
+fn print_one_hop(who: &str, published: &str, pooled: &Pooled) -> Stats {
+    let [hop, wake, work] = [&pooled.hop, &pooled.wake, &pooled.work].map(|l| stats(l));
+    print_row(&format!("publish -> {who}'s {published} (1 hop)"), &hop);
+    print_row(&format!("  of which publish -> {who}'s wakeup"), &wake);
+    print_row(&format!("  of which wakeup -> {who}'s {published}"), &work);
+    hop
+}
+
 /// The count of late samples `odometry serve` took in their place, from its
 /// exit line ("... N late sample(s) taken in order ...").
 fn late_samples_taken_in_order(log: &str) -> u64 {
@@ -450,6 +460,27 @@ fn odometry_turn(
     late_samples_taken_in_order(&g.log(odo))
 }
 
+/// One turn of the bare relay (this executable with `--relay` and `extra`
+/// arguments): start it, publish, stop it; its latencies go into `into`.
+fn relay_turn(
+    g: &mut Graph,
+    p: &mut Publishers,
+    feed: &Feed,
+    exe: &std::path::Path,
+    label: &str,
+    extra: &[&str],
+    into: &mut Pooled,
+) {
+    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns));
+    let mut args = vec!["--relay", "--trace", trace.to_str().expect("utf-8")];
+    args.extend_from_slice(extra);
+    let relay = g.spawn_exe(label, exe, &args);
+    let (rt, sent) = phase(p, feed);
+    g.terminate(relay);
+    g.wait_exit(relay);
+    into.add(rt, &sent, one_hop(&sent, &read_trace(&trace)));
+}
+
 /// One consumer's latencies, pooled over the rounds.
 #[derive(Default)]
 struct Pooled {
@@ -524,34 +555,18 @@ fn run(
         arrivals: &arrivals,
     };
     let odometry_exe = bin(Bin::Odometry);
-    for round in 0..rounds {
-        let trace_bare = g.path(&format!("trace-bare-{round}.csv"));
-        let relay = g.spawn_exe(
-            "relay",
-            &exe,
-            &["--relay", "--trace", trace_bare.to_str().expect("utf-8")],
-        );
-        let (rt, sent) = phase(&mut p, &feed);
-        g.terminate(relay);
-        g.wait_exit(relay);
-        bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace_bare)));
+    for _ in 0..rounds {
+        relay_turn(&mut g, &mut p, &feed, &exe, "relay", &[], &mut bare);
         if early_relay {
-            let trace = g.path(&format!("trace-early-bare-{round}.csv"));
-            let relay = g.spawn_exe(
-                "early-relay",
+            relay_turn(
+                &mut g,
+                &mut p,
+                &feed,
                 &exe,
-                &[
-                    "--relay",
-                    "--early-wakeup-ms",
-                    "1",
-                    "--trace",
-                    trace.to_str().expect("utf-8"),
-                ],
+                "early-relay",
+                &["--early-wakeup-ms", "1"],
+                &mut early_bare,
             );
-            let (rt, sent) = phase(&mut p, &feed);
-            g.terminate(relay);
-            g.wait_exit(relay);
-            early_bare.add(rt, &sent, one_hop(&sent, &read_trace(&trace)));
         }
 
         rewinds += odometry_turn(
@@ -636,23 +651,11 @@ fn run(
         print_row(name, &stats(&part));
     }
     if let Some(exe) = baseline {
-        let [hop, wake, work] = [
-            &baseline_odometry.hop,
-            &baseline_odometry.wake,
-            &baseline_odometry.work,
-        ]
-        .map(|l| stats(l));
         println!(
             "baseline odometry, {} (--baseline-odometry):",
             exe.display()
         );
-        for (name, s) in [
-            ("publish -> baseline's pose publish (1 hop)", &hop),
-            ("  of which publish -> baseline's wakeup", &wake),
-            ("  of which wakeup -> baseline's pose publish", &work),
-        ] {
-            print_row(name, s);
-        }
+        let hop = print_one_hop("baseline", "pose publish", &baseline_odometry);
         println!(
             "one hop, baseline odometry / bare pair: p50 {:.2}, p99 {:.2}",
             hop.p50 / bare_hop.p50,
@@ -660,16 +663,8 @@ fn run(
         );
     }
     if early_relay {
-        let [hop, wake, work] =
-            [&early_bare.hop, &early_bare.wake, &early_bare.work].map(|l| stats(l));
         println!("bare pair with the odometry's early wakeup, 1 ms (--early-relay):");
-        for (name, s) in [
-            ("publish -> early relay's publish (1 hop)", &hop),
-            ("  of which publish -> early relay's wakeup", &wake),
-            ("  of which wakeup -> early relay's publish", &work),
-        ] {
-            print_row(name, s);
-        }
+        let hop = print_one_hop("early relay", "publish", &early_bare);
         println!(
             "one hop, odometry / bare pair with early wakeup: p50 {:.2}, p99 {:.2}",
             odometry_hop.p50 / hop.p50,

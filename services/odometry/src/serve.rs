@@ -946,8 +946,8 @@ pub fn serve(
         let (end_taken, waiting) = inputs.wheel_notifications()?;
         wheel_sample_waiting = waiting;
         let got_wheels = batch.iter().any(|i| matches!(i, Input::Wheels { .. }));
-        if got_wheels {
-            cadence.wheels_at(Instant::now());
+        if let (true, Some(seen)) = (got_wheels, last_wheel_wall) {
+            cadence.wheels_at(seen);
         }
         wheel_stream.after_wakeup(got_wheels, end_taken, waiting);
         let wheels_ended = wheel_stream.ended();
