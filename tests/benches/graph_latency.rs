@@ -154,6 +154,10 @@ fn relay(trace_path: Option<&std::path::Path>, early: Duration) {
                 })
                 .expect("publish");
         }
+        if !got_wheels && timeout.is_some_and(|t| !t.is_zero()) {
+            // As the odometry's early pass: a loan from the pose publisher.
+            poses.warm_up().expect("warm up");
+        }
         // As the odometry: the notifications after the poses.
         wheels.take_notifications().expect("events");
         sample_waiting = wheels.has_samples().expect("has samples");

@@ -613,6 +613,21 @@ impl Fusion {
         }
     }
 
+    /// The step of a made-up wheel sample 1 ms after the last one, both
+    /// wheels a thousandth of a turn further (straight on at 1 rev/s): the
+    /// work of a wheel sample while driving, for
+    /// [`crate::rewind::RewindingFusion::rehearse`], which runs it on a copy.
+    /// `None` before the first wheel sample, or when the step fails.
+    pub(crate) fn rehearse_wheel_sample(&mut self) -> Option<FusedPose> {
+        let (t_s, rl_rev, rr_rev) = self.last_wheels?;
+        let sample = Input::Wheels {
+            t_s: t_s + 1e-3,
+            rl_rev: rl_rev + 1e-3,
+            rr_rev: rr_rev + 1e-3,
+        };
+        self.process(&sample).ok().flatten()
+    }
+
     /// Queue a measurement until the wheel sample after it; without wheel
     /// samples the queue keeps only the newest [`MAX_PENDING`].
     fn push_pending(&mut self, m: Measurement) {

@@ -197,13 +197,7 @@ impl RewindingFusion {
             }
         };
         if due {
-            let copy = match self.spare.pop() {
-                Some(mut spare) => {
-                    spare.clone_from(&self.fusion);
-                    spare
-                }
-                None => self.fusion.clone(),
-            };
+            let copy = self.copy_of_filter();
             self.checkpoints.push_back(Checkpoint {
                 at,
                 t_s,
@@ -213,6 +207,30 @@ impl RewindingFusion {
         }
         self.log.push_back(*input);
         self.fusion.process(input)
+    }
+
+    /// A copy of the filter, in a spare one's place when there is one.
+    fn copy_of_filter(&mut self) -> Fusion {
+        match self.spare.pop() {
+            Some(mut spare) => {
+                spare.clone_from(&self.fusion);
+                spare
+            }
+            None => self.fusion.clone(),
+        }
+    }
+
+    /// Process a made-up wheel sample (1 ms after the last, driving straight
+    /// on) on a copy of the filter, and return its pose; the filter is left
+    /// as it was. Run shortly before a wheel sample is due, it brings the
+    /// step's code and data into the caches after a sleep, so that the
+    /// sample's own step does not wait for them (`odometry serve
+    /// --early-wakeup-ms`). `None` before the first wheel sample.
+    pub fn rehearse(&mut self) -> Option<FusedPose> {
+        let mut copy = self.copy_of_filter();
+        let pose = copy.rehearse_wheel_sample();
+        self.spare.push(copy);
+        pose
     }
 
     /// Drop the checkpoints (and the inputs before them) that the window no
@@ -304,6 +322,7 @@ mod tests {
     use crate::estimate_file::{Estimate, OdometryParams};
     use crate::fusion::FusionConfig;
     use crate::two_wheel::{Pose2, TwoWheelParams};
+    use interfaces::wire::PoseMode;
 
     use crate::test_drive::{C, TRACK};
 
@@ -414,6 +433,52 @@ mod tests {
         assert_eq!(stats.rewinds, late_samples as u64, "{stats:?}");
         // The log holds about the window, not the drive.
         assert!(rewinding.logged() < 300, "{}", rewinding.logged());
+    }
+
+    #[test]
+    fn a_rehearsal_before_each_wheel_sample_changes_no_pose() {
+        let (inputs, _) = drive(30.0);
+        // Late fixes, so that the rehearsals' copies share the spare
+        // filters with checkpoints and rewinds.
+        let arrived = arrival(&inputs, late_fixes(0.15));
+        let mut plain = RewindingFusion::new(fusion(), RewindConfig::default());
+        let mut rehearsing = RewindingFusion::new(fusion(), RewindConfig::default());
+        let (mut rehearsals, mut wheel_samples, mut moving) = (0, 0, 0);
+        let mut last_pose: Option<FusedPose> = None;
+        let mut rewinds_at_last = 0;
+        for input in &arrived {
+            if let Input::Wheels { t_s, .. } = *input {
+                wheel_samples += 1;
+                if let Some(rehearsed) = rehearsing.rehearse() {
+                    rehearsals += 1;
+                    // The made-up sample: 1 ms after the last, a thousandth
+                    // of a turn further on both wheels.
+                    let last = last_pose.expect("a pose before");
+                    assert!((rehearsed.t_s - (last.t_s + 1e-3)).abs() < 1e-9);
+                    assert!(rehearsed.t_s < t_s);
+                    // (A rewind since that pose has moved the filter.)
+                    if last.mode != PoseMode::NoFix && rewinds_at_last == rehearsing.stats().rewinds
+                    {
+                        let moved =
+                            (rehearsed.pose.x - last.pose.x).hypot(rehearsed.pose.y - last.pose.y);
+                        assert!((moved / (1e-3 * C) - 1.0).abs() < 0.01, "moved {moved} m");
+                        moving += 1;
+                    }
+                }
+            }
+            let want = plain.process(input).expect("usable");
+            let got = rehearsing.process(input).expect("usable");
+            assert_eq!(got, want);
+            if got.is_some() {
+                last_pose = got;
+                rewinds_at_last = rehearsing.stats().rewinds;
+            }
+        }
+        assert_eq!(rehearsals, wheel_samples - 1);
+        assert!(moving > rehearsals * 3 / 4, "{moving} of {rehearsals}");
+        assert_eq!(rehearsing.fusion().stats(), plain.fusion().stats());
+        assert_eq!(rehearsing.stats(), plain.stats());
+        assert!(plain.stats().rewinds > 100, "{:?}", plain.stats());
     }
 
     #[test]

@@ -816,9 +816,10 @@ pub fn serve(
         } else {
             0
         };
-        if !any_event && timeout.is_some_and(|t| !t.is_zero()) {
-            // The early wakeup: the rest of this pass finds no sample (as a
-            // rule) and warms what the sample's pass will touch.
+        // The early wakeup: the rest of this pass finds no sample (as a
+        // rule) and warms what the sample's pass will touch.
+        let early_pass = !any_event && timeout.is_some_and(|t| !t.is_zero());
+        if early_pass {
             summary.early_wakeups += 1;
         }
         batch.clear();
@@ -923,6 +924,14 @@ pub fn serve(
                     tracing::error!("odometry: {e}");
                 }
             }
+        }
+        if early_pass {
+            // The rest of the path too: the filter's step on a copy, the
+            // pose's conversion, a loan from the pose publisher.
+            if let Some(pose) = filter.rehearse() {
+                std::hint::black_box(to_wire(&pose));
+            }
+            poses.warm_up()?;
         }
         // Off the path from a wheel sample to its pose. The estimate topic is
         // also read with the side events: a new subscriber gets the latest
