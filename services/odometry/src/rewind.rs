@@ -221,8 +221,8 @@ impl RewindingFusion {
     }
 
     /// Process a made-up wheel sample (1 ms after the last, driving straight
-    /// on) on a copy of the filter, and return its pose; the filter is left
-    /// as it was. Run shortly before a wheel sample is due, it brings the
+    /// on, with a fix and a heading where the filter is) on a copy of the
+    /// filter, and return its pose; the filter is left as it was. Run shortly before a wheel sample is due, it brings the
     /// step's code and data into the caches after a sleep, so that the
     /// sample's own step does not wait for them (`odometry serve
     /// --early-wakeup-ms`). `None` before the first wheel sample.
@@ -452,7 +452,8 @@ mod tests {
                 if let Some(rehearsed) = rehearsing.rehearse() {
                     rehearsals += 1;
                     // The made-up sample: 1 ms after the last, a thousandth
-                    // of a turn further on both wheels.
+                    // of a turn further on both wheels (the made-up fix, 1 ms
+                    // behind, pulls it back by under a percent).
                     let last = last_pose.expect("a pose before");
                     assert!((rehearsed.t_s - (last.t_s + 1e-3)).abs() < 1e-9);
                     assert!(rehearsed.t_s < t_s);
@@ -461,7 +462,7 @@ mod tests {
                     {
                         let moved =
                             (rehearsed.pose.x - last.pose.x).hypot(rehearsed.pose.y - last.pose.y);
-                        assert!((moved / (1e-3 * C) - 1.0).abs() < 0.01, "moved {moved} m");
+                        assert!((moved / (1e-3 * C) - 1.0).abs() < 0.02, "moved {moved} m");
                         moving += 1;
                     }
                 }
