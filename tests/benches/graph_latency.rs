@@ -371,6 +371,24 @@ fn print_one_hop(who: &str, published: &str, pooled: &Pooled) -> Stats {
     hop
 }
 
+/// The rows of an odometry's work after the wakeup, split by whether the
+/// wakeup took a GNSS fix too.
+fn print_work_by_fix(pooled: &Pooled) {
+    for (name, with_fix) in [
+        ("  of which wakeups that took a GNSS fix", true),
+        ("  of which wakeups without one", false),
+    ] {
+        let part: Latencies = pooled
+            .work
+            .iter()
+            .zip(&pooled.with_fix)
+            .filter(|(_, &f)| f == with_fix)
+            .map(|(l, _)| *l)
+            .collect();
+        print_row(name, &stats(&part));
+    }
+}
+
 /// The count of late samples `odometry serve` took in their place, from its
 /// exit line ("... N late sample(s) taken in order ...").
 fn late_samples_taken_in_order(log: &str) -> u64 {
@@ -641,25 +659,14 @@ fn run(
     ] {
         print_row(name, s);
     }
-    for (name, with_fix) in [
-        ("  of which wakeups that took a GNSS fix", true),
-        ("  of which wakeups without one", false),
-    ] {
-        let part: Latencies = odometry
-            .work
-            .iter()
-            .zip(&odometry.with_fix)
-            .filter(|(_, &f)| f == with_fix)
-            .map(|(l, _)| *l)
-            .collect();
-        print_row(name, &stats(&part));
-    }
+    print_work_by_fix(&odometry);
     if let Some(exe) = baseline {
         println!(
             "baseline odometry, {} (--baseline-odometry):",
             exe.display()
         );
         let hop = print_one_hop("baseline", "pose publish", &baseline_odometry);
+        print_work_by_fix(&baseline_odometry);
         println!(
             "one hop, baseline odometry / bare pair: p50 {:.2}, p99 {:.2}",
             hop.p50 / bare_hop.p50,
