@@ -222,10 +222,11 @@ impl RewindingFusion {
 
     /// Process a made-up wheel sample (1 ms after the last, driving straight
     /// on, with a fix and a heading where the filter is) on a copy of the
-    /// filter, and return its pose; the filter is left as it was. Run shortly before a wheel sample is due, it brings the
-    /// step's code and data into the caches after a sleep, so that the
-    /// sample's own step does not wait for them (`odometry serve
-    /// --early-wakeup-ms`). `None` before the first wheel sample.
+    /// filter, and return its pose; the filter is left as it was. Run
+    /// shortly before a wheel sample is due, it brings the step's code and
+    /// data into the caches after a sleep, so that the sample's own step
+    /// does not wait for them (`odometry serve --early-wakeup-ms`). `None`
+    /// before the first wheel sample.
     pub fn rehearse(&mut self) -> Option<FusedPose> {
         let mut copy = self.copy_of_filter();
         let pose = copy.rehearse_wheel_sample();
