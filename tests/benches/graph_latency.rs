@@ -154,7 +154,7 @@ fn relay(trace_path: Option<&std::path::Path>, early: Duration) {
                 })
                 .expect("publish");
         }
-        if !got_wheels && timeout.is_some_and(|t| !t.is_zero()) {
+        if !got_wheels && cadence.take_early_pass(Instant::now()) {
             // As the odometry's early pass: a loan from the pose publisher.
             poses.warm_up().expect("warm up");
         }

@@ -23,8 +23,8 @@ pub struct WheelCadence {
     last: Option<Instant>,
     /// The shortest recent gap between such wakeups.
     period: Option<Duration>,
-    /// The early wakeup for the next sample was asked for already.
-    asked: bool,
+    /// The early pass before the next sample has run.
+    early_pass_done: bool,
 }
 
 impl WheelCadence {
@@ -34,7 +34,7 @@ impl WheelCadence {
             lead,
             last: None,
             period: None,
-            asked: false,
+            early_pass_done: false,
         }
     }
 
@@ -54,24 +54,44 @@ impl WheelCadence {
             }
         }
         self.last = Some(now);
-        self.asked = false;
+        self.early_pass_done = false;
     }
 
     /// Before the loop waits at `now`: how long to wait at most, so that it
     /// wakes `lead` to `lead` + 1 ms before the next sample is due (`None`:
-    /// block until an event). Once per sample: after the early wakeup, `None`
-    /// until [`Self::wheels_at`]. Whole milliseconds, rounded down, because
-    /// an iceoryx2 WaitSet waits in whole milliseconds rounded up.
-    pub fn wait_for_early_wakeup(&mut self, now: Instant) -> Option<Duration> {
-        if self.lead.is_zero() || self.asked {
+    /// block until an event: the early pass has run, or its point has
+    /// passed, or the rate is not known yet). Whole milliseconds, rounded
+    /// down, because an iceoryx2 WaitSet waits in whole milliseconds rounded
+    /// up.
+    pub fn wait_for_early_wakeup(&self, now: Instant) -> Option<Duration> {
+        if self.lead.is_zero() || self.early_pass_done {
             return None;
         }
-        self.asked = true;
-        let at = (self.last? + self.period?).checked_sub(self.lead)?;
-        let wait = at.checked_duration_since(now)?;
+        let wait = self.early_point()?.checked_duration_since(now)?;
         Some(Duration::from_millis(
             u64::try_from(wait.as_millis()).unwrap_or(u64::MAX),
         ))
+    }
+
+    /// A pass of the loop at `now` that brought no wheel sample: is it the
+    /// early pass (at most 1 ms before the early point, or after it, and the
+    /// first since the last sample)? Then it is marked as run. Whatever
+    /// woke the pass (the early wakeup's timeout, or another event such as
+    /// a tick that falls near the sample), once per sample.
+    pub fn take_early_pass(&mut self, now: Instant) -> bool {
+        if self.lead.is_zero() || self.early_pass_done {
+            return false;
+        }
+        let Some(at) = self.early_point() else {
+            return false;
+        };
+        self.early_pass_done = now + Duration::from_millis(1) >= at;
+        self.early_pass_done
+    }
+
+    /// `lead` before the next sample is due, once the rate is known.
+    fn early_point(&self) -> Option<Instant> {
+        (self.last? + self.period?).checked_sub(self.lead)
     }
 
     /// The learned gap between wheel samples, once two have come.
@@ -103,10 +123,19 @@ mod tests {
         // that is 8.7 ms, rounded down to 8 ms (so 1 to 2 ms early).
         let now = t0 + 20 * MS + MS * 3 / 10;
         assert_eq!(c.wait_for_early_wakeup(now), Some(8 * MS));
-        // After the early wakeup: block until the sample.
+        // A tick before that is not the early pass, and the wait stays.
+        assert!(!c.take_early_pass(now + 3 * MS));
+        assert_eq!(c.wait_for_early_wakeup(now + 3 * MS), Some(5 * MS));
+        // The early wakeup, once: then block until the sample.
+        assert!(c.take_early_pass(now + 8 * MS));
+        assert!(!c.take_early_pass(now + 8 * MS));
         assert_eq!(c.wait_for_early_wakeup(now + 8 * MS), None);
         c.wheels_at(t0 + 30 * MS);
         assert!(c.wait_for_early_wakeup(t0 + 30 * MS).is_some());
+        // A tick that falls after the early point is the early pass.
+        assert!(!c.take_early_pass(t0 + 33 * MS));
+        assert!(c.take_early_pass(t0 + 39 * MS + MS / 2));
+        assert_eq!(c.wait_for_early_wakeup(t0 + 39 * MS + MS / 2), None);
     }
 
     #[test]
@@ -114,10 +143,12 @@ mod tests {
         let t0 = Instant::now();
         let mut one = steady(MS, t0, 1);
         assert_eq!(one.wait_for_early_wakeup(t0), None);
+        assert!(!one.take_early_pass(t0 + 5 * MS));
         let mut off = steady(Duration::ZERO, t0, 5);
         assert_eq!(off.wait_for_early_wakeup(t0 + 40 * MS), None);
+        assert!(!off.take_early_pass(t0 + 49 * MS));
         // Past the early point (49 ms) already: block, do not spin.
-        let mut late = steady(MS, t0, 5);
+        let late = steady(MS, t0, 5);
         assert_eq!(late.wait_for_early_wakeup(t0 + 49 * MS + MS / 2), None);
     }
 

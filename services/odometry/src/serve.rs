@@ -799,14 +799,12 @@ pub fn serve(
     let mut cadence = WheelCadence::new(config.early_wakeup);
     loop {
         let mut estimate_event = false;
-        let mut any_event = false;
         let timeout = if wheel_sample_waiting {
             Some(Duration::ZERO)
         } else {
             cadence.wait_for_early_wakeup(Instant::now())
         };
         let result = bus::wait_once(&waitset, timeout, |id| {
-            any_event = true;
             estimate_event |= id.has_event_from(&g_estimate);
             CallbackProgression::Continue
         })
@@ -816,12 +814,6 @@ pub fn serve(
         } else {
             0
         };
-        // The early wakeup: the rest of this pass finds no sample (as a
-        // rule) and warms what the sample's pass will touch.
-        let early_pass = !any_event && timeout.is_some_and(|t| !t.is_zero());
-        if early_pass {
-            summary.early_wakeups += 1;
-        }
         batch.clear();
         inputs.drain(&mut sequencer)?;
         sequencer.release(&mut batch);
@@ -925,9 +917,13 @@ pub fn serve(
                 }
             }
         }
-        if early_pass {
-            // The rest of the path too: the filter's step on a copy, the
-            // pose's conversion, a loan from the pose publisher.
+        // The early pass (1-2 ms before the sample is due, as a rule woken
+        // for it): this pass found no sample and warms what the sample's
+        // pass will touch: the receives above, then the filter's step on a
+        // copy, the pose's conversion, a loan from the pose publisher.
+        let got_wheels = batch.iter().any(|i| matches!(i, Input::Wheels { .. }));
+        if !got_wheels && cadence.take_early_pass(Instant::now()) {
+            summary.early_wakeups += 1;
             if let Some(pose) = filter.rehearse() {
                 std::hint::black_box(to_wire(&pose));
             }
@@ -954,7 +950,6 @@ pub fn serve(
         // they cost a few syscalls on the path to a pose.
         let (end_taken, waiting) = inputs.wheel_notifications()?;
         wheel_sample_waiting = waiting;
-        let got_wheels = batch.iter().any(|i| matches!(i, Input::Wheels { .. }));
         if let (true, Some(seen)) = (got_wheels, last_wheel_wall) {
             cadence.wheels_at(seen);
         }
