@@ -633,32 +633,23 @@ fn run(
     }
     let [bare_rt, bare_hop, bare_wake, bare_work] =
         [&bare.round_trip, &bare.hop, &bare.wake, &bare.work].map(|l| stats(l));
-    let [odometry_rt, odometry_hop, odometry_wake, odometry_work] = [
-        &odometry.round_trip,
-        &odometry.hop,
-        &odometry.wake,
-        &odometry.work,
-    ]
-    .map(|l| stats(l));
     println!(
         "{:<44} {:>6} {:>8} {:>8} {:>8} {:>8} {:>8}",
         "", "n", "p50", "p99", "p99.9", "max", "missing"
     );
     for (name, s) in [
         ("bare relay (2 hops, no work)", &bare_rt),
-        ("odometry serve (2 hops + fusion)", &odometry_rt),
+        (
+            "odometry serve (2 hops + fusion)",
+            &stats(&odometry.round_trip),
+        ),
         ("bare pair: publish -> relay's publish (1 hop)", &bare_hop),
         ("  of which publish -> relay's wakeup", &bare_wake),
         ("  of which wakeup -> relay's publish", &bare_work),
-        ("publish -> odometry's pose publish (1 hop)", &odometry_hop),
-        ("  of which publish -> odometry's wakeup", &odometry_wake),
-        (
-            "  of which wakeup -> odometry's pose publish",
-            &odometry_work,
-        ),
     ] {
         print_row(name, s);
     }
+    let odometry_hop = print_one_hop("odometry", "pose publish", &odometry);
     print_work_by_fix(&odometry);
     if let Some(exe) = baseline {
         println!(

@@ -33,7 +33,8 @@
 //!   next wait returns at once instead of blocking.
 //! - The loop also wakes 1-2 ms before each wheel sample is due
 //!   ([`crate::cadence`], `--early-wakeup-ms`) and passes through once
-//!   without it, so that the sample's own pass finds caches and TLB warm
+//!   without it, rehearsing the filter's step on a copy and loaning a pose
+//!   sample unsent, so that the sample's own pass finds caches and TLB warm
 //!   after the sleep. Such a pass changes nothing a pose depends on.
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
