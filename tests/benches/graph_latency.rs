@@ -24,7 +24,9 @@
 //!
 //! The consumers take turns (`--turns N`, default four each, each turn the
 //! drive's first SECONDS / N seconds), so that the machine's drift during a run
-//! falls on all alike; more turns even it out more finely.
+//! falls on all alike; more turns even it out more finely. A run of more
+//! than 60 s per consumer also prints the one hop's p99 in each 60 s window
+//! of it (as many turns as make 60 s), beside the p99 over the whole run.
 //!
 //! `cargo bench -p integration-tests --bench graph_latency [--profile deploy]
 //! [-- SECONDS] [--turns N] [--cpu-latency-zero] [--deliver-late STREAM=S,...]
@@ -514,6 +516,8 @@ struct Pooled {
     with_fix: Vec<bool>,
     /// Turns added so far.
     turns: usize,
+    /// Per turn: where its entries end in `hop` (and the other lists).
+    turn_ends: Vec<usize>,
 }
 
 impl Pooled {
@@ -525,6 +529,48 @@ impl Pooled {
         self.wake.extend(wake);
         self.work.extend(work);
         self.turns += 1;
+        self.turn_ends.push(self.hop.len());
+    }
+
+    /// The one hop's p99 in each window of `turns_per_window` consecutive
+    /// turns (a last, shorter window is left out).
+    fn hop_p99_by_window(&self, turns_per_window: usize) -> Vec<f64> {
+        let bounds: Vec<usize> = std::iter::once(0)
+            .chain(self.turn_ends.iter().copied())
+            .step_by(turns_per_window)
+            .collect();
+        bounds
+            .windows(2)
+            .map(|b| stats(&self.hop[b[0]..b[1]]).p99)
+            .collect()
+    }
+}
+
+/// When a run is longer than the default one (60 s of drive per consumer):
+/// the one hop's p99 in each 60 s window of it, per consumer, so that a long
+/// run shows both the p99 over the whole run and how it varies from minute
+/// to minute, as the default run's does from run to run.
+fn print_p99_by_window(per_phase: f64, consumers: &[(&str, &Pooled)]) {
+    let turns_per_window = ((60.0 / per_phase).round() as usize).max(1);
+    let windows = consumers
+        .first()
+        .map_or(0, |(_, p)| p.turns / turns_per_window);
+    if windows < 2 {
+        return;
+    }
+    println!(
+        "one hop p99 in each window of {turns_per_window} turns ({:.0} s of drive, as a default run), microseconds:",
+        turns_per_window as f64 * per_phase
+    );
+    for (name, pooled) in consumers {
+        let p99s = pooled.hop_p99_by_window(turns_per_window);
+        let met = p99s.iter().filter(|&&p| p <= 100.0).count();
+        let listed: Vec<String> = p99s.iter().map(|p| format!("{p:.1}")).collect();
+        println!(
+            "  {name:<12} <= 100 us in {met} of {}: {}",
+            p99s.len(),
+            listed.join(" ")
+        );
     }
 }
 
@@ -679,6 +725,14 @@ fn run(
         odometry_hop.p99 / bare_hop.p99,
         odometry_hop.p999 / bare_hop.p999
     );
+    let mut consumers = vec![("bare pair", &bare), ("odometry", &odometry)];
+    if early_relay {
+        consumers.push(("early relay", &early_bare));
+    }
+    if baseline.is_some() {
+        consumers.push(("baseline", &baseline_odometry));
+    }
+    print_p99_by_window(per_phase, &consumers);
     let verdict = |ok: bool| if ok { "met" } else { "MISSED" };
     println!(
         "goals (one hop, bridge publish -> pose publish): p50 <= 1.5 x bare pair: {}; p99 <= 100 us: {}",
