@@ -463,7 +463,7 @@ fn odometry_turn(
     vehicle: &std::path::Path,
     into: &mut Pooled,
 ) -> u64 {
-    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns));
+    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns()));
     let odo = g.spawn_exe(
         label,
         exe,
@@ -495,7 +495,7 @@ fn relay_turn(
     extra: &[&str],
     into: &mut Pooled,
 ) {
-    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns));
+    let trace = g.path(&format!("trace-{label}-{}.csv", into.turns()));
     let mut args = vec!["--relay", "--trace", trace.to_str().expect("utf-8")];
     args.extend_from_slice(extra);
     let relay = g.spawn_exe(label, exe, &args);
@@ -514,9 +514,7 @@ struct Pooled {
     work: Latencies,
     /// Per entry: the wakeup took a GNSS fix too ([`Sent::with_fix`]).
     with_fix: Vec<bool>,
-    /// Turns added so far.
-    turns: usize,
-    /// Per turn: where its entries end in `hop` (and the other lists).
+    /// Per turn added so far: where its entries end in `hop` (and the other lists).
     turn_ends: Vec<usize>,
 }
 
@@ -528,8 +526,12 @@ impl Pooled {
         self.hop.extend(hop);
         self.wake.extend(wake);
         self.work.extend(work);
-        self.turns += 1;
         self.turn_ends.push(self.hop.len());
+    }
+
+    /// Turns added so far.
+    fn turns(&self) -> usize {
+        self.turn_ends.len()
     }
 
     /// The one hop's p99 in each window of `turns_per_window` consecutive
@@ -554,7 +556,7 @@ fn print_p99_by_window(per_phase: f64, consumers: &[(&str, &Pooled)]) {
     let turns_per_window = ((60.0 / per_phase).round() as usize).max(1);
     let windows = consumers
         .first()
-        .map_or(0, |(_, p)| p.turns / turns_per_window);
+        .map_or(0, |(_, p)| p.turns() / turns_per_window);
     if windows < 2 {
         return;
     }
