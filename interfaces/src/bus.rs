@@ -252,6 +252,34 @@ pub fn request_shutdown() {
     SHUTDOWN.store(true, Ordering::SeqCst);
 }
 
+// ---------------------------------------------------------------------------
+// The service loop's WaitSet: set up the one way every service does. A loop
+// creates it with [`Bus::waitset`], attaches the listeners of the topics that
+// wake it ([`wake_on`]) and a tick ([`tick_every`]) that notices signals and
+// stale inputs, then calls [`wait_once`] per round.
+
+/// Attach the listener of a topic (`what` names it in errors) to a service
+/// loop's WaitSet: every sample published on the topic wakes the loop.
+pub fn wake_on<'w, 'a>(
+    waitset: &'w WaitSet<Ipc>,
+    what: &'static str,
+    listener: &'a Listener<Ipc>,
+) -> Result<WaitSetGuard<'w, 'a, Ipc>, BusError> {
+    waitset
+        .attach_notification(listener)
+        .map_err(|e| service_err("waitset", what, e))
+}
+
+/// Attach the loop's tick: the WaitSet wakes at least every `every`.
+pub fn tick_every(
+    waitset: &WaitSet<Ipc>,
+    every: Duration,
+) -> Result<WaitSetGuard<'_, 'static, Ipc>, BusError> {
+    waitset
+        .attach_interval(every)
+        .map_err(|e| service_err("waitset", "attach interval", e))
+}
+
 /// One round of `waitset`: block until an attachment fires, or at most
 /// `timeout` (`Some(Duration::ZERO)` when a sample is known to be waiting, its
 /// notification possibly taken already: handle only what is ready now).
@@ -260,11 +288,12 @@ pub fn wait_once<F: FnMut(WaitSetAttachmentId<Ipc>) -> CallbackProgression>(
     waitset: &WaitSet<Ipc>,
     timeout: Option<Duration>,
     on_event: F,
-) -> Result<WaitSetRunResult, WaitSetRunError> {
+) -> Result<WaitSetRunResult, BusError> {
     match timeout {
         Some(t) => waitset.wait_and_process_once_with_timeout(on_event, t),
         None => waitset.wait_and_process_once(on_event),
     }
+    .map_err(|e: WaitSetRunError| service_err("waitset", "wait", e))
 }
 
 /// True when a WaitSet run result means the loop must end (a signal, or a

@@ -4,12 +4,18 @@
 //!   service names they travel on. Only primitives and arrays cross the wire.
 //! - [`drive`]: the in-memory drive (one time series per sensor plus the vehicle
 //!   parameters) that every tool reads, writes, simulates and calibrates.
+//! - [`collect`]: wire samples collected into a drive.
 //! - [`effects`]: the stable ids of the physics catalogue.
 //! - [`bus`]: the iceoryx2 helpers every service uses to open topics the same way.
+//! - [`sensors`]: the four sensor subscribers, opened and drained together.
+//! - [`latency_trace`]: the latency trace file the latency bench reads.
 //! - [`logging`]: the one tracing setup every binary uses.
 
 pub mod bus;
+pub mod collect;
 pub mod drive;
 pub mod effects;
+pub mod latency_trace;
 pub mod logging;
+pub mod sensors;
 pub mod wire;

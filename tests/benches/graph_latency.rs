@@ -49,16 +49,16 @@
 //! machine's PM QoS CPU latency request at 0 during the run (a deployment
 //! setting: idle cores poll instead of halting; needs root).
 
+use drive_io::write_drive;
 use iceoryx2::prelude::CallbackProgression;
 use integration_tests::graph::{bin, Bin, Graph};
 use integration_tests::latency::{quantile, CpuLatencyZero};
 use interfaces::bus::{self, Bus, BusSettings, TopicPublisher};
+use interfaces::latency_trace::{read_latency_trace, wall_clock_ns, write_latency_trace};
 use interfaces::wire::{GnssFix, Heading, Imu, Pose, WheelRotations};
 use odometry::cadence::WheelCadence;
-use odometry::serve::{read_latency_trace, wall_clock_ns, write_latency_trace};
 use sensor_bridge::replay::{to_wire, DeliveryLatency, Stream, WireDrive};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
-use sensor_bridge::write_drive;
+use simulator::{simulate, Scenario, SimConfig};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -128,12 +128,8 @@ fn relay(trace_path: Option<&std::path::Path>, early: Duration) {
     let wheels = bus.subscriber::<WheelRotations>().expect("wheels");
     let mut poses: TopicPublisher<Pose> = bus.publisher().expect("poses");
     let waitset = bus.waitset().expect("waitset");
-    let _g = waitset
-        .attach_notification(wheels.listener())
-        .expect("attach");
-    let _t = waitset
-        .attach_interval(Duration::from_millis(100))
-        .expect("tick");
+    let _g = bus::wake_on(&waitset, "attach wheels", wheels.listener()).expect("attach");
+    let _t = bus::tick_every(&waitset, Duration::from_millis(100)).expect("tick");
     eprintln!("relay ready");
     let mut sample_waiting = false;
     let mut cadence = WheelCadence::new(early);
@@ -205,17 +201,11 @@ fn receiver(
     let bus = Bus::open(&settings, "bench-receiver").expect("bus");
     let poses = bus.subscriber::<Pose>().expect("poses");
     let waitset = bus.waitset().expect("waitset");
-    let _g = waitset
-        .attach_notification(poses.listener())
-        .expect("attach");
-    let _t = waitset
-        .attach_interval(Duration::from_millis(50))
-        .expect("tick");
+    let _g = bus::wake_on(&waitset, "attach poses", poses.listener()).expect("attach");
+    let _t = bus::tick_every(&waitset, Duration::from_millis(50)).expect("tick");
     let _ = ready.send(());
     while !stop.load(Ordering::SeqCst) {
-        waitset
-            .wait_and_process_once(|_| CallbackProgression::Continue)
-            .expect("wait");
+        bus::wait_once(&waitset, None, |_| CallbackProgression::Continue).expect("wait");
         poses.take_events().expect("events");
         while let Some(p) = poses.receive().expect("receive") {
             let now = Instant::now();

@@ -10,10 +10,10 @@
 //! `cargo bench -p integration-tests --bench graph_throughput [-- SECONDS]`
 //! (drive length, default 3600 s).
 
+use drive_io::write_drive;
 use integration_tests::graph::{drain, wait_until, Bin, Graph};
 use interfaces::wire::Pose;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
-use sensor_bridge::write_drive;
+use simulator::{simulate, Scenario, SimConfig};
 use std::time::Instant;
 
 fn number_after(log: &str, before: &str, after: &str) -> Option<f64> {

@@ -1,8 +1,7 @@
 //! Integration tests of the workspace: [`graph`] starts the real binaries as a
-//! process graph over iceoryx2 for the `graph_*` tests, and [`demo`] is the
-//! main job (`wheelcal-demo`) that runs the whole graph on a built-in drive;
-//! [`latency`] has what the latency benchmarks share.
+//! process graph over iceoryx2 for the `graph_*` tests; [`latency`] has what
+//! the latency benchmarks share. The main job (`wheelcal-demo`) lives in
+//! `examples/demo`.
 
-pub mod demo;
 pub mod graph;
 pub mod latency;

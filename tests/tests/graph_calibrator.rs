@@ -3,11 +3,11 @@
 //! SIGKILL (which leaves its iceoryx2 resources behind) a new calibrator
 //! starts from the persisted estimate, again and again.
 
+use drive_io::write_drive;
 use integration_tests::graph::{drain, wait_until, Bin, Graph};
 use interfaces::bus::Bus;
 use interfaces::wire::CircumferenceEstimate;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
-use sensor_bridge::write_drive;
+use simulator::{simulate, Scenario, SimConfig};
 
 /// The latest estimate a fresh (late) subscriber gets from the history.
 fn latest_estimate(bus: &Bus) -> CircumferenceEstimate {

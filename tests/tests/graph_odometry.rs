@@ -2,17 +2,16 @@
 //! `odometry serve` as real processes over iceoryx2, each test in its own
 //! prefix and root path, every child killed and reaped by the [`Graph`] guard.
 
-use calibrator::serve::{save_state, Accepted, Pair};
-use integration_tests::demo::default_drive;
-use integration_tests::demo::report::truth_at;
+use drive_io::write_drive;
 use integration_tests::graph::{drain, wait_until, Bin, Graph, ProcId};
 use interfaces::bus::{Bus, TopicSubscriber};
 use interfaces::drive::Drive;
 use interfaces::wire::{Pose, PoseMode};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
-use sensor_bridge::write_drive;
+use simulator::{simulate, Scenario, SimConfig};
 use std::path::Path;
 use std::time::{Duration, Instant};
+use wheelcal_demo::default_drive;
+use wheelcal_demo::report::truth_at;
 
 /// The nominal circumferences are expected to be worse than the calibrated
 /// ones through the outage by at least this factor (observed: far more).
@@ -97,28 +96,22 @@ fn outage_errors(drive: &Drive, poses: &[Pose], outage: (f64, f64)) -> (f64, f64
     )
 }
 
-fn seeded_state(path: &Path, version: u64) -> Accepted {
-    let a = Accepted {
-        version,
-        t_s: 100.0,
-        circumference_m: Pair {
-            rl: 2.0437,
-            rr: 2.0412,
-        },
-        sigma_m: Pair {
-            rl: 0.001,
-            rr: 0.001,
-        },
-        track_width_m: 1.58,
-        gyro_bias_rad_s: 0.0,
-        gyro_scale: 0.0,
-        side_slip_gain_rad_per_m_s2: None,
-        gnss_antenna_m: None,
-        sigma_gnss_antenna_m: None,
-        quality_m: 1.0,
-    };
-    save_state(path, &a).expect("state file");
-    a
+/// Write a `calibrator serve` state file holding estimate `version`, as the
+/// service writes it (pretty JSON, the antenna fields left out when absent).
+fn seeded_state(path: &Path, version: u64) {
+    let state = serde_json::json!({
+        "version": version,
+        "t_s": 100.0,
+        "circumference_m": { "rl": 2.0437, "rr": 2.0412 },
+        "sigma_m": { "rl": 0.001, "rr": 0.001 },
+        "track_width_m": 1.58,
+        "gyro_bias_rad_s": 0.0,
+        "gyro_scale": 0.0,
+        "side_slip_gain_rad_per_m_s2": null,
+        "quality_m": 1.0
+    });
+    let text = serde_json::to_string_pretty(&state).expect("state json");
+    std::fs::write(path, text + "\n").expect("state file");
 }
 
 /// An estimate is published by the calibrator and taken by the odometry; with
@@ -150,8 +143,11 @@ fn estimate_is_picked_up_and_beats_nominal_through_a_gnss_outage() {
     g.wait_log(cal, "PUBLISHED estimate v1");
     g.terminate(cal);
     assert!(g.wait_exit(cal).success());
-    let accepted: Accepted =
+    let accepted: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&state).expect("state")).expect("json");
+    let accepted_version = accepted["version"]
+        .as_u64()
+        .expect("version in the state file");
 
     // Phase 2: the calibrator serves what it learnt (and learns no more); the
     // odometry picks it up and crosses the outage with it.
@@ -174,12 +170,12 @@ fn estimate_is_picked_up_and_beats_nominal_through_a_gnss_outage() {
     let odo = odometry(&mut g, "odometry", &outage_drive, &[]);
     g.wait_log(
         odo,
-        &format!("switching estimate v0 -> v{}", accepted.version),
+        &format!("switching estimate v0 -> v{accepted_version}"),
     );
     let replay = replay_max(&mut g, &outage_drive, "2");
     let poses = collect(&mut g, replay, &sub, last_wheel_t_ns(&drive));
     assert_eq!(sub.lost(), 0, "poses lost");
-    assert!(poses.iter().all(|p| p.estimate_version == accepted.version));
+    assert!(poses.iter().all(|p| p.estimate_version == accepted_version));
     let calibrated = outage_errors(&drive, &poses, outage);
     g.terminate(odo);
     assert!(g.wait_exit(odo).success());

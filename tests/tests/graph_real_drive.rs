@@ -12,12 +12,12 @@ use interfaces::wire::Pose;
 
 #[test]
 fn a_real_drive_is_calibrated_live_and_the_odometry_takes_the_estimate() {
-    let Some(path) = sensor_bridge::dev_data::real_drive("wid-trial02") else {
+    let Some(path) = drive_io::dev_data::real_drive("wid-trial02") else {
         return;
     };
     let drive_s = path.to_str().expect("utf-8 path").to_string();
     let vehicle = format!("{drive_s}/vehicle.toml");
-    let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+    let drive = drive_io::read_drive(&path).expect("read drive").drive;
     let wheel_samples = drive.wheels.samples.len();
     let last_t_ns =
         interfaces::wire::seconds_to_ns(drive.wheels.samples.last().expect("wheels").t_s);

@@ -2,10 +2,10 @@
 //! record`, as real processes over iceoryx2: the recording holds every sample
 //! of the drive, value for value.
 
+use drive_io::{read_drive, write_drive};
 use integration_tests::graph::{Bin, Graph, ProcId};
 use interfaces::drive::Drive;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
-use sensor_bridge::{read_drive, write_drive};
+use simulator::{simulate, Scenario, SimConfig};
 use std::path::PathBuf;
 
 /// Simulate the paper drive (seed 3), write it, and start `record --until-end`

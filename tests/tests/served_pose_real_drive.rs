@@ -6,18 +6,18 @@
 
 use calibrator::{calibrate, CalibrationConfig};
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::Estimate;
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::drive_inputs;
-use odometry::serve::gnss_lever_arm;
+use vehicle_model::estimate::gnss_lever_arm;
+use vehicle_model::estimate::Estimate;
 
 #[test]
 fn the_calibrated_antenna_cuts_the_served_error_through_outages_on_wid_trial02() {
-    let Some(path) = sensor_bridge::dev_data::real_drive("wid-trial02") else {
+    let Some(path) = drive_io::dev_data::real_drive("wid-trial02") else {
         return;
     };
-    let drive = sensor_bridge::read_drive(&path).expect("read").drive;
+    let drive = drive_io::read_drive(&path).expect("read").drive;
     let truth = drive.truth.clone().expect("WID drives have truth.csv");
     // What `calibrator calibrate --json` writes, read as the odometry reads it.
     let cal = calibrate(&drive, &CalibrationConfig::default()).expect("calibrate");

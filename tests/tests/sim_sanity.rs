@@ -13,11 +13,9 @@
 
 use interfaces::drive::Drive;
 use interfaces::effects::Effect;
-use odometry::two_wheel::{dead_reckon, wrap_angle, Pose2, TwoWheelParams};
-use sensor_bridge::sim::{
-    simulate, EffectSettings, Scenario, SensorSettings, SimConfig, VehicleKind,
-};
+use simulator::{simulate, EffectSettings, Scenario, SensorSettings, SimConfig, VehicleKind};
 use std::f64::consts::PI;
+use vehicle_model::two_wheel::{dead_reckon, wrap_angle, Pose2, TwoWheelParams};
 
 const SEED: u64 = 11;
 

@@ -5,10 +5,10 @@
 
 use interfaces::effects::Effect;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::OdometryParams;
 use odometry::evaluate::{evaluate, EvaluateConfig, EvaluationReport};
-use odometry::two_wheel::TwoWheelParams;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
+use vehicle_model::estimate::OdometryParams;
+use vehicle_model::two_wheel::TwoWheelParams;
 
 const DEG_H: f64 = std::f64::consts::PI / 180.0 / 3600.0;
 

@@ -20,9 +20,9 @@
 mod common;
 
 use calibrator::{calibrate, CalibrationConfig, Method, TrackWidthMode};
-use odometry::two_wheel::TwoWheelParams;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
 use std::time::Instant;
+use vehicle_model::two_wheel::TwoWheelParams;
 
 #[derive(Default, Clone)]
 struct Acc {

@@ -16,7 +16,7 @@
 mod common;
 
 use calibrator::{calibrate, CalibrationConfig, Method};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
 use std::time::Instant;
 
 fn main() {

@@ -2,7 +2,7 @@
 #[path = "../benches/common/mod.rs"]
 mod common;
 use calibrator::{calibrate_with_progress, CalibrationConfig, Method};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
 fn main() {
     let mut sim = SimConfig::new(Scenario::Long, 7);
     sim.duration_s = Some(3600.0);

@@ -11,8 +11,8 @@
 
 use anyhow::{anyhow, Result};
 use calibrator::{ekf, prep, reference, CalibrationConfig, TimeOffsetMode};
-use odometry::two_wheel::wrap_angle;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
+use vehicle_model::two_wheel::wrap_angle;
 
 fn main() -> Result<()> {
     let drive = simulate(&SimConfig::new(Scenario::Paper, 1))?;

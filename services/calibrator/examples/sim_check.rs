@@ -4,8 +4,8 @@
 mod common;
 
 use calibrator::{calibrate, CalibrationConfig, Method};
-use odometry::two_wheel::TwoWheelParams;
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
+use vehicle_model::two_wheel::TwoWheelParams;
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().collect();
@@ -16,7 +16,7 @@ fn main() -> anyhow::Result<()> {
     let mut sim = SimConfig::new(scenario, seed);
     for kv in args.iter().skip(5) {
         if kv == "noiseless" {
-            sim.sensors = sensor_bridge::sim::SensorSettings::noiseless();
+            sim.sensors = simulator::SensorSettings::noiseless();
         }
         if let Some(e) = kv.strip_prefix("effect=") {
             sim.effects.apply_spec(e)?;

@@ -181,7 +181,7 @@ impl Bar {
 
 /// Run `calibrator calibrate`.
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
-    let loaded = sensor_bridge::read_drive(&args.drive)
+    let loaded = drive_io::read_drive(&args.drive)
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");

@@ -4,7 +4,7 @@
 //!
 //! State `x = [x, y, theta]`, input `u = [d_RL, d_RR] = [n_RL c_RL, n_RR c_RR]`
 //! with the circumferences of the previous iteration, measurement `y = r_k`,
-//! `H = I`. The prediction is eq. (1)-(2) (`odometry::two_wheel`), its
+//! `H = I`. The prediction is eq. (1)-(2) (`vehicle_model::two_wheel`), its
 //! Jacobian
 //! ```text
 //! F = [[1, 0, -ds sin(course)], [0, 1, ds cos(course)], [0, 0, 1]],
@@ -26,11 +26,11 @@
 //! Outages: the filter predicts through a GNSS outage without updates and
 //! restarts on the reference where it comes back (no row at that sample).
 
+use crate::error::CalibrationError;
 use crate::prep::Prepared;
 use crate::reference::Reference;
-use crate::CalibrationError;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
-use odometry::two_wheel::{step, wrap_angle, Pose2, TwoWheelParams};
+use vehicle_model::two_wheel::{step, wrap_angle, Pose2, TwoWheelParams};
 
 /// Diagonals of the model covariance P and measurement covariance M.
 #[derive(Debug, Clone, Copy, PartialEq)]

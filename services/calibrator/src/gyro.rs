@@ -6,7 +6,7 @@
 //!
 //! The model is the one the odometry runs through a GNSS outage: distance
 //! from the calibrated wheels, heading from the gyro. It is fitted to the GNSS
-//! fixes by the batch machinery ([`crate::batch::fit`]) with the ratio of the
+//! fixes by the Levenberg-Marquardt fitter ([`crate::lm::fit`]) with the ratio of the
 //! circumferences held at their estimate. Beside the bias and scale it fits
 //! - a common distance factor `k` on both circumferences: where the wheel
 //!   difference is a poor heading source (wheel-rate sensors whose difference
@@ -24,12 +24,12 @@
 //! prior on the bias. Without enough turning the scale is held at 0 (and a
 //! warning says so).
 
-use crate::batch::{fit, SlipGain, StepModel, MAX_GLOBAL};
+use crate::error::CalibrationError;
+use crate::lm::{fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::prep::Prepared;
 use crate::reference::{standstill_gyro_bias, Reference};
-use crate::report::{Warning, WarningCode};
 use crate::uncertainty::Sigmas;
-use crate::CalibrationError;
+use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
 
 /// 1-sigma of the prior on the GNSS antenna position around the axle
@@ -46,7 +46,7 @@ pub const ANTENNA_MEASURED_SIGMA_M: f64 = 0.05;
 /// `antenna_unobservable` warning: a tenth of a metre of lateral offset is
 /// up to 0.2 m of position error when the car turns round. The same limit
 /// decides whether the odometry uses a calibrated antenna as its lever arm.
-pub const ANTENNA_WARN_SIGMA_M: f64 = odometry::estimate_file::MAX_FUSED_ANTENNA_SIGMA_M;
+pub const ANTENNA_WARN_SIGMA_M: f64 = vehicle_model::estimate::MAX_FUSED_ANTENNA_SIGMA_M;
 
 /// 1-sigma of the prior on the gyro scale error around 0: the physics
 /// catalogue's typical size of `gyro_scale` (0.1-1 %). It only matters on

@@ -1,8 +1,18 @@
-//! `calibrator` command-line entry point.
+//! `calibrator` command-line entry point: the process side of the pure
+//! `calibrator` library (files, clock, threads, the bus, arguments).
 //!
-//! Each subcommand is one variant of [`Command`] dispatching to one function.
+//! Each subcommand is one variant of [`Command`] dispatching to one function:
+//! - [`cli`]: `calibrate`, read a drive, print the report, write the JSON and
+//!   the pictures;
+//! - [`diagnose_cmd`]: `diagnose`, read a drive, print the findings, write
+//!   the JSON, the pictures and their index page;
+//! - [`serve_cmd`]: the arguments of `serve`, turned into a
+//!   [`serve::ServeConfig`];
+//! - [`serve`]: the live loop over the bus, with its state file.
 
 mod cli;
+mod diagnose_cmd;
+mod serve;
 mod serve_cmd;
 
 use anyhow::Result;
@@ -21,6 +31,10 @@ enum Command {
     /// Estimate the rear wheel circumferences (and track width, gyro bias and
     /// scale) of a drive folder or MCAP recording; print the report.
     Calibrate(cli::CalibrateArgs),
+    /// Find the physics the calibrated 2W model leaves out: where the model
+    /// and the drive part ways, which catalogue effects explain it (tested on
+    /// held-out blocks), the extended model and the fit before and after.
+    Diagnose(diagnose_cmd::DiagnoseArgs),
     /// Live calibration in the process graph: collect the sensor topics,
     /// calibrate on a worker thread, publish estimates that pass the quality gate.
     Serve(serve_cmd::ServeArgs),
@@ -31,6 +45,7 @@ fn main() -> Result<()> {
     interfaces::logging::init();
     match cli.command {
         Command::Calibrate(args) => cli::run_calibrate(&args),
+        Command::Diagnose(args) => diagnose_cmd::run_diagnose(&args),
         Command::Serve(args) => serve_cmd::run_serve(&args),
     }
 }

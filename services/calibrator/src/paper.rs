@@ -16,18 +16,20 @@
 //! column for `t_R` (the heading row linearised at the current values, see
 //! [`crate::ekf::run_pass`]) and eq. (11) steps it like the circumferences.
 
-use crate::ekf::{dr_deviation, run_pass, schedule, Slip};
+use crate::config::{CalibrationConfig, TrackWidthMode};
+use crate::ekf::{dr_deviation, grid, run_pass, schedule, Slip};
+use crate::error::CalibrationError;
+use crate::method::Method;
 use crate::prep::Prepared;
 use crate::reference::Reference;
-use crate::report::{IterationRecord, MethodResult, RearPair, Warning};
+use crate::result::{IterationRecord, MethodResult, RearPair, TRACK_POINTS};
+use crate::track_width::{decide_track, implausible_track};
 use crate::uncertainty::{jackknife_ls, Sigmas};
-use crate::{CalibrationConfig, CalibrationError, Method};
-use odometry::two_wheel::TwoWheelParams;
+use crate::warnings::Warning;
+use vehicle_model::two_wheel::TwoWheelParams;
 
 /// Number of time blocks for the jackknife of the least squares.
 const JACKKNIFE_BLOCKS: usize = 20;
-/// Points kept of the dead-reckoned tracks for the plots.
-pub const TRACK_POINTS: usize = 3000;
 
 /// Run the paper's loop. `progress` gets the fraction done (0..=1).
 pub fn run(
@@ -37,13 +39,12 @@ pub fn run(
     warnings: &mut Vec<Warning>,
     progress: &mut dyn FnMut(f64),
 ) -> Result<MethodResult, CalibrationError> {
-    let estimate_track = crate::batch::decide_track(p, r, config, warnings)?;
+    let estimate_track = decide_track(p, r, config, warnings)?;
     let result = run_once(p, r, config, estimate_track, progress)?;
     if result.track_estimated {
-        if let Some(w) = crate::batch::implausible_track(result.track, p.track, config.track_width)
-        {
+        if let Some(w) = implausible_track(result.track, p.track, config.track_width) {
             warnings.push(w);
-            if config.track_width == crate::TrackWidthMode::Auto {
+            if config.track_width == TrackWidthMode::Auto {
                 return run_once(p, r, config, false, progress);
             }
         }
@@ -79,7 +80,7 @@ fn run_once(
         dr_error_mean_m: dev0.mean_m,
         dr_error_max_m: dev0.max_m,
     }];
-    let grid = crate::ekf::grid(p, config.paper_rate_hz);
+    let grid = grid(p, config.paper_rate_hz);
     let mut best: Option<Best> = None;
     for i in 1..=config.iterations {
         let cov = schedule(i, config.q_m, config.q_p);

@@ -3,7 +3,7 @@
 //! and the dead-reckoning deviation per iteration (Fig. 6). Pure: the
 //! functions return the SVG text; the binary writes the files.
 
-use crate::report::Calibration;
+use crate::result::Calibration;
 use std::fmt::Write as _;
 
 const W: f64 = 900.0;

@@ -16,8 +16,9 @@
 //! rules as [`Drive::wheel_revolutions`] (which materialises 56 bytes per
 //! row); a unit test checks that the two agree.
 
-use crate::report::{Warning, WarningCode};
-use crate::{CalibrationConfig, CalibrationError};
+use crate::config::CalibrationConfig;
+use crate::error::CalibrationError;
+use crate::warnings::{Warning, WarningCode};
 use interfaces::drive::{Drive, HeadingSample, WheelConversionError, WheelSample, WheelUnit};
 
 /// A GNSS fix in local ENU (antenna position).
@@ -872,17 +873,6 @@ mod tests {
         assert!((o_rl + 0.02).abs() < 1e-9 && (o_rr - 0.01).abs() < 1e-9 && secs > 2.5);
         let standing: f64 = p.dn_rl[..250].iter().sum();
         assert!(standing.abs() < 1e-12, "{standing}");
-    }
-
-    #[test]
-    fn small_sin_cos_is_accurate() {
-        for a in [-0.3, -0.049, -1e-3, 0.0, 2e-4, 0.02, 0.0499, 0.7] {
-            let (s, c) = crate::batch::tests_support::small_sin_cos(a);
-            assert!(
-                (s - a.sin()).abs() < 1e-13 && (c - a.cos()).abs() < 1e-13,
-                "{a}"
-            );
-        }
     }
 
     #[test]

@@ -21,13 +21,14 @@
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
+use crate::config::{CalibrationConfig, TimeOffsetMode};
+use crate::error::CalibrationError;
 use crate::prep::{Fix, Prepared};
-use crate::report::{Warning, WarningCode};
-use crate::{CalibrationConfig, CalibrationError, TimeOffsetMode};
+use crate::warnings::{Warning, WarningCode};
 use interfaces::drive::{Drive, ImuSample};
 use nalgebra::{Matrix3, Vector3};
-use odometry::two_wheel::wrap_angle;
 use serde::{Deserialize, Serialize};
+use vehicle_model::two_wheel::wrap_angle;
 
 /// Process noise of the position filter without accelerations, m^2/s^3.
 const Q_ACCEL_FREE: f64 = 4.0;

@@ -1,9 +1,9 @@
-//! `calibrator serve`: command-line glue around [`calibrator::serve::run`].
+//! `calibrator serve`: command-line glue around [`crate::serve::run`].
 //!
 //! Joins the graph named by `WHEELCAL_IOX_PREFIX` / `WHEELCAL_IOX_ROOT`.
 
+use crate::serve::{run, ServeConfig};
 use anyhow::{Context, Result};
-use calibrator::serve::{run, ServeConfig};
 use clap::Args;
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
@@ -53,7 +53,7 @@ pub struct ServeArgs {
 
 /// Vehicle parameters from a vehicle.toml or a drive; warnings to the log.
 fn load_vehicle(path: &Path) -> Result<VehicleParams> {
-    let loaded = sensor_bridge::read_vehicle(path)
+    let loaded = drive_io::read_vehicle(path)
         .with_context(|| format!("reading vehicle parameters from {}", path.display()))?;
     for warning in &loaded.warnings {
         tracing::warn!("calibrator: {warning}");

@@ -11,7 +11,7 @@
 
 use crate::ekf::{EkfPass, NormalBlock};
 use crate::reference::Reference;
-use crate::report::{Warning, WarningCode};
+use crate::warnings::{Warning, WarningCode};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 

@@ -12,7 +12,7 @@ fn bin() -> Command {
 fn calibrate_prints_the_report_and_writes_json_and_plots() {
     let dir = tempfile::tempdir().unwrap();
     let drive_dir = dir.path().join("drive");
-    sensor_bridge::write_drive(&common::Synth::default().drive(), &drive_dir).unwrap();
+    drive_io::write_drive(&common::Synth::default().drive(), &drive_dir).unwrap();
     let json = dir.path().join("cal.json");
     let plots = dir.path().join("plots");
     let out = bin()
@@ -49,7 +49,7 @@ fn calibrate_fails_with_the_cause_on_a_drive_without_gnss() {
     let dir = tempfile::tempdir().unwrap();
     let mut d = common::Synth::default().drive();
     d.gnss = None;
-    sensor_bridge::write_drive(&d, dir.path()).unwrap();
+    drive_io::write_drive(&d, dir.path()).unwrap();
     let out = bin().arg("calibrate").arg(dir.path()).output().unwrap();
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -6,8 +6,8 @@ mod common;
 use calibrator::{calibrate, CalibrationConfig, WarningCode};
 
 fn load(name: &str) -> Option<interfaces::drive::Drive> {
-    let path = sensor_bridge::dev_data::real_drive(name)?;
-    match sensor_bridge::read_drive(&path) {
+    let path = drive_io::dev_data::real_drive(name)?;
+    match drive_io::read_drive(&path) {
         Ok(loaded) => Some(loaded.drive),
         Err(e) => panic!("cannot read {name}: {e}"),
     }

@@ -2,7 +2,7 @@
 //! `paper_accuracy` benchmark).
 
 use calibrator::{calibrate, CalibrationConfig, Method, TrackWidthMode};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig};
+use simulator::{simulate, Scenario, SimConfig};
 
 #[test]
 fn the_paper_scenario_is_calibrated_to_a_millimetre() {

@@ -19,9 +19,9 @@
 
 use nalgebra::{DMatrix, DVector};
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::OdometryParams;
 use odometry::evaluate::{evaluate, EvaluateConfig, TruthPoint, TruthPointSource};
-use odometry::two_wheel::TwoWheelParams;
+use vehicle_model::estimate::OdometryParams;
+use vehicle_model::two_wheel::TwoWheelParams;
 
 fn config(heading: HeadingMode, outage_s: f64, spacing_s: f64, arm: [f64; 2]) -> EvaluateConfig {
     EvaluateConfig {
@@ -171,13 +171,13 @@ fn fitted_model(drive: &interfaces::drive::Drive, fit_arm: bool) -> Model {
 }
 
 fn main() {
-    let root_dir = sensor_bridge::dev_data::real_data_dir();
+    let root_dir = drive_io::dev_data::real_data_dir();
     let root = root_dir.as_path();
     if !root.join("wid-trial02").is_dir() || !root.join("wid-trial04").is_dir() {
         eprintln!("skipping: {} not found", root.display());
         return;
     }
-    let load = |name: &str| match sensor_bridge::read_drive(&root.join(name)) {
+    let load = |name: &str| match drive_io::read_drive(&root.join(name)) {
         Ok(loaded) => Some(loaded.drive),
         Err(e) => {
             eprintln!("cannot read {name}: {e}");

@@ -51,7 +51,7 @@ fn main() -> anyhow::Result<()> {
     );
     println!("|---|---|---|---|---|---|---|");
     for name in ["wid-trial02", "wid-trial04", "comma2k19-seg40"] {
-        let drive = sensor_bridge::read_drive(&root.join(name))?.drive;
+        let drive = drive_io::read_drive(&root.join(name))?.drive;
         let inputs = drive_inputs(&drive)?;
         let fresh = || Fusion::nominal(&drive.vehicle, FusionConfig::default());
         let per_input = |d: Duration| d.as_nanos() as f64 / inputs.len() as f64;

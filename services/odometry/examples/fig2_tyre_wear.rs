@@ -20,8 +20,8 @@
 //! revolution, so the unworn row is not exactly zero.
 
 use interfaces::drive::Drive;
-use odometry::two_wheel::{dead_reckon, wrap_angle, Pose2, TwoWheelParams};
-use sensor_bridge::sim::{simulate, Scenario, SimConfig, WheelWear};
+use simulator::{simulate, Scenario, SimConfig, WheelWear};
+use vehicle_model::two_wheel::{dead_reckon, wrap_angle, Pose2, TwoWheelParams};
 
 /// (RL wear mm, RR wear mm, paper: position mean m, max m, orientation mean deg, max deg).
 const PAPER: [(f64, f64, f64, f64, f64, f64); 7] = [

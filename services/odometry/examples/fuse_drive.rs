@@ -6,7 +6,7 @@
 //! ```
 //!
 //! The GNSS antenna is chosen as `odometry serve` does
-//! ([`odometry::serve::gnss_lever_arm`]): `vehicle.toml`'s, else the
+//! ([`vehicle_model::estimate::gnss_lever_arm`]): `vehicle.toml`'s, else the
 //! estimate's; `FUSION_NO_ANTENNA=1` leaves the estimate's out.
 //! `FUSION_TRUTH_POINT=antenna` scores the antenna point of each pose (for
 //! drives whose truth is the GNSS track, e.g. WID) instead of the rear axle.
@@ -22,27 +22,26 @@
 use anyhow::{bail, Result};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::Estimate;
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
 use odometry::inputs::{drive_inputs, gnss_late, sort_by_delivery};
 use odometry::rewind::{RewindConfig, RewindingFusion};
-use odometry::serve::gnss_lever_arm;
 use std::path::PathBuf;
+use vehicle_model::estimate::gnss_lever_arm;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(path) = args.first() else {
         bail!("usage: fuse_drive DRIVE [gyro|wheels] [EST.json]");
     };
-    let drive = sensor_bridge::read_drive(&PathBuf::from(path))?.drive;
+    let drive = drive_io::read_drive(&PathBuf::from(path))?.drive;
     let heading: HeadingMode = match args.get(1) {
         Some(h) => h.parse().map_err(anyhow::Error::msg)?,
         None => HeadingMode::Gyro,
     };
     let estimate = args
         .get(2)
-        .map(|p| Estimate::load(&PathBuf::from(p)))
+        .map(|p| drive_io::read_estimate(&PathBuf::from(p)))
         .transpose()?;
     let config = FusionConfig {
         odometer: OdometerConfig {
@@ -69,7 +68,7 @@ fn main() -> Result<()> {
         Ok(other) => bail!("FUSION_TRUTH_POINT={other}: expected axle or antenna"),
     };
     // The point of a pose that the truth describes.
-    let scored = |fusion: &Fusion, pose: &odometry::two_wheel::Pose2| {
+    let scored = |fusion: &Fusion, pose: &vehicle_model::two_wheel::Pose2| {
         let arm = if at_antenna {
             fusion.lever_arm()
         } else {

@@ -7,19 +7,19 @@
 
 use anyhow::{bail, Result};
 use odometry::dead_reckoning::{DeadReckoner, HeadingMode, OdometerConfig};
-use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::inputs::{drive_inputs, Input};
-use odometry::two_wheel::{wrap_angle, Pose2};
 use std::path::PathBuf;
+use vehicle_model::estimate::OdometryParams;
+use vehicle_model::two_wheel::{wrap_angle, Pose2};
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let Some(path) = args.first() else {
         bail!("usage: heading_trace DRIVE [EST.json]");
     };
-    let drive = sensor_bridge::read_drive(&PathBuf::from(path))?.drive;
+    let drive = drive_io::read_drive(&PathBuf::from(path))?.drive;
     let params = match args.get(1) {
-        Some(p) => Estimate::load(&PathBuf::from(p))?.params,
+        Some(p) => drive_io::read_estimate(&PathBuf::from(p))?.params,
         None => OdometryParams::nominal(&drive.vehicle),
     };
     let truth = drive.truth.clone().unwrap_or_default();

@@ -10,23 +10,23 @@
 
 use anyhow::{bail, Context, Result};
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::{Estimate, OdometryParams};
 use odometry::evaluate::{evaluate, EvaluateConfig};
 use std::path::PathBuf;
+use vehicle_model::estimate::OdometryParams;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 2 {
         bail!("usage: outage_trace DRIVE OUTAGE_S [gyro|wheels] [EST.json] [T_START]");
     }
-    let drive = sensor_bridge::read_drive(&PathBuf::from(&args[0]))?.drive;
+    let drive = drive_io::read_drive(&PathBuf::from(&args[0]))?.drive;
     let outage_s: f64 = args[1].parse().context("OUTAGE_S")?;
     let heading: HeadingMode = match args.get(2) {
         Some(h) => h.parse().map_err(anyhow::Error::msg)?,
         None => HeadingMode::Gyro,
     };
     let params = match args.get(3).filter(|p| p.as_str() != "-") {
-        Some(p) => Estimate::load(&PathBuf::from(p))?.params,
+        Some(p) => drive_io::read_estimate(&PathBuf::from(p))?.params,
         None => OdometryParams::nominal(&drive.vehicle),
     };
     let only: Option<f64> = args

@@ -54,9 +54,9 @@
 //!
 //! Pure: no clock, no I/O. Times are seconds on the drive's clock.
 
-use crate::estimate_file::OdometryParams;
-use crate::two_wheel::{step, Pose2};
 use std::collections::VecDeque;
+use vehicle_model::estimate::OdometryParams;
+use vehicle_model::two_wheel::{step, Pose2};
 
 /// Where the heading change of the dead-reckoning comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -645,7 +645,7 @@ impl DeadReckoner {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::two_wheel::TwoWheelParams;
+    use vehicle_model::two_wheel::TwoWheelParams;
 
     fn params(c_rl: f64, c_rr: f64, track: f64) -> OdometryParams {
         OdometryParams {

@@ -9,6 +9,11 @@
 //! scored at its end against the truth, at the body point the truth follows,
 //! and against the pose's own covariance ([`FusedOutage::error_chi2`]).
 
+// The chi-square statistic of an error against its covariance and its 95 %
+// quantile are the filter's Kalman maths; they are named here too, where
+// the outages are scored with them.
+pub use crate::fusion::{position_chi2, CHI2_2DOF_95};
+
 use crate::fusion::{FusedPose, Fusion, FusionError, ProcessError};
 use crate::inputs::Input;
 use interfaces::drive::TruthSample;
@@ -136,9 +141,6 @@ pub fn fused_outages(
     Ok(out)
 }
 
-/// 95 % quantile of chi-square with 2 degrees of freedom.
-pub const CHI2_2DOF_95: f64 = 5.991;
-
 /// The point of `pose` at `arm` (body frame, m) from the rear-axle centre,
 /// and that point's position covariance (the pose's, with the yaw's share
 /// through the arm).
@@ -162,18 +164,6 @@ fn scored_point(pose: &FusedPose, arm: [f64; 2]) -> ([f64; 2], [f64; 4]) {
         }
     }
     (point, cov)
-}
-
-/// e^T P^-1 e for a position error `e` and its 2x2 covariance `p`
-/// (row-major): chi-square with 2 degrees of freedom when the covariance is
-/// honest. `None` when `p` cannot be inverted.
-pub fn position_chi2(e: [f64; 2], p: [f64; 4]) -> Option<f64> {
-    let det = p[0] * p[3] - p[1] * p[2];
-    if !(det.is_finite() && det > 0.0) {
-        return None;
-    }
-    let v = (e[0] * (p[3] * e[0] - p[1] * e[1]) + e[1] * (p[0] * e[1] - p[2] * e[0])) / det;
-    v.is_finite().then_some(v)
 }
 
 /// Of the outages that count, how many end inside the 95 % ellipse of the
@@ -207,9 +197,9 @@ pub fn median_error(outages: &[FusedOutage]) -> Option<f64> {
 mod tests {
     use super::*;
     use crate::dead_reckoning::{HeadingMode, OdometerConfig};
-    use crate::estimate_file::OdometryParams;
     use crate::fusion::FusionConfig;
-    use crate::two_wheel::TwoWheelParams;
+    use vehicle_model::estimate::OdometryParams;
+    use vehicle_model::two_wheel::TwoWheelParams;
 
     /// Straight east at 10 m/s for 100 s: wheels and gyro at 100 Hz, fixes at
     /// 5 Hz of an antenna 1 m ahead of the axle; the wheels read 1 % long.

@@ -8,8 +8,8 @@
 //! the service processes exactly that order: [`Sequencer`] sees to it when
 //! the samples arrive in batches (wakeups) that cut through an instant.
 
-use crate::estimate_file::Estimate;
 use interfaces::drive::{Drive, WheelConversionError};
+use vehicle_model::estimate::Estimate;
 
 /// One input sample of the odometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -394,9 +394,9 @@ mod tests {
         let estimate = Input::Estimate {
             t_s: f64::NEG_INFINITY,
             version: 1,
-            estimate: crate::estimate_file::Estimate {
-                params: crate::estimate_file::OdometryParams {
-                    two_wheel: crate::two_wheel::TwoWheelParams {
+            estimate: vehicle_model::estimate::Estimate {
+                params: vehicle_model::estimate::OdometryParams {
+                    two_wheel: vehicle_model::two_wheel::TwoWheelParams {
                         c_rl: 2.0,
                         c_rr: 2.0,
                         track_width: 1.5,

@@ -1,13 +1,22 @@
 //! `odometry` command-line entry point.
+//!
+//! The process side of the odometry lives here: the `serve` loop
+//! ([`serve`]) and the pose kept across power cycles ([`pose_state`]). The
+//! algorithms are the `odometry` library's.
+
+mod pose_state;
+mod serve;
+#[cfg(test)]
+mod serve_in_process;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use odometry::estimate_file::{Estimate, OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
 use odometry::evaluate::{
     choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
     TruthPointSource,
 };
 use std::path::PathBuf;
+use vehicle_model::estimate::{OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
 
 #[derive(Debug, Parser)]
 #[command(
@@ -28,7 +37,7 @@ enum Command {
     Evaluate(EvaluateArgs),
     /// Run the pose service over iceoryx2: subscribe to wheels, IMU, GNSS,
     /// heading and the estimate; publish a pose per wheel sample.
-    Serve(odometry::serve::ServeArgs),
+    Serve(serve::ServeArgs),
 }
 
 #[derive(Debug, clap::Args)]
@@ -50,7 +59,7 @@ struct EvaluateArgs {
     json: Option<PathBuf>,
     /// Dead-reckoning settings.
     #[command(flatten)]
-    odometer: odometry::serve::OdometerArgs,
+    odometer: serve::OdometerArgs,
     /// The body point truth.csv follows, scored at the outage ends: `auto`
     /// (the GNSS antenna when truth.csv is the GNSS track itself, as an RTK
     /// truth is, and the antenna's position is known; else the rear-axle
@@ -67,15 +76,14 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Evaluate(args) => run_evaluate(&args),
         Command::Serve(args) => {
-            odometry::serve::run(&args, &odometry::serve::Shutdown::new())
-                .context("odometry serve")?;
+            serve::run(&args, &serve::Shutdown::new()).context("odometry serve")?;
             Ok(())
         }
     }
 }
 
 fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
-    let loaded = sensor_bridge::read_drive(&args.drive)
+    let loaded = drive_io::read_drive(&args.drive)
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");
@@ -83,7 +91,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     let drive = loaded.drive;
     let (params, source, antenna, antenna_sigma) = match &args.estimate {
         Some(path) => {
-            let estimate = Estimate::load(path).context("cannot use the estimate")?;
+            let estimate = drive_io::read_estimate(path).context("cannot use the estimate")?;
             (
                 estimate.params,
                 path.display().to_string(),

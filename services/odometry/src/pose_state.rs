@@ -3,14 +3,14 @@
 //! A car parked in a garage powers on where it was switched off, without
 //! GNSS. The service writes its last pose with a position (`Fused` or
 //! `DeadReckoning`) to a small JSON file, and a new service starts from it
-//! ([`crate::fusion::Fusion::resume`]). The file is replaced atomically (a
+//! ([`odometry::fusion::Fusion::resume`]). The file is replaced atomically (a
 //! temporary file renamed over it), so a crash never leaves half a pose.
 
-use crate::fusion::FusedPose;
-use crate::two_wheel::Pose2;
 use interfaces::wire::PoseMode;
+use odometry::fusion::FusedPose;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use vehicle_model::two_wheel::Pose2;
 
 /// A pose as the state file keeps it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -320,10 +320,10 @@ impl RewindingFusion {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate_file::{Estimate, OdometryParams};
     use crate::fusion::FusionConfig;
-    use crate::two_wheel::{Pose2, TwoWheelParams};
     use interfaces::wire::PoseMode;
+    use vehicle_model::estimate::{Estimate, OdometryParams};
+    use vehicle_model::two_wheel::{Pose2, TwoWheelParams};
 
     use crate::test_drive::{C, TRACK};
 

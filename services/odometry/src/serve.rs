@@ -16,7 +16,7 @@
 //!   untaken notification makes the next ones free for their publisher).
 //! - Every wakeup drains all subscribers, the wheels first, into a
 //!   [`Sequencer`], which releases the samples up to the newest wheel sample
-//!   in time order, wheels last at equal times ([`crate::inputs`]): the same
+//!   in time order, wheels last at equal times ([`odometry::inputs`]): the same
 //!   order as `odometry evaluate` and the bridge's replay. Samples beyond the
 //!   newest wheel sample wait for the next one, so that a wakeup that cuts
 //!   through an instant (a heading of time t here, the fix of time t in the
@@ -32,7 +32,7 @@
 //!   notification taken with them, so if a wheel sample is waiting then, the
 //!   next wait returns at once instead of blocking.
 //! - The loop also wakes 1-2 ms before each wheel sample is due
-//!   ([`crate::cadence`], `--early-wakeup-ms`) and passes through once
+//!   ([`odometry::cadence`], `--early-wakeup-ms`) and passes through once
 //!   without it, rehearsing the filter's step on a copy and loaning a pose
 //!   sample unsent, so that the sample's own pass finds caches and TLB warm
 //!   after the sleep. Such a pass changes nothing a pose depends on.
@@ -63,23 +63,24 @@
 //! - SIGINT/SIGTERM end the WaitSet loop; [`Shutdown`] does the same for a
 //!   caller in the same process (tests).
 
-use crate::cadence::WheelCadence;
-use crate::dead_reckoning::{HeadingMode, OdometerConfig};
-use crate::estimate_file::{Estimate, OdometryParams, ParamsError};
-use crate::fusion::{FusedPose, Fusion, FusionConfig, FusionError, FusionStats, ProcessError};
-use crate::inputs::{Input, Sequencer};
 use crate::pose_state::{self, SavedPose};
-use crate::rewind::{RewindConfig, RewindStats, RewindingFusion};
 use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, BusSettings, TopicPublisher, TopicSubscriber};
 use interfaces::drive::VehicleParams;
+use interfaces::latency_trace::{wall_clock_ns, write_latency_trace, TraceError};
 use interfaces::wire::{
     CircumferenceEstimate, GnssFix, Header, Heading, Imu, Pose, PoseMode, WheelRotations,
 };
+use odometry::cadence::WheelCadence;
+use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
+use odometry::fusion::{FusedPose, Fusion, FusionConfig, FusionError, FusionStats, ProcessError};
+use odometry::inputs::{Input, Sequencer};
+use odometry::rewind::{RewindConfig, RewindStats, RewindingFusion};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use vehicle_model::estimate::{gnss_lever_arm, Estimate, OdometryParams, ParamsError};
 
 /// How often the notifications of the topics that wake nobody (IMU, GNSS,
 /// heading) are taken: they carry nothing the loop needs at once.
@@ -211,7 +212,11 @@ impl ServeConfig {
     /// The settings of `args`, reading the vehicle and estimate files.
     pub fn from_args(args: &ServeArgs) -> Result<ServeConfig, ServeError> {
         let vehicle = load_vehicle(&args.vehicle)?;
-        let initial = args.estimate.as_deref().map(Estimate::load).transpose()?;
+        let initial = args
+            .estimate
+            .as_deref()
+            .map(drive_io::read_estimate)
+            .transpose()?;
         let positive = |name: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(v)
@@ -267,27 +272,10 @@ impl ServeConfig {
     }
 }
 
-/// The GNSS antenna position to start with, and whether it was measured
-/// (`vehicle.toml`'s `[gnss]`, which then wins over any estimate's);
-/// otherwise the initial estimate's calibrated one, else the rear axle.
-pub fn gnss_lever_arm(vehicle: &VehicleParams, initial: Option<&Estimate>) -> ([f64; 2], bool) {
-    let (x, y) = (vehicle.gnss.antenna_x_m, vehicle.gnss.antenna_y_m);
-    if x.is_some() || y.is_some() {
-        ([x.unwrap_or(0.0), y.unwrap_or(0.0)], true)
-    } else {
-        (
-            initial
-                .and_then(Estimate::fusable_antenna)
-                .unwrap_or([0.0, 0.0]),
-            false,
-        )
-    }
-}
-
 /// Read vehicle parameters from a vehicle.toml or a drive
-/// ([`sensor_bridge::read_vehicle`]); its warnings go to the log.
+/// ([`drive_io::read_vehicle`]); its warnings go to the log.
 pub fn load_vehicle(path: &Path) -> Result<VehicleParams, ServeError> {
-    let loaded = sensor_bridge::read_vehicle(path).map_err(|e| ServeError::Vehicle {
+    let loaded = drive_io::read_vehicle(path).map_err(|e| ServeError::Vehicle {
         path: path.to_path_buf(),
         detail: e.to_string(),
     })?;
@@ -317,27 +305,9 @@ pub enum ServeError {
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),
-    /// The latency trace could not be written or read.
-    #[error("latency trace {path}: {source}")]
-    Trace {
-        /// The trace file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// A latency trace line that is not `t_ns,woke_wall_ns,published_wall_ns`.
-    #[error(
-        "latency trace {path}, line {line}: expected the header `t_ns,woke_wall_ns,published_wall_ns` \
-         or three integers, found `{text}`"
-    )]
-    TraceLine {
-        /// The trace file.
-        path: PathBuf,
-        /// Line number, from 1.
-        line: usize,
-        /// The line.
-        text: String,
-    },
+    /// The latency trace could not be written.
+    #[error(transparent)]
+    Trace(#[from] TraceError),
 }
 
 /// A stop request from the same process (a test, or another thread); signals
@@ -352,6 +322,8 @@ impl Shutdown {
     }
 
     /// Ask the service loop to end (it notices within its tick, 100 ms at most).
+    /// The binary's own loop ends on signals; the in-process tests call this.
+    #[cfg(test)]
     pub fn request(&self) {
         self.0.store(true, Ordering::SeqCst);
     }
@@ -373,7 +345,7 @@ pub struct ServeSummary {
     pub estimate_switches: u64,
     /// Times the inputs went stale.
     pub stale_events: u64,
-    /// Early wakeups before a wheel sample ([`crate::cadence`]).
+    /// Early wakeups before a wheel sample ([`odometry::cadence`]).
     pub early_wakeups: u64,
     /// Samples missing in the sequence numbers, per input topic
     /// (wheels, gnss, imu, heading, estimate).
@@ -382,7 +354,7 @@ pub struct ServeSummary {
     pub skipped: u64,
     /// Version of the estimate in use at the end.
     pub estimate_version: u64,
-    /// What taking late samples in order did ([`crate::rewind`]).
+    /// What taking late samples in order did ([`odometry::rewind`]).
     pub rewind: RewindStats,
     /// The filter's counters at the end.
     pub fusion: FusionStats,
@@ -758,25 +730,14 @@ pub fn serve(
     );
 
     let waitset = bus.waitset()?;
-    let ws_err = |action: &'static str, e: &dyn std::fmt::Debug| BusError::Service {
-        service: "waitset".to_string(),
-        action,
-        detail: format!("{e:?}"),
-    };
-    let _g_wheels = waitset
-        .attach_notification(inputs.wheels.listener())
-        .map_err(|e| ws_err("attach wheels", &e))?;
-    let g_estimate = waitset
-        .attach_notification(inputs.estimate.listener())
-        .map_err(|e| ws_err("attach estimate", &e))?;
+    let _g_wheels = bus::wake_on(&waitset, "attach wheels", inputs.wheels.listener())?;
+    let g_estimate = bus::wake_on(&waitset, "attach estimate", inputs.estimate.listener())?;
     // The tick notices stale inputs and stop requests; it does no work otherwise.
     let tick = config
         .stale_after
         .div_f64(4.0)
         .min(Duration::from_millis(100));
-    let _g_tick = waitset
-        .attach_interval(tick)
-        .map_err(|e| ws_err("attach interval", &e))?;
+    let _g_tick = bus::tick_every(&waitset, tick)?;
 
     let mut summary = ServeSummary::default();
     let mut sequencer = Sequencer::new(RESTART_BACKSTEP_S);
@@ -808,8 +769,7 @@ pub fn serve(
         let result = bus::wait_once(&waitset, timeout, |id| {
             estimate_event |= id.has_event_from(&g_estimate);
             CallbackProgression::Continue
-        })
-        .map_err(|e| ws_err("wait", &e))?;
+        })?;
         let woke_wall_ns = if config.latency_trace.is_some() {
             wall_clock_ns()
         } else {
@@ -1033,67 +993,6 @@ pub fn serve(
     Ok(summary)
 }
 
-/// Wall-clock time in ns since the Unix epoch (the one clock every process of
-/// the machine shares; 0 if the clock is before 1970).
-pub fn wall_clock_ns() -> i128 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as i128)
-}
-
-/// The header line of a latency trace.
-pub const LATENCY_TRACE_HEADER: &str = "t_ns,woke_wall_ns,published_wall_ns";
-
-/// Read a latency trace written by [`write_latency_trace`]: `(pose time,
-/// wakeup wall clock, publish wall clock)` per line, in file order. A wrong
-/// header or line is an error naming the file and line.
-pub fn read_latency_trace(path: &Path) -> Result<Vec<(i64, i128, i128)>, ServeError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ServeError::Trace {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    let bad = |line: usize, text: &str| ServeError::TraceLine {
-        path: path.to_path_buf(),
-        line,
-        text: text.to_string(),
-    };
-    let mut lines = text.lines().enumerate();
-    match lines.next() {
-        Some((_, LATENCY_TRACE_HEADER)) => {}
-        other => return Err(bad(1, other.map_or("", |(_, l)| l))),
-    }
-    lines
-        .map(|(i, l)| {
-            let f: Vec<&str> = l.split(',').collect();
-            match f[..] {
-                [t, woke, published] => Ok((
-                    t.parse().map_err(|_| bad(i + 1, l))?,
-                    woke.parse().map_err(|_| bad(i + 1, l))?,
-                    published.parse().map_err(|_| bad(i + 1, l))?,
-                )),
-                _ => Err(bad(i + 1, l)),
-            }
-        })
-        .collect()
-}
-
-/// Write a latency trace (`--latency-trace`): a header and one
-/// `t_ns,woke_wall_ns,published_wall_ns` line per pose, from `(pose time,
-/// wall clock at the wakeup that brought its wheel sample, wall clock when
-/// handed to the publisher)`, all ns. Public so that other consumers measured
-/// beside the service (the latency bench's bare relay) write the same format.
-pub fn write_latency_trace(path: &Path, trace: &[(i64, i128, i128)]) -> Result<(), ServeError> {
-    use std::fmt::Write as _;
-    let mut text = format!("{LATENCY_TRACE_HEADER}\n");
-    for (t, woke, published) in trace {
-        let _ = writeln!(text, "{t},{woke},{published}");
-    }
-    std::fs::write(path, text).map_err(|source| ServeError::Trace {
-        path: path.to_path_buf(),
-        source,
-    })
-}
-
 /// Warn about samples the sequencer dropped since the last report (and count them as skipped).
 fn report_dropped(sequencer: &Sequencer, reported: &mut (u64, u64), summary: &mut ServeSummary) {
     let now = (sequencer.dropped_full(), sequencer.dropped_on_restart());
@@ -1103,7 +1002,7 @@ fn report_dropped(sequencer: &Sequencer, reported: &mut (u64, u64), summary: &mu
             "odometry: {} samples dropped: more than {} waited for a wheel sample (the wheel stream \
              is missing); {} so far",
             now.0 - reported.0,
-            crate::inputs::MAX_HELD,
+            odometry::inputs::MAX_HELD,
             now.0
         );
     }
@@ -1301,32 +1200,5 @@ mod tests {
         let mut fusion = Fusion::nominal(&vehicle, measured);
         resume(&mut fusion, &saved).unwrap();
         assert_eq!(fusion.lever_arm(), [1.0, 0.0]);
-    }
-
-    #[test]
-    fn a_latency_trace_reads_back_and_a_bad_line_is_named() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("trace.csv");
-        let rows = vec![(10, 1_000, 1_500), (20, 2_000, 2_400)];
-        write_latency_trace(&path, &rows).unwrap();
-        assert_eq!(read_latency_trace(&path).unwrap(), rows);
-
-        std::fs::write(
-            &path,
-            format!("{LATENCY_TRACE_HEADER}\n10,1000,1500\n20,x,2400\n"),
-        )
-        .unwrap();
-        let err = read_latency_trace(&path).unwrap_err();
-        assert!(
-            matches!(err, ServeError::TraceLine { line: 3, .. }),
-            "{err}"
-        );
-        assert!(err.to_string().contains("20,x,2400"), "{err}");
-
-        std::fs::write(&path, "t,a,b\n").unwrap();
-        assert!(matches!(
-            read_latency_trace(&path),
-            Err(ServeError::TraceLine { line: 1, .. })
-        ));
     }
 }

@@ -2,7 +2,7 @@
 //! curve, its wheels and gyro at 100 Hz and GNSS fixes at 5 Hz.
 
 use crate::inputs::{sort_inputs, Input};
-use crate::two_wheel::{step, Pose2};
+use vehicle_model::two_wheel::{step, Pose2};
 
 /// Circumference of both rear wheels, m.
 pub const C: f64 = 2.0;

@@ -4,11 +4,11 @@
 //! rest on.
 
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
-use odometry::estimate_file::OdometryParams;
 use odometry::evaluate::{
     choose_truth_point, evaluate, truth_gnss_coincidence, truth_is_the_gnss_track, EvaluateConfig,
     EvaluationReport, TruthPoint, TruthPointChoice, TruthPointSource,
 };
+use vehicle_model::estimate::OdometryParams;
 
 fn run(drive: &interfaces::drive::Drive, heading: HeadingMode) -> EvaluationReport {
     let config = EvaluateConfig {
@@ -25,10 +25,10 @@ fn run(drive: &interfaces::drive::Drive, heading: HeadingMode) -> EvaluationRepo
 #[test]
 fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
     for name in ["wid-trial02", "wid-trial04"] {
-        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
+        let Some(path) = drive_io::dev_data::real_drive(name) else {
             return;
         };
-        let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+        let drive = drive_io::read_drive(&path).expect("read drive").drive;
         let wheels = run(&drive, HeadingMode::WheelDifference);
         let gyro = run(&drive, HeadingMode::Gyro);
         for report in [&wheels, &gyro] {
@@ -60,10 +60,10 @@ fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
 
 #[test]
 fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
-    let Some(path) = sensor_bridge::dev_data::real_drive("comma2k19-seg40") else {
+    let Some(path) = drive_io::dev_data::real_drive("comma2k19-seg40") else {
         return;
     };
-    let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+    let drive = drive_io::read_drive(&path).expect("read drive").drive;
     let report = run(&drive, HeadingMode::Gyro);
     // comma's truth is the pose of the windscreen-mounted device: on the
     // highway's straight stretches its yaw is 15.5 mrad off the course of its
@@ -85,10 +85,10 @@ fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
         .all(|o| o.start_yaw_source.starts_with("truth_track_alignment")));
     // The WID truths have no yaw: nothing to check there.
     for name in ["wid-trial02", "wid-trial04"] {
-        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
+        let Some(path) = drive_io::dev_data::real_drive(name) else {
             return;
         };
-        let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+        let drive = drive_io::read_drive(&path).expect("read drive").drive;
         let report = run(&drive, HeadingMode::Gyro);
         assert_eq!(report.truth_yaw_offset_rad, None, "{name}");
         assert!(!report.truth_yaw_used, "{name}");
@@ -103,20 +103,20 @@ fn comma_truth_yaw_is_the_devices_not_the_cars_and_is_not_used() {
 fn the_wid_truth_is_the_gnss_track_and_comma2k19s_is_not() {
     let antenna = Some([0.5, -0.3]);
     for (name, fixes) in [("wid-trial02", 609), ("wid-trial04", 698)] {
-        let Some(path) = sensor_bridge::dev_data::real_drive(name) else {
+        let Some(path) = drive_io::dev_data::real_drive(name) else {
             return;
         };
-        let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+        let drive = drive_io::read_drive(&path).expect("read drive").drive;
         assert_eq!(truth_gnss_coincidence(&drive), (fixes, fixes), "{name}");
         assert!(truth_is_the_gnss_track(&drive), "{name}");
         let point = choose_truth_point(&drive, TruthPointChoice::Auto, antenna).expect("point");
         assert_eq!(point.source, TruthPointSource::EstimatedAntenna, "{name}");
         assert_eq!(Some(point.point_m), antenna, "{name}");
     }
-    let Some(path) = sensor_bridge::dev_data::real_drive("comma2k19-seg40") else {
+    let Some(path) = drive_io::dev_data::real_drive("comma2k19-seg40") else {
         return;
     };
-    let drive = sensor_bridge::read_drive(&path).expect("read drive").drive;
+    let drive = drive_io::read_drive(&path).expect("read drive").drive;
     // Its fixes (about 11 Hz) fall between the truth's rows (20 Hz): not one
     // shares an instant, let alone a position.
     assert_eq!(truth_gnss_coincidence(&drive), (0, 0));

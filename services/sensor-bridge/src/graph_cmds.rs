@@ -6,11 +6,11 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use drive_io::{read_drive, read_vehicle, write_drive};
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
 use sensor_bridge::replay::{publish_drive, DeliveryLatency, Pacing, ReplayOptions};
-use sensor_bridge::{read_drive, read_vehicle, write_drive};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 

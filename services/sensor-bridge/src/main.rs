@@ -3,10 +3,11 @@
 //! Each subcommand is one variant of [`Command`] dispatching to one function.
 
 mod graph_cmds;
+mod simulate_cmd;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
-use sensor_bridge::{read_drive, write_drive, DriveError, DriveSummary, LoadedDrive};
+use drive_io::{read_drive, write_drive, DriveError, DriveSummary, LoadedDrive};
 use std::path::{Path, PathBuf};
 
 /// Drives in and out, the simulator, and the iceoryx2 bridge.
@@ -34,7 +35,7 @@ enum Command {
     /// Simulate a drive with its own truth (truth.csv, truth.toml): scenario
     /// paper, garage, mixed or long; every physics-catalogue effect is a knob.
     /// With --publish [--speed F | --max] it is also published live, as by `replay`.
-    Simulate(sensor_bridge::sim::cli::SimulateArgs),
+    Simulate(simulate_cmd::SimulateArgs),
 }
 
 #[derive(Args)]
@@ -65,9 +66,7 @@ fn main() -> Result<()> {
         Command::Info(args) => info(&args),
         Command::Replay(args) => graph_cmds::run_replay(&args),
         Command::Record(args) => graph_cmds::run_record(&args),
-        Command::Simulate(args) => sensor_bridge::sim::cli::run(&args)
-            .map(|_| ())
-            .context("simulate"),
+        Command::Simulate(args) => simulate_cmd::run(&args).map(|_| ()).context("simulate"),
     }
 }
 

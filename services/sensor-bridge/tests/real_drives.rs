@@ -5,14 +5,14 @@
 // Helpers outside #[test] functions unwrap too: a failure is a test failure.
 #![allow(clippy::unwrap_used)]
 
-use sensor_bridge::{read_drive, summarize, write_drive};
+use drive_io::{read_drive, summarize, write_drive};
 use std::path::PathBuf;
 use std::process::Command;
 
 const DRIVES: [&str; 3] = ["wid-trial02", "wid-trial04", "comma2k19-seg40"];
 
 fn real_dir() -> Option<PathBuf> {
-    let dir = sensor_bridge::dev_data::real_data_dir();
+    let dir = drive_io::dev_data::real_data_dir();
     if dir.is_dir() {
         Some(dir)
     } else {

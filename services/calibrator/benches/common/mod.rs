@@ -3,7 +3,7 @@
 #![allow(dead_code)]
 
 use interfaces::drive::{Drive, TruthSample};
-use odometry::two_wheel::{dead_reckon, Pose2, TwoWheelParams};
+use vehicle_model::two_wheel::{dead_reckon, Pose2, TwoWheelParams};
 
 /// Truth position (and yaw) at `t`, interpolated linearly.
 pub fn truth_at(truth: &[TruthSample], t: f64) -> Option<(f64, f64, Option<f64>)> {
@@ -19,7 +19,7 @@ pub fn truth_at(truth: &[TruthSample], t: f64) -> Option<(f64, f64, Option<f64>)
         0.0
     };
     let yaw = match (a.yaw_rad, b.yaw_rad) {
-        (Some(ya), Some(yb)) => Some(ya + f * odometry::two_wheel::wrap_angle(yb - ya)),
+        (Some(ya), Some(yb)) => Some(ya + f * vehicle_model::two_wheel::wrap_angle(yb - ya)),
         _ => None,
     };
     Some((

@@ -1,0 +1,134 @@
+//! Drives in and out: the drive folder (`shared/design/drive-format.md`), the
+//! native MCAP recording, and the `info` summary.
+//!
+//! [`read_drive`] takes either format (auto-detected); [`write_drive`] picks the
+//! format from the path (`*.mcap` is MCAP, anything else a folder). Both keep
+//! every value bit-identical, so a round trip through either format gives back
+//! an equal [`Drive`].
+//!
+//! [`read_estimate`] reads the calibrator's estimate file; [`dev_data`] locates the real drives beside the repository for tests and
+//! benchmarks.
+
+mod csv;
+pub mod dev_data;
+mod error;
+mod estimate_file;
+mod folder;
+pub mod geodesy;
+mod info;
+mod recording;
+
+pub use error::DriveError;
+pub use estimate_file::read_estimate;
+pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
+pub use recording::{
+    FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, TRUTH_TOPIC, WHEELS_TOPIC,
+};
+
+use interfaces::drive::{Drive, VehicleParams};
+use std::path::Path;
+
+/// A drive read from disk, with the warnings its reading produced (skipped
+/// rows, ignored columns, ...). Nothing is dropped without a warning here.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedDrive {
+    /// The drive.
+    pub drive: Drive,
+    /// Human-readable warnings, each naming the file or channel.
+    pub warnings: Vec<String>,
+}
+
+/// Read a drive folder or an MCAP recording (detected from what `path` is:
+/// a directory is a drive folder, a file starting with the MCAP magic is a
+/// recording).
+///
+/// A truncated MCAP gives [`DriveError::TruncatedMcap`], which carries the
+/// drive as far as it could be read.
+pub fn read_drive(path: &Path) -> Result<LoadedDrive, DriveError> {
+    let meta = std::fs::metadata(path).map_err(|e| DriveError::io(path, e))?;
+    if meta.is_dir() {
+        return folder::read_folder(path);
+    }
+    let bytes = std::fs::read(path).map_err(|e| DriveError::io(path, e))?;
+    if bytes.starts_with(mcap::MAGIC) {
+        recording::read_mcap_bytes(path, &bytes)
+    } else {
+        Err(DriveError::UnknownFormat {
+            path: path.to_path_buf(),
+            reason: "a file without the MCAP magic bytes".to_string(),
+        })
+    }
+}
+
+/// Vehicle parameters read for a service, with the warnings their reading
+/// produced (unknown keys, rows skipped in the drive).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedVehicle {
+    /// The parameters.
+    pub vehicle: VehicleParams,
+    /// Human-readable warnings, each naming the file.
+    pub warnings: Vec<String>,
+}
+
+/// Vehicle parameters from a `vehicle.toml` file (any `*.toml`), or from a
+/// drive folder or recording (what [`read_drive`] gives as the drive's
+/// vehicle, the ENU origin derived from the first fix included; a truncated
+/// recording's vehicle is as good as a whole one's). A `*.toml` is checked
+/// as a drive's `vehicle.toml` is: unknown keys are a warning, a non-finite
+/// value is an error naming the key.
+pub fn read_vehicle(path: &Path) -> Result<LoadedVehicle, DriveError> {
+    let is_toml = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
+    if is_toml && !path.is_dir() {
+        let text = std::fs::read_to_string(path).map_err(|e| DriveError::io(path, e))?;
+        let mut warnings = Vec::new();
+        let vehicle = folder::parse_vehicle_toml(path, &text, &mut warnings)?;
+        return Ok(LoadedVehicle { vehicle, warnings });
+    }
+    let loaded = match read_drive(path) {
+        Ok(loaded) => loaded,
+        Err(DriveError::TruncatedMcap {
+            partial: Some(partial),
+            ..
+        }) => *partial,
+        Err(e) => return Err(e),
+    };
+    Ok(LoadedVehicle {
+        vehicle: loaded.drive.vehicle,
+        warnings: loaded.warnings,
+    })
+}
+
+/// Write a drive: as an MCAP recording when `path` ends in `.mcap` (any case),
+/// otherwise as a drive folder (created if needed).
+///
+/// Writing a folder replaces the drive-format files in it and removes those
+/// of them the drive does not have (e.g. a stale `heading.csv`), so the folder
+/// reads back as exactly this drive. Other files are left alone.
+///
+/// The drive is checked first: every value finite, times strictly increasing,
+/// `ticks_per_rev` present for `_ticks` wheels; otherwise
+/// [`DriveError::InvalidDrive`] and nothing is written.
+pub fn write_drive(drive: &Drive, path: &Path) -> Result<(), DriveError> {
+    validate(drive)?;
+    if is_mcap_path(path) {
+        recording::write_mcap(drive, path)
+    } else {
+        folder::write_folder(drive, path)
+    }
+}
+
+/// True when `path` names an MCAP file (extension `mcap`, any case).
+pub fn is_mcap_path(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+}
+
+/// Check that a drive can be written and read back unchanged.
+pub fn validate(drive: &Drive) -> Result<(), DriveError> {
+    validate::drive(drive)
+}
+
+mod validate;

@@ -1,0 +1,223 @@
+//! The 2W model extended with the physics-catalogue effects
+//! (`shared/design/physics-catalogue.md`): one home for the effect terms that
+//! the diagnosis fits, that travel with an estimate and that the odometry
+//! applies when it dead-reckons.
+//!
+//! [`EffectTerms`] holds one coefficient per effect, zero when the effect is
+//! not modelled, so `EffectTerms::default()` is the paper's plain 2W model.
+//! [`EffectTerms::increments`] turns the rear wheels' revolution increments
+//! into the centre distance, heading change and side-slip angle of one step
+//! of eq. (1), given the few signals the terms read ([`StepSignals`]).
+//!
+//! Sign conventions (body x forward, y left, positive yaw rate turns left,
+//! a_y = v w positive in a left turn):
+//! - `side_slip`: beta = -k_beta a_y (the rear axle slips outward of the turn);
+//! - `load_transfer_radius`: c_RL = c (1 + k_z a_y), c_RR = c (1 - k_z a_y)
+//!   (the outer wheel carries more load and rolls on a smaller radius);
+//! - `speed_radius_growth`: c (1 + k_v v^2);
+//! - `longitudinal_slip`: the rear wheels turn as if the car went
+//!   v (1 + k_s a_x);
+//! - `track_width`: the effective track is nominal (1 + track_rel);
+//! - `radius_drift`: c (1 + d (1 - exp(-t / T))), t from the drive's start;
+//! - `road_grade`: the wheels roll along the slope, the horizontal distance is
+//!   ds cos(gain * grade), grade from the IMU's pitch;
+//! - `gnss_latency`, `gnss_lever_arm`, `gyro_bias`, `gyro_scale`,
+//!   `heading_bias` act on the sensors, not on the wheels: they are carried
+//!   here so that the model that scores a fix or a heading uses them.
+
+use interfaces::effects::Effect;
+use serde::{Deserialize, Serialize};
+
+/// One coefficient per catalogue effect; zero = not modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct EffectTerms {
+    /// `side_slip`: k_beta, rad per m/s^2 of lateral acceleration.
+    pub k_beta: f64,
+    /// `load_transfer_radius`: k_z, relative radius change per m/s^2.
+    pub k_z: f64,
+    /// `speed_radius_growth`: k_v, relative growth per (m/s)^2.
+    pub k_v: f64,
+    /// `longitudinal_slip`: k_s, relative wheel-speed excess per m/s^2.
+    pub k_s: f64,
+    /// `track_width`: relative difference of the effective from the nominal track.
+    pub track_rel: f64,
+    /// `radius_drift`: final relative change d.
+    pub drift_d: f64,
+    /// `radius_drift`: time constant T, s (0 when not modelled).
+    pub drift_time_constant_s: f64,
+    /// `road_grade`: gain on the IMU grade signal (1 = the grade as measured).
+    pub grade_gain: f64,
+    /// `gnss_latency`: fixes describe the instant this much before their stamp, s.
+    pub gnss_latency_s: f64,
+    /// `gnss_lever_arm`: antenna from the rear-axle centre, body x, y, m.
+    pub lever_arm_m: [f64; 2],
+    /// `gyro_bias`: rad/s added to the true yaw rate.
+    pub gyro_bias_rad_s: f64,
+    /// `gyro_scale`: the gyro reads (1 + s) times the true yaw rate.
+    pub gyro_scale: f64,
+    /// `heading_bias`: A, B, C of A + B sin(psi) + C cos(psi), rad.
+    pub heading_bias_rad: [f64; 3],
+}
+
+/// The signals an effect term reads besides the wheels, at one step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepSignals {
+    /// Speed, m/s.
+    pub v_m_s: f64,
+    /// Longitudinal acceleration, m/s^2.
+    pub a_x_m_s2: f64,
+    /// Lateral acceleration v w, m/s^2 (positive in a left turn).
+    pub a_y_m_s2: f64,
+    /// Road grade (rise over run), from the IMU; 0 when unknown.
+    pub grade: f64,
+    /// Time since the drive's start, s.
+    pub t_since_start_s: f64,
+}
+
+impl EffectTerms {
+    /// The effects with a non-zero term, in catalogue order.
+    pub fn active(&self) -> Vec<Effect> {
+        Effect::ALL
+            .into_iter()
+            .filter(|e| self.is_active(*e))
+            .collect()
+    }
+
+    /// Whether `effect` has a non-zero term.
+    pub fn is_active(&self, effect: Effect) -> bool {
+        match effect {
+            Effect::SideSlip => self.k_beta != 0.0,
+            Effect::LoadTransferRadius => self.k_z != 0.0,
+            Effect::SpeedRadiusGrowth => self.k_v != 0.0,
+            Effect::LongitudinalSlip => self.k_s != 0.0,
+            Effect::TrackWidth => self.track_rel != 0.0,
+            Effect::GyroBias => self.gyro_bias_rad_s != 0.0,
+            Effect::GyroScale => self.gyro_scale != 0.0,
+            Effect::GnssLatency => self.gnss_latency_s != 0.0,
+            Effect::GnssLeverArm => self.lever_arm_m != [0.0, 0.0],
+            Effect::RadiusDrift => self.drift_d != 0.0 && self.drift_time_constant_s > 0.0,
+            Effect::RoadGrade => self.grade_gain != 0.0,
+            Effect::HeadingBias => self.heading_bias_rad != [0.0; 3],
+        }
+    }
+
+    /// The relative change of both rear circumferences common to the
+    /// speed, drift and slip terms at this step (0 for the plain model).
+    pub fn common_scale(&self, s: &StepSignals) -> f64 {
+        let mut k = self.k_v * s.v_m_s * s.v_m_s;
+        if self.drift_time_constant_s > 0.0 {
+            k += self.drift_d * (1.0 - (-s.t_since_start_s / self.drift_time_constant_s).exp());
+        }
+        // The wheels turn as if the car went v (1 + k_s a_x): the distance
+        // they stand for is smaller by that factor.
+        (1.0 + k) / (1.0 + self.k_s * s.a_x_m_s2) - 1.0
+    }
+
+    /// Centre distance (horizontal), heading change and side-slip angle of
+    /// one step from the rear wheels' revolution increments, with the plain
+    /// model's circumferences `c_rl`, `c_rr` and nominal `track_m`.
+    pub fn increments(
+        &self,
+        c_rl: f64,
+        c_rr: f64,
+        track_m: f64,
+        dn_rl: f64,
+        dn_rr: f64,
+        s: &StepSignals,
+    ) -> (f64, f64, f64) {
+        let scale = 1.0 + self.common_scale(s);
+        let d_rl = dn_rl * c_rl * scale * (1.0 + self.k_z * s.a_y_m_s2);
+        let d_rr = dn_rr * c_rr * scale * (1.0 - self.k_z * s.a_y_m_s2);
+        let track = track_m * (1.0 + self.track_rel);
+        let along = 0.5 * (d_rl + d_rr);
+        let horizontal = along * (self.grade_gain * s.grade).atan().cos();
+        let beta = -self.k_beta * s.a_y_m_s2;
+        (horizontal, (d_rr - d_rl) / track, beta)
+    }
+
+    /// The true yaw rate from a gyro reading, with the gyro terms.
+    pub fn corrected_gyro(&self, gz_rad_s: f64) -> f64 {
+        (gz_rad_s - self.gyro_bias_rad_s) / (1.0 + self.gyro_scale)
+    }
+
+    /// The error of an absolute heading sensor at true heading `psi`, rad.
+    pub fn heading_error(&self, psi: f64) -> f64 {
+        let [a, b, c] = self.heading_bias_rad;
+        a + b * psi.sin() + c * psi.cos()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_plain_model_is_eq_1_2() {
+        let t = EffectTerms::default();
+        let s = StepSignals {
+            v_m_s: 10.0,
+            a_x_m_s2: 1.0,
+            a_y_m_s2: 2.0,
+            grade: 0.05,
+            t_since_start_s: 100.0,
+        };
+        let (ds, dyaw, beta) = t.increments(2.0, 2.1, 1.5, 1.0, 1.0, &s);
+        assert!((ds - 2.05).abs() < 1e-12);
+        assert!((dyaw - 0.1 / 1.5).abs() < 1e-12);
+        assert_eq!(beta, 0.0);
+        assert!(t.active().is_empty());
+    }
+
+    #[test]
+    fn each_term_moves_the_step_the_documented_way() {
+        let s = StepSignals {
+            v_m_s: 20.0,
+            a_x_m_s2: 2.0,
+            a_y_m_s2: 3.0,
+            grade: 0.1,
+            t_since_start_s: 1e6,
+        };
+        let step = |t: EffectTerms| t.increments(2.0, 2.0, 1.5, 1.0, 1.0, &s);
+        let (ds0, _, _) = step(EffectTerms::default());
+        let (ds, dyaw, _) = step(EffectTerms {
+            k_z: 1e-3,
+            ..EffectTerms::default()
+        });
+        assert!((ds - ds0).abs() < 1e-12);
+        // A left turn: the right (outer) wheel rolls on a smaller radius.
+        assert!(dyaw < 0.0);
+        let (ds, _, _) = step(EffectTerms {
+            k_v: 2.5e-6,
+            ..EffectTerms::default()
+        });
+        assert!((ds / ds0 - (1.0 + 2.5e-6 * 400.0)).abs() < 1e-12);
+        let (ds, _, _) = step(EffectTerms {
+            k_s: 0.005,
+            ..EffectTerms::default()
+        });
+        assert!((ds / ds0 - 1.0 / 1.01).abs() < 1e-12);
+        let (ds, _, _) = step(EffectTerms {
+            drift_d: 0.003,
+            drift_time_constant_s: 600.0,
+            ..EffectTerms::default()
+        });
+        assert!((ds / ds0 - 1.003).abs() < 1e-9);
+        let (ds, _, _) = step(EffectTerms {
+            grade_gain: 1.0,
+            ..EffectTerms::default()
+        });
+        assert!((ds / ds0 - 0.1f64.atan().cos()).abs() < 1e-12);
+        let (_, _, beta) = step(EffectTerms {
+            k_beta: 0.004,
+            ..EffectTerms::default()
+        });
+        assert!((beta + 0.012).abs() < 1e-12);
+        let t = EffectTerms {
+            gyro_bias_rad_s: 0.01,
+            gyro_scale: 0.01,
+            ..EffectTerms::default()
+        };
+        assert!((t.corrected_gyro(1.01 * 0.5 + 0.01) - 0.5).abs() < 1e-12);
+        assert_eq!(t.active(), vec![Effect::GyroBias, Effect::GyroScale]);
+    }
+}

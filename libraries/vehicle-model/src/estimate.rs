@@ -1,0 +1,545 @@
+//! Odometry parameters and where they come from.
+//!
+//! Three sources give the same [`OdometryParams`]:
+//! - the nominal values of `vehicle.toml` ([`OdometryParams::nominal`]): both
+//!   rear circumferences equal to `nominal_circumference_m`, the given track,
+//!   an ideal gyro;
+//! - the JSON that `calibrator calibrate --json` writes ([`Estimate::from_json_str`];
+//!   `drive_io::read_estimate` reads the file): `circumference_m.{rl,rr}`, `track_width_m`, and when
+//!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; every
+//!   other field is ignored;
+//! - the wire type [`CircumferenceEstimate`] ([`Estimate::from_wire`],
+//!   [`Estimate::to_wire`]); the calibrated GNSS antenna position travels in
+//!   it as a `gnss_lever_arm` model extension (x, y).
+//!
+//! Gyro convention (the same as the wire type): the gyro measures
+//! `gz = (1 + gyro_scale) * w + gyro_bias_rad_s`, so the corrected yaw rate is
+//! `w = (gz - gyro_bias_rad_s) / (1 + gyro_scale)`.
+
+use crate::two_wheel::TwoWheelParams;
+use interfaces::drive::VehicleParams;
+use interfaces::effects::Effect;
+use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension};
+use serde::Deserialize;
+use std::path::PathBuf;
+
+/// Everything the dead-reckoner needs to turn wheel revolutions and gyro
+/// readings into motion.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryParams {
+    /// Rear circumferences and effective track of the 2W model.
+    pub two_wheel: TwoWheelParams,
+    /// Yaw-rate gyro bias, rad/s (subtracted from the measurement).
+    pub gyro_bias_rad_s: f64,
+    /// Yaw-rate gyro scale error s in `gz = (1 + s) w + bias`.
+    pub gyro_scale: f64,
+}
+
+impl OdometryParams {
+    /// The values a user starts from: `vehicle.toml`'s nominal circumference on
+    /// both rear wheels, its track width, and a gyro taken as ideal.
+    pub fn nominal(vehicle: &VehicleParams) -> OdometryParams {
+        OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: vehicle.nominal_circumference_m,
+                c_rr: vehicle.nominal_circumference_m,
+                track_width: vehicle.track_width_m,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        }
+    }
+
+    /// The yaw rate, rad/s, that a raw gyro reading stands for.
+    pub fn corrected_yaw_rate(&self, gz_rad_s: f64) -> f64 {
+        (gz_rad_s - self.gyro_bias_rad_s) / (1.0 + self.gyro_scale)
+    }
+
+    /// Check that every value is usable; `source` names where they came from.
+    pub fn validate(&self, source: &str) -> Result<(), ParamsError> {
+        let positive = |field: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 {
+                Ok(())
+            } else {
+                Err(ParamsError::Invalid {
+                    source_name: source.to_string(),
+                    field,
+                    value,
+                    reason: "must be a positive finite number",
+                })
+            }
+        };
+        positive("circumference_m.rl", self.two_wheel.c_rl)?;
+        positive("circumference_m.rr", self.two_wheel.c_rr)?;
+        positive("track_width_m", self.two_wheel.track_width)?;
+        if !self.gyro_bias_rad_s.is_finite() {
+            return Err(ParamsError::Invalid {
+                source_name: source.to_string(),
+                field: "gyro_bias_rad_s",
+                value: self.gyro_bias_rad_s,
+                reason: "must be finite",
+            });
+        }
+        // A scale error beyond +-50 % is a broken gyro or a unit mix-up.
+        if !(self.gyro_scale.is_finite() && self.gyro_scale.abs() < 0.5) {
+            return Err(ParamsError::Invalid {
+                source_name: source.to_string(),
+                field: "gyro_scale",
+                value: self.gyro_scale,
+                reason: "must be finite and within (-0.5, 0.5)",
+            });
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Display for OdometryParams {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "c_rl={:.5} m c_rr={:.5} m track={:.4} m gyro_bias={:.6} rad/s gyro_scale={:.5}",
+            self.two_wheel.c_rl,
+            self.two_wheel.c_rr,
+            self.two_wheel.track_width,
+            self.gyro_bias_rad_s,
+            self.gyro_scale
+        )
+    }
+}
+
+/// A calibration result: the parameters plus what is known about their quality.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// The parameters.
+    pub params: OdometryParams,
+    /// 1-sigma of the rear-left and rear-right circumferences, m, when known.
+    pub sigma_m: Option<(f64, f64)>,
+    /// Mean dead-reckoning error on held-out data, m, when known.
+    pub quality_m: Option<f64>,
+    /// GNSS antenna position the calibration found (body x forward, y left,
+    /// from the rear-axle centre), m, when it has one: `gyro.antenna_m`, else
+    /// `gnss_antenna_m` of the calibrator's JSON.
+    pub antenna_m: Option<[f64; 2]>,
+    /// Its 1-sigma (x, y), m, when given (`gyro.sigma_antenna_m`, else
+    /// `sigma_gnss_antenna_m`).
+    pub antenna_sigma_m: Option<[f64; 2]>,
+}
+
+/// An antenna position whose 1-sigma is larger than this in either axis is
+/// not used as the filter's lever arm ([`Estimate::fusable_antenna`]): the
+/// calibrator's `antenna_unobservable` threshold. A drive that turns little,
+/// or a consumer-grade GNSS, leaves it undetermined, and a wrong arm does
+/// more harm than none.
+pub const MAX_FUSED_ANTENNA_SIGMA_M: f64 = 0.1;
+
+/// Why parameters could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum ParamsError {
+    /// The estimate file could not be read.
+    #[error("cannot read estimate file {path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// The JSON is malformed or misses a required field.
+    #[error("{source_name}: line {line}, column {column}: {message}")]
+    Json {
+        /// File name or other description of the input.
+        source_name: String,
+        /// 1-based line of the error.
+        line: usize,
+        /// 1-based column of the error.
+        column: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("{source_name}: {field} = {value} {reason}")]
+    Invalid {
+        /// File name or other description of the input.
+        source_name: String,
+        /// The offending field.
+        field: &'static str,
+        /// Its value.
+        value: f64,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+}
+
+/// A rear-wheel pair as the calibrator's JSON writes it.
+#[derive(Debug, Deserialize)]
+struct RearPair {
+    rl: f64,
+    rr: f64,
+}
+
+/// The fields of `calibrator calibrate --json` that the odometry uses.
+#[derive(Debug, Deserialize)]
+struct EstimateJson {
+    circumference_m: RearPair,
+    track_width_m: f64,
+    #[serde(default)]
+    gyro_bias_rad_s: Option<f64>,
+    #[serde(default)]
+    gyro_scale: Option<f64>,
+    #[serde(default)]
+    sigma_m: Option<RearPair>,
+    #[serde(default)]
+    gyro: Option<GyroJson>,
+    #[serde(default)]
+    gnss_antenna_m: Option<[f64; 2]>,
+    #[serde(default)]
+    sigma_gnss_antenna_m: Option<[f64; 2]>,
+}
+
+/// The part of the calibrator's `gyro` object the odometry uses.
+#[derive(Debug, Deserialize)]
+struct GyroJson {
+    #[serde(default)]
+    antenna_m: Option<[f64; 2]>,
+    #[serde(default)]
+    sigma_antenna_m: Option<[f64; 2]>,
+}
+
+impl Estimate {
+    /// Parse the calibrator's JSON; `source` names the input in errors.
+    /// A gyro bias or scale that is absent (or `null`) means an ideal gyro.
+    pub fn from_json_str(text: &str, source: &str) -> Result<Estimate, ParamsError> {
+        let parsed: EstimateJson = serde_json::from_str(text).map_err(|e| ParamsError::Json {
+            source_name: source.to_string(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        let params = OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: parsed.circumference_m.rl,
+                c_rr: parsed.circumference_m.rr,
+                track_width: parsed.track_width_m,
+            },
+            gyro_bias_rad_s: parsed.gyro_bias_rad_s.unwrap_or(0.0),
+            gyro_scale: parsed.gyro_scale.unwrap_or(0.0),
+        };
+        params.validate(source)?;
+        // The antenna and its sigma from the same fit: the gyro model's, else the 2W one's.
+        let (antenna_m, antenna_sigma_m) = match parsed.gyro {
+            Some(GyroJson {
+                antenna_m: Some(a),
+                sigma_antenna_m,
+            }) => (Some(a), sigma_antenna_m),
+            _ => (parsed.gnss_antenna_m, parsed.sigma_gnss_antenna_m),
+        };
+        Ok(Estimate {
+            params,
+            sigma_m: parsed.sigma_m.map(|s| (s.rl, s.rr)),
+            quality_m: None,
+            antenna_m: antenna_m.map(|a| validate_antenna(a, source)).transpose()?,
+            antenna_sigma_m,
+        })
+    }
+
+    /// The estimate received on the wire, validated.
+    pub fn from_wire(wire: &CircumferenceEstimate) -> Result<Estimate, ParamsError> {
+        let params = OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: wire.c_rl_m,
+                c_rr: wire.c_rr_m,
+                track_width: wire.track_width_m,
+            },
+            gyro_bias_rad_s: wire.gyro_bias_rad_s,
+            gyro_scale: wire.gyro_scale,
+        };
+        let source = format!("estimate version {} on the wire", wire.version);
+        params.validate(&source)?;
+        let used = (wire.extension_count as usize).min(wire.extensions.len());
+        let antenna = wire.extensions[..used]
+            .iter()
+            .find(|x| x.effect_code == Effect::GnssLeverArm.code() && x.param_count >= 2);
+        let antenna_m = antenna
+            .map(|x| validate_antenna([x.params[0], x.params[1]], &source))
+            .transpose()?;
+        let antenna_sigma_m = antenna
+            .filter(|x| x.param_count >= 4)
+            .map(|x| [x.params[2], x.params[3]]);
+        Ok(Estimate {
+            params,
+            sigma_m: Some((wire.sigma_rl_m, wire.sigma_rr_m)),
+            quality_m: Some(wire.quality_m),
+            antenna_m,
+            antenna_sigma_m,
+        })
+    }
+
+    /// The estimate as the wire type; of the model extensions only the GNSS
+    /// antenna (`gnss_lever_arm`), when known. Unknown sigmas and quality are
+    /// sent as 0 (the wire type has no validity flag for them).
+    pub fn to_wire(&self, header: Header, version: u64) -> CircumferenceEstimate {
+        let (sigma_rl_m, sigma_rr_m) = self.sigma_m.unwrap_or((0.0, 0.0));
+        let mut wire = CircumferenceEstimate {
+            header,
+            version,
+            c_rl_m: self.params.two_wheel.c_rl,
+            c_rr_m: self.params.two_wheel.c_rr,
+            sigma_rl_m,
+            sigma_rr_m,
+            track_width_m: self.params.two_wheel.track_width,
+            gyro_bias_rad_s: self.params.gyro_bias_rad_s,
+            gyro_scale: self.params.gyro_scale,
+            quality_m: self.quality_m.unwrap_or(0.0),
+            ..CircumferenceEstimate::default()
+        };
+        if let Some(a) = self.antenna_m {
+            wire.extensions[0] = antenna_extension(a, self.antenna_sigma_m);
+            wire.extension_count = 1;
+        }
+        wire
+    }
+
+    /// The antenna position to use as the filter's GNSS lever arm: the
+    /// calibrated one when its sigma is at most [`MAX_FUSED_ANTENNA_SIGMA_M`]
+    /// in both axes, or when no sigma is given (a position written by hand).
+    pub fn fusable_antenna(&self) -> Option<[f64; 2]> {
+        let determined = self
+            .antenna_sigma_m
+            .is_none_or(|s| s.iter().all(|v| *v <= MAX_FUSED_ANTENNA_SIGMA_M));
+        self.antenna_m.filter(|_| determined)
+    }
+}
+
+/// The wire form of a GNSS antenna position: the `gnss_lever_arm` model
+/// extension with parameters (x, y) and, when known, their 1-sigma
+/// (`param_count` 4), m.
+pub fn antenna_extension(antenna_m: [f64; 2], sigma_m: Option<[f64; 2]>) -> ModelExtension {
+    let [sx, sy] = sigma_m.unwrap_or([0.0, 0.0]);
+    ModelExtension {
+        effect_code: Effect::GnssLeverArm.code(),
+        param_count: if sigma_m.is_some() { 4 } else { 2 },
+        params: [antenna_m[0], antenna_m[1], sx, sy],
+    }
+}
+
+/// An antenna position must be finite and within 20 m of the rear axle
+/// (the calibrator's own plausibility limit for `vehicle.toml`).
+fn validate_antenna(antenna_m: [f64; 2], source: &str) -> Result<[f64; 2], ParamsError> {
+    match antenna_m
+        .iter()
+        .find(|v| !(v.is_finite() && v.abs() < 20.0))
+    {
+        None => Ok(antenna_m),
+        Some(&value) => Err(ParamsError::Invalid {
+            source_name: source.to_string(),
+            field: "gnss antenna position",
+            value,
+            reason: "must be finite and within 20 m of the rear axle",
+        }),
+    }
+}
+
+/// The GNSS antenna position to start with, and whether it was measured
+/// (`vehicle.toml`'s `[gnss]`, which then wins over any estimate's);
+/// otherwise the initial estimate's calibrated one, else the rear axle.
+pub fn gnss_lever_arm(vehicle: &VehicleParams, initial: Option<&Estimate>) -> ([f64; 2], bool) {
+    let (x, y) = (vehicle.gnss.antenna_x_m, vehicle.gnss.antenna_y_m);
+    if x.is_some() || y.is_some() {
+        ([x.unwrap_or(0.0), y.unwrap_or(0.0)], true)
+    } else {
+        (
+            initial
+                .and_then(Estimate::fusable_antenna)
+                .unwrap_or([0.0, 0.0]),
+            false,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use interfaces::drive::GnssAntenna;
+
+    const CALIBRATOR_JSON: &str = r#"{
+        "circumference_m": {"rl": 2.1631, "rr": 2.1597},
+        "sigma_m": {"rl": 0.0004, "rr": 0.0005},
+        "track_width_m": 1.52,
+        "gyro_bias_rad_s": 0.0004,
+        "method": "paper",
+        "selected_iteration": 4,
+        "iterations": [ {"n": 1, "circumference_m": {"rl": 2.2, "rr": 2.2},
+                         "dr_error_mean_m": 3.0, "dr_error_max_m": 9.0} ],
+        "warnings": []
+    }"#;
+
+    #[test]
+    fn calibrator_json_is_read_and_extra_fields_ignored() {
+        let e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        assert_eq!(e.params.two_wheel.c_rl, 2.1631);
+        assert_eq!(e.params.two_wheel.c_rr, 2.1597);
+        assert_eq!(e.params.two_wheel.track_width, 1.52);
+        assert_eq!(e.params.gyro_bias_rad_s, 0.0004);
+        assert_eq!(e.params.gyro_scale, 0.0, "absent scale means an ideal gyro");
+        assert_eq!(e.sigma_m, Some((0.0004, 0.0005)));
+    }
+
+    #[test]
+    fn missing_field_names_source_and_line() {
+        let err = Estimate::from_json_str(
+            "{\n \"circumference_m\": {\"rl\": 2.0, \"rr\": 2.0}\n}",
+            "cal.json",
+        )
+        .unwrap_err();
+        let msg = err.to_string();
+        assert!(
+            msg.contains("cal.json") && msg.contains("track_width_m") && msg.contains("line 3"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn nonsense_values_are_rejected_with_the_field() {
+        let text = r#"{"circumference_m": {"rl": -2.0, "rr": 2.0}, "track_width_m": 1.5}"#;
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("circumference_m.rl") && msg.contains("-2"),
+            "{msg}"
+        );
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5, "gyro_scale": 3.0}"#;
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("gyro_scale"), "{msg}");
+    }
+
+    #[test]
+    fn wire_round_trip_keeps_every_value() {
+        let mut e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        e.params.gyro_scale = -0.012;
+        e.quality_m = Some(0.7);
+        let wire = e.to_wire(Header::from_seconds(12.5, 3), 7);
+        assert_eq!(wire.version, 7);
+        assert_eq!(wire.header.seq, 3);
+        assert_eq!(Estimate::from_wire(&wire).unwrap(), e);
+        let mut broken = wire;
+        broken.track_width_m = f64::NAN;
+        let msg = Estimate::from_wire(&broken).unwrap_err().to_string();
+        assert!(
+            msg.contains("version 7") && msg.contains("track_width_m"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn the_antenna_travels_on_the_wire_as_a_gnss_lever_arm_extension() {
+        let mut e = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        e.antenna_m = Some([0.51, -0.31]);
+        e.antenna_sigma_m = Some([0.03, 0.04]);
+        e.quality_m = Some(0.7);
+        let wire = e.to_wire(Header::from_seconds(1.0, 0), 2);
+        assert_eq!(wire.extension_count, 1);
+        assert_eq!(wire.extensions[0].effect_code, Effect::GnssLeverArm.code());
+        assert_eq!(Estimate::from_wire(&wire).unwrap(), e);
+        let mut no_sigma = e;
+        no_sigma.antenna_sigma_m = None;
+        let wire2 = no_sigma.to_wire(Header::from_seconds(1.0, 0), 2);
+        assert_eq!(wire2.extensions[0].param_count, 2);
+        assert_eq!(Estimate::from_wire(&wire2).unwrap(), no_sigma);
+        // Another extension before it (the calibrator's side slip) is skipped.
+        let mut two = wire;
+        two.extensions[1] = two.extensions[0];
+        two.extensions[0] = ModelExtension {
+            effect_code: Effect::SideSlip.code(),
+            param_count: 1,
+            params: [0.004, 0.0, 0.0, 0.0],
+        };
+        two.extension_count = 2;
+        assert_eq!(
+            Estimate::from_wire(&two).unwrap().antenna_m,
+            Some([0.51, -0.31])
+        );
+        // A slot beyond extension_count is not read.
+        two.extension_count = 1;
+        assert_eq!(Estimate::from_wire(&two).unwrap().antenna_m, None);
+        // An implausible antenna rejects the estimate, naming it.
+        let mut far = wire;
+        far.extensions[0].params[1] = f64::INFINITY;
+        let msg = Estimate::from_wire(&far).unwrap_err().to_string();
+        assert!(
+            msg.contains("version 2") && msg.contains("antenna"),
+            "{msg}"
+        );
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5, "gnss_antenna_m": [35.0, 0.0]}"#;
+        let msg = Estimate::from_json_str(text, "x.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("x.json") && msg.contains("antenna") && msg.contains("35"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn nominal_uses_vehicle_toml_and_gyro_correction_inverts_the_model() {
+        let vehicle = VehicleParams {
+            name: None,
+            track_width_m: 1.45,
+            nominal_circumference_m: 1.85,
+            wheelbase_m: None,
+            ticks_per_rev: None,
+            gnss: GnssAntenna::default(),
+        };
+        let p = OdometryParams::nominal(&vehicle);
+        assert_eq!(
+            (p.two_wheel.c_rl, p.two_wheel.c_rr, p.two_wheel.track_width),
+            (1.85, 1.85, 1.45)
+        );
+        let p = OdometryParams {
+            gyro_bias_rad_s: 0.01,
+            gyro_scale: 0.02,
+            ..p
+        };
+        let w = 0.3;
+        assert!((p.corrected_yaw_rate((1.0 + 0.02) * w + 0.01) - w).abs() < 1e-15);
+    }
+
+    #[test]
+    fn the_antenna_comes_from_the_gyro_object_else_the_top_level() {
+        let base = r#""circumference_m": {"rl": 1.83, "rr": 1.83}, "track_width_m": 1.45"#;
+        let gyro = format!(
+            r#"{{{base}, "gyro": {{"antenna_m": [0.5, -0.3]}}, "gnss_antenna_m": [1.0, 0.0]}}"#
+        );
+        let top = format!(r#"{{{base}, "gnss_antenna_m": [1.0, 0.0]}}"#);
+        let none = format!("{{{base}}}");
+        let a = |t: &str| Estimate::from_json_str(t, "test").unwrap().antenna_m;
+        assert_eq!(a(&gyro), Some([0.5, -0.3]));
+        assert_eq!(a(&top), Some([1.0, 0.0]));
+        assert_eq!(a(&none), None);
+    }
+
+    #[test]
+    fn only_a_determined_antenna_is_fused() {
+        let base = r#""circumference_m": {"rl": 1.83, "rr": 1.83}, "track_width_m": 1.45"#;
+        let est = |gyro: &str| {
+            Estimate::from_json_str(&format!(r#"{{{base}, "gyro": {gyro}}}"#), "test").unwrap()
+        };
+        let sharp = est(r#"{"antenna_m": [0.5, -0.3], "sigma_antenna_m": [0.03, 0.04]}"#);
+        assert_eq!(sharp.antenna_sigma_m, Some([0.03, 0.04]));
+        assert_eq!(sharp.fusable_antenna(), Some([0.5, -0.3]));
+        // wid-trial04's case: the lateral position is not determined.
+        let vague = est(r#"{"antenna_m": [0.62, -0.04], "sigma_antenna_m": [0.05, 0.15]}"#);
+        assert_eq!(vague.antenna_m, Some([0.62, -0.04]), "still reported");
+        assert_eq!(vague.fusable_antenna(), None);
+        let by_hand = est(r#"{"antenna_m": [1.1, 0.0]}"#);
+        assert_eq!(by_hand.fusable_antenna(), Some([1.1, 0.0]));
+        // The top-level pair goes with its own sigma.
+        let top = format!(
+            r#"{{{base}, "gnss_antenna_m": [1.0, 0.0], "sigma_gnss_antenna_m": [0.2, 0.2]}}"#
+        );
+        let top = Estimate::from_json_str(&top, "test").unwrap();
+        assert_eq!(top.antenna_sigma_m, Some([0.2, 0.2]));
+        assert_eq!(top.fusable_antenna(), None);
+    }
+}

@@ -1,0 +1,20 @@
+//! The vehicle model that the calibrator, the odometry and the tests share:
+//! one home for the 2W odometry model and for the estimate that carries its
+//! parameters between the services.
+//!
+//! - [`two_wheel`]: the paper's two-wheel (2W) model, eq. (1)-(2): the pose
+//!   increment from the rear wheels' rotations, the circumferences and the
+//!   track width; dead-reckoning over a drive.
+//! - [`effects`]: the 2W model extended with the physics-catalogue effects
+//!   (side-slip, load transfer, speed growth, slip, track, drift, grade and
+//!   the sensor terms): the terms the diagnosis fits and the odometry applies.
+//! - [`estimate`]: the odometry parameters and where they come from
+//!   (`vehicle.toml`'s nominal values, the calibrator's JSON, the wire
+//!   [`CircumferenceEstimate`](interfaces::wire::CircumferenceEstimate)),
+//!   with the model extensions the calibrator fitted.
+//!
+//! Pure: data in, results out.
+
+pub mod effects;
+pub mod estimate;
+pub mod two_wheel;

@@ -1,0 +1,159 @@
+//! Tuning of a calibration: [`CalibrationConfig`] and its modes, with the
+//! range check.
+
+use crate::error::CalibrationError;
+use crate::method::Method;
+use serde::{Deserialize, Serialize};
+
+/// Whether the effective rear track width is estimated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackWidthMode {
+    /// Keep `vehicle.toml`'s `track_width_m`.
+    Fixed,
+    /// Estimate it as a third parameter (batch method only); a drive that
+    /// cannot determine it is an error.
+    Estimate,
+    /// Estimate it (batch method) when the drive turns enough, else keep the
+    /// nominal value and say so in a warning.
+    Auto,
+}
+
+/// What to do with the time offset between the wheel and GNSS clocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeOffsetMode {
+    /// Do not look at it.
+    Off,
+    /// Estimate it and warn when it is significant.
+    Check,
+    /// Estimate it, warn, and shift the GNSS time stamps by it when it is
+    /// significant.
+    Compensate,
+}
+
+/// Tuning of the calibration. [`Default`] gives the recommended setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationConfig {
+    /// The estimator whose result is returned.
+    pub method: Method,
+    /// Also run the other method and attach its summary (side by side).
+    pub compare: bool,
+    /// Side-slip in eq. (1): off is beta = 0 (the paper's first results); on
+    /// uses the layer-1 estimate (paper method) or a fitted side-slip gain
+    /// (batch method).
+    pub side_slip: bool,
+    /// Iterations of the paper's loop (the paper: 9).
+    pub iterations: usize,
+    /// Step ratio alpha of eq. (11), `0 < alpha <= 1`.
+    pub alpha: f64,
+    /// q_M of eq. (10a), `1 <= q_M <= 1.5` in the paper.
+    pub q_m: f64,
+    /// q_P of eq. (10b), `0.2 <= q_P <= 0.7` in the paper.
+    pub q_p: f64,
+    /// Step rate of the paper's filter and least squares (its 1/dt), Hz; the
+    /// wheel increments are summed over each step (see `ekf::grid`).
+    pub paper_rate_hz: f64,
+    /// Effective track width handling.
+    pub track_width: TrackWidthMode,
+    /// Estimate the yaw-rate gyro's bias and scale beside the circumferences.
+    pub estimate_gyro: bool,
+    /// Wheel/GNSS time offset handling.
+    pub time_offset: TimeOffsetMode,
+    /// GNSS 1-sigma horizontal noise, m; `None`: the `sigma_m` column, or an
+    /// estimate from the fixes themselves.
+    pub gnss_sigma_m: Option<f64>,
+    /// Outlier gate on the GNSS innovations, in sigmas.
+    pub outlier_gate_sigma: f64,
+    /// A stretch without GNSS longer than this (s) is an outage: no reference
+    /// there, the models bridge it.
+    pub max_gnss_gap_s: f64,
+    /// Length (s) of the batch method's segments, each with its own initial pose.
+    pub segment_length_s: f64,
+    /// Use the IMU's accelerations in the position reference (`p'' = a`).
+    pub use_imu_acceleration: bool,
+    /// Estimate the GNSS antenna position (body frame) in the batch fit,
+    /// starting from `vehicle.toml`'s `[gnss]` values (or the axle centre).
+    pub estimate_lever_arm: bool,
+}
+
+impl Default for CalibrationConfig {
+    fn default() -> Self {
+        CalibrationConfig {
+            method: Method::Batch,
+            compare: false,
+            side_slip: false,
+            iterations: 9,
+            alpha: 0.5,
+            q_m: 1.25,
+            q_p: 0.45,
+            paper_rate_hz: 10.0,
+            track_width: TrackWidthMode::Auto,
+            estimate_gyro: true,
+            time_offset: TimeOffsetMode::Compensate,
+            gnss_sigma_m: None,
+            outlier_gate_sigma: 5.0,
+            max_gnss_gap_s: 2.0,
+            segment_length_s: 120.0,
+            use_imu_acceleration: true,
+            estimate_lever_arm: false,
+        }
+    }
+}
+
+impl CalibrationConfig {
+    /// Check the ranges; the error names the field.
+    pub fn validate(&self) -> Result<(), CalibrationError> {
+        let bad = |field: &'static str, reason: String| {
+            Err(CalibrationError::InvalidConfig { field, reason })
+        };
+        if self.iterations == 0 || self.iterations > 1000 {
+            return bad(
+                "iterations",
+                format!("{} is not in 1..=1000", self.iterations),
+            );
+        }
+        if !(self.alpha > 0.0 && self.alpha <= 1.0) {
+            return bad("alpha", format!("{} is not in (0, 1]", self.alpha));
+        }
+        if !(self.q_m.is_finite() && self.q_m >= 1.0) {
+            return bad("q_m", format!("{} must be >= 1 (eq. 10a)", self.q_m));
+        }
+        if !(self.paper_rate_hz.is_finite()
+            && self.paper_rate_hz > 0.0
+            && self.paper_rate_hz <= 1000.0)
+        {
+            return bad(
+                "paper_rate_hz",
+                format!("{} is not in (0, 1000] Hz", self.paper_rate_hz),
+            );
+        }
+        if !(self.q_p.is_finite() && self.q_p >= 0.0) {
+            return bad("q_p", format!("{} must be >= 0 (eq. 10b)", self.q_p));
+        }
+        if let Some(s) = self.gnss_sigma_m {
+            if !(s.is_finite() && s > 0.0) {
+                return bad("gnss_sigma_m", format!("{s} is not a positive number"));
+            }
+        }
+        if !(self.outlier_gate_sigma.is_finite() && self.outlier_gate_sigma >= 2.0) {
+            return bad(
+                "outlier_gate_sigma",
+                format!("{} must be >= 2", self.outlier_gate_sigma),
+            );
+        }
+        if !(self.max_gnss_gap_s.is_finite() && self.max_gnss_gap_s > 0.0) {
+            return bad(
+                "max_gnss_gap_s",
+                format!("{} must be positive", self.max_gnss_gap_s),
+            );
+        }
+        if !(self.segment_length_s.is_finite() && self.segment_length_s >= 5.0) {
+            return bad(
+                "segment_length_s",
+                format!("{} must be >= 5 s", self.segment_length_s),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,581 @@
+//! The residual channels and each catalogue effect's fingerprint in them.
+//!
+//! Channels (one row per epoch where the channel is defined):
+//! - `speed`: v_gnss / v_odo - 1, where the car moves;
+//! - `course_wheel`: GNSS course minus the 2W heading, block means removed
+//!   (the heading's start is unknown in each block);
+//! - `course_gyro`: GNSS course minus the integrated gyro, block means removed;
+//! - `heading`: the absolute heading sensor minus the GNSS course;
+//! - `standstill_gyro`: the gyro rate while the car stands.
+//!
+//! An effect is a set of columns (its fingerprint in every channel it
+//! touches, one shared coefficient per column), the physical parameters its
+//! coefficients stand for, and the range a passenger car's value lies in.
+//! Nuisance columns (the common scale of the circumferences and their
+//! left/right difference) are always in the model: the calibration fits them.
+
+use super::epochs::{mad_sigma, Epoch, Epochs};
+use interfaces::effects::Effect;
+
+/// A residual channel.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Channel {
+    /// v_gnss / v_odo - 1.
+    Speed,
+    /// GNSS course - 2W heading.
+    CourseWheel,
+    /// GNSS course - gyro heading.
+    CourseGyro,
+    /// Heading sensor - GNSS course.
+    Heading,
+    /// Gyro rate at standstill.
+    StandstillGyro,
+}
+
+impl Channel {
+    /// Name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::Speed => "speed",
+            Channel::CourseWheel => "course_wheel",
+            Channel::CourseGyro => "course_gyro",
+            Channel::Heading => "heading",
+            Channel::StandstillGyro => "standstill_gyro",
+        }
+    }
+
+    /// Unit of the channel's residual.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Channel::Speed => "1 (relative speed)",
+            Channel::CourseWheel | Channel::CourseGyro | Channel::Heading => "rad",
+            Channel::StandstillGyro => "rad/s",
+        }
+    }
+
+    /// Block means are removed from this channel.
+    fn demeaned(self) -> bool {
+        matches!(self, Channel::CourseWheel | Channel::CourseGyro)
+    }
+
+    /// Every channel.
+    pub const ALL: [Channel; 5] = [
+        Channel::Speed,
+        Channel::CourseWheel,
+        Channel::CourseGyro,
+        Channel::Heading,
+        Channel::StandstillGyro,
+    ];
+}
+
+/// One physical parameter of an effect, `value = scale * coefficient`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    /// Name, as in the catalogue (`k_beta`).
+    pub name: &'static str,
+    /// Unit.
+    pub unit: &'static str,
+    /// Which column's coefficient it is.
+    pub column: usize,
+    /// The smallest and largest value a passenger car plausibly has (the
+    /// catalogue's typical size with a wide margin: other cars differ).
+    pub range: (f64, f64),
+}
+
+/// A candidate effect: its columns in the design and what they mean.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// The catalogue effect.
+    pub effect: Effect,
+    /// A variant of its form (`time_constant_s=600`), empty if none.
+    pub variant: String,
+    /// Column indices (into [`Design::columns`]).
+    pub columns: Vec<usize>,
+    /// The parameters, one per column.
+    pub params: Vec<Param>,
+}
+
+/// The stacked regression problem of a drive.
+#[derive(Debug, Clone)]
+pub struct Design {
+    /// Per row: channel, epoch index, block.
+    pub rows: Vec<(Channel, usize, usize)>,
+    /// Residual per row (block means removed where the channel says so).
+    pub y: Vec<f64>,
+    /// Weight per row (1 / noise variance, from the drive's own scatter).
+    pub w: Vec<f64>,
+    /// Columns: per column, one value per row.
+    pub columns: Vec<Vec<f64>>,
+    /// Column names, for messages.
+    pub column_names: Vec<String>,
+    /// The nuisance columns (always in the model).
+    pub nuisance: Vec<usize>,
+    /// The candidate effects.
+    pub candidates: Vec<Candidate>,
+    /// Effects that this drive cannot test, with what it lacks.
+    pub untestable: Vec<(Effect, String)>,
+    /// Number of blocks.
+    pub blocks: usize,
+    /// Block length, s.
+    pub block_s: f64,
+    /// Noise sigma per channel (in channel units, at unit row weight).
+    pub channel_sigma: Vec<(Channel, f64)>,
+}
+
+/// Settings of the design.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DesignSettings {
+    /// Block length, s.
+    pub block_s: f64,
+    /// Below this speed the course is not used, m/s.
+    pub min_speed_m_s: f64,
+    /// The plain model's (nominal) rear track, m.
+    pub track_width_m: f64,
+}
+
+/// The drive's epochs as a regression problem.
+pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Design {
+    let e = &ep.epochs;
+    let t0 = e.first().map_or(0.0, |x| x.t_s);
+    let block_of = |x: &Epoch| ((x.t_s - t0) / settings.block_s).floor().max(0.0) as usize;
+    let blocks = e.last().map_or(0, |x| block_of(x) + 1);
+    // Rows.
+    let mut rows = Vec::new();
+    let mut y = Vec::new();
+    let mut wrel = Vec::new();
+    let moving = |x: &Epoch| !x.standstill && x.v_odo > settings.min_speed_m_s;
+    // Continuous (unwrapped) course residuals.
+    let mut last_cw: Option<f64> = None;
+    let mut last_cg: Option<f64> = None;
+    for (i, x) in e.iter().enumerate() {
+        if excluded[i] {
+            continue;
+        }
+        let b = block_of(x);
+        // GNSS velocity noise: sqrt(2) sigma / dt; relative to v.
+        let vnoise = std::f64::consts::SQRT_2 * ep.gnss_sigma_m / x.dt_s;
+        if moving(x) && x.v_gnss > 0.0 {
+            let rel = vnoise / x.v_odo;
+            rows.push((Channel::Speed, i, b));
+            y.push(x.v_gnss / x.v_odo - 1.0);
+            wrel.push(1.0 / (rel * rel + 1e-8));
+            let cw = unwrap_near(x.course_gnss - x.psi_odo, last_cw);
+            last_cw = Some(cw);
+            rows.push((Channel::CourseWheel, i, b));
+            y.push(cw);
+            wrel.push(1.0 / (rel * rel + 1e-8));
+            if ep.has_gyro && x.psi_gyro.is_finite() {
+                let cg = unwrap_near(x.course_gnss - x.psi_gyro, last_cg);
+                last_cg = Some(cg);
+                rows.push((Channel::CourseGyro, i, b));
+                y.push(cg);
+                wrel.push(1.0 / (rel * rel + 1e-8));
+            }
+            if ep.has_heading && x.heading.is_finite() {
+                rows.push((Channel::Heading, i, b));
+                y.push(vehicle_model::two_wheel::wrap_angle(
+                    x.heading - x.course_gnss,
+                ));
+                wrel.push(1.0 / (rel * rel + 1e-6));
+            }
+        } else if x.standstill && ep.has_gyro && x.gz.is_finite() {
+            rows.push((Channel::StandstillGyro, i, b));
+            y.push(x.gz);
+            wrel.push(1.0);
+        }
+    }
+    let n = rows.len();
+    let mut columns: Vec<Vec<f64>> = Vec::new();
+    let mut names: Vec<String> = Vec::new();
+    let mut add = |name: String, f: &dyn Fn(Channel, &Epoch) -> f64| -> usize {
+        let col: Vec<f64> = rows.iter().map(|&(c, i, _)| f(c, &e[i])).collect();
+        columns.push(col);
+        names.push(name);
+        columns.len() - 1
+    };
+    // Nuisance: the common scale (speed) and the left/right difference
+    // (a heading that grows with distance).
+    let scale = add("common_scale".into(), &|c, _| {
+        f64::from(c == Channel::Speed)
+    });
+    let lr = add("left_right".into(), &|c, x| {
+        if c == Channel::CourseWheel {
+            x.s_m
+        } else {
+            0.0
+        }
+    });
+    let nuisance = vec![scale, lr];
+    let mut candidates = Vec::new();
+    let mut untestable = Vec::new();
+    let track = settings.track_width_m;
+    let course = |c: Channel| matches!(c, Channel::CourseWheel | Channel::CourseGyro);
+
+    // side_slip: course = heading + beta, beta = -k a_y.
+    let col = add("side_slip".into(), &|c, x| {
+        if course(c) {
+            -x.a_y
+        } else if c == Channel::Heading {
+            x.a_y
+        } else {
+            0.0
+        }
+    });
+    candidates.push(single(
+        Effect::SideSlip,
+        col,
+        "k_beta",
+        "rad/(m/s^2)",
+        (0.0, 0.02),
+    ));
+    // load_transfer_radius: heading error -(2 k_z / t) int a_y ds.
+    let col = add("load_transfer_radius".into(), &|c, x| {
+        if c == Channel::CourseWheel {
+            -2.0 / track * x.int_ay_ds
+        } else {
+            0.0
+        }
+    });
+    candidates.push(single(
+        Effect::LoadTransferRadius,
+        col,
+        "k_z",
+        "1/(m/s^2)",
+        (0.0, 5e-3),
+    ));
+    // speed_radius_growth: relative speed k_v v^2.
+    let col = add("speed_radius_growth".into(), &|c, x| {
+        if c == Channel::Speed {
+            x.v_odo * x.v_odo
+        } else {
+            0.0
+        }
+    });
+    candidates.push(single(
+        Effect::SpeedRadiusGrowth,
+        col,
+        "k_v",
+        "1/(m/s)^2",
+        (0.0, 2e-5),
+    ));
+    // longitudinal_slip: wheels turn as if v (1 + k_s a_x); both signs, or
+    // one (an axle that is not driven slips when braking only).
+    for (variant, f) in [
+        ("", (|a: f64| a) as fn(f64) -> f64),
+        ("braking only", |a: f64| a.min(0.0)),
+        ("driving only", |a: f64| a.max(0.0)),
+    ] {
+        let col = add(format!("longitudinal_slip {variant}"), &|c, x| {
+            if c == Channel::Speed {
+                -f(x.a_x)
+            } else {
+                0.0
+            }
+        });
+        let mut cand = single(
+            Effect::LongitudinalSlip,
+            col,
+            "k_s",
+            "1/(m/s^2)",
+            (0.0, 0.05),
+        );
+        cand.variant = variant.to_string();
+        candidates.push(cand);
+    }
+    // track_width: true heading = 2W heading / (1 + rel).
+    let col = add("track_width".into(), &|c, x| {
+        if c == Channel::CourseWheel {
+            -x.psi_odo
+        } else {
+            0.0
+        }
+    });
+    candidates.push(single(Effect::TrackWidth, col, "rel", "1", (-0.15, 0.15)));
+    if ep.has_gyro {
+        // gyro_bias: gyro heading gains b t; at standstill the rate is b.
+        let col = add("gyro_bias".into(), &|c, x| match c {
+            Channel::CourseGyro => -x.t_rel_s,
+            Channel::StandstillGyro => 1.0,
+            _ => 0.0,
+        });
+        candidates.push(single(Effect::GyroBias, col, "b", "rad/s", (-0.05, 0.05)));
+        let col = add("gyro_scale".into(), &|c, x| {
+            if c == Channel::CourseGyro {
+                -x.psi_gyro
+            } else {
+                0.0
+            }
+        });
+        candidates.push(single(Effect::GyroScale, col, "s", "1", (-0.05, 0.05)));
+    } else {
+        untestable.push((Effect::GyroBias, "a yaw-rate gyro (imu.csv)".to_string()));
+        untestable.push((Effect::GyroScale, "a yaw-rate gyro (imu.csv)".to_string()));
+    }
+    // gnss_latency: GNSS describes t - tau: speed -tau a_x / v, course -tau w.
+    let col = add("gnss_latency".into(), &|c, x| match c {
+        Channel::Speed => -x.a_x / x.v_odo,
+        Channel::CourseWheel | Channel::CourseGyro => -x.w_odo,
+        Channel::Heading => x.w_odo,
+        Channel::StandstillGyro => 0.0,
+    });
+    candidates.push(single(Effect::GnssLatency, col, "tau_s", "s", (0.0, 1.0)));
+    // gnss_lever_arm: antenna velocity (v - w l_y, w l_x).
+    let cx = add("gnss_lever_arm x".into(), &|c, x| match c {
+        Channel::CourseWheel | Channel::CourseGyro => x.w_odo / x.v_odo,
+        Channel::Heading => -x.w_odo / x.v_odo,
+        _ => 0.0,
+    });
+    let cy = add("gnss_lever_arm y".into(), &|c, x| {
+        if c == Channel::Speed {
+            -x.w_odo / x.v_odo
+        } else {
+            0.0
+        }
+    });
+    candidates.push(Candidate {
+        effect: Effect::GnssLeverArm,
+        variant: String::new(),
+        columns: vec![cx, cy],
+        params: vec![
+            Param {
+                name: "x_m",
+                unit: "m",
+                column: cx,
+                range: (-5.0, 5.0),
+            },
+            Param {
+                name: "y_m",
+                unit: "m",
+                column: cy,
+                range: (-3.0, 3.0),
+            },
+        ],
+    });
+    // radius_drift: relative speed d (1 - exp(-t/T)); T from a grid, only
+    // time constants the drive is long enough to see.
+    let duration = e.last().map_or(0.0, |x| x.t_rel_s);
+    for t_c in [300.0, 600.0, 1200.0, 2400.0] {
+        if t_c > 2.0 * duration {
+            continue;
+        }
+        let col = add(format!("radius_drift T={t_c}"), &|c, x| {
+            if c == Channel::Speed {
+                1.0 - (-x.t_rel_s / t_c).exp()
+            } else {
+                0.0
+            }
+        });
+        let mut cand = single(Effect::RadiusDrift, col, "d", "1", (-0.03, 0.03));
+        cand.variant = format!("time_constant_s={t_c}");
+        candidates.push(cand);
+    }
+    if duration < 150.0 {
+        untestable.push((
+            Effect::RadiusDrift,
+            "a drive of at least 150 s (a warm-up takes minutes)".to_string(),
+        ));
+    }
+    if ep.has_grade {
+        // road_grade: horizontal speed = wheel speed cos(gamma) ~ 1 - gamma^2 / 2.
+        let col = add("road_grade".into(), &|c, x| {
+            if c == Channel::Speed && x.grade.is_finite() {
+                -0.5 * x.grade * x.grade
+            } else {
+                0.0
+            }
+        });
+        candidates.push(single(
+            Effect::RoadGrade,
+            col,
+            "gain_squared",
+            "1",
+            (0.1, 10.0),
+        ));
+    } else {
+        untestable.push((
+            Effect::RoadGrade,
+            "a forward accelerometer aligned with the car (imu.csv ax_m_s2) to read the slope"
+                .to_string(),
+        ));
+    }
+    if ep.has_heading {
+        let a = add("heading_bias A".into(), &|c, _| {
+            f64::from(c == Channel::Heading)
+        });
+        let b = add("heading_bias B".into(), &|c, x| {
+            if c == Channel::Heading {
+                x.course_gnss.sin()
+            } else {
+                0.0
+            }
+        });
+        let cc = add("heading_bias C".into(), &|c, x| {
+            if c == Channel::Heading {
+                x.course_gnss.cos()
+            } else {
+                0.0
+            }
+        });
+        let p = |name, column| Param {
+            name,
+            unit: "rad",
+            column,
+            range: (-0.5, 0.5),
+        };
+        candidates.push(Candidate {
+            effect: Effect::HeadingBias,
+            variant: String::new(),
+            columns: vec![a, b, cc],
+            params: vec![p("a_rad", a), p("b_rad", b), p("c_rad", cc)],
+        });
+    } else {
+        untestable.push((
+            Effect::HeadingBias,
+            "an absolute heading sensor (heading.csv)".to_string(),
+        ));
+    }
+
+    // Block means out of the demeaned channels (y and every column).
+    let mut sums: std::collections::BTreeMap<(Channel, usize), (f64, f64)> = Default::default();
+    let mut demean = |v: &mut Vec<f64>| {
+        sums.clear();
+        for (r, &(c, _, b)) in rows.iter().enumerate() {
+            if c.demeaned() {
+                let s = sums.entry((c, b)).or_insert((0.0, 0.0));
+                s.0 += wrel[r] * v[r];
+                s.1 += wrel[r];
+            }
+        }
+        for (r, &(c, _, b)) in rows.iter().enumerate() {
+            if c.demeaned() {
+                if let Some(&(sv, sw)) = sums.get(&(c, b)) {
+                    v[r] -= sv / sw;
+                }
+            }
+        }
+    };
+    demean(&mut y);
+    for col in columns.iter_mut() {
+        demean(col);
+    }
+    // Channel noise from the drive itself: the scatter of first differences
+    // of the weighted residual (smooth structure cancels, white noise stays).
+    let mut channel_sigma = Vec::new();
+    let mut w = vec![0.0; n];
+    for ch in Channel::ALL {
+        let idx: Vec<usize> = (0..n).filter(|&r| rows[r].0 == ch).collect();
+        if idx.is_empty() {
+            continue;
+        }
+        let d: Vec<f64> = idx
+            .windows(2)
+            .filter(|p| rows[p[0]].2 == rows[p[1]].2)
+            .map(|p| y[p[1]] * wrel[p[1]].sqrt() - y[p[0]] * wrel[p[0]].sqrt())
+            .collect();
+        let mut s = mad_sigma(&d) / std::f64::consts::SQRT_2;
+        if !(s.is_finite() && s > 0.0) {
+            s = 1.0;
+        }
+        for &r in &idx {
+            w[r] = wrel[r] / (s * s);
+        }
+        channel_sigma.push((ch, s));
+    }
+    // Candidates whose columns carry nothing on this drive are untestable.
+    candidates.retain(|cand| {
+        let energy: f64 = cand
+            .columns
+            .iter()
+            .map(|&c| (0..n).map(|r| w[r] * columns[c][r].powi(2)).sum::<f64>())
+            .fold(f64::INFINITY, f64::min);
+        let ok = energy.is_finite() && energy > 1e-9;
+        if !ok && !untestable.iter().any(|(e, _)| *e == cand.effect) {
+            untestable.push((cand.effect, needs(cand.effect).to_string()));
+        }
+        ok
+    });
+    Design {
+        rows,
+        y,
+        w,
+        columns,
+        column_names: names,
+        nuisance,
+        candidates,
+        untestable,
+        blocks,
+        block_s: settings.block_s,
+        channel_sigma,
+    }
+}
+
+fn single(
+    effect: Effect,
+    column: usize,
+    name: &'static str,
+    unit: &'static str,
+    range: (f64, f64),
+) -> Candidate {
+    Candidate {
+        effect,
+        variant: String::new(),
+        columns: vec![column],
+        params: vec![Param {
+            name,
+            unit,
+            column,
+            range,
+        }],
+    }
+}
+
+/// Keep a course residual continuous with the previous one (no 2 pi jumps).
+fn unwrap_near(a: f64, prev: Option<f64>) -> f64 {
+    match prev {
+        Some(p) => p + vehicle_model::two_wheel::wrap_angle(a - p),
+        None => vehicle_model::two_wheel::wrap_angle(a),
+    }
+}
+
+/// What a drive needs to show an effect.
+pub fn needs(effect: Effect) -> &'static str {
+    match effect {
+        Effect::SideSlip => "corners at several speeds (lateral acceleration of 2 m/s^2 or more)",
+        Effect::LoadTransferRadius => "corners at several speeds",
+        Effect::SpeedRadiusGrowth => "driving at several speeds, up to 25 m/s or more",
+        Effect::LongitudinalSlip => "hard acceleration and braking",
+        Effect::TrackWidth => "turns, a few hundred degrees of heading change",
+        Effect::GyroBias => "a standstill, or a long drive with GNSS course",
+        Effect::GyroScale => "turns, a few hundred degrees of heading change",
+        Effect::GnssLatency => "acceleration and braking, and corners",
+        Effect::GnssLeverArm => "corners at several speeds",
+        Effect::RadiusDrift => "a drive of 20 minutes or more",
+        Effect::RoadGrade => "slopes and a forward accelerometer",
+        Effect::HeadingBias => "an absolute heading sensor and full heading coverage",
+    }
+}
+
+/// How to tell two effects apart (the catalogue's last column).
+pub fn separate_by(a: Effect, b: Effect) -> String {
+    use Effect::*;
+    let pair = |x: Effect, y: Effect| (a == x && b == y) || (a == y && b == x);
+    if pair(SideSlip, GnssLeverArm) {
+        "corners taken at clearly different speeds: side-slip grows with v w, the lever arm's course offset with w / v".into()
+    } else if pair(SideSlip, GnssLatency) || pair(GnssLeverArm, GnssLatency) {
+        "corners at several speeds and hard acceleration or braking on a straight: only latency shows in the speed then".into()
+    } else if pair(LoadTransferRadius, TrackWidth) {
+        "the same corners driven slowly and fast: load transfer grows with v^2 w, the track error with w only".into()
+    } else if pair(SpeedRadiusGrowth, RadiusDrift) {
+        "a drive whose speed does not follow the time: high and low speed both early and late"
+            .into()
+    } else if pair(LongitudinalSlip, GnssLatency) {
+        "corners (latency moves the course, slip does not) and acceleration at several speeds"
+            .into()
+    } else if pair(TrackWidth, GyroScale) {
+        "full loops with GNSS course (absolute heading)".into()
+    } else if pair(SpeedRadiusGrowth, RoadGrade) {
+        "slopes driven at several speeds".into()
+    } else {
+        format!("a drive with more of: {}; and {}", needs(a), needs(b))
+    }
+}

@@ -1,0 +1,1114 @@
+//! The diagnosis: where the calibrated 2W model and the recording part ways,
+//! which physics of the catalogue (`shared/design/physics-catalogue.md`) the
+//! model leaves out, the model extended with it, and the fit before and
+//! after on held-out blocks.
+//!
+//! A [`Drive`] goes in, a [`Diagnosis`] comes out (no files, no clock).
+//!
+//! 1. The plain 2W model is calibrated (circumferences only: the track,
+//!    gyro and antenna stay as `vehicle.toml` says) and run over the drive
+//!    ([`epochs`]): at each GNSS fix, what GNSS and what the model say.
+//! 2. The differences form residual channels (speed, course against the
+//!    wheels, course against the gyro, heading sensor, gyro at standstill);
+//!    every catalogue effect has its fingerprint in them ([`design`]).
+//! 3. Effects enter the model only when they lower the error on held-out
+//!    blocks beyond the block-to-block spread, with a plausible coefficient,
+//!    and distinguishable from every other candidate that passes
+//!    ([`select`]); collinear ones are reported `ambiguous` with the
+//!    manoeuvre that would separate them.
+//! 4. The accepted terms extend the 2W model ([`vehicle_model::effects`]);
+//!    the blocks are dead-reckoned with and without them ([`locate`]).
+//!    Blocks whose residual stays far above the drive's own noise are
+//!    `unexplained`, with the signal they correlate with.
+//!
+//! Every threshold comes from the drive: the GNSS noise from the fixes'
+//! scatter, each channel's noise from its own differences, significance from
+//! the spread over blocks.
+
+pub mod design;
+pub mod epochs;
+pub mod locate;
+pub mod pictures;
+pub mod select;
+
+use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
+use design::{Candidate, Channel, Design, DesignSettings};
+use epochs::{correlation, mad_sigma, median, Epoch, Epochs};
+use interfaces::drive::{Drive, WheelConversionError};
+use interfaces::effects::Effect;
+use locate::{block_track, manoeuvre, Model};
+use nalgebra::DVector;
+use select::{columns_of, gain, t_quantile, BlockStats, ALPHA, VIF_AMBIGUOUS};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use vehicle_model::effects::EffectTerms;
+
+/// Settings of a diagnosis. [`Default`] is what `calibrator diagnose` uses.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagnoseConfig {
+    /// Block length, s; `None`: a twelfth of the drive, 10-60 s.
+    pub block_s: Option<f64>,
+    /// Speed below which the car counts as standing, m/s.
+    pub standstill_speed_m_s: f64,
+    /// Course and speed residuals are used above this speed, m/s.
+    pub min_speed_m_s: f64,
+}
+
+impl Default for DiagnoseConfig {
+    fn default() -> Self {
+        DiagnoseConfig {
+            block_s: None,
+            standstill_speed_m_s: 0.05,
+            min_speed_m_s: 2.0,
+        }
+    }
+}
+
+/// Where a diagnosis is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiagnoseStage {
+    /// Calibrating the plain 2W model.
+    Calibrate,
+    /// Building the residual channels.
+    Channels,
+    /// Testing the catalogue effects.
+    Select,
+    /// Dead-reckoning the blocks before and after.
+    Fit,
+    /// Finished.
+    Done,
+}
+
+/// Why a drive could not be diagnosed.
+#[derive(Debug, thiserror::Error)]
+pub enum DiagnoseError {
+    /// The plain calibration failed.
+    #[error("calibration of the plain 2W model: {0}")]
+    Calibration(#[from] CalibrationError),
+    /// The wheel values could not be read as revolutions.
+    #[error("wheels: {0}")]
+    Wheels(#[from] WheelConversionError),
+    /// Too little data to decide anything.
+    #[error("the drive is too short to diagnose: {0}")]
+    TooShort(String),
+}
+
+/// An accepted effect.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Finding {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// The form's variant, if it has several (`time_constant_s=600`).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub variant: String,
+    /// Parameter values.
+    pub parameters: BTreeMap<String, f64>,
+    /// Their 1-sigma (delete-one-block jackknife).
+    pub sigmas: BTreeMap<String, f64>,
+    /// Their units.
+    pub units: BTreeMap<String, String>,
+    /// Held-out position RMSE of the model before this effect entered, m.
+    pub holdout_rmse_before_m: f64,
+    /// The same with it, m.
+    pub holdout_rmse_after_m: f64,
+    /// Held-out error of the residual channels before and after (weighted,
+    /// relative): the fraction by which the effect lowered it.
+    pub holdout_channel_gain: f64,
+    /// t statistic of that gain over the blocks.
+    pub holdout_gain_t: f64,
+    /// Why it is believed, in words.
+    pub evidence: String,
+}
+
+/// Effects this drive cannot tell apart.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Ambiguous {
+    /// The effects.
+    pub effects: Vec<Effect>,
+    /// Their variance inflation.
+    pub vif: f64,
+    /// The manoeuvre that would separate them.
+    pub separate_by: String,
+}
+
+/// Residual structure no catalogue effect explains.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// Start, s.
+    pub t_start_s: f64,
+    /// End, s.
+    pub t_end_s: f64,
+    /// Where on the track (start of the span), m.
+    pub x_m: f64,
+    /// Where on the track, m.
+    pub y_m: f64,
+    /// The measured signal its residual follows most, or what it is.
+    pub correlates_with: String,
+    /// Position RMSE of the extended model over the span, m.
+    pub rms_m: f64,
+    /// The channel where it shows.
+    pub channel: String,
+}
+
+/// A span where the calibrated plain model leaves the recording beyond the noise.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MismatchSegment {
+    /// Start, s.
+    pub t_start_s: f64,
+    /// End, s.
+    pub t_end_s: f64,
+    /// Position RMSE of the plain model over the span (rigidly aligned), m.
+    pub rms_m: f64,
+    /// What the car does there.
+    pub manoeuvre: String,
+    /// Where (start of the span), m.
+    pub x_m: f64,
+    /// Where, m.
+    pub y_m: f64,
+}
+
+/// Held-out fit of one model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FitMetrics {
+    /// RMS position error of the blocks dead-reckoned with the model
+    /// (coefficients from the other blocks), m.
+    pub holdout_position_rmse_m: f64,
+    /// RMS of the course residual (GNSS course against the model's heading,
+    /// block means out) on held-out blocks, rad.
+    pub holdout_heading_rmse_rad: f64,
+    /// RMS of the relative speed residual on held-out blocks.
+    pub holdout_speed_rmse_rel: f64,
+    /// Lag-1 autocorrelation of the held-out course residual (0 = white).
+    pub residual_lag1_autocorr: f64,
+}
+
+/// Before and after.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Fit {
+    /// The calibrated plain 2W model.
+    pub before: FitMetrics,
+    /// Extended with the accepted effects.
+    pub after: FitMetrics,
+}
+
+/// A candidate that passed the held-out test but was refused.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rejected {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// Why.
+    pub reason: String,
+}
+
+/// An effect this drive cannot test.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Untestable {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// What the drive lacks.
+    pub needs: String,
+}
+
+/// The noise the thresholds came from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NoiseLevels {
+    /// GNSS position noise, 1 sigma, m.
+    pub gnss_sigma_m: f64,
+    /// Block length, s.
+    pub block_s: f64,
+    /// Blocks with data.
+    pub blocks: usize,
+    /// Noise of each channel (its unit in `channel_units`).
+    pub channel_sigma: BTreeMap<String, f64>,
+    /// Units of the channels.
+    pub channel_units: BTreeMap<String, String>,
+    /// GNSS fixes set aside as jumps.
+    pub gnss_jumps: usize,
+}
+
+/// The calibrated plain model the diagnosis started from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BaseModel {
+    /// Rear-left circumference, m.
+    pub c_rl_m: f64,
+    /// Rear-right circumference, m.
+    pub c_rr_m: f64,
+    /// Track width (vehicle.toml's), m.
+    pub track_width_m: f64,
+}
+
+/// Points for one picture: a revealing signal against the residual before
+/// and after (the residual of the finding's channel, with the finding's own
+/// term left in for "before").
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ResidualPlot {
+    /// The effect.
+    pub effect: String,
+    /// The signal's name and unit.
+    pub signal: String,
+    /// The channel's name and unit.
+    pub channel: String,
+    /// (signal, residual before, residual after).
+    pub points: Vec<(f64, f64, f64)>,
+}
+
+/// The tracks of the blocks, before and after, for pictures.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TrackPlot {
+    /// Per block: GNSS fixes, the plain model, the extended model.
+    pub blocks: Vec<(locate::Points, locate::Points, locate::Points)>,
+}
+
+/// What the diagnosis found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// Accepted effects, in the order they entered.
+    pub findings: Vec<Finding>,
+    /// Effects the drive cannot tell apart.
+    pub ambiguous: Vec<Ambiguous>,
+    /// Residual structure no catalogue effect explains.
+    pub unexplained: Vec<Unexplained>,
+    /// Where the plain model and the recording part ways.
+    pub mismatch_segments: Vec<MismatchSegment>,
+    /// Held-out fit before and after.
+    pub fit: Fit,
+    /// Candidates that passed the held-out test but were refused.
+    pub rejected: Vec<Rejected>,
+    /// Effects this drive cannot test.
+    pub untestable: Vec<Untestable>,
+    /// The noise the thresholds came from.
+    pub noise: NoiseLevels,
+    /// The plain model.
+    pub base_model: BaseModel,
+    /// The extension: every accepted term (zero for the others).
+    pub terms: EffectTerms,
+    /// Picture data (not in the JSON).
+    #[serde(skip)]
+    pub residual_plots: Vec<ResidualPlot>,
+    /// Picture data (not in the JSON).
+    #[serde(skip)]
+    pub tracks: TrackPlot,
+}
+
+/// Diagnose a drive.
+pub fn diagnose(drive: &Drive, cfg: &DiagnoseConfig) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with_progress(drive, cfg, &mut |_, _| {})
+}
+
+/// [`diagnose`], reporting the stage and the fraction done.
+pub fn diagnose_with_progress(
+    drive: &Drive,
+    cfg: &DiagnoseConfig,
+    progress: &mut dyn FnMut(DiagnoseStage, f64),
+) -> Result<Diagnosis, DiagnoseError> {
+    progress(DiagnoseStage::Calibrate, 0.0);
+    let plain = CalibrationConfig {
+        track_width: TrackWidthMode::Fixed,
+        estimate_gyro: false,
+        time_offset: TimeOffsetMode::Off,
+        estimate_lever_arm: false,
+        side_slip: false,
+        ..CalibrationConfig::default()
+    };
+    let cal = calibrate(drive, &plain)?;
+    let base = BaseModel {
+        c_rl_m: cal.circumference_m.rl,
+        c_rr_m: cal.circumference_m.rr,
+        track_width_m: drive.vehicle.track_width_m,
+    };
+    progress(DiagnoseStage::Channels, 0.3);
+    let revs = drive.wheel_revolutions()?;
+    let ep = epochs::build(
+        drive,
+        &revs,
+        base.c_rl_m,
+        base.c_rr_m,
+        base.track_width_m,
+        cfg.standstill_speed_m_s,
+    );
+    if ep.epochs.len() < 30 {
+        return Err(DiagnoseError::TooShort(format!(
+            "{} usable GNSS epochs; at least 30 with the wheels running",
+            ep.epochs.len()
+        )));
+    }
+    let excluded = gnss_jumps(&ep);
+    let gnss = drive.gnss.as_deref().unwrap_or(&[]);
+    let cx = locate::Context::new(&revs, gnss, drive.imu.as_deref().unwrap_or(&[]), &ep);
+    let duration = ep.epochs.last().map_or(0.0, |e| e.t_rel_s);
+    let block_s = cfg.block_s.unwrap_or((duration / 12.0).clamp(10.0, 60.0));
+    let design = design::build(
+        &ep,
+        &DesignSettings {
+            block_s,
+            min_speed_m_s: cfg.min_speed_m_s,
+            track_width_m: base.track_width_m,
+        },
+        &excluded,
+    );
+    let stats = BlockStats::new(&design);
+    let used = stats.used_blocks();
+    if used.len() < 4 {
+        return Err(DiagnoseError::TooShort(format!(
+            "{} blocks of {block_s:.0} s with data; at least 4 (a longer drive, or moving more of the time)",
+            used.len()
+        )));
+    }
+    progress(DiagnoseStage::Select, 0.4);
+    let sel = forward_select(&design, &stats);
+    progress(DiagnoseStage::Fit, 0.6);
+
+    // Final coefficients, sigmas, and the effect terms.
+    let cols = model_columns(&design, &sel.accepted);
+    let (beta, sigma) = stats
+        .fit_with_sigmas(&cols)
+        .unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
+    let coef = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| beta[i]);
+    let coef_sigma = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
+    let accepted: Vec<&Candidate> = sel
+        .accepted
+        .iter()
+        .map(|&i| &design.candidates[i])
+        .collect();
+    let (terms, slip_side) = terms_of(&accepted, &coef);
+    let base_model = Model {
+        c_rl: base.c_rl_m,
+        c_rr: base.c_rr_m,
+        track_m: base.track_width_m,
+        terms: EffectTerms::default(),
+        slip_side: 0,
+    };
+    let t_first = ep.epochs.first().map_or(0.0, |e| e.t_s);
+    let span = |b: usize| {
+        (
+            t_first + b as f64 * block_s,
+            t_first + (b + 1) as f64 * block_s,
+        )
+    };
+
+    // Held-out terms per block: fitted on the other blocks.
+    let fold_terms = |model_cands: &[usize], b: usize| -> Model {
+        let cols = model_columns(&design, model_cands);
+        let beta = stats
+            .fit(&cols, |x| x != b)
+            .unwrap_or_else(|| DVector::zeros(cols.len()));
+        let c = |col: usize| cols.iter().position(|&x| x == col).map_or(0.0, |i| beta[i]);
+        let cands: Vec<&Candidate> = model_cands.iter().map(|&i| &design.candidates[i]).collect();
+        let (terms, slip_side) = terms_of(&cands, &c);
+        Model {
+            terms,
+            slip_side,
+            ..base_model
+        }
+    };
+    let position_rmse = |model_cands: &[usize]| -> (f64, Vec<Option<f64>>) {
+        let mut per_block = vec![None; design.blocks];
+        let mut ss = 0.0;
+        let mut n = 0.0;
+        for &b in &used {
+            let (t0, t1) = span(b);
+            let m = if model_cands.is_empty() {
+                base_model
+            } else {
+                fold_terms(model_cands, b)
+            };
+            if let Some(tr) = block_track(&m, &cx, t0, t1) {
+                ss += tr.rms_m * tr.rms_m * tr.gnss.len() as f64;
+                n += tr.gnss.len() as f64;
+                per_block[b] = Some(tr.rms_m);
+            }
+        }
+        ((ss / n.max(1.0)).sqrt(), per_block)
+    };
+
+    // Findings, each with the position RMSE before and after it entered.
+    let mut findings = Vec::new();
+    let mut so_far: Vec<usize> = Vec::new();
+    let (mut rmse_prev, before_blocks) = position_rmse(&[]);
+    let rmse_before = rmse_prev;
+    for (k, &ci) in sel.accepted.iter().enumerate() {
+        so_far.push(ci);
+        let (rmse_now, _) = position_rmse(&so_far);
+        let cand = &design.candidates[ci];
+        let mut parameters = BTreeMap::new();
+        let mut sigmas = BTreeMap::new();
+        let mut units = BTreeMap::new();
+        for p in &cand.params {
+            let (v, s) = param_value(cand.effect, p.name, coef(p.column), coef_sigma(p.column));
+            parameters.insert(param_name(cand.effect, p.name).to_string(), v);
+            sigmas.insert(param_name(cand.effect, p.name).to_string(), s);
+            units.insert(
+                param_name(cand.effect, p.name).to_string(),
+                param_unit(cand.effect, p.name).to_string(),
+            );
+        }
+        if cand.effect == Effect::RadiusDrift {
+            if let Some(t) = cand.variant.strip_prefix("time_constant_s=") {
+                if let Ok(t) = t.parse::<f64>() {
+                    parameters.insert("time_constant_s".into(), t);
+                    units.insert("time_constant_s".into(), "s".into());
+                }
+            }
+        }
+        let g = sel.gains[k];
+        let evidence = format!(
+            "{} lowers the held-out residual of {} by {:.1} % (t = {:.1} over {} blocks of {:.0} s; \
+             threshold {:.1}); fingerprint: {}",
+            cand.effect,
+            channels_of(&design, cand),
+            100.0 * g.relative,
+            g.t,
+            used.len(),
+            block_s,
+            sel.thresholds[k],
+            fingerprint(cand.effect)
+        );
+        findings.push(Finding {
+            effect: cand.effect,
+            variant: cand.variant.clone(),
+            parameters,
+            sigmas,
+            units,
+            holdout_rmse_before_m: rmse_prev,
+            holdout_rmse_after_m: rmse_now,
+            holdout_channel_gain: g.relative,
+            holdout_gain_t: g.t,
+            evidence,
+        });
+        rmse_prev = rmse_now;
+    }
+    let (rmse_after, after_blocks) = position_rmse(&sel.accepted);
+    progress(DiagnoseStage::Fit, 0.85);
+
+    // Held-out channel residuals before and after.
+    let resid_before = holdout_residuals(&design, &stats, &design.nuisance);
+    let resid_after = holdout_residuals(&design, &stats, &cols);
+    let metrics = |resid: &[f64], rmse: f64| FitMetrics {
+        holdout_position_rmse_m: rmse,
+        holdout_heading_rmse_rad: channel_rms(&design, resid, Channel::CourseWheel),
+        holdout_speed_rmse_rel: channel_rms(&design, resid, Channel::Speed),
+        residual_lag1_autocorr: lag1(&design, resid, Channel::CourseWheel),
+    };
+    let fit = Fit {
+        before: metrics(&resid_before, rmse_before),
+        after: metrics(&resid_after, rmse_after),
+    };
+
+    // Where the plain model leaves the recording beyond the noise: the noise
+    // floor is the larger of the GNSS noise and the extended model's typical
+    // held-out block error.
+    let typical_after = median(&after_blocks.iter().flatten().copied().collect::<Vec<_>>());
+    let floor = ep.gnss_sigma_m.max(if typical_after.is_finite() {
+        typical_after
+    } else {
+        0.0
+    });
+    let epochs_in = |b: usize| -> Vec<&Epoch> {
+        let (t0, t1) = span(b);
+        ep.epochs
+            .iter()
+            .filter(|e| e.t_s >= t0 && e.t_s < t1)
+            .collect()
+    };
+    let mut mismatch_segments = Vec::new();
+    for &b in &used {
+        if let Some(rms) = before_blocks[b] {
+            if rms > 3.0 * floor {
+                let es = epochs_in(b);
+                let (t0, t1) = span(b);
+                mismatch_segments.push(MismatchSegment {
+                    t_start_s: t0,
+                    t_end_s: t1.min(ep.epochs.last().map_or(t1, |e| e.t_s)),
+                    rms_m: rms,
+                    manoeuvre: manoeuvre(&es),
+                    x_m: es.first().map_or(0.0, |e| e.x_m),
+                    y_m: es.first().map_or(0.0, |e| e.y_m),
+                });
+            }
+        }
+    }
+    let unexplained = find_unexplained(
+        &design,
+        &ep,
+        &excluded,
+        &resid_after,
+        &after_blocks,
+        floor,
+        block_s,
+        t_first,
+    );
+
+    let residual_plots = residual_plots(&design, &ep, &stats, &sel.accepted, &resid_after);
+    let mut tracks = TrackPlot::default();
+    for &b in &used {
+        let (t0, t1) = span(b);
+        let plain = block_track(&base_model, &cx, t0, t1);
+        let ext = block_track(
+            &Model {
+                terms,
+                slip_side,
+                ..base_model
+            },
+            &cx,
+            t0,
+            t1,
+        );
+        if let (Some(p), Some(e)) = (plain, ext) {
+            if p.gnss.len() == e.gnss.len() {
+                tracks.blocks.push((p.gnss, p.model, e.model));
+            }
+        }
+    }
+    progress(DiagnoseStage::Done, 1.0);
+    Ok(Diagnosis {
+        findings,
+        ambiguous: sel.ambiguous,
+        unexplained,
+        mismatch_segments,
+        fit,
+        rejected: sel.rejected,
+        untestable: design
+            .untestable
+            .iter()
+            .map(|(e, n)| Untestable {
+                effect: *e,
+                needs: n.clone(),
+            })
+            .collect(),
+        noise: NoiseLevels {
+            gnss_sigma_m: ep.gnss_sigma_m,
+            block_s,
+            blocks: used.len(),
+            channel_sigma: design
+                .channel_sigma
+                .iter()
+                .map(|(c, s)| (c.name().to_string(), *s))
+                .collect(),
+            channel_units: design
+                .channel_sigma
+                .iter()
+                .map(|(c, _)| (c.name().to_string(), c.unit().to_string()))
+                .collect(),
+            gnss_jumps: excluded.iter().filter(|x| **x).count(),
+        },
+        base_model: base,
+        terms,
+        residual_plots,
+        tracks,
+    })
+}
+
+/// Fixes that jump: the step residual far beyond the drive's own spread.
+/// The epochs whose differencing interval spans one are set aside.
+fn gnss_jumps(ep: &Epochs) -> Vec<bool> {
+    let steps: Vec<f64> = ep.epochs.iter().map(|e| e.gnss_step_m).collect();
+    let m = median(&steps);
+    let s = mad_sigma(&steps);
+    let limit = (m + 8.0 * s).max(4.0 * ep.gnss_sigma_m);
+    let n = ep.epochs.len();
+    let mut out = vec![false; n];
+    for (k, st) in steps.iter().enumerate() {
+        if *st > limit {
+            let h = ep.half_width + 1;
+            for flag in out
+                .iter_mut()
+                .take((k + h).min(n))
+                .skip(k.saturating_sub(h))
+            {
+                *flag = true;
+            }
+        }
+    }
+    out
+}
+
+struct Selection {
+    accepted: Vec<usize>,
+    gains: Vec<select::Gain>,
+    thresholds: Vec<f64>,
+    ambiguous: Vec<Ambiguous>,
+    rejected: Vec<Rejected>,
+}
+
+fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {
+    let mut cols = design.nuisance.clone();
+    let c: Vec<&Candidate> = cands.iter().map(|&i| &design.candidates[i]).collect();
+    cols.extend(columns_of(&c));
+    cols
+}
+
+/// Forward selection on held-out blocks (see [`select`]).
+fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
+    let blocks = stats.used_blocks().len() as f64;
+    let mut accepted: Vec<usize> = Vec::new();
+    let mut gains = Vec::new();
+    let mut thresholds = Vec::new();
+    let mut ambiguous = Vec::new();
+    let mut rejected = Vec::new();
+    let mut remaining: Vec<usize> = (0..design.candidates.len()).collect();
+    let mut current = stats.cv_errors(&design.nuisance);
+    loop {
+        let effects_left: std::collections::BTreeSet<Effect> = remaining
+            .iter()
+            .map(|&i| design.candidates[i].effect)
+            .collect();
+        if effects_left.is_empty() {
+            break;
+        }
+        let t_crit = t_quantile(1.0 - ALPHA / effects_left.len() as f64, blocks - 1.0);
+        let base_cols = model_columns(design, &accepted);
+        // Best variant per effect.
+        let mut best: BTreeMap<Effect, (usize, select::Gain, Vec<f64>)> = BTreeMap::new();
+        for &i in &remaining {
+            let mut cols = base_cols.clone();
+            cols.extend(design.candidates[i].columns.iter().copied());
+            let errs = stats.cv_errors(&cols);
+            let g = gain(&current, &errs);
+            let e = design.candidates[i].effect;
+            if best
+                .get(&e)
+                .is_none_or(|(_, bg, _)| g.relative > bg.relative)
+            {
+                best.insert(e, (i, g, errs));
+            }
+        }
+        let mut passing: Vec<(Effect, usize, select::Gain, Vec<f64>)> = best
+            .into_iter()
+            .filter(|(_, (_, g, _))| g.mean > 0.0 && g.t > t_crit)
+            .map(|(e, (i, g, errs))| (e, i, g, errs))
+            .collect();
+        if passing.is_empty() {
+            break;
+        }
+        passing.sort_by(|a, b| b.2.relative.total_cmp(&a.2.relative));
+        let (effect, ci, g, errs) = passing[0].clone();
+        let cand = &design.candidates[ci];
+        let drop_effect = |remaining: &mut Vec<usize>, e: Effect| {
+            remaining.retain(|&i| design.candidates[i].effect != e);
+        };
+        // Plausibility of the coefficient (on all blocks).
+        let mut cols = base_cols.clone();
+        cols.extend(cand.columns.iter().copied());
+        if let Some(beta) = stats.fit(&cols, |_| true) {
+            let implausible: Vec<String> = cand
+                .params
+                .iter()
+                .filter_map(|p| {
+                    let i = cols.iter().position(|&c| c == p.column)?;
+                    let v = beta[i];
+                    (v < p.range.0 || v > p.range.1).then(|| {
+                        format!(
+                            "{} = {:.4e} {} lies outside the plausible {:.1e}..{:.1e}",
+                            p.name, v, p.unit, p.range.0, p.range.1
+                        )
+                    })
+                })
+                .collect();
+            if !implausible.is_empty() {
+                rejected.push(Rejected {
+                    effect,
+                    reason: format!(
+                        "lowers the held-out error by {:.1} % (t = {:.1}) but {}",
+                        100.0 * g.relative,
+                        g.t,
+                        implausible.join("; ")
+                    ),
+                });
+                drop_effect(&mut remaining, effect);
+                continue;
+            }
+        }
+        // Others that pass too and that the drive cannot tell from it.
+        let twins: Vec<(Effect, f64)> = passing[1..]
+            .iter()
+            .map(|(e, i, _, _)| {
+                let other = &design.candidates[*i];
+                let v = stats
+                    .vif(&base_cols, &cand.columns, &other.columns)
+                    .max(stats.vif(&base_cols, &other.columns, &cand.columns));
+                (*e, v)
+            })
+            .filter(|(_, v)| *v > VIF_AMBIGUOUS)
+            .collect();
+        if !twins.is_empty() {
+            let vif = twins.iter().map(|t| t.1).fold(0.0, f64::max);
+            let mut effects = vec![effect];
+            effects.extend(twins.iter().map(|t| t.0));
+            let separate_by = effects[1..]
+                .iter()
+                .map(|e| design::separate_by(effect, *e))
+                .collect::<Vec<_>>()
+                .join("; ");
+            for e in &effects {
+                drop_effect(&mut remaining, *e);
+            }
+            ambiguous.push(Ambiguous {
+                effects,
+                vif,
+                separate_by,
+            });
+            continue;
+        }
+        accepted.push(ci);
+        gains.push(g);
+        thresholds.push(t_crit);
+        current = errs;
+        drop_effect(&mut remaining, effect);
+    }
+    Selection {
+        accepted,
+        gains,
+        thresholds,
+        ambiguous,
+        rejected,
+    }
+}
+
+/// Effect terms from fitted coefficients.
+fn terms_of(cands: &[&Candidate], coef: &dyn Fn(usize) -> f64) -> (EffectTerms, i8) {
+    let mut t = EffectTerms::default();
+    let mut slip_side = 0;
+    for c in cands {
+        let v = |k: usize| coef(c.columns[k]);
+        match c.effect {
+            Effect::SideSlip => t.k_beta = v(0),
+            Effect::LoadTransferRadius => t.k_z = v(0),
+            Effect::SpeedRadiusGrowth => t.k_v = v(0),
+            Effect::LongitudinalSlip => {
+                t.k_s = v(0);
+                slip_side = match c.variant.as_str() {
+                    "braking only" => -1,
+                    "driving only" => 1,
+                    _ => 0,
+                };
+            }
+            Effect::TrackWidth => t.track_rel = v(0),
+            Effect::GyroBias => t.gyro_bias_rad_s = v(0),
+            Effect::GyroScale => t.gyro_scale = v(0),
+            Effect::GnssLatency => t.gnss_latency_s = v(0),
+            Effect::GnssLeverArm => t.lever_arm_m = [v(0), v(1)],
+            Effect::RadiusDrift => {
+                t.drift_d = v(0);
+                t.drift_time_constant_s = c
+                    .variant
+                    .strip_prefix("time_constant_s=")
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(600.0);
+            }
+            Effect::RoadGrade => t.grade_gain = v(0).max(0.0).sqrt(),
+            Effect::HeadingBias => t.heading_bias_rad = [v(0), v(1), v(2)],
+        }
+    }
+    (t, slip_side)
+}
+
+/// The reported name of a parameter.
+fn param_name(effect: Effect, name: &'static str) -> &'static str {
+    match (effect, name) {
+        (Effect::GyroBias, _) => "b_deg_h",
+        (Effect::RoadGrade, _) => "gain",
+        (Effect::HeadingBias, "a_rad") => "a_deg",
+        (Effect::HeadingBias, "b_rad") => "b_deg",
+        (Effect::HeadingBias, "c_rad") => "c_deg",
+        _ => name,
+    }
+}
+
+fn param_unit(effect: Effect, name: &'static str) -> &'static str {
+    match (effect, name) {
+        (Effect::GyroBias, _) => "deg/h",
+        (Effect::RoadGrade, _) => "1",
+        (Effect::HeadingBias, _) => "deg",
+        (Effect::SideSlip, _) => "rad/(m/s^2)",
+        (Effect::LoadTransferRadius, _) | (Effect::LongitudinalSlip, _) => "1/(m/s^2)",
+        (Effect::SpeedRadiusGrowth, _) => "1/(m/s)^2",
+        (Effect::GnssLatency, _) => "s",
+        (Effect::GnssLeverArm, _) => "m",
+        _ => "1",
+    }
+}
+
+/// A coefficient and its sigma in the reported unit.
+fn param_value(effect: Effect, _name: &'static str, v: f64, s: f64) -> (f64, f64) {
+    match effect {
+        Effect::GyroBias => {
+            let k = 180.0 / std::f64::consts::PI * 3600.0;
+            (v * k, s * k)
+        }
+        Effect::RoadGrade => {
+            // Fitted: gain^2; sigma by the delta method.
+            let g = v.max(0.0).sqrt();
+            (g, if g > 0.0 { s / (2.0 * g) } else { s })
+        }
+        Effect::HeadingBias => (v.to_degrees(), s.to_degrees()),
+        _ => (v, s),
+    }
+}
+
+fn channels_of(design: &Design, cand: &Candidate) -> String {
+    let mut chans: Vec<&'static str> = Vec::new();
+    for &c in &cand.columns {
+        for (r, &(ch, _, _)) in design.rows.iter().enumerate() {
+            if design.columns[c][r] != 0.0 && !chans.contains(&ch.name()) {
+                chans.push(ch.name());
+            }
+        }
+    }
+    chans.join(", ")
+}
+
+/// The catalogue's "gives itself away by", briefly.
+fn fingerprint(effect: Effect) -> &'static str {
+    match effect {
+        Effect::SideSlip => "course offset proportional to v w, outward of the turn",
+        Effect::LoadTransferRadius => "heading error growing with v^2 w",
+        Effect::SpeedRadiusGrowth => "speed ratio growing with v^2, on straights too",
+        Effect::LongitudinalSlip => "speed ratio proportional to a_x",
+        Effect::TrackWidth => "heading error proportional to the heading change",
+        Effect::GyroBias => "gyro heading drifting with time; rate at standstill",
+        Effect::GyroScale => "gyro heading error proportional to the heading change",
+        Effect::GnssLatency => "speed error ~ tau a_x and course lag ~ tau w at once",
+        Effect::GnssLeverArm => "course offset ~ l_x w / v, speed ~ l_y w / v",
+        Effect::RadiusDrift => "speed ratio trending with time since the start",
+        Effect::RoadGrade => "speed ratio following the squared IMU grade",
+        Effect::HeadingBias => "heading residual periodic in heading",
+    }
+}
+
+/// Residual per row with coefficients fitted on the other blocks.
+fn holdout_residuals(design: &Design, stats: &BlockStats, cols: &[usize]) -> Vec<f64> {
+    let mut betas: BTreeMap<usize, DVector<f64>> = BTreeMap::new();
+    for b in stats.used_blocks() {
+        if let Some(beta) = stats.fit(cols, |x| x != b) {
+            betas.insert(b, beta);
+        }
+    }
+    design
+        .rows
+        .iter()
+        .enumerate()
+        .map(|(r, &(_, _, b))| {
+            let pred = betas.get(&b).map_or(0.0, |beta| {
+                cols.iter()
+                    .enumerate()
+                    .map(|(i, &c)| beta[i] * design.columns[c][r])
+                    .sum()
+            });
+            design.y[r] - pred
+        })
+        .collect()
+}
+
+fn channel_rms(design: &Design, resid: &[f64], ch: Channel) -> f64 {
+    let v: Vec<f64> = design
+        .rows
+        .iter()
+        .zip(resid)
+        .filter(|(r, _)| r.0 == ch)
+        .map(|(_, e)| e * e)
+        .collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        (v.iter().sum::<f64>() / v.len() as f64).sqrt()
+    }
+}
+
+fn lag1(design: &Design, resid: &[f64], ch: Channel) -> f64 {
+    let idx: Vec<usize> = (0..design.rows.len())
+        .filter(|&r| design.rows[r].0 == ch)
+        .collect();
+    let pairs: Vec<(f64, f64)> = idx
+        .windows(2)
+        .filter(|p| design.rows[p[0]].2 == design.rows[p[1]].2)
+        .map(|p| (resid[p[0]], resid[p[1]]))
+        .collect();
+    correlation(&pairs)
+}
+
+/// Blocks whose held-out residual stays far above the drive's own noise
+/// after the accepted effects, and GNSS jumps.
+#[allow(clippy::too_many_arguments)]
+fn find_unexplained(
+    design: &Design,
+    ep: &Epochs,
+    excluded: &[bool],
+    resid: &[f64],
+    after_blocks: &[Option<f64>],
+    floor: f64,
+    block_s: f64,
+    t_first: f64,
+) -> Vec<Unexplained> {
+    let mut out = Vec::new();
+    // GNSS jumps.
+    let mut k = 0;
+    while k < excluded.len() {
+        if excluded[k] {
+            let start = k;
+            while k < excluded.len() && excluded[k] {
+                k += 1;
+            }
+            let (a, b) = (&ep.epochs[start], &ep.epochs[k - 1]);
+            let jump = ep.epochs[start..k]
+                .iter()
+                .map(|e| e.gnss_step_m)
+                .fold(0.0, f64::max);
+            out.push(Unexplained {
+                t_start_s: a.t_s,
+                t_end_s: b.t_s,
+                x_m: a.x_m,
+                y_m: a.y_m,
+                correlates_with: format!(
+                    "a GNSS jump: a fix {jump:.2} m from where the previous fix and the wheels put it"
+                ),
+                rms_m: jump,
+                channel: "position".to_string(),
+            });
+        } else {
+            k += 1;
+        }
+    }
+    // Per block and channel: mean normalised squared residual.
+    for ch in [Channel::Speed, Channel::CourseWheel, Channel::CourseGyro] {
+        let mut per_block: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
+        for (r, &(c, _, b)) in design.rows.iter().enumerate() {
+            if c == ch {
+                let e = per_block.entry(b).or_insert((0.0, 0.0));
+                e.0 += design.w[r] * resid[r] * resid[r];
+                e.1 += 1.0;
+            }
+        }
+        let scores: Vec<(usize, f64)> = per_block
+            .iter()
+            .filter(|(_, v)| v.1 >= 3.0)
+            .map(|(b, v)| (*b, v.0 / v.1))
+            .collect();
+        let vals: Vec<f64> = scores.iter().map(|s| s.1).collect();
+        let m = median(&vals);
+        let s = mad_sigma(&vals);
+        let limit = m + 6.0 * s.max(0.1 * m);
+        for (b, score) in scores {
+            if score <= limit {
+                continue;
+            }
+            let t0 = t_first + b as f64 * block_s;
+            let t1 = t0 + block_s;
+            let rows: Vec<usize> = (0..design.rows.len())
+                .filter(|&r| design.rows[r].0 == ch && design.rows[r].2 == b)
+                .collect();
+            let signal = |f: &dyn Fn(&Epoch) -> f64| -> f64 {
+                let pairs: Vec<(f64, f64)> = rows
+                    .iter()
+                    .map(|&r| (f(&ep.epochs[design.rows[r].1]), resid[r]))
+                    .collect();
+                correlation(&pairs)
+            };
+            let candidates: [(&str, f64); 6] = [
+                ("longitudinal acceleration a_x", signal(&|e| e.a_x)),
+                ("lateral acceleration a_y", signal(&|e| e.a_y)),
+                ("speed", signal(&|e| e.v_odo)),
+                ("yaw rate", signal(&|e| e.w_odo)),
+                ("time (a drift)", signal(&|e| e.t_s)),
+                ("GNSS step residual", signal(&|e| e.gnss_step_m)),
+            ];
+            let best = candidates
+                .iter()
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+                .copied()
+                .unwrap_or(("nothing", 0.0));
+            let first = rows.first().map(|&r| &ep.epochs[design.rows[r].1]);
+            out.push(Unexplained {
+                t_start_s: t0,
+                t_end_s: t1,
+                x_m: first.map_or(0.0, |e| e.x_m),
+                y_m: first.map_or(0.0, |e| e.y_m),
+                correlates_with: if best.1.abs() >= 0.5 {
+                    format!("{} (correlation {:+.2})", best.0, best.1)
+                } else {
+                    format!(
+                        "no measured signal (largest correlation {:+.2}, with {})",
+                        best.1, best.0
+                    )
+                },
+                rms_m: after_blocks.get(b).copied().flatten().unwrap_or(floor),
+                channel: ch.name().to_string(),
+            });
+        }
+    }
+    out
+}
+
+/// For each finding: its revealing signal against its channel's residual
+/// with and without its term (the other accepted terms in both).
+fn residual_plots(
+    design: &Design,
+    ep: &Epochs,
+    stats: &BlockStats,
+    accepted: &[usize],
+    resid_after: &[f64],
+) -> Vec<ResidualPlot> {
+    let mut out = Vec::new();
+    for &ci in accepted {
+        let cand = &design.candidates[ci];
+        let others: Vec<usize> = accepted.iter().copied().filter(|&x| x != ci).collect();
+        let cols = model_columns(design, &others);
+        let without = holdout_residuals(design, stats, &cols);
+        // The channel where the term weighs most.
+        let col = cand.columns[0];
+        let mut best = (Channel::Speed, 0.0);
+        for ch in Channel::ALL {
+            let e: f64 = design
+                .rows
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| r.0 == ch)
+                .map(|(r, _)| design.w[r] * design.columns[col][r].powi(2))
+                .sum();
+            if e > best.1 {
+                best = (ch, e);
+            }
+        }
+        let ch = best.0;
+        type Signal = (&'static str, Box<dyn Fn(&Epoch) -> f64>);
+        let (signal, f): Signal = match cand.effect {
+            Effect::SideSlip => (
+                "lateral acceleration a_y, m/s^2",
+                Box::new(|e: &Epoch| e.a_y),
+            ),
+            Effect::LoadTransferRadius => ("v^2 w, m^2/s^3", Box::new(|e: &Epoch| e.v_odo * e.a_y)),
+            Effect::SpeedRadiusGrowth => ("speed v, m/s", Box::new(|e: &Epoch| e.v_odo)),
+            Effect::LongitudinalSlip => (
+                "longitudinal acceleration a_x, m/s^2",
+                Box::new(|e: &Epoch| e.a_x),
+            ),
+            Effect::TrackWidth => ("2W heading change, rad", Box::new(|e: &Epoch| e.psi_odo)),
+            Effect::GyroBias => ("time, s", Box::new(|e: &Epoch| e.t_rel_s)),
+            Effect::GyroScale => ("gyro heading change, rad", Box::new(|e: &Epoch| e.psi_gyro)),
+            Effect::GnssLatency => ("yaw rate w, rad/s", Box::new(|e: &Epoch| e.w_odo)),
+            Effect::GnssLeverArm => (
+                "w / v, 1/m",
+                Box::new(|e: &Epoch| e.w_odo / e.v_odo.max(0.1)),
+            ),
+            Effect::RadiusDrift => ("time, s", Box::new(|e: &Epoch| e.t_rel_s)),
+            Effect::RoadGrade => ("IMU grade", Box::new(|e: &Epoch| e.grade)),
+            Effect::HeadingBias => ("GNSS course, rad", Box::new(|e: &Epoch| e.course_gnss)),
+        };
+        let rows: Vec<usize> = (0..design.rows.len())
+            .filter(|&r| design.rows[r].0 == ch)
+            .collect();
+        let step = (rows.len() / 3000).max(1);
+        let points = rows
+            .iter()
+            .step_by(step)
+            .map(|&r| (f(&ep.epochs[design.rows[r].1]), without[r], resid_after[r]))
+            .filter(|p| p.0.is_finite() && p.1.is_finite() && p.2.is_finite())
+            .collect();
+        out.push(ResidualPlot {
+            effect: cand.effect.id().to_string(),
+            signal: signal.to_string(),
+            channel: format!("{} residual, {}", ch.name(), ch.unit()),
+            points,
+        });
+    }
+    out
+}

@@ -1,0 +1,313 @@
+//! Which effects the drive supports: forward selection on held-out blocks.
+//!
+//! GNSS errors are correlated in time, so nothing is judged on single
+//! samples. The drive is cut into contiguous blocks; a model is fitted on all
+//! blocks but one and scored on the one left out, for every block in turn.
+//! An effect enters the model when adding it lowers the held-out error by
+//! more than the block-to-block spread of that gain explains (a one-sided
+//! t-test over blocks, Bonferroni over the candidates still in the race),
+//! its coefficient has a plausible sign and size, and no other candidate
+//! that passes as well is so collinear with it (variance inflation above
+//! [`VIF_AMBIGUOUS`]) that the drive cannot tell the two apart.
+//!
+//! Everything works on per-block sufficient statistics (X'WX, X'Wy, y'Wy),
+//! so a fit is a small solve whatever the drive's length.
+
+use super::design::{Candidate, Design};
+use nalgebra::{DMatrix, DVector};
+
+/// Variance inflation above which two effects are reported as ambiguous.
+pub const VIF_AMBIGUOUS: f64 = 10.0;
+
+/// Family-wise false-discovery level of one selection step.
+pub const ALPHA: f64 = 0.05;
+
+/// Per-block sufficient statistics over every column.
+#[derive(Debug, Clone)]
+pub struct BlockStats {
+    /// X'WX per block.
+    pub xtx: Vec<DMatrix<f64>>,
+    /// X'Wy per block.
+    pub xty: Vec<DVector<f64>>,
+    /// y'Wy per block.
+    pub yty: Vec<f64>,
+    /// Rows per block.
+    pub rows: Vec<usize>,
+}
+
+impl BlockStats {
+    /// Accumulate the design's rows by block.
+    pub fn new(d: &Design) -> BlockStats {
+        let p = d.columns.len();
+        let mut s = BlockStats {
+            xtx: vec![DMatrix::zeros(p, p); d.blocks],
+            xty: vec![DVector::zeros(p); d.blocks],
+            yty: vec![0.0; d.blocks],
+            rows: vec![0; d.blocks],
+        };
+        let mut x = vec![0.0; p];
+        for (r, &(_, _, b)) in d.rows.iter().enumerate() {
+            let w = d.w[r];
+            if w.is_nan() || w <= 0.0 || !d.y[r].is_finite() {
+                continue;
+            }
+            for (j, col) in d.columns.iter().enumerate() {
+                x[j] = if col[r].is_finite() { col[r] } else { 0.0 };
+            }
+            for i in 0..p {
+                if x[i] == 0.0 {
+                    continue;
+                }
+                s.xty[b][i] += w * x[i] * d.y[r];
+                for j in 0..p {
+                    s.xtx[b][(i, j)] += w * x[i] * x[j];
+                }
+            }
+            s.yty[b] += w * d.y[r] * d.y[r];
+            s.rows[b] += 1;
+        }
+        s
+    }
+
+    /// Blocks with rows.
+    pub fn used_blocks(&self) -> Vec<usize> {
+        (0..self.rows.len()).filter(|&b| self.rows[b] > 0).collect()
+    }
+
+    /// Fit the columns `cols` on the blocks for which `keep` is true.
+    pub fn fit(&self, cols: &[usize], keep: impl Fn(usize) -> bool) -> Option<DVector<f64>> {
+        let k = cols.len();
+        let mut a: DMatrix<f64> = DMatrix::zeros(k, k);
+        let mut c: DVector<f64> = DVector::zeros(k);
+        for b in 0..self.rows.len() {
+            if !keep(b) || self.rows[b] == 0 {
+                continue;
+            }
+            for (i, &ci) in cols.iter().enumerate() {
+                c[i] += self.xty[b][ci];
+                for (j, &cj) in cols.iter().enumerate() {
+                    a[(i, j)] += self.xtx[b][(ci, cj)];
+                }
+            }
+        }
+        // A whisker of ridge, relative to each column's own scale, keeps a
+        // column that is zero on the training blocks from breaking the solve.
+        for i in 0..k {
+            let d = a[(i, i)];
+            a[(i, i)] = d + 1e-9 * d.max(1e-12);
+        }
+        a.cholesky().map(|ch| ch.solve(&c))
+    }
+
+    /// Weighted squared error of `beta` (over `cols`) on block `b`.
+    pub fn error(&self, cols: &[usize], beta: &DVector<f64>, b: usize) -> f64 {
+        let mut e = self.yty[b];
+        for (i, &ci) in cols.iter().enumerate() {
+            e -= 2.0 * beta[i] * self.xty[b][ci];
+            for (j, &cj) in cols.iter().enumerate() {
+                e += beta[i] * beta[j] * self.xtx[b][(ci, cj)];
+            }
+        }
+        e.max(0.0)
+    }
+
+    /// Held-out error per used block of the model with columns `cols`.
+    pub fn cv_errors(&self, cols: &[usize]) -> Vec<f64> {
+        self.used_blocks()
+            .into_iter()
+            .map(|b| match self.fit(cols, |x| x != b) {
+                Some(beta) => self.error(cols, &beta, b),
+                None => self.yty[b],
+            })
+            .collect()
+    }
+
+    /// Coefficients on all blocks, and their delete-one-block jackknife sigmas.
+    pub fn fit_with_sigmas(&self, cols: &[usize]) -> Option<(DVector<f64>, DVector<f64>)> {
+        let full = self.fit(cols, |_| true)?;
+        let used = self.used_blocks();
+        let n = used.len() as f64;
+        let reps: Vec<DVector<f64>> = used
+            .iter()
+            .filter_map(|&b| self.fit(cols, |x| x != b))
+            .collect();
+        if reps.len() < 3 {
+            return Some((
+                full.clone(),
+                DVector::from_element(cols.len(), f64::INFINITY),
+            ));
+        }
+        let mean = reps.iter().fold(DVector::zeros(cols.len()), |a, r| a + r) / reps.len() as f64;
+        let var = reps.iter().fold(DVector::zeros(cols.len()), |a, r| {
+            let d = r - &mean;
+            a + d.component_mul(&d)
+        }) * ((n - 1.0) / n);
+        Some((full, var.map(f64::sqrt)))
+    }
+
+    /// Variance inflation of the columns of `a` given those of `b` and the
+    /// base columns: 1 / (1 - R^2) of the worst column of `a` regressed on
+    /// the others, all blocks pooled.
+    pub fn vif(&self, base: &[usize], a: &[usize], b: &[usize]) -> f64 {
+        let mut pooled_x: DMatrix<f64> = DMatrix::zeros(self.xtx[0].nrows(), self.xtx[0].ncols());
+        for m in &self.xtx {
+            pooled_x += m;
+        }
+        let resid = |target: usize, on: &[usize]| -> f64 {
+            // Residual sum of squares of column `target` on columns `on`.
+            let k = on.len();
+            let tt = pooled_x[(target, target)];
+            if k == 0 {
+                return tt;
+            }
+            let mut g: DMatrix<f64> = DMatrix::zeros(k, k);
+            let mut h: DVector<f64> = DVector::zeros(k);
+            for (i, &ci) in on.iter().enumerate() {
+                h[i] = pooled_x[(ci, target)];
+                for (j, &cj) in on.iter().enumerate() {
+                    g[(i, j)] = pooled_x[(ci, cj)];
+                }
+                g[(i, i)] += 1e-12 * g[(i, i)].max(1e-300);
+            }
+            match g.cholesky() {
+                Some(ch) => {
+                    let beta = ch.solve(&h);
+                    (tt - beta.dot(&h)).max(0.0)
+                }
+                None => tt,
+            }
+        };
+        let mut worst: f64 = 1.0;
+        for &ca in a {
+            let on_base = resid(ca, base);
+            let mut others: Vec<usize> = base.to_vec();
+            others.extend_from_slice(b);
+            let on_all = resid(ca, &others);
+            if on_base > 0.0 {
+                let r2 = 1.0 - on_all / on_base;
+                worst = worst.max(1.0 / (1.0 - r2).max(1e-12));
+            }
+        }
+        worst
+    }
+}
+
+/// The one-sided test of a held-out gain: per-block gains, their mean, its
+/// t statistic, and the fraction of blocks that gained.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gain {
+    /// Mean gain per block (weighted squared error).
+    pub mean: f64,
+    /// t statistic of the mean over blocks.
+    pub t: f64,
+    /// Relative gain of the total held-out error.
+    pub relative: f64,
+}
+
+/// Gains of `with` over `without` (per-block held-out errors).
+pub fn gain(without: &[f64], with: &[f64]) -> Gain {
+    let d: Vec<f64> = without.iter().zip(with).map(|(a, b)| a - b).collect();
+    let n = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / n.max(1.0);
+    let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    let t = if var > 0.0 {
+        mean / (var / n).sqrt()
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    };
+    let total: f64 = without.iter().sum();
+    Gain {
+        mean,
+        t,
+        relative: if total > 0.0 { mean * n / total } else { 0.0 },
+    }
+}
+
+/// Standard normal quantile (Acklam's rational approximation, |error| < 1.2e-9).
+#[allow(clippy::excessive_precision)]
+pub fn normal_quantile(p: f64) -> f64 {
+    let a = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383577518672690e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    let b = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    let c = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    let d = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let pl = 0.02425;
+    if p < pl {
+        let q = (-2.0 * p.ln()).sqrt();
+        (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
+            / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
+    } else if p <= 1.0 - pl {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q
+            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
+    } else {
+        -normal_quantile(1.0 - p)
+    }
+}
+
+/// Student t quantile by the Cornish-Fisher expansion about the normal one
+/// (good to a few per cent for 4 or more degrees of freedom).
+pub fn t_quantile(p: f64, dof: f64) -> f64 {
+    let z = normal_quantile(p);
+    let v = dof.max(1.0);
+    z + (z.powi(3) + z) / (4.0 * v)
+        + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * v * v)
+        + (3.0 * z.powi(7) + 19.0 * z.powi(5) + 17.0 * z.powi(3) - 15.0 * z) / (384.0 * v.powi(3))
+}
+
+/// The columns of a set of candidates.
+pub fn columns_of(cands: &[&Candidate]) -> Vec<usize> {
+    cands
+        .iter()
+        .flat_map(|c| c.columns.iter().copied())
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_match_tables() {
+        assert!((normal_quantile(0.975) - 1.959964).abs() < 1e-5);
+        assert!((normal_quantile(0.995) - 2.575829).abs() < 1e-5);
+        // t(0.975, 10) = 2.228, t(0.995, 20) = 2.845.
+        assert!((t_quantile(0.975, 10.0) - 2.228).abs() < 0.01);
+        assert!((t_quantile(0.995, 20.0) - 2.845).abs() < 0.01);
+    }
+
+    #[test]
+    fn a_gain_that_every_block_shares_is_significant() {
+        let g = gain(&[2.0, 2.1, 1.9, 2.0], &[1.0, 1.1, 0.95, 1.05]);
+        assert!(g.t > 10.0 && (g.relative - 0.4875).abs() < 1e-9);
+        let g = gain(&[1.0, 1.0, 1.0, 1.0], &[0.5, 1.5, 0.9, 1.1]);
+        assert!(g.t.abs() < 1.0);
+    }
+}

@@ -1,0 +1,205 @@
+//! The `diagnose` subcommand: read the drive, run the pure diagnosis, print
+//! what it found, write the JSON and the pictures with their index page.
+
+use anyhow::{Context, Result};
+use calibrator::diagnose::{
+    diagnose_with_progress, pictures, DiagnoseConfig, DiagnoseStage, Diagnosis,
+};
+use clap::Args;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `calibrator diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Drive folder or MCAP recording.
+    pub drive: PathBuf,
+    /// Write the diagnosis JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the pictures and index.html into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// Block length for the held-out tests, s (default: a twelfth of the drive, 10-60 s).
+    #[arg(long)]
+    pub block: Option<f64>,
+    /// No progress display.
+    #[arg(long)]
+    pub no_progress: bool,
+}
+
+/// Run `calibrator diagnose`.
+pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
+    let loaded = drive_io::read_drive(&args.drive)
+        .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+    let drive = loaded.drive;
+    let cfg = DiagnoseConfig {
+        block_s: args.block,
+        ..DiagnoseConfig::default()
+    };
+    if let Some(b) = args.block {
+        anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
+    }
+    let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
+    let mut shown = false;
+    let result = diagnose_with_progress(&drive, &cfg, &mut |stage, fraction| {
+        if show {
+            let name = match stage {
+                DiagnoseStage::Calibrate => "calibrating the plain model",
+                DiagnoseStage::Channels => "residual channels",
+                DiagnoseStage::Select => "testing the catalogue effects",
+                DiagnoseStage::Fit => "held-out fit before and after",
+                DiagnoseStage::Done => "done",
+            };
+            let mut err = std::io::stderr();
+            let _ = write!(err, "\r{:3.0}% {name:<32}", 100.0 * fraction);
+            let _ = err.flush();
+            shown = true;
+        }
+    });
+    if shown {
+        eprintln!();
+    }
+    let d = result.with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+    print!("{}", render_text(&d));
+    if let Some(path) = &args.json {
+        let text = serde_json::to_string_pretty(&d).context("cannot encode the diagnosis")?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(dir) = &args.plots {
+        write_pictures(dir, &d)?;
+    }
+    Ok(())
+}
+
+fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut pictures: Vec<(String, String)> = vec![
+        ("tracks.svg".to_string(), pictures::tracks_svg(&d.tracks)),
+        (
+            "block_errors.svg".to_string(),
+            pictures::block_errors_svg(&d.tracks),
+        ),
+    ];
+    for p in &d.residual_plots {
+        pictures.push((
+            format!("residual_{}.svg", p.effect),
+            pictures::residual_svg(p),
+        ));
+    }
+    for (name, svg) in &pictures {
+        let path = dir.join(name);
+        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    let index = dir.join("index.html");
+    std::fs::write(&index, pictures::index_html(d, &pictures))
+        .with_context(|| format!("cannot write {}", index.display()))?;
+    println!("wrote {} pictures and {}", pictures.len(), index.display());
+    Ok(())
+}
+
+/// The diagnosis as text for the terminal.
+pub fn render_text(d: &Diagnosis) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "plain 2W model: c_RL {:.4} m, c_RR {:.4} m, track {:.3} m (vehicle.toml)",
+        d.base_model.c_rl_m, d.base_model.c_rr_m, d.base_model.track_width_m
+    );
+    let _ = writeln!(
+        s,
+        "noise: GNSS {:.3} m (1 sigma), {} blocks of {:.0} s{}",
+        d.noise.gnss_sigma_m,
+        d.noise.blocks,
+        d.noise.block_s,
+        if d.noise.gnss_jumps > 0 {
+            format!(", {} epochs set aside as GNSS jumps", d.noise.gnss_jumps)
+        } else {
+            String::new()
+        }
+    );
+    if d.findings.is_empty() {
+        let _ = writeln!(
+            s,
+            "findings: none beyond the noise: the plain 2W model explains this drive"
+        );
+    } else {
+        let _ = writeln!(s, "findings:");
+        for f in &d.findings {
+            let params: Vec<String> = f
+                .parameters
+                .iter()
+                .map(|(k, v)| {
+                    let sig = f.sigmas.get(k).copied().unwrap_or(f64::NAN);
+                    let unit = f.units.get(k).map_or("", |u| u.as_str());
+                    format!("{k} = {v:.4e} ± {sig:.1e} {unit}")
+                })
+                .collect();
+            let _ = writeln!(
+                s,
+                "  {}{}: {}; held-out position RMSE {:.3} -> {:.3} m",
+                f.effect,
+                if f.variant.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({})", f.variant)
+                },
+                params.join(", "),
+                f.holdout_rmse_before_m,
+                f.holdout_rmse_after_m
+            );
+            let _ = writeln!(s, "    {}", f.evidence);
+        }
+    }
+    for a in &d.ambiguous {
+        let ids: Vec<&str> = a.effects.iter().map(|e| e.id()).collect();
+        let _ = writeln!(
+            s,
+            "ambiguous: {} (VIF {:.0}); separate by {}",
+            ids.join(" / "),
+            a.vif,
+            a.separate_by
+        );
+    }
+    for u in &d.unexplained {
+        let _ = writeln!(
+            s,
+            "unexplained: {:.1}-{:.1} s at ({:.0}, {:.0}) m in {}: {}",
+            u.t_start_s, u.t_end_s, u.x_m, u.y_m, u.channel, u.correlates_with
+        );
+    }
+    for m in &d.mismatch_segments {
+        let _ = writeln!(
+            s,
+            "mismatch: {:.1}-{:.1} s, {:.3} m RMS: {}",
+            m.t_start_s, m.t_end_s, m.rms_m, m.manoeuvre
+        );
+    }
+    for r in &d.rejected {
+        let _ = writeln!(s, "rejected {}: {}", r.effect, r.reason);
+    }
+    for u in &d.untestable {
+        let _ = writeln!(s, "not testable here: {} (needs {})", u.effect, u.needs);
+    }
+    let (b, a) = (&d.fit.before, &d.fit.after);
+    let _ = writeln!(
+        s,
+        "held-out fit, before -> after: position RMSE {:.3} -> {:.3} m, heading RMSE {:.4} -> {:.4} rad, \
+         speed RMSE {:.4} -> {:.4}, residual lag-1 autocorrelation {:.2} -> {:.2}",
+        b.holdout_position_rmse_m,
+        a.holdout_position_rmse_m,
+        b.holdout_heading_rmse_rad,
+        a.holdout_heading_rmse_rad,
+        b.holdout_speed_rmse_rel,
+        a.holdout_speed_rmse_rel,
+        b.residual_lag1_autocorr,
+        a.residual_lag1_autocorr
+    );
+    s
+}

@@ -1,0 +1,234 @@
+//! The result types: [`Calibration`] (serialised as the calibration JSON),
+//! the per-method [`MethodResult`] the estimators return, and their parts.
+//!
+//! JSON field names are a contract with the odometry and the live service:
+//! `circumference_m.rl/.rr`, `sigma_m`, `track_width_m`, `gyro_bias_rad_s`,
+//! `gyro_scale`, `method`, `selected_iteration`, `iterations`, `warnings`.
+
+use crate::gyro::GyroEstimate;
+use crate::method::Method;
+use crate::reference::TimeOffset;
+use crate::uncertainty::Sigmas;
+use crate::warnings::{Warning, WarningCode};
+use serde::{Deserialize, Serialize};
+
+/// Points kept of the dead-reckoned tracks for the plots.
+pub const TRACK_POINTS: usize = 3000;
+
+/// A value per rear wheel.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RearPair {
+    /// Rear left.
+    pub rl: f64,
+    /// Rear right.
+    pub rr: f64,
+}
+
+/// 1-sigma of the circumferences; `None` where not determined.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RearSigma {
+    /// c_RL, m.
+    pub rl: Option<f64>,
+    /// c_RR, m.
+    pub rr: Option<f64>,
+    /// c_RR - c_RL, m.
+    pub difference: Option<f64>,
+    /// (c_RL + c_RR) / 2, m.
+    pub mean: Option<f64>,
+}
+
+impl From<&Sigmas> for RearSigma {
+    fn from(s: &Sigmas) -> Self {
+        let f = |v: f64| v.is_finite().then_some(v);
+        RearSigma {
+            rl: f(s.rl),
+            rr: f(s.rr),
+            difference: f(s.difference),
+            mean: f(s.mean),
+        }
+    }
+}
+
+/// One row of the per-iteration table (the paper's Fig. 6).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct IterationRecord {
+    /// Iteration (0 = the nominal start).
+    pub n: usize,
+    /// Circumferences after it.
+    pub circumference_m: RearPair,
+    /// Track width used, m.
+    pub track_width_m: f64,
+    /// Mean deviation of the pure 2W dead-reckoning from the reference, m.
+    pub dr_error_mean_m: f64,
+    /// Largest deviation, m.
+    pub dr_error_max_m: f64,
+}
+
+/// The output of one method (internal to the library, public for the report).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MethodResult {
+    /// Which method.
+    pub method: Method,
+    /// [c_RL, c_RR], m.
+    pub c: [f64; 2],
+    /// Track width used or estimated, m.
+    pub track: f64,
+    /// Whether the track width was estimated.
+    pub track_estimated: bool,
+    /// Fitted side-slip gain (batch with side-slip on).
+    pub side_slip_gain: Option<f64>,
+    /// Whether side-slip was in the model.
+    pub side_slip: bool,
+    /// Estimated GNSS antenna position (body x, y from the rear-axle centre)
+    /// and its sigmas, m (batch with the lever arm estimated).
+    pub lever_arm: Option<([f64; 2], [f64; 2])>,
+    /// Uncertainty.
+    pub sigmas: Sigmas,
+    /// Per-iteration table.
+    pub iterations: Vec<IterationRecord>,
+    /// The kept iteration.
+    pub selected_iteration: usize,
+    /// RMS of the GNSS residuals (batch), m.
+    pub residual_rms_m: Option<f64>,
+    /// Segments (batch).
+    pub segments: usize,
+    /// Dead-reckoned track with the nominal values (thinned).
+    pub track_before: Vec<[f64; 2]>,
+    /// Dead-reckoned track with the estimate (thinned).
+    pub track_after: Vec<[f64; 2]>,
+    /// Method-specific warnings.
+    pub notes: Vec<Warning>,
+}
+
+/// One method's result in a side-by-side comparison.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodSummary {
+    /// Method.
+    pub method: Method,
+    /// Estimate.
+    pub circumference_m: RearPair,
+    /// Its sigmas.
+    pub sigma_m: RearSigma,
+    /// Track width used or estimated, m.
+    pub track_width_m: f64,
+    /// Kept iteration.
+    pub selected_iteration: usize,
+    /// Mean deviation of the pure 2W dead-reckoning from the reference, m.
+    pub dr_error_mean_m: f64,
+    /// Largest deviation, m.
+    pub dr_error_max_m: f64,
+}
+
+/// Facts about the drive and the reference.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Diagnostics {
+    /// Wheel data duration, s.
+    pub duration_s: f64,
+    /// Distance with a valid reference (nominal circumference), m.
+    pub distance_m: f64,
+    /// Total absolute heading change, degrees.
+    pub total_turn_deg: f64,
+    /// GNSS fixes in the drive (finite).
+    pub gnss_fixes: usize,
+    /// Fixes rejected as outliers.
+    pub gnss_outliers: usize,
+    /// GNSS outages bridged.
+    pub gnss_outages: usize,
+    /// GNSS 1-sigma used, m.
+    pub gnss_sigma_m: f64,
+    /// Whether it was estimated from the fixes.
+    pub gnss_sigma_estimated: bool,
+    /// Wheel/GNSS time offset, when checked.
+    pub time_offset: Option<TimeOffset>,
+    /// GNSS antenna position used, body frame from the rear-axle centre, m.
+    pub lever_arm_m: [f64; 2],
+    /// Layer-1 side-slip gain k (beta = -k a_y), rad per m/s^2.
+    pub reference_side_slip_gain: Option<f64>,
+    /// Standstill time, s.
+    pub standstill_s: f64,
+    /// RMS of the GNSS residuals of the batch fit, m.
+    pub residual_rms_m: Option<f64>,
+    /// Batch segments.
+    pub segments: usize,
+    /// Offsets subtracted from rate-type wheel channels (rl, rr, in the
+    /// channel's unit), measured at standstill.
+    pub wheel_rate_offsets: Option<[f64; 2]>,
+}
+
+/// The nominal values the calibration started from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Nominal {
+    /// Circumference of every wheel, m.
+    pub circumference_m: f64,
+    /// Rear track, m.
+    pub track_width_m: f64,
+}
+
+/// Thinned tracks for the plots (not serialised).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Tracks {
+    /// The reference (rear-axle centre).
+    pub reference: Vec<[f64; 2]>,
+    /// 2W dead-reckoning with the nominal values.
+    pub before: Vec<[f64; 2]>,
+    /// 2W dead-reckoning with the estimate.
+    pub after: Vec<[f64; 2]>,
+    /// Accepted GNSS fixes (antenna).
+    pub gnss: Vec<[f64; 2]>,
+}
+
+/// The calibration result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Calibration {
+    /// Effective rear circumferences, m.
+    pub circumference_m: RearPair,
+    /// Their 1-sigma, m.
+    pub sigma_m: RearSigma,
+    /// Effective rear track used with them (estimated or nominal), m.
+    pub track_width_m: f64,
+    /// Whether the track width was estimated.
+    pub track_width_estimated: bool,
+    /// 1-sigma of the track width, m, when estimated.
+    pub sigma_track_width_m: Option<f64>,
+    /// Yaw-rate gyro bias, rad/s (`omega_gyro = (1 + gyro_scale) omega + bias`).
+    pub gyro_bias_rad_s: Option<f64>,
+    /// Yaw-rate gyro scale error (0 = perfect).
+    pub gyro_scale: Option<f64>,
+    /// The gyro calibration in full.
+    pub gyro: Option<GyroEstimate>,
+    /// Whether side-slip was in the model.
+    pub side_slip: bool,
+    /// Side-slip gain k (beta = -k a_y), rad per m/s^2, when fitted.
+    pub side_slip_gain_rad_per_m_s2: Option<f64>,
+    /// Estimated GNSS antenna position, body frame from the rear-axle centre, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss_antenna_m: Option<[f64; 2]>,
+    /// Its 1-sigma, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_gnss_antenna_m: Option<[f64; 2]>,
+    /// The method that produced the values.
+    pub method: Method,
+    /// The kept iteration.
+    pub selected_iteration: usize,
+    /// Per-iteration table (the paper's Fig. 6).
+    pub iterations: Vec<IterationRecord>,
+    /// Everything skipped, assumed or not determined.
+    pub warnings: Vec<Warning>,
+    /// Starting values.
+    pub nominal: Nominal,
+    /// Facts about the drive.
+    pub diagnostics: Diagnostics,
+    /// Every method run, side by side (when comparing).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub comparison: Vec<MethodSummary>,
+    /// Tracks for the plots.
+    #[serde(skip)]
+    pub tracks: Tracks,
+}
+
+impl Calibration {
+    /// True when a warning with `code` was raised.
+    pub fn has_warning(&self, code: WarningCode) -> bool {
+        self.warnings.iter().any(|w| w.code == code)
+    }
+}

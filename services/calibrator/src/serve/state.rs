@@ -1,0 +1,193 @@
+//! The accepted estimate of `calibrator serve`: the version the service
+//! gives it, its state file and its wire form.
+//!
+//! The state file is JSON: the fields of `calibrate --json` the odometry reads
+//! (those of [`LiveEstimate`]) plus `version`, `quality_m` and `t_s`. It is
+//! written atomically (a temporary file renamed over it).
+
+use calibrator::live::LiveEstimate;
+use interfaces::effects::Effect;
+use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension, MAX_EXTENSIONS};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use vehicle_model::estimate::antenna_extension;
+
+/// An accepted estimate, as published and as kept in the state file.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Accepted {
+    /// Increases with every accepted estimate (1 = the first).
+    pub version: u64,
+    /// The estimate; its fields sit beside `version` in the JSON.
+    #[serde(flatten)]
+    pub estimate: LiveEstimate,
+}
+
+/// The state file could not be read or written.
+#[derive(Debug, thiserror::Error)]
+#[error("state file {path}: {detail}")]
+pub struct StateError {
+    /// The file.
+    pub path: PathBuf,
+    /// What went wrong.
+    pub detail: String,
+}
+
+impl Accepted {
+    /// The wire form.
+    pub fn to_wire(self) -> CircumferenceEstimate {
+        let e = &self.estimate;
+        let mut extensions = [ModelExtension::default(); MAX_EXTENSIONS];
+        let mut count = 0;
+        if let Some(k) = e.side_slip_gain_rad_per_m_s2 {
+            extensions[0] = ModelExtension {
+                effect_code: Effect::SideSlip.code(),
+                param_count: 1,
+                params: [k, 0.0, 0.0, 0.0],
+            };
+            count = 1;
+        }
+        if let Some(a) = e.gnss_antenna_m {
+            extensions[count] = antenna_extension(a, e.sigma_gnss_antenna_m);
+            count += 1;
+        }
+        CircumferenceEstimate {
+            header: Header::from_seconds(e.t_s, 0),
+            version: self.version,
+            c_rl_m: e.circumference_m.rl,
+            c_rr_m: e.circumference_m.rr,
+            sigma_rl_m: e.sigma_m.rl,
+            sigma_rr_m: e.sigma_m.rr,
+            track_width_m: e.track_width_m,
+            gyro_bias_rad_s: e.gyro_bias_rad_s,
+            gyro_scale: e.gyro_scale,
+            quality_m: e.quality_m,
+            extension_count: count as u32,
+            _pad: 0,
+            extensions,
+        }
+    }
+
+    fn is_usable(&self) -> bool {
+        let e = &self.estimate;
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        pos(e.circumference_m.rl)
+            && pos(e.circumference_m.rr)
+            && pos(e.track_width_m)
+            && e.gyro_bias_rad_s.is_finite()
+            && e.gyro_scale.is_finite()
+    }
+}
+
+/// Read the state file; `Ok(None)` when it does not exist.
+pub fn load_state(path: &Path) -> Result<Option<Accepted>, StateError> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => {
+            return Err(StateError {
+                path: path.to_path_buf(),
+                detail: e.to_string(),
+            })
+        }
+    };
+    let a: Accepted = serde_json::from_str(&text).map_err(|e| StateError {
+        path: path.to_path_buf(),
+        detail: format!("line {}, column {}: {e}", e.line(), e.column()),
+    })?;
+    if !a.is_usable() {
+        return Err(StateError {
+            path: path.to_path_buf(),
+            detail: "circumferences and track must be positive, gyro values finite".to_string(),
+        });
+    }
+    Ok(Some(a))
+}
+
+/// Write the state file atomically (a temporary file renamed over it).
+pub fn save_state(path: &Path, a: &Accepted) -> Result<(), StateError> {
+    let err = |e: std::io::Error| StateError {
+        path: path.to_path_buf(),
+        detail: e.to_string(),
+    };
+    let text = serde_json::to_string_pretty(a).map_err(|e| StateError {
+        path: path.to_path_buf(),
+        detail: e.to_string(),
+    })?;
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(err)?;
+    }
+    let tmp = path.with_extension("json.tmp");
+    std::fs::write(&tmp, text + "\n").map_err(err)?;
+    std::fs::rename(&tmp, path).map_err(err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calibrator::RearPair;
+
+    fn accepted() -> Accepted {
+        Accepted {
+            version: 3,
+            estimate: LiveEstimate {
+                t_s: 12.5,
+                circumference_m: RearPair { rl: 1.98, rr: 1.99 },
+                sigma_m: RearPair { rl: 1e-3, rr: 2e-3 },
+                track_width_m: 1.52,
+                gyro_bias_rad_s: 0.001,
+                gyro_scale: -0.01,
+                side_slip_gain_rad_per_m_s2: Some(0.004),
+                gnss_antenna_m: Some([0.5, -0.3]),
+                sigma_gnss_antenna_m: Some([0.02, 0.03]),
+                quality_m: 0.8,
+            },
+        }
+    }
+
+    #[test]
+    fn the_state_file_round_trips_and_reads_as_a_calibration_json() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub/state.json");
+        assert_eq!(load_state(&path).unwrap(), None);
+        save_state(&path, &accepted()).unwrap();
+        assert_eq!(load_state(&path).unwrap(), Some(accepted()));
+        // The odometry reads it like `calibrate --json` output.
+        let text = std::fs::read_to_string(&path).unwrap();
+        let est = vehicle_model::estimate::Estimate::from_json_str(&text, "state").unwrap();
+        assert_eq!(est.params.two_wheel.c_rr, 1.99);
+        assert_eq!(est.params.gyro_scale, -0.01);
+        assert_eq!(est.antenna_m, Some([0.5, -0.3]));
+        assert_eq!(est.antenna_sigma_m, Some([0.02, 0.03]));
+        // A state file from before the antenna field still loads.
+        let old = text
+            .replace("\"gnss_antenna_m\"", "\"unknown_field\"")
+            .replace("\"sigma_gnss_antenna_m\"", "\"unknown_field_2\"");
+        std::fs::write(&path, old).unwrap();
+        assert_eq!(
+            load_state(&path).unwrap().unwrap().estimate.gnss_antenna_m,
+            None
+        );
+        std::fs::write(&path, "{\"version\": 1}").unwrap();
+        let err = load_state(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("state.json") && err.contains("missing field"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn the_wire_form_carries_every_value() {
+        let w = accepted().to_wire();
+        assert_eq!(w.version, 3);
+        assert_eq!((w.c_rl_m, w.c_rr_m, w.sigma_rr_m), (1.98, 1.99, 2e-3));
+        assert_eq!(w.quality_m, 0.8);
+        assert_eq!(w.extension_count, 2);
+        assert_eq!(w.extensions[0].effect_code, Effect::SideSlip.code());
+        assert_eq!(w.extensions[0].params[0], 0.004);
+        // The odometry reads the antenna back from the second extension.
+        let est = vehicle_model::estimate::Estimate::from_wire(&w).unwrap();
+        assert_eq!(est.antenna_m, Some([0.5, -0.3]));
+        assert_eq!(est.fusable_antenna(), Some([0.5, -0.3]));
+        assert_eq!(w.header.t_ns, 12_500_000_000);
+    }
+}

@@ -1,0 +1,69 @@
+//! Warnings: everything a calibration skipped, assumed or could not
+//! determine, each with a stable [`WarningCode`] and a message naming the
+//! cause.
+
+use serde::{Deserialize, Serialize};
+
+/// What a warning is about (stable, for programs and tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WarningCode {
+    /// Rows with NaN/inf values were skipped.
+    NonFiniteSamples,
+    /// A stream pauses.
+    StreamGap,
+    /// A stream starts late or stops early.
+    StreamStops,
+    /// No IMU.
+    NoImu,
+    /// GNSS fixes rejected as outliers.
+    GnssOutliers,
+    /// GNSS outages (bridged).
+    GnssOutage,
+    /// The wheel/GNSS time offset.
+    TimeOffset,
+    /// Side-slip requested but not available.
+    SideSlipUnavailable,
+    /// The drive has no turn.
+    NoTurn,
+    /// c_RL and c_RR are not separated.
+    DifferenceUnobservable,
+    /// The common scale is poorly determined.
+    ScaleUnobservable,
+    /// The track width is poorly determined.
+    TrackWidthUnobservable,
+    /// The track width was kept at the nominal value.
+    TrackWidthFixed,
+    /// The estimated track width is implausible.
+    TrackWidthImplausible,
+    /// The gyro bias/scale could not be estimated.
+    GyroUnobservable,
+    /// The gyro scale was held at 0.
+    GyroScaleUnobservable,
+    /// The paper's loop was still improving at its last iteration.
+    NotConverged,
+    /// The methods compared disagree beyond their sigmas.
+    MethodsDisagree,
+    /// Batch segments were left out.
+    SegmentsDropped,
+    /// The common scale comes from the wheel + gyro model, not the 2W fit.
+    ScaleFromGyroModel,
+    /// The GNSS antenna position is poorly determined by the drive.
+    AntennaUnobservable,
+}
+
+/// A warning: a stable code and a message naming the cause.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Warning {
+    /// What it is about.
+    pub code: WarningCode,
+    /// Human-readable, names the channel/parameter and the cause.
+    pub message: String,
+}
+
+impl Warning {
+    /// A warning.
+    pub fn new(code: WarningCode, message: String) -> Warning {
+        Warning { code, message }
+    }
+}

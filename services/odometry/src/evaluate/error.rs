@@ -1,0 +1,37 @@
+//! Why an evaluation could not run.
+
+use interfaces::drive::WheelConversionError;
+
+/// Why an evaluation could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum EvaluateError {
+    /// The drive has no `truth.csv`.
+    #[error("the drive has no truth.csv: outages cannot be scored")]
+    NoTruth,
+    /// Gyro heading asked for a drive without `imu.csv`.
+    #[error(
+        "heading mode gyro needs imu.csv, which the drive does not have (use --heading wheels)"
+    )]
+    NoImu,
+    /// Wheel values cannot be converted to revolutions.
+    #[error(transparent)]
+    Wheels(#[from] WheelConversionError),
+    /// Not even one outage fits in the drive.
+    #[error(
+        "no {outage_s} s outage fits: wheels and truth overlap only from {from_s} s to {to_s} s"
+    )]
+    TooShort {
+        /// Requested outage length, s.
+        outage_s: f64,
+        /// Start of the overlap, s.
+        from_s: f64,
+        /// End of the overlap, s.
+        to_s: f64,
+    },
+    /// Every outage was skipped.
+    #[error("every outage was skipped: {0}")]
+    NothingScored(String),
+    /// A setting is out of range.
+    #[error("invalid setting: {0}")]
+    Config(String),
+}

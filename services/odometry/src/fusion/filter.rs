@@ -1,0 +1,144 @@
+//! The filter itself: [`Fusion`], the pose it gives ([`FusedPose`]) and
+//! what it counts ([`FusionStats`]); its construction, its accessors, and
+//! the store of a new running state that every update ends with.
+
+use super::config::FusionConfig;
+use super::error::FusionError;
+use super::kalman::symmetrise;
+use super::queue::Pending;
+use super::state::{all_finite, State, StateMat, StateVec};
+use crate::dead_reckoning::Odometer;
+use interfaces::drive::VehicleParams;
+use interfaces::wire::PoseMode;
+use vehicle_model::estimate::OdometryParams;
+use vehicle_model::two_wheel::Pose2;
+
+/// The filter's pose at a wheel sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusedPose {
+    /// Time of the wheel sample, s.
+    pub t_s: f64,
+    /// The pose (meaningless in `NoFix`, then all zero).
+    pub pose: Pose2,
+    /// Covariance of (x, y, yaw), row-major (all zero in `NoFix`).
+    pub covariance: [f64; 9],
+    /// What the pose stands on.
+    pub mode: PoseMode,
+    /// Version of the estimate in use (0 = nominal).
+    pub estimate_version: u64,
+}
+
+/// Counters of what the filter did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct FusionStats {
+    /// Fixes accepted.
+    pub gnss_accepted: u64,
+    /// Fixes rejected by the gate.
+    pub gnss_rejected: u64,
+    /// Headings accepted.
+    pub heading_accepted: u64,
+    /// Headings rejected by the gate.
+    pub heading_rejected: u64,
+    /// Measurements dropped because they came too late (or waited too long
+    /// for a wheel sample).
+    pub dropped_late: u64,
+    /// Times the filter was initialised.
+    pub initialisations: u64,
+    /// Times the position was reset after persistent rejections.
+    pub position_resets: u64,
+    /// Times the inputs went stale.
+    pub stale: u64,
+    /// Gyro bias measurements taken at standstill.
+    pub gyro_bias_standstills: u64,
+}
+
+/// The EKF with its mode logic. Feed every [`Input`](crate::inputs::Input) in processing order
+/// (see [`crate::inputs`]); a pose comes out at every wheel sample.
+#[derive(Debug, Clone)]
+pub struct Fusion {
+    pub(super) config: FusionConfig,
+    pub(super) odometer: Odometer,
+    /// The circumferences are the nominal guess (no estimate taken yet).
+    pub(super) nominal: bool,
+    pub(super) estimate_version: u64,
+    pub(super) state: State,
+    pub(super) pending: Pending,
+    /// Last wheel sample (t, rl, rr).
+    pub(super) last_wheels: Option<(f64, f64, f64)>,
+    pub(super) last_heading: Option<(f64, f64, f64)>,
+    pub(super) last_accepted_fix_s: Option<f64>,
+    pub(super) first_rejected_fix_s: Option<f64>,
+    pub(super) rejected_in_a_row: u32,
+    /// Time of the last standstill gyro bias measurement, s.
+    pub(super) last_standstill_bias_s: Option<f64>,
+    pub(super) stats: FusionStats,
+}
+
+impl Fusion {
+    /// A filter in `NoFix`, using `params` (estimate `estimate_version`, 0 = nominal).
+    pub fn new(params: OdometryParams, estimate_version: u64, config: FusionConfig) -> Fusion {
+        Fusion {
+            config,
+            odometer: Odometer::new(params, config.odometer),
+            nominal: false,
+            estimate_version,
+            state: State::Uninitialised {
+                anchor: None,
+                local: Pose2::default(),
+            },
+            pending: Pending::default(),
+            last_wheels: None,
+            last_heading: None,
+            last_accepted_fix_s: None,
+            first_rejected_fix_s: None,
+            rejected_in_a_row: 0,
+            last_standstill_bias_s: None,
+            stats: FusionStats::default(),
+        }
+    }
+
+    /// A filter on the nominal `vehicle.toml` values (estimate version 0),
+    /// trusting the wheels' scale only to
+    /// [`FusionConfig::nominal_distance_scale_sigma`] until an estimate arrives.
+    pub fn nominal(vehicle: &VehicleParams, config: FusionConfig) -> Fusion {
+        let mut fusion = Fusion::new(OdometryParams::nominal(vehicle), 0, config);
+        fusion.nominal = true;
+        fusion
+    }
+
+    /// The parameters in use.
+    pub fn params(&self) -> &OdometryParams {
+        self.odometer.params()
+    }
+
+    /// Version of the estimate in use.
+    pub fn estimate_version(&self) -> u64 {
+        self.estimate_version
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> FusionStats {
+        self.stats
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FusionConfig {
+        &self.config
+    }
+
+    /// Store a running state, symmetrised, unless it is not finite.
+    pub(super) fn set_running(
+        &mut self,
+        x: StateVec,
+        mut p: StateMat,
+        t_s: f64,
+        after: &'static str,
+    ) -> Result<(), FusionError> {
+        symmetrise(&mut p);
+        if !all_finite(&x, &p) {
+            return Err(FusionError::NonFinite { t_s, after });
+        }
+        self.state = State::Running { x, p };
+        Ok(())
+    }
+}
