@@ -15,6 +15,7 @@
 //! left/right difference) are always in the model: the calibration fits them.
 
 use super::epochs::{mad_sigma, Epoch, Epochs};
+use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
 use interfaces::effects::Effect;
 
 /// A residual channel.
@@ -30,6 +31,11 @@ pub enum Channel {
     Heading,
     /// Gyro rate at standstill.
     StandstillGyro,
+    /// GNSS position against the 2W model dead-reckoned over each block
+    /// (the block's rigid placement out).
+    Position,
+    /// GNSS position against the gyro-heading dead-reckoning over each block.
+    PositionGyro,
 }
 
 impl Channel {
@@ -41,6 +47,8 @@ impl Channel {
             Channel::CourseGyro => "course_gyro",
             Channel::Heading => "heading",
             Channel::StandstillGyro => "standstill_gyro",
+            Channel::Position => "position",
+            Channel::PositionGyro => "position_gyro",
         }
     }
 
@@ -50,6 +58,7 @@ impl Channel {
             Channel::Speed => "1 (relative speed)",
             Channel::CourseWheel | Channel::CourseGyro | Channel::Heading => "rad",
             Channel::StandstillGyro => "rad/s",
+            Channel::Position | Channel::PositionGyro => "m",
         }
     }
 
@@ -59,7 +68,9 @@ impl Channel {
     }
 
     /// Every channel.
-    pub const ALL: [Channel; 5] = [
+    pub const ALL: [Channel; 7] = [
+        Channel::Position,
+        Channel::PositionGyro,
         Channel::Speed,
         Channel::CourseWheel,
         Channel::CourseGyro,
@@ -134,7 +145,13 @@ pub struct DesignSettings {
 }
 
 /// The drive's epochs as a regression problem.
-pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Design {
+pub fn build(
+    ep: &Epochs,
+    settings: &DesignSettings,
+    excluded: &[bool],
+    cx: &Context<'_>,
+    base: &Model,
+) -> Design {
     let e = &ep.epochs;
     let t0 = e.first().map_or(0.0, |x| x.t_s);
     let block_of = |x: &Epoch| ((x.t_s - t0) / settings.block_s).floor().max(0.0) as usize;
@@ -184,7 +201,6 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
             wrel.push(1.0);
         }
     }
-    let n = rows.len();
     let mut columns: Vec<Vec<f64>> = Vec::new();
     let mut names: Vec<String> = Vec::new();
     let mut add = |name: String, f: &dyn Fn(Channel, &Epoch) -> f64| -> usize {
@@ -205,7 +221,6 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
             0.0
         }
     });
-    let nuisance = vec![scale, lr];
     let mut candidates = Vec::new();
     let mut untestable = Vec::new();
     let track = settings.track_width_m;
@@ -316,16 +331,16 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
         Channel::Speed => -x.a_x / x.v_odo,
         Channel::CourseWheel | Channel::CourseGyro => -x.w_odo,
         Channel::Heading => x.w_odo,
-        Channel::StandstillGyro => 0.0,
+        _ => 0.0,
     });
     candidates.push(single(Effect::GnssLatency, col, "tau_s", "s", (0.0, 1.0)));
     // gnss_lever_arm: antenna velocity (v - w l_y, w l_x).
-    let cx = add("gnss_lever_arm x".into(), &|c, x| match c {
+    let lx = add("gnss_lever_arm x".into(), &|c, x| match c {
         Channel::CourseWheel | Channel::CourseGyro => x.w_odo / x.v_odo,
         Channel::Heading => -x.w_odo / x.v_odo,
         _ => 0.0,
     });
-    let cy = add("gnss_lever_arm y".into(), &|c, x| {
+    let ly = add("gnss_lever_arm y".into(), &|c, x| {
         if c == Channel::Speed {
             -x.w_odo / x.v_odo
         } else {
@@ -335,18 +350,18 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
     candidates.push(Candidate {
         effect: Effect::GnssLeverArm,
         variant: String::new(),
-        columns: vec![cx, cy],
+        columns: vec![lx, ly],
         params: vec![
             Param {
                 name: "x_m",
                 unit: "m",
-                column: cx,
+                column: lx,
                 range: (-5.0, 5.0),
             },
             Param {
                 name: "y_m",
                 unit: "m",
-                column: cy,
+                column: ly,
                 range: (-3.0, 3.0),
             },
         ],
@@ -435,6 +450,105 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
         ));
     }
 
+    // Position channels: each block dead-reckoned from a zero pose, laid
+    // onto its fixes by the best rigid motion; the columns are the change of
+    // the laid model points per unit of each coefficient (finite differences
+    // of the dead-reckoning), with the block's rigid motion projected out.
+    let scale_col = add("position_scale".into(), &|_, _| 0.0);
+    let lr_col = add("position_left_right".into(), &|_, _| 0.0);
+    let nuisance = vec![scale, lr, scale_col, lr_col];
+    let perturb: Vec<Option<(Model, f64)>> = names
+        .iter()
+        .enumerate()
+        .map(|(c, name)| perturbation(name, c == scale_col, c == lr_col, base))
+        .collect();
+    let mut sources = vec![(Channel::Position, HeadingSource::Wheels)];
+    if ep.has_gyro {
+        sources.push((Channel::PositionGyro, HeadingSource::Gyro));
+    }
+    let first_t = t0;
+    for b in 0..blocks {
+        let (b0, b1) = (
+            first_t + b as f64 * settings.block_s,
+            first_t + (b + 1) as f64 * settings.block_s,
+        );
+        for &(ch, source) in &sources {
+            let Some(base_pts) = dr_points(base, source, cx, b0, b1) else {
+                continue;
+            };
+            let (g, p0) = (&base_pts.gnss, &base_pts.model);
+            if g.len() < 5 {
+                continue;
+            }
+            let (laid, _, th) = align_with_angle(p0, g);
+            let (sn, cs) = th.sin_cos();
+            let m = g.len();
+            // Rows x0, y0, x1, y1, ...
+            let mut ry = Vec::with_capacity(2 * m);
+            for i in 0..m {
+                ry.push(g[i][0] - laid[i][0]);
+                ry.push(g[i][1] - laid[i][1]);
+            }
+            let mut cols_here: Vec<Vec<f64>> = vec![vec![0.0; 2 * m]; columns.len()];
+            for (c, pert) in perturb.iter().enumerate() {
+                let Some((model, delta)) = pert else {
+                    continue;
+                };
+                let Some(pert_pts) = dr_points(model, source, cx, b0, b1) else {
+                    continue;
+                };
+                let p1 = &pert_pts.model;
+                if p1.len() != m {
+                    continue;
+                }
+                for i in 0..m {
+                    let dx = (p1[i][0] - p0[i][0]) / delta;
+                    let dy = (p1[i][1] - p0[i][1]) / delta;
+                    cols_here[c][2 * i] = cs * dx - sn * dy;
+                    cols_here[c][2 * i + 1] = sn * dx + cs * dy;
+                }
+            }
+            // Project out the block's rigid motion (two shifts, one turn
+            // about the centroid).
+            let (mx, my) = laid.iter().fold((0.0, 0.0), |a, p| {
+                (a.0 + p[0] / m as f64, a.1 + p[1] / m as f64)
+            });
+            let mut basis: Vec<Vec<f64>> = vec![
+                (0..2 * m).map(|r| f64::from(r % 2 == 0)).collect(),
+                (0..2 * m).map(|r| f64::from(r % 2 == 1)).collect(),
+                (0..2 * m)
+                    .map(|r| {
+                        let p = laid[r / 2];
+                        if r % 2 == 0 {
+                            -(p[1] - my)
+                        } else {
+                            p[0] - mx
+                        }
+                    })
+                    .collect(),
+            ];
+            orthonormalise(&mut basis);
+            project_out(&basis, &mut ry);
+            for col in cols_here.iter_mut() {
+                project_out(&basis, col);
+            }
+            let ep_index = |i: usize| {
+                let t = base_pts.t[i];
+                e.partition_point(|x| x.t_s < t)
+                    .min(e.len().saturating_sub(1))
+            };
+            for i in 0..2 * m {
+                rows.push((ch, ep_index(i / 2), b));
+                y.push(ry[i]);
+                wrel.push(1.0);
+                for (c, col) in columns.iter_mut().enumerate() {
+                    col.push(cols_here[c][i]);
+                }
+            }
+        }
+    }
+    let n = rows.len();
+
     // Block means out of the demeaned channels (y and every column).
     let mut sums: std::collections::BTreeMap<(Channel, usize), (f64, f64)> = Default::default();
     let mut demean = |v: &mut Vec<f64>| {
@@ -472,7 +586,11 @@ pub fn build(ep: &Epochs, settings: &DesignSettings, excluded: &[bool]) -> Desig
             .filter(|p| rows[p[0]].2 == rows[p[1]].2)
             .map(|p| y[p[1]] * wrel[p[1]].sqrt() - y[p[0]] * wrel[p[0]].sqrt())
             .collect();
-        let mut s = mad_sigma(&d) / std::f64::consts::SQRT_2;
+        let mut s = if matches!(ch, Channel::Position | Channel::PositionGyro) {
+            ep.gnss_sigma_m
+        } else {
+            mad_sigma(&d) / std::f64::consts::SQRT_2
+        };
         if !(s.is_finite() && s > 0.0) {
             s = 1.0;
         }
@@ -577,5 +695,113 @@ pub fn separate_by(a: Effect, b: Effect) -> String {
         "slopes driven at several speeds".into()
     } else {
         format!("a drive with more of: {}; and {}", needs(a), needs(b))
+    }
+}
+
+/// The model with one coefficient moved by a small step, and the step; `None`
+/// for columns that do not act on the dead-reckoning.
+fn perturbation(name: &str, scale: bool, left_right: bool, base: &Model) -> Option<(Model, f64)> {
+    let mut m = *base;
+    let d = 1e-3;
+    if scale {
+        m.c_rl *= 1.0 + d;
+        m.c_rr *= 1.0 + d;
+        return Some((m, d));
+    }
+    if left_right {
+        m.c_rl *= 1.0 - d;
+        m.c_rr *= 1.0 + d;
+        return Some((m, d));
+    }
+    let t = &mut m.terms;
+    let delta = match name {
+        "side_slip" => {
+            t.k_beta = 0.004;
+            0.004
+        }
+        "load_transfer_radius" => {
+            t.k_z = 1e-4;
+            1e-4
+        }
+        "speed_radius_growth" => {
+            t.k_v = 2.5e-6;
+            2.5e-6
+        }
+        "longitudinal_slip "
+        | "longitudinal_slip braking only"
+        | "longitudinal_slip driving only" => {
+            t.k_s = 0.002;
+            m.slip_side = match name {
+                "longitudinal_slip braking only" => -1,
+                "longitudinal_slip driving only" => 1,
+                _ => 0,
+            };
+            0.002
+        }
+        "track_width" => {
+            t.track_rel = 0.02;
+            0.02
+        }
+        "gyro_bias" => {
+            t.gyro_bias_rad_s = 1e-4;
+            1e-4
+        }
+        "gyro_scale" => {
+            t.gyro_scale = 0.005;
+            0.005
+        }
+        "gnss_latency" => {
+            t.gnss_latency_s = 0.08;
+            0.08
+        }
+        "gnss_lever_arm x" => {
+            t.lever_arm_m = [1.0, 0.0];
+            1.0
+        }
+        "gnss_lever_arm y" => {
+            t.lever_arm_m = [0.0, 1.0];
+            1.0
+        }
+        "road_grade" => {
+            // The column is per unit of gain^2 (small grades: cos(g x) ~ 1 - g^2 x^2 / 2).
+            t.grade_gain = 1.0;
+            1.0
+        }
+        other => {
+            let tc: f64 = other.strip_prefix("radius_drift T=")?.parse().ok()?;
+            t.drift_d = 0.003;
+            t.drift_time_constant_s = tc;
+            0.003
+        }
+    };
+    Some((m, delta))
+}
+
+/// Gram-Schmidt: make the vectors orthonormal (dropping dependent ones).
+fn orthonormalise(basis: &mut Vec<Vec<f64>>) {
+    let mut out: Vec<Vec<f64>> = Vec::new();
+    for v in basis.iter() {
+        let mut u = v.clone();
+        for q in &out {
+            let d: f64 = u.iter().zip(q).map(|(a, b)| a * b).sum();
+            for (a, b) in u.iter_mut().zip(q) {
+                *a -= d * b;
+            }
+        }
+        let norm = u.iter().map(|a| a * a).sum::<f64>().sqrt();
+        if norm > 1e-9 {
+            out.push(u.iter().map(|a| a / norm).collect());
+        }
+    }
+    *basis = out;
+}
+
+/// Remove from `v` its components along the orthonormal `basis`.
+fn project_out(basis: &[Vec<f64>], v: &mut [f64]) {
+    for q in basis {
+        let d: f64 = v.iter().zip(q).map(|(a, b)| a * b).sum();
+        for (a, b) in v.iter_mut().zip(q) {
+            *a -= d * b;
+        }
     }
 }

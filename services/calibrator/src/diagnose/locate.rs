@@ -63,6 +63,17 @@ fn interp_epoch(epochs: &[Epoch], t: f64, f: impl Fn(&Epoch) -> f64) -> f64 {
 /// Points in the plane (x east, y north), m.
 pub type Points = Vec<[f64; 2]>;
 
+/// The fixes of a span and the dead-reckoned model's antenna at each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DrPoints {
+    /// Fix times, s.
+    pub t: Vec<f64>,
+    /// Fix positions, m.
+    pub gnss: Points,
+    /// The model's antenna at each fix (not aligned), m.
+    pub model: Points,
+}
+
 /// Where the heading of a dead-reckoning comes from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum HeadingSource {
@@ -134,7 +145,7 @@ pub fn dr_points(
     cx: &Context<'_>,
     t0: f64,
     t1: f64,
-) -> Option<(Points, Points)> {
+) -> Option<DrPoints> {
     let revs = cx.revs;
     let t_start = revs.first()?.t_s;
     let i0 = revs.partition_point(|r| r.t_s < t0);
@@ -216,16 +227,20 @@ pub fn dr_points(
         model_pts.push(p.point_at(arm));
         gnss_pts.push([g.x_m, g.y_m]);
     }
-    Some((gnss_pts, model_pts))
+    Some(DrPoints {
+        t: fixes.iter().map(|g| g.t_s).collect(),
+        gnss: gnss_pts,
+        model: model_pts,
+    })
 }
 
 /// Dead-reckon `model` (wheel heading) over [t0, t1] and lay the track onto
 /// the fixes in that span.
 pub fn block_track(model: &Model, cx: &Context<'_>, t0: f64, t1: f64) -> Option<BlockTrack> {
-    let (gnss, model_pts) = dr_points(model, HeadingSource::Wheels, cx, t0, t1)?;
-    let (aligned, rms) = align(&model_pts, &gnss);
+    let pts = dr_points(model, HeadingSource::Wheels, cx, t0, t1)?;
+    let (aligned, rms) = align(&pts.model, &pts.gnss);
     Some(BlockTrack {
-        gnss,
+        gnss: pts.gnss,
         model: aligned,
         rms_m: rms,
     })

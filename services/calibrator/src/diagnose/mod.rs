@@ -38,7 +38,7 @@ use interfaces::drive::{Drive, WheelConversionError};
 use interfaces::effects::Effect;
 use locate::{block_track, manoeuvre, Model};
 use nalgebra::DVector;
-use select::{columns_of, gain, t_quantile, BlockStats, ALPHA, VIF_AMBIGUOUS};
+use select::{columns_of, gain, normal_quantile, BlockStats, ALPHA, VIF_AMBIGUOUS};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use vehicle_model::effects::EffectTerms;
@@ -114,8 +114,8 @@ pub struct Finding {
     /// Held-out error of the residual channels before and after (weighted,
     /// relative): the fraction by which the effect lowered it.
     pub holdout_channel_gain: f64,
-    /// t statistic of that gain over the blocks.
-    pub holdout_gain_t: f64,
+    /// Wilcoxon signed-rank z of that gain over the blocks.
+    pub holdout_gain_z: f64,
     /// Why it is believed, in words.
     pub evidence: String,
 }
@@ -345,6 +345,14 @@ pub fn diagnose_with_progress(
             track_width_m: base.track_width_m,
         },
         &excluded,
+        &cx,
+        &Model {
+            c_rl: base.c_rl_m,
+            c_rr: base.c_rr_m,
+            track_m: base.track_width_m,
+            terms: EffectTerms::default(),
+            slip_side: 0,
+        },
     );
     let stats = BlockStats::new(&design);
     let used = stats.used_blocks();
@@ -452,12 +460,12 @@ pub fn diagnose_with_progress(
         }
         let g = sel.gains[k];
         let evidence = format!(
-            "{} lowers the held-out residual of {} by {:.1} % (t = {:.1} over {} blocks of {:.0} s; \
+            "{} lowers the held-out residual of {} by {:.1} % (signed-rank z = {:.1} over {} blocks of {:.0} s; \
              threshold {:.1}); fingerprint: {}",
             cand.effect,
             channels_of(&design, cand),
             100.0 * g.relative,
-            g.t,
+            g.z,
             used.len(),
             block_s,
             sel.thresholds[k],
@@ -472,7 +480,7 @@ pub fn diagnose_with_progress(
             holdout_rmse_before_m: rmse_prev,
             holdout_rmse_after_m: rmse_now,
             holdout_channel_gain: g.relative,
-            holdout_gain_t: g.t,
+            holdout_gain_z: g.z,
             evidence,
         });
         rmse_prev = rmse_now;
@@ -639,7 +647,6 @@ fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {
 
 /// Forward selection on held-out blocks (see [`select`]).
 fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
-    let blocks = stats.used_blocks().len() as f64;
     let mut accepted: Vec<usize> = Vec::new();
     let mut gains = Vec::new();
     let mut thresholds = Vec::new();
@@ -655,7 +662,9 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         if effects_left.is_empty() {
             break;
         }
-        let t_crit = t_quantile(1.0 - ALPHA / effects_left.len() as f64, blocks - 1.0);
+        // One-sided, Bonferroni over the effects still in the race.
+        let z_crit = normal_quantile(1.0 - ALPHA / effects_left.len() as f64);
+        let t_crit = z_crit;
         let base_cols = model_columns(design, &accepted);
         // Best variant per effect.
         let mut best: BTreeMap<Effect, (usize, select::Gain, Vec<f64>)> = BTreeMap::new();
@@ -674,7 +683,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         }
         let mut passing: Vec<(Effect, usize, select::Gain, Vec<f64>)> = best
             .into_iter()
-            .filter(|(_, (_, g, _))| g.mean > 0.0 && g.t > t_crit)
+            .filter(|(_, (_, g, _))| g.mean > 0.0 && g.z > z_crit)
             .map(|(e, (i, g, errs))| (e, i, g, errs))
             .collect();
         if passing.is_empty() {
@@ -708,9 +717,9 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
                 rejected.push(Rejected {
                     effect,
                     reason: format!(
-                        "lowers the held-out error by {:.1} % (t = {:.1}) but {}",
+                        "lowers the held-out error by {:.1} % (signed-rank z = {:.1}) but {}",
                         100.0 * g.relative,
-                        g.t,
+                        g.z,
                         implausible.join("; ")
                     ),
                 });

@@ -1158,7 +1158,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
                         ),
                     ),
                     (true, format!("{:.1} %", 100.0 * f.holdout_channel_gain)),
-                    (true, num(f.holdout_gain_t)),
+                    (true, num(f.holdout_gain_z)),
                     (false, escape(&f.evidence)),
                 ]
             })
@@ -1635,7 +1635,7 @@ mod tests {
             holdout_rmse_before_m: 3.2,
             holdout_rmse_after_m: 1.1,
             holdout_channel_gain: 0.4,
-            holdout_gain_t: 7.5,
+            holdout_gain_z: 7.5,
             evidence: evidence.to_string(),
         }
     }
