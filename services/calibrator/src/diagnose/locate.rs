@@ -40,11 +40,12 @@ fn interp_epoch(epochs: &[Epoch], t: f64, f: impl Fn(&Epoch) -> f64) -> f64 {
     if epochs.is_empty() {
         return 0.0;
     }
+    let finite = |v: f64| if v.is_finite() { v } else { 0.0 };
     if i == 0 {
-        return f(&epochs[0]);
+        return finite(f(&epochs[0]));
     }
     if i >= epochs.len() {
-        return f(&epochs[epochs.len() - 1]);
+        return finite(f(&epochs[epochs.len() - 1]));
     }
     let (a, b) = (&epochs[i - 1], &epochs[i]);
     let u = if b.t_s > a.t_s {

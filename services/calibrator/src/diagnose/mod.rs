@@ -582,6 +582,14 @@ pub fn diagnose_with_progress(
                 effect: *e,
                 needs: n.clone(),
             })
+            .chain(sel.untestable.iter().map(|(e, vif)| Untestable {
+                effect: *e,
+                needs: format!(
+                    "{} (on this drive it is collinear with the circumferences' own scale and \
+                     left/right difference: VIF {vif:.0})",
+                    design::needs(*e)
+                ),
+            }))
             .collect(),
         noise: NoiseLevels {
             gnss_sigma_m: ep.gnss_sigma_m,
@@ -636,6 +644,8 @@ struct Selection {
     thresholds: Vec<f64>,
     ambiguous: Vec<Ambiguous>,
     rejected: Vec<Rejected>,
+    /// Effects collinear with the calibration's own terms, with the VIF.
+    untestable: Vec<(Effect, f64)>,
 }
 
 fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {
@@ -653,6 +663,21 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
     let mut ambiguous = Vec::new();
     let mut rejected = Vec::new();
     let mut remaining: Vec<usize> = (0..design.candidates.len()).collect();
+    // A candidate this drive cannot tell from the calibration itself (the
+    // common scale, the left/right difference) cannot be tested here.
+    let mut untestable = Vec::new();
+    remaining.retain(|&i| {
+        let c = &design.candidates[i];
+        let vif = stats.vif(&[], &c.columns, &design.nuisance);
+        let ok = vif <= VIF_AMBIGUOUS;
+        if !ok {
+            untestable.push((c.effect, vif));
+        }
+        ok
+    });
+    // An effect is untestable only when none of its variants is testable.
+    untestable.retain(|(e, _)| !remaining.iter().any(|&i| design.candidates[i].effect == *e));
+    untestable.dedup_by(|a, b| a.0 == b.0);
     let mut current = stats.cv_errors(&design.nuisance);
     loop {
         let effects_left: std::collections::BTreeSet<Effect> = remaining
@@ -770,6 +795,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         thresholds,
         ambiguous,
         rejected,
+        untestable,
     }
 }
 

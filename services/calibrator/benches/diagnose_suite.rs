@@ -1,0 +1,302 @@
+//! The concealed-effect suite of `calibrator diagnose` (issue 23): simulated
+//! drives with effects the diagnosis is not told about, scored against the
+//! simulator's truth.
+//!
+//! `cargo bench -p calibrator --bench diagnose_suite [-- --seeds N] [--quick]`
+//!
+//! Cases (the `mixed` scenario unless said otherwise, seeds 1..=N, the three
+//! vehicles in turn):
+//! - every catalogue effect alone at its typical magnitude;
+//! - pairs that are easy to confuse;
+//! - null drives: only the vehicle's inherent tyre physics (side-slip, load
+//!   transfer, longitudinal slip at their defaults, documented in the
+//!   truth), which the scoring allows to be found;
+//! - the paper's future-work effect (load-dependent radius in corners) on
+//!   the `paper` scenario.
+//!
+//! Per effect: detection (found), attribution (found under its own id, no
+//! other id found), the recovered coefficient against truth, the held-out
+//! position RMSE before and after; the false-discovery rate on null drives;
+//! and the time per drive.
+
+use calibrator::diagnose::{diagnose, DiagnoseConfig, Diagnosis};
+use interfaces::effects::Effect;
+use simulator::{simulate, EffectSettings, Scenario, SimConfig, VehicleKind};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// The inherent tyre physics of every simulated car.
+const INHERENT: [Effect; 3] = [
+    Effect::SideSlip,
+    Effect::LoadTransferRadius,
+    Effect::LongitudinalSlip,
+];
+
+struct Case {
+    label: String,
+    scenario: Scenario,
+    vehicle: VehicleKind,
+    seed: u64,
+    effects: EffectSettings,
+    truth: Vec<Effect>,
+    allowed: Vec<Effect>,
+}
+
+#[derive(Default)]
+struct Tally {
+    drives: usize,
+    detected: usize,
+    attributed: usize,
+    false_ids: usize,
+    coef_err: Vec<f64>,
+    rmse_before: Vec<f64>,
+    rmse_after: Vec<f64>,
+    confused_with: BTreeMap<String, usize>,
+    ambiguous: usize,
+}
+
+/// The main parameter of an effect in the diagnosis and in the truth.
+fn main_param(e: Effect) -> (&'static str, &'static str) {
+    match e {
+        Effect::SideSlip => ("k_beta", "k_beta"),
+        Effect::LoadTransferRadius => ("k_z", "k_z"),
+        Effect::SpeedRadiusGrowth => ("k_v", "k_v"),
+        Effect::LongitudinalSlip => ("k_s", "k_s"),
+        Effect::TrackWidth => ("rel", "rel"),
+        Effect::GyroBias => ("b_deg_h", "b_deg_h"),
+        Effect::GyroScale => ("s", "s"),
+        Effect::GnssLatency => ("tau_s", "tau_s"),
+        Effect::GnssLeverArm => ("x_m", "x_m"),
+        Effect::RadiusDrift => ("d", "d"),
+        Effect::RoadGrade => ("gain", "grade"),
+        Effect::HeadingBias => ("b_deg", "b_deg"),
+    }
+}
+
+fn cases(seeds: u64, quick: bool) -> Vec<Case> {
+    let vehicles = VehicleKind::ALL;
+    let mut out = Vec::new();
+    let mk = |label: String, scenario, seed: u64, on: &[Effect], base: EffectSettings| {
+        let mut effects = base;
+        for e in on {
+            effects.switch_on(*e);
+        }
+        Case {
+            label,
+            scenario,
+            vehicle: vehicles[(seed as usize) % vehicles.len()],
+            seed,
+            effects,
+            truth: on.to_vec(),
+            allowed: Vec::new(),
+        }
+    };
+    let effects: Vec<Effect> = if quick {
+        vec![Effect::TrackWidth, Effect::GnssLeverArm, Effect::GyroBias]
+    } else {
+        Effect::ALL.to_vec()
+    };
+    for seed in 1..=seeds {
+        for e in &effects {
+            out.push(mk(
+                e.id().to_string(),
+                Scenario::Mixed,
+                seed,
+                &[*e],
+                EffectSettings::none(),
+            ));
+        }
+        if !quick {
+            for (a, b) in [
+                (Effect::SideSlip, Effect::GnssLeverArm),
+                (Effect::LoadTransferRadius, Effect::TrackWidth),
+                (Effect::SpeedRadiusGrowth, Effect::RadiusDrift),
+                (Effect::LongitudinalSlip, Effect::GnssLatency),
+            ] {
+                out.push(mk(
+                    format!("{a}+{b}"),
+                    Scenario::Mixed,
+                    seed,
+                    &[a, b],
+                    EffectSettings::none(),
+                ));
+            }
+            let mut paper = mk(
+                "paper: load_transfer_radius".into(),
+                Scenario::Paper,
+                seed,
+                &[Effect::LoadTransferRadius],
+                EffectSettings::none(),
+            );
+            paper.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: 5e-4 });
+            out.push(paper);
+        }
+        let mut null = mk(
+            "null (inherent physics)".into(),
+            Scenario::Mixed,
+            seed,
+            &[],
+            EffectSettings::default(),
+        );
+        null.allowed = INHERENT.to_vec();
+        out.push(null);
+        out.push(mk(
+            "null (none at all)".into(),
+            Scenario::Mixed,
+            seed,
+            &[],
+            EffectSettings::none(),
+        ));
+    }
+    out
+}
+
+fn truth_value(case: &Case, e: Effect, param: &str) -> Option<f64> {
+    case.effects.params(e).and_then(|p| p.get(param).copied())
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let seeds = args
+        .iter()
+        .position(|a| a == "--seeds")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5);
+    let cases = cases(seeds, quick);
+    println!(
+        "{} drives ({} seeds{})",
+        cases.len(),
+        seeds,
+        if quick { ", quick" } else { "" }
+    );
+    let mut tallies: BTreeMap<String, Tally> = BTreeMap::new();
+    let mut null_drives = 0usize;
+    let mut null_false = 0usize;
+    let mut times = Vec::new();
+    for case in &cases {
+        let mut cfg = SimConfig::new(case.scenario, case.seed);
+        cfg.vehicle = case.vehicle;
+        cfg.effects = case.effects;
+        let drive = match simulate(&cfg) {
+            Ok(d) => d,
+            Err(e) => {
+                println!("{}: simulation failed: {e}", case.label);
+                continue;
+            }
+        };
+        let t0 = Instant::now();
+        let d: Diagnosis = match diagnose(&drive, &DiagnoseConfig::default()) {
+            Ok(d) => d,
+            Err(e) => {
+                println!("{} seed {}: diagnosis failed: {e}", case.label, case.seed);
+                continue;
+            }
+        };
+        times.push((t0.elapsed().as_secs_f64(), drive.wheel_duration_s()));
+        let found: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
+        let extra: Vec<Effect> = found
+            .iter()
+            .copied()
+            .filter(|e| !case.truth.contains(e) && !case.allowed.contains(e))
+            .collect();
+        let amb: Vec<Effect> = d.ambiguous.iter().flat_map(|a| a.effects.clone()).collect();
+        println!(
+            "{:<40} seed {} {:<7} found [{}] ambiguous [{}] pos RMSE {:.3} -> {:.3} m",
+            case.label,
+            case.seed,
+            case.vehicle.name(),
+            found.iter().map(|e| e.id()).collect::<Vec<_>>().join(", "),
+            amb.iter().map(|e| e.id()).collect::<Vec<_>>().join(", "),
+            d.fit.before.holdout_position_rmse_m,
+            d.fit.after.holdout_position_rmse_m
+        );
+        if case.truth.is_empty() {
+            null_drives += 1;
+            if !extra.is_empty() {
+                null_false += 1;
+            }
+            continue;
+        }
+        for e in &case.truth {
+            let key = if case.truth.len() > 1 || case.scenario != Scenario::Mixed {
+                format!("{} [{}]", e.id(), case.label)
+            } else {
+                e.id().to_string()
+            };
+            let t = tallies.entry(key).or_default();
+            t.drives += 1;
+            if amb.contains(e) {
+                t.ambiguous += 1;
+            }
+            if let Some(f) = d.findings.iter().find(|f| f.effect == *e) {
+                t.detected += 1;
+                if extra.is_empty() {
+                    t.attributed += 1;
+                }
+                let (dp, tp) = main_param(*e);
+                if let (Some(v), Some(truth)) = (f.parameters.get(dp), truth_value(case, *e, tp)) {
+                    let est = if *e == Effect::RoadGrade {
+                        v * truth
+                    } else {
+                        *v
+                    };
+                    t.coef_err.push(if truth != 0.0 {
+                        (est - truth) / truth
+                    } else {
+                        est
+                    });
+                }
+            }
+            for x in &extra {
+                *t.confused_with.entry(x.id().to_string()).or_default() += 1;
+            }
+            t.false_ids += usize::from(!extra.is_empty());
+            t.rmse_before.push(d.fit.before.holdout_position_rmse_m);
+            t.rmse_after.push(d.fit.after.holdout_position_rmse_m);
+        }
+    }
+    println!();
+    println!("| effect | drives | detected | attributed | ambiguous | median rel. coef. error | held-out pos. RMSE before -> after (mean) | other ids found |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for (k, t) in &tallies {
+        let mut errs = t.coef_err.clone();
+        errs.sort_by(f64::total_cmp);
+        let med = if errs.is_empty() {
+            "-".to_string()
+        } else {
+            format!("{:+.0} %", 100.0 * errs[errs.len() / 2])
+        };
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        let conf: Vec<String> = t
+            .confused_with
+            .iter()
+            .map(|(k, n)| format!("{k} x{n}"))
+            .collect();
+        println!(
+            "| {k} | {} | {:.0} % | {:.0} % | {} | {med} | {:.3} -> {:.3} m ({:+.0} %) | {} |",
+            t.drives,
+            100.0 * t.detected as f64 / t.drives as f64,
+            100.0 * t.attributed as f64 / t.drives as f64,
+            t.ambiguous,
+            mean(&t.rmse_before),
+            mean(&t.rmse_after),
+            100.0 * (mean(&t.rmse_after) / mean(&t.rmse_before) - 1.0),
+            conf.join(", ")
+        );
+    }
+    println!();
+    println!(
+        "null drives: {null_drives}, with a false discovery: {null_false} ({:.0} %)",
+        100.0 * null_false as f64 / null_drives.max(1) as f64
+    );
+    let per_min: Vec<f64> = times.iter().map(|(s, d)| s / (d / 60.0)).collect();
+    let total: f64 = times.iter().map(|t| t.0).sum();
+    println!(
+        "diagnosis time: {:.2} s per drive on average ({:.3} s per minute of drive), {:.0} s in all",
+        total / times.len().max(1) as f64,
+        per_min.iter().sum::<f64>() / per_min.len().max(1) as f64,
+        total
+    );
+}
