@@ -21,7 +21,7 @@ pub struct DiagnoseArgs {
     /// Write the pictures and index.html into this folder.
     #[arg(long)]
     pub plots: Option<PathBuf>,
-    /// Block length for the held-out tests, s (default: a twelfth of the drive, 10-60 s).
+    /// Block length for the held-out tests, s (default: a twelfth of the drive, 5-60 s).
     #[arg(long)]
     pub block: Option<f64>,
     /// No progress display.
@@ -183,6 +183,26 @@ pub fn render_text(d: &Diagnosis) -> String {
     }
     for r in &d.rejected {
         let _ = writeln!(s, "rejected {}: {}", r.effect, r.reason);
+    }
+    if !d.not_accepted.is_empty() {
+        let parts: Vec<String> = d
+            .not_accepted
+            .iter()
+            .map(|n| {
+                format!(
+                    "{} {:+.1} % (z {:.1})",
+                    n.effect,
+                    100.0 * n.holdout_gain,
+                    n.z
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "tested, not accepted (held-out gain, signed-rank z; needed z > {:.2}): {}",
+            d.not_accepted[0].z_threshold,
+            parts.join(", ")
+        );
     }
     for u in &d.untestable {
         let _ = writeln!(s, "not testable here: {} (needs {})", u.effect, u.needs);

@@ -46,7 +46,8 @@ use vehicle_model::effects::EffectTerms;
 /// Settings of a diagnosis. [`Default`] is what `calibrator diagnose` uses.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagnoseConfig {
-    /// Block length, s; `None`: a twelfth of the drive, 10-60 s.
+    /// Block length, s; `None`: a twelfth of the drive, 5-60 s (twelve blocks
+    /// are the fewest that let the signed-rank test pass at all).
     pub block_s: Option<f64>,
     /// Speed below which the car counts as standing, m/s.
     pub standstill_speed_m_s: f64,
@@ -200,6 +201,24 @@ pub struct Rejected {
     pub reason: String,
 }
 
+/// A candidate tested in the last round of the selection that did not pass:
+/// what it would have gained on held-out blocks, and the evidence against
+/// the threshold.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotAccepted {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// Its best variant.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub variant: String,
+    /// Relative change of the held-out error (negative: it made it worse).
+    pub holdout_gain: f64,
+    /// Signed-rank z over the blocks.
+    pub z: f64,
+    /// The z it needed.
+    pub z_threshold: f64,
+}
+
 /// An effect this drive cannot test.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Untestable {
@@ -276,6 +295,8 @@ pub struct Diagnosis {
     pub rejected: Vec<Rejected>,
     /// Effects this drive cannot test.
     pub untestable: Vec<Untestable>,
+    /// Effects tested but not accepted (the last round of the selection).
+    pub not_accepted: Vec<NotAccepted>,
     /// The noise the thresholds came from.
     pub noise: NoiseLevels,
     /// The plain model.
@@ -336,7 +357,7 @@ pub fn diagnose_with_progress(
     let gnss = drive.gnss.as_deref().unwrap_or(&[]);
     let cx = locate::Context::new(&revs, gnss, drive.imu.as_deref().unwrap_or(&[]), &ep);
     let duration = ep.epochs.last().map_or(0.0, |e| e.t_rel_s);
-    let block_s = cfg.block_s.unwrap_or((duration / 12.0).clamp(10.0, 60.0));
+    let block_s = cfg.block_s.unwrap_or((duration / 12.0).clamp(5.0, 60.0));
     let design = design::build(
         &ep,
         &DesignSettings {
@@ -575,6 +596,7 @@ pub fn diagnose_with_progress(
         mismatch_segments,
         fit,
         rejected: sel.rejected,
+        not_accepted: sel.last_round,
         untestable: design
             .untestable
             .iter()
@@ -646,6 +668,8 @@ struct Selection {
     rejected: Vec<Rejected>,
     /// Effects collinear with the calibration's own terms, with the VIF.
     untestable: Vec<(Effect, f64)>,
+    /// The candidates of the last round, none of which passed.
+    last_round: Vec<NotAccepted>,
 }
 
 fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {
@@ -679,6 +703,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
     untestable.retain(|(e, _)| !remaining.iter().any(|&i| design.candidates[i].effect == *e));
     untestable.dedup_by(|a, b| a.0 == b.0);
     let mut current = stats.cv_errors(&design.nuisance);
+    let mut last_round: Vec<NotAccepted> = Vec::new();
     loop {
         let effects_left: std::collections::BTreeSet<Effect> = remaining
             .iter()
@@ -706,6 +731,16 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
                 best.insert(e, (i, g, errs));
             }
         }
+        last_round = best
+            .iter()
+            .map(|(e, (i, g, _))| NotAccepted {
+                effect: *e,
+                variant: design.candidates[*i].variant.clone(),
+                holdout_gain: g.relative,
+                z: g.z,
+                z_threshold: z_crit,
+            })
+            .collect();
         let mut passing: Vec<(Effect, usize, select::Gain, Vec<f64>)> = best
             .into_iter()
             .filter(|(_, (_, g, _))| g.mean > 0.0 && g.z > z_crit)
@@ -796,6 +831,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         ambiguous,
         rejected,
         untestable,
+        last_round,
     }
 }
 
