@@ -1300,6 +1300,23 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
         }
         s.push_str("</ul>\n");
     }
+    s.push_str("<h2>Tested, not accepted (the last round of the selection)</h2>\n");
+    if d.not_accepted.is_empty() {
+        none_para(&mut s, "None.");
+    } else {
+        s.push_str("<ul>\n");
+        for n in &d.not_accepted {
+            let _ = writeln!(
+                s,
+                "<li><code>{}</code>: held-out gain {:+.1} %, signed-rank z {:.2} (needed {:.2})</li>",
+                escape(n.effect.id()),
+                100.0 * n.holdout_gain,
+                n.z,
+                n.z_threshold
+            );
+        }
+        s.push_str("</ul>\n");
+    }
     s.push_str("<h2>Not testable on this drive</h2>\n");
     if d.untestable.is_empty() {
         none_para(&mut s, "None: every catalogue effect was tested.");
@@ -1606,6 +1623,7 @@ mod tests {
             },
             rejected: Vec::new(),
             untestable: Vec::new(),
+            not_accepted: Vec::new(),
             noise: NoiseLevels {
                 gnss_sigma_m: 0.3,
                 block_s: 30.0,
