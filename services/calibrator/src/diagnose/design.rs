@@ -129,8 +129,11 @@ pub struct Design {
     pub blocks: usize,
     /// Block length, s.
     pub block_s: f64,
-    /// Noise sigma per channel (in channel units, at unit row weight).
+    /// Noise sigma per channel (in channel units, at unit row weight; the
+    /// position channels after whitening).
     pub channel_sigma: Vec<(Channel, f64)>,
+    /// The AR(1) coefficient the position channels were whitened with.
+    pub whitening: Vec<(Channel, f64)>,
 }
 
 /// Settings of the design.
@@ -548,6 +551,46 @@ pub fn build(
         }
     }
     let n = rows.len();
+    // GNSS errors are correlated in time: whiten the position channels with
+    // an AR(1) model whose coefficient is measured on this drive (the lag-1
+    // autocorrelation of the residual, per axis within blocks), then weigh
+    // by the scatter of what is left.
+    let mut whitening = Vec::new();
+    for ch in [Channel::Position, Channel::PositionGyro] {
+        let idx: Vec<usize> = (0..n).filter(|&r| rows[r].0 == ch).collect();
+        // Same axis, next fix: two rows on, in the same block.
+        let pairs: Vec<(usize, usize)> = idx
+            .windows(3)
+            .filter(|w| rows[w[0]].2 == rows[w[2]].2)
+            .map(|w| (w[0], w[2]))
+            .collect();
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for &(a, b) in &pairs {
+            sxy += y[a] * y[b];
+            sxx += y[a] * y[a];
+        }
+        let phi = if sxx > 0.0 { (sxy / sxx).clamp(0.0, 0.99) } else { 0.0 };
+        whitening.push((ch, phi));
+        if phi == 0.0 {
+            continue;
+        }
+        let scale0 = (1.0 - phi * phi).sqrt();
+        let transform = |v: &mut Vec<f64>| {
+            // Backwards, so that each row uses its predecessor's raw value.
+            for k in (0..idx.len()).rev() {
+                let r = idx[k];
+                let prev = (k >= 2 && rows[idx[k - 2]].2 == rows[r].2).then(|| idx[k - 2]);
+                match prev {
+                    Some(p) => v[r] -= phi * v[p],
+                    None => v[r] *= scale0,
+                }
+            }
+        };
+        transform(&mut y);
+        for col in columns.iter_mut() {
+            transform(col);
+        }
+    }
 
     // Block means out of the demeaned channels (y and every column).
     let mut sums: std::collections::BTreeMap<(Channel, usize), (f64, f64)> = Default::default();
@@ -587,7 +630,9 @@ pub fn build(
             .map(|p| y[p[1]] * wrel[p[1]].sqrt() - y[p[0]] * wrel[p[0]].sqrt())
             .collect();
         let mut s = if matches!(ch, Channel::Position | Channel::PositionGyro) {
-            ep.gnss_sigma_m
+            // Whitened: the scatter of the rows themselves.
+            let v: Vec<f64> = idx.iter().map(|&r| y[r]).collect();
+            mad_sigma(&v)
         } else {
             mad_sigma(&d) / std::f64::consts::SQRT_2
         };
@@ -624,6 +669,7 @@ pub fn build(
         blocks,
         block_s: settings.block_s,
         channel_sigma,
+        whitening,
     }
 }
 
