@@ -55,6 +55,7 @@
 //! Pure: no clock, no I/O. Times are seconds on the drive's clock.
 
 use std::collections::VecDeque;
+use vehicle_model::effects::{EffectTerms, StepSignals};
 use vehicle_model::estimate::OdometryParams;
 use vehicle_model::two_wheel::{step, Pose2};
 
@@ -120,6 +121,8 @@ pub struct Increment {
     pub dyaw_rad: f64,
     /// Source of `dyaw_rad`.
     pub heading_source: HeadingSource,
+    /// Side-slip angle of the step, rad (0 unless the effect terms model it).
+    pub beta_rad: f64,
 }
 
 /// A sample the odometer cannot use.
@@ -354,7 +357,24 @@ pub struct Odometer {
     bias: BiasLearning,
     bias_observation: Option<BiasObservation>,
     stats: OdometerStats,
+    /// Effect terms of the extended 2W model ([`Odometer::set_effects`]).
+    effects: EffectTerms,
+    /// With effect terms: the first wheel time, the smoothed speed and
+    /// longitudinal acceleration they read.
+    effect_state: EffectState,
 }
+
+/// What the effect terms read that one wheel step does not give.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct EffectState {
+    t_first_s: Option<f64>,
+    v_m_s: f64,
+    a_x_m_s2: f64,
+}
+
+/// Smoothing time of the speed and acceleration the effect terms read, s
+/// (encoder quantisation makes one 10 ms step's speed too coarse).
+const EFFECT_SMOOTHING_S: f64 = 0.5;
 
 impl Odometer {
     /// A new odometer; the first wheel sample only sets the reference.
@@ -370,7 +390,58 @@ impl Odometer {
             bias: BiasLearning::default(),
             bias_observation: None,
             stats: OdometerStats::default(),
+            effects: EffectTerms::default(),
+            effect_state: EffectState::default(),
         }
+    }
+
+    /// Dead-reckon with the 2W model extended by these effect terms (the
+    /// diagnosis's findings): the wheel-side terms (side-slip, load transfer,
+    /// speed growth, longitudinal slip, track width, tyre warm-up) act on the
+    /// increments; road grade needs a slope signal the odometer does not
+    /// have and is left out; the gyro and GNSS terms are the estimate's and
+    /// the filter's business. All zero (the default) is the plain model,
+    /// bit for bit.
+    pub fn set_effects(&mut self, effects: EffectTerms) {
+        self.effects = EffectTerms {
+            grade_gain: 0.0,
+            ..effects
+        };
+    }
+
+    /// The plain 2W increments, or the extended model's when effect terms are set.
+    fn wheel_increments(&mut self, t_s: f64, dt: f64, dn_rl: f64, dn_rr: f64) -> (f64, f64, f64) {
+        let e = &self.effects;
+        let acts = e.k_beta != 0.0
+            || e.k_z != 0.0
+            || e.k_v != 0.0
+            || e.k_s != 0.0
+            || e.track_rel != 0.0
+            || (e.drift_d != 0.0 && e.drift_time_constant_s > 0.0);
+        if !acts {
+            let (ds, dyaw) = self.params.two_wheel.increments(dn_rl, dn_rr);
+            return (ds, dyaw, 0.0);
+        }
+        let tw = self.params.two_wheel;
+        let (ds0, dyaw0) = tw.increments(dn_rl, dn_rr);
+        let st = &mut self.effect_state;
+        let t_first = *st.t_first_s.get_or_insert(t_s - dt);
+        if dt > 0.0 {
+            let k = (dt / EFFECT_SMOOTHING_S).min(1.0);
+            let v_new = st.v_m_s + k * (ds0 / dt - st.v_m_s);
+            let a_new = (v_new - st.v_m_s) / dt;
+            st.a_x_m_s2 += k * (a_new - st.a_x_m_s2);
+            st.v_m_s = v_new;
+        }
+        let w = if dt > 0.0 { dyaw0 / dt } else { 0.0 };
+        let signals = StepSignals {
+            v_m_s: st.v_m_s,
+            a_x_m_s2: st.a_x_m_s2,
+            a_y_m_s2: st.v_m_s * w,
+            grade: 0.0,
+            t_since_start_s: t_s - t_first,
+        };
+        e.increments(tw.c_rl, tw.c_rr, tw.track_width, dn_rl, dn_rr, &signals)
     }
 
     /// The gyro bias in use, rad/s: the calibrated one, combined with what
@@ -556,7 +627,7 @@ impl Odometer {
                     dn_rl -= self.offsets.rl_rev_s * dt;
                     dn_rr -= self.offsets.rr_rev_s * dt;
                 }
-                let (ds_m, dyaw_wheels) = self.params.two_wheel.increments(dn_rl, dn_rr);
+                let (ds_m, dyaw_wheels, beta_rad) = self.wheel_increments(t_s, dt, dn_rl, dn_rr);
                 let gyro_dyaw = match (self.config.heading, self.gyro_mark) {
                     (HeadingMode::Gyro, Some(mark)) => GyroAt::fresh_integral(gyro).map(|now| {
                         (now - mark - self.gyro_bias() * (t_s - t0))
@@ -582,6 +653,7 @@ impl Odometer {
                     ds_m,
                     dyaw_rad,
                     heading_source,
+                    beta_rad,
                 })
             }
         };
@@ -628,6 +700,11 @@ impl DeadReckoner {
         self.odometer.set_params(params);
     }
 
+    /// Dead-reckon with these effect terms ([`Odometer::set_effects`]).
+    pub fn set_effects(&mut self, effects: EffectTerms) {
+        self.odometer.set_effects(effects);
+    }
+
     /// Take a yaw-rate sample.
     pub fn gyro(&mut self, t_s: f64, gz_rad_s: f64) -> Result<(), InputError> {
         self.odometer.gyro(t_s, gz_rad_s)
@@ -636,7 +713,7 @@ impl DeadReckoner {
     /// Take a wheel sample and advance the pose; returns the new pose.
     pub fn wheels(&mut self, t_s: f64, rl_rev: f64, rr_rev: f64) -> Result<Pose2, InputError> {
         if let Some(inc) = self.odometer.wheels(t_s, rl_rev, rr_rev)? {
-            self.pose = step(self.pose, inc.ds_m, inc.dyaw_rad, 0.0);
+            self.pose = step(self.pose, inc.ds_m, inc.dyaw_rad, inc.beta_rad);
         }
         Ok(self.pose)
     }
@@ -688,6 +765,49 @@ mod tests {
         fn yaw_rate(&self) -> f64 {
             self.v / self.r
         }
+    }
+
+    #[test]
+    fn effect_terms_extend_the_model_and_zero_terms_change_nothing() {
+        let p = params(2.0, 2.0, 1.5);
+        let drive = |dr: &mut DeadReckoner| {
+            for k in 0..=500 {
+                let t = k as f64 * 0.01;
+                // A left turn: the right wheel turns faster.
+                dr.wheels(t, 0.05 * k as f64, 0.051 * k as f64).unwrap();
+            }
+            dr.pose()
+        };
+        let plain = drive(&mut DeadReckoner::new(
+            p,
+            config(HeadingMode::WheelDifference),
+            Pose2::default(),
+        ));
+        let mut zero = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        zero.set_effects(EffectTerms::default());
+        assert_eq!(drive(&mut zero), plain);
+        let mut wide = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        wide.set_effects(EffectTerms {
+            track_rel: 0.02,
+            ..EffectTerms::default()
+        });
+        let pose = drive(&mut wide);
+        // A track 2 % wider turns 2 % less for the same wheel difference.
+        assert!(
+            (pose.yaw - plain.yaw / 1.02).abs() < 1e-12,
+            "{} {}",
+            pose.yaw,
+            plain.yaw
+        );
+        let mut slip = DeadReckoner::new(p, config(HeadingMode::WheelDifference), Pose2::default());
+        slip.set_effects(EffectTerms {
+            k_beta: 0.004,
+            ..EffectTerms::default()
+        });
+        let pose = drive(&mut slip);
+        // The same heading, the track bent outward of the (left) turn.
+        assert_eq!(pose.yaw, plain.yaw);
+        assert!(pose.x != plain.x || pose.y != plain.y);
     }
 
     #[test]

@@ -48,6 +48,10 @@ struct EvaluateArgs {
     /// nominal values of vehicle.toml.
     #[arg(long)]
     estimate: Option<PathBuf>,
+    /// Dead-reckon with the 2W model extended by the effects a diagnosis
+    /// found: the JSON `calibrator diagnose --json` wrote (its `terms`).
+    #[arg(long, value_name = "DIAGNOSIS_JSON")]
+    effects: Option<PathBuf>,
     /// Outage length, seconds.
     #[arg(long, default_value_t = 30.0)]
     outage: f64,
@@ -113,6 +117,10 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         spacing_s: args.spacing,
         odometer: args.odometer.config(),
         truth_point,
+        effects: match &args.effects {
+            Some(path) => read_effect_terms(path)?,
+            None => vehicle_model::effects::EffectTerms::default(),
+        },
         ..EvaluateConfig::default()
     };
     let report = evaluate(&drive, &params, &config)
@@ -208,4 +216,28 @@ fn print_report(
     for w in &report.warnings {
         println!("warning: {w}");
     }
+}
+
+/// The effect terms of a diagnosis JSON (`calibrator diagnose --json`).
+fn read_effect_terms(path: &std::path::Path) -> Result<vehicle_model::effects::EffectTerms> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the diagnosis {}", path.display()))?;
+    let value: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let terms = value
+        .get("terms")
+        .with_context(|| format!("{}: no `terms` (is it a diagnosis?)", path.display()))?;
+    let terms: vehicle_model::effects::EffectTerms = serde_json::from_value(terms.clone())
+        .with_context(|| format!("{}: `terms`", path.display()))?;
+    let active = terms.active();
+    tracing::info!(
+        "dead-reckoning with the effect terms of {}: {}",
+        path.display(),
+        if active.is_empty() {
+            "none (the plain 2W model)".to_string()
+        } else {
+            active.iter().map(|e| e.id()).collect::<Vec<_>>().join(", ")
+        }
+    );
+    Ok(terms)
 }

@@ -569,7 +569,11 @@ pub fn build(
             sxy += y[a] * y[b];
             sxx += y[a] * y[a];
         }
-        let phi = if sxx > 0.0 { (sxy / sxx).clamp(0.0, 0.99) } else { 0.0 };
+        let phi = if sxx > 0.0 {
+            (sxy / sxx).clamp(0.0, 0.99)
+        } else {
+            0.0
+        };
         whitening.push((ch, phi));
         if phi == 0.0 {
             continue;

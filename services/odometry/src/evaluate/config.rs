@@ -29,6 +29,9 @@ pub struct EvaluateConfig {
     pub truth_point: TruthPoint,
     /// Keep the dead-reckoned track of every outage in the report.
     pub keep_tracks: bool,
+    /// Effect terms of the extended 2W model to dead-reckon with (the
+    /// diagnosis's `terms`); all zero: the plain model.
+    pub effects: vehicle_model::effects::EffectTerms,
 }
 
 impl Default for EvaluateConfig {
@@ -44,6 +47,7 @@ impl Default for EvaluateConfig {
             align_max_s: 30.0,
             truth_point: TruthPoint::AXLE,
             keep_tracks: false,
+            effects: vehicle_model::effects::EffectTerms::default(),
         }
     }
 }

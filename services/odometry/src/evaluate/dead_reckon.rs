@@ -39,9 +39,11 @@ pub(super) fn snapshots(
     inputs: &[Input],
     params: &OdometryParams,
     odometer: OdometerConfig,
+    effects: vehicle_model::effects::EffectTerms,
     times: &[f64],
 ) -> (Vec<Result<Snapshot, String>>, usize) {
     let mut background = DeadReckoner::new(*params, odometer, Pose2::default());
+    background.set_effects(effects);
     let mut skipped = 0usize;
     let mut i = 0usize;
     let mut out = Vec::with_capacity(times.len());

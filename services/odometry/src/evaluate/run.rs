@@ -87,8 +87,14 @@ pub fn evaluate(
         .collect();
     starts.sort_by(f64::total_cmp);
     starts.dedup();
-    let (snapshots, background_skipped) =
-        snapshots(&revs, &inputs, params, config.odometer, &starts);
+    let (snapshots, background_skipped) = snapshots(
+        &revs,
+        &inputs,
+        params,
+        config.odometer,
+        config.effects,
+        &starts,
+    );
     let snapshot_at = |t: f64| -> Result<&Snapshot, String> {
         let i = starts.partition_point(|s| *s < t);
         match snapshots.get(i) {
