@@ -2,6 +2,7 @@
 
 use super::csv::{CsvFile, CsvWriter, Row};
 use super::geodesy::LocalFrame;
+use super::streams::{wheel_column_names, wheel_value, Stream, MAX_FIELDS, WHEELS_CSV};
 use super::{DriveError, LoadedDrive};
 use interfaces::drive::{
     Drive, GnssSample, HeadingSample, ImuSample, TruthParams, TruthSample, VehicleParams, Wheel,
@@ -9,21 +10,16 @@ use interfaces::drive::{
 };
 use std::path::{Path, PathBuf};
 
-/// File names of the format.
-pub(super) const VEHICLE_TOML: &str = "vehicle.toml";
-pub(super) const WHEELS_CSV: &str = "wheels.csv";
-pub(super) const GNSS_CSV: &str = "gnss.csv";
-pub(super) const IMU_CSV: &str = "imu.csv";
-pub(super) const HEADING_CSV: &str = "heading.csv";
-pub(super) const TRUTH_CSV: &str = "truth.csv";
-pub(super) const TRUTH_TOML: &str = "truth.toml";
+/// File names of the format (the stream files' names are in `streams`).
+const VEHICLE_TOML: &str = "vehicle.toml";
+const TRUTH_TOML: &str = "truth.toml";
 const ALL_FILES: [&str; 7] = [
     VEHICLE_TOML,
     WHEELS_CSV,
-    GNSS_CSV,
-    IMU_CSV,
-    HEADING_CSV,
-    TRUTH_CSV,
+    GnssSample::CSV_FILE,
+    ImuSample::CSV_FILE,
+    HeadingSample::CSV_FILE,
+    TruthSample::CSV_FILE,
     TRUTH_TOML,
 ];
 
@@ -62,18 +58,10 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     }
     let wheels = read_wheels(&wheels_path, &vehicle, &mut warnings)?;
 
-    let gnss_raw = optional_file(dir, GNSS_CSV)
-        .map(|p| read_gnss(&p, &mut warnings))
-        .transpose()?;
-    let imu = optional_file(dir, IMU_CSV)
-        .map(|p| read_imu(&p, &mut warnings))
-        .transpose()?;
-    let heading = optional_file(dir, HEADING_CSV)
-        .map(|p| read_heading(&p, &mut warnings))
-        .transpose()?;
-    let truth_raw = optional_file(dir, TRUTH_CSV)
-        .map(|p| read_truth(&p, &mut warnings))
-        .transpose()?;
+    let gnss = optional_stream::<GnssSample>(dir, &mut warnings)?;
+    let imu = optional_stream::<ImuSample>(dir, &mut warnings)?;
+    let heading = optional_stream::<HeadingSample>(dir, &mut warnings)?;
+    let truth = optional_stream::<TruthSample>(dir, &mut warnings)?;
     let truth_params = match optional_file(dir, TRUTH_TOML) {
         Some(p) => {
             let text = std::fs::read_to_string(&p).map_err(|e| DriveError::io(&p, e))?;
@@ -87,37 +75,15 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     let frame = local_frame(
         &vehicle_path,
         &mut vehicle,
-        gnss_raw.as_ref(),
-        truth_raw.as_ref(),
+        [
+            gnss.as_ref().and_then(RawStream::lat_lon_start),
+            truth.as_ref().and_then(RawStream::lat_lon_start),
+        ],
     )?;
-    let gnss = gnss_raw.map(|raw| {
-        raw.rows
-            .iter()
-            .map(|r| {
-                let (x_m, y_m) = raw.position.to_enu(frame.as_ref(), r.a, r.b);
-                GnssSample {
-                    t_s: r.t_s,
-                    x_m,
-                    y_m,
-                    sigma_m: r.extra,
-                }
-            })
-            .collect()
-    });
-    let truth = truth_raw.map(|raw| {
-        raw.rows
-            .iter()
-            .map(|r| {
-                let (x_m, y_m) = raw.position.to_enu(frame.as_ref(), r.a, r.b);
-                TruthSample {
-                    t_s: r.t_s,
-                    x_m,
-                    y_m,
-                    yaw_rad: r.extra,
-                }
-            })
-            .collect()
-    });
+    let gnss = gnss.map(|raw| raw.into_enu(frame.as_ref()));
+    let imu = imu.map(|raw| raw.samples);
+    let heading = heading.map(|raw| raw.samples);
+    let truth = truth.map(|raw| raw.into_enu(frame.as_ref()));
 
     warn_about_other_files(dir, &mut warnings);
     Ok(LoadedDrive {
@@ -137,6 +103,16 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
 fn optional_file(dir: &Path, name: &str) -> Option<PathBuf> {
     let p = dir.join(name);
     p.is_file().then_some(p)
+}
+
+/// Read stream `S`'s file when the folder has it.
+fn optional_stream<S: Stream>(
+    dir: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Option<RawStream<S>>, DriveError> {
+    optional_file(dir, S::CSV_FILE)
+        .map(|p| read_stream(&p, warnings))
+        .transpose()
 }
 
 /// CSV and TOML files in the folder that the format does not know.
@@ -159,6 +135,21 @@ fn warn_about_other_files(dir: &Path, warnings: &mut Vec<String>) {
             others.join(", ")
         ));
     }
+}
+
+/// The numeric values of `vehicle.toml` by key (`gnss.` keys in the
+/// `[gnss]` table); each must be finite.
+pub(super) fn vehicle_values(v: &VehicleParams) -> [(&'static str, Option<f64>); 8] {
+    [
+        ("track_width_m", Some(v.track_width_m)),
+        ("nominal_circumference_m", Some(v.nominal_circumference_m)),
+        ("wheelbase_m", v.wheelbase_m),
+        ("ticks_per_rev", v.ticks_per_rev),
+        ("gnss.antenna_x_m", v.gnss.antenna_x_m),
+        ("gnss.antenna_y_m", v.gnss.antenna_y_m),
+        ("gnss.origin_lat_deg", v.gnss.origin_lat_deg),
+        ("gnss.origin_lon_deg", v.gnss.origin_lon_deg),
+    ]
 }
 
 /// Parse `vehicle.toml` text; unknown keys become a warning.
@@ -192,20 +183,7 @@ pub(super) fn parse_vehicle_toml(
         ));
     }
     let vehicle: VehicleParams = toml::from_str(text).map_err(toml_error)?;
-    let values = [
-        ("track_width_m", Some(vehicle.track_width_m)),
-        (
-            "nominal_circumference_m",
-            Some(vehicle.nominal_circumference_m),
-        ),
-        ("wheelbase_m", vehicle.wheelbase_m),
-        ("ticks_per_rev", vehicle.ticks_per_rev),
-        ("gnss.antenna_x_m", vehicle.gnss.antenna_x_m),
-        ("gnss.antenna_y_m", vehicle.gnss.antenna_y_m),
-        ("gnss.origin_lat_deg", vehicle.gnss.origin_lat_deg),
-        ("gnss.origin_lon_deg", vehicle.gnss.origin_lon_deg),
-    ];
-    for (key, value) in values {
+    for (key, value) in vehicle_values(&vehicle) {
         if let Some(v) = value {
             if !v.is_finite() {
                 return Err(DriveError::Toml {
@@ -376,53 +354,66 @@ fn unreachable_missing(path: &Path) -> Result<(usize, usize), DriveError> {
 /// How a position file gives its positions.
 #[derive(Clone, Copy, PartialEq)]
 enum PositionKind {
-    /// `x_m,y_m`.
+    /// `x_m,y_m` (and every stream without positions).
     Enu,
     /// `lat_deg,lon_deg`.
     LatLon,
 }
 
-impl PositionKind {
-    fn to_enu(self, frame: Option<&LocalFrame>, a: f64, b: f64) -> (f64, f64) {
-        match (self, frame) {
-            (PositionKind::LatLon, Some(f)) => f.to_en(a, b),
-            // Enu, or LatLon without a frame (impossible: a frame is made
-            // whenever a lat/lon file has a row).
-            _ => (a, b),
-        }
-    }
-}
-
-/// A position row before lat/lon conversion: `a,b` are x,y or lat,lon;
-/// `extra` is sigma_m (gnss) or yaw_rad (truth).
-struct RawPositionRow {
-    t_s: f64,
-    a: f64,
-    b: f64,
-    extra: Option<f64>,
-}
-
-struct RawPositions {
+/// A stream as its file gives it: for `lat_deg,lon_deg` files, the samples'
+/// `x_m,y_m` hold latitude and longitude until [`RawStream::into_enu`].
+struct RawStream<S> {
     position: PositionKind,
-    rows: Vec<RawPositionRow>,
+    samples: Vec<S>,
+}
+
+impl<S: Stream> RawStream<S> {
+    /// `Some(first position)` for a lat/lon file (`Some(None)` when it has no
+    /// row), `None` for an ENU one.
+    fn lat_lon_start(&self) -> Option<Option<(f64, f64)>> {
+        (self.position == PositionKind::LatLon).then(|| {
+            self.samples
+                .first()
+                .and_then(|s| Some((s.value(1)?, s.value(2)?)))
+        })
+    }
+
+    /// The samples in ENU.
+    fn into_enu(self, frame: Option<&LocalFrame>) -> Vec<S> {
+        // ENU files, and lat/lon files without a frame (impossible: a frame
+        // is made whenever a lat/lon file has a row), are as read.
+        let (PositionKind::LatLon, Some(frame)) = (self.position, frame) else {
+            return self.samples;
+        };
+        let mut values = [None; MAX_FIELDS];
+        let n = S::FIELDS.len();
+        self.samples
+            .into_iter()
+            .filter_map(|s| {
+                for (k, v) in values[..n].iter_mut().enumerate() {
+                    *v = s.value(k);
+                }
+                let (x, y) = frame.to_en(values[1]?, values[2]?);
+                (values[1], values[2]) = (Some(x), Some(y));
+                S::from_values(&values[..n])
+            })
+            .collect()
+    }
 }
 
 /// Latitude within ±90°, longitude within ±360°.
 fn check_lat_lon(
     row: &Row<'_>,
-    position: PositionKind,
     lat_col: usize,
     lon_col: usize,
     lat: f64,
     lon: f64,
 ) -> Result<(), DriveError> {
-    if position == PositionKind::LatLon {
-        if lat.abs() > 90.0 {
-            return Err(row.bad_cell(lat_col, "latitude outside ±90°"));
-        }
-        if lon.abs() > 360.0 {
-            return Err(row.bad_cell(lon_col, "longitude outside ±360°"));
-        }
+    if lat.abs() > 90.0 {
+        return Err(row.bad_cell(lat_col, "latitude outside ±90°"));
+    }
+    if lon.abs() > 360.0 {
+        return Err(row.bad_cell(lon_col, "longitude outside ±360°"));
     }
     Ok(())
 }
@@ -460,13 +451,43 @@ fn position_columns(csv: &mut CsvFile) -> Result<(PositionKind, usize, usize), D
     }
 }
 
-fn read_gnss(path: &Path, warnings: &mut Vec<String>) -> Result<RawPositions, DriveError> {
+/// Read the CSV file of stream `S`: `t_s` strictly increasing, the required
+/// columns present and filled, lat/lon in range.
+fn read_stream<S: Stream>(
+    path: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<RawStream<S>, DriveError> {
     let mut csv = CsvFile::open(path)?;
-    let t_col = csv.required("t_s")?;
-    let (position, a_col, b_col) = position_columns(&mut csv)?;
-    let sigma_col = csv.optional("sigma_m");
-    let fix_col = csv.optional("fix");
-    let mut rows = Vec::new();
+    let n = S::FIELDS.len();
+    // Column of each field, in S::FIELDS order (`t_s` first).
+    let mut cols: [Option<usize>; MAX_FIELDS] = [None; MAX_FIELDS];
+    let t_col = csv.required(S::FIELDS[0].name)?;
+    cols[0] = Some(t_col);
+    let mut position = PositionKind::Enu;
+    // The lat/lon columns, in a lat/lon file.
+    let mut lat_lon = None;
+    let mut next = 1;
+    if S::LAT_LON {
+        let (kind, a, b) = position_columns(&mut csv)?;
+        (position, cols[1], cols[2], next) = (kind, Some(a), Some(b), 3);
+        if kind == PositionKind::LatLon {
+            lat_lon = Some((a, b));
+        }
+    }
+    for (col, field) in cols[next..n].iter_mut().zip(&S::FIELDS[next..]) {
+        *col = if field.required {
+            Some(csv.required(field.name)?)
+        } else {
+            csv.optional(field.name)
+        };
+    }
+    let fix_col = if S::FIX_COLUMN {
+        csv.optional("fix")
+    } else {
+        None
+    };
+    let mut samples = Vec::new();
+    let mut values = [None; MAX_FIELDS];
     let mut previous = None;
     let mut no_fix = 0usize;
     let mut first_no_fix_line = 0usize;
@@ -480,14 +501,17 @@ fn read_gnss(path: &Path, warnings: &mut Vec<String>) -> Result<RawPositions, Dr
             no_fix += 1;
             return Ok(());
         }
-        let (a, b) = (row.need(a_col)?, row.need(b_col)?);
-        check_lat_lon(row, position, a_col, b_col, a, b)?;
-        rows.push(RawPositionRow {
-            t_s,
-            a,
-            b,
-            extra: row.opt(sigma_col)?,
-        });
+        values[0] = Some(t_s);
+        for k in 1..n {
+            values[k] = match (S::FIELDS[k].required, cols[k]) {
+                (true, Some(i)) => Some(row.need(i)?),
+                (_, col) => row.opt(col)?,
+            };
+            if let (2, Some((a, b)), Some(lat), Some(lon)) = (k, lat_lon, values[1], values[2]) {
+                check_lat_lon(row, a, b, lat, lon)?;
+            }
+        }
+        samples.extend(S::from_values(&values[..n]));
         Ok(())
     })?;
     if no_fix > 0 {
@@ -497,52 +521,23 @@ fn read_gnss(path: &Path, warnings: &mut Vec<String>) -> Result<RawPositions, Dr
         ));
     }
     warnings.extend(csv.unknown_columns_warning());
-    Ok(RawPositions { position, rows })
-}
-
-fn read_truth(path: &Path, warnings: &mut Vec<String>) -> Result<RawPositions, DriveError> {
-    let mut csv = CsvFile::open(path)?;
-    let t_col = csv.required("t_s")?;
-    let (position, a_col, b_col) = position_columns(&mut csv)?;
-    let yaw_col = csv.optional("yaw_rad");
-    let mut rows = Vec::new();
-    let mut previous = None;
-    csv.for_each_row(|row| {
-        let t_s = row.need(t_col)?;
-        row.check_time(t_s, &mut previous)?;
-        let (a, b) = (row.need(a_col)?, row.need(b_col)?);
-        check_lat_lon(row, position, a_col, b_col, a, b)?;
-        rows.push(RawPositionRow {
-            t_s,
-            a,
-            b,
-            extra: row.opt(yaw_col)?,
-        });
-        Ok(())
-    })?;
-    warnings.extend(csv.unknown_columns_warning());
-    Ok(RawPositions { position, rows })
+    Ok(RawStream { position, samples })
 }
 
 /// The ENU frame for lat/lon files, recording its origin in the vehicle
 /// parameters so that a writer (which writes x_m,y_m) loses nothing.
+/// `starts` holds, per position stream, what [`RawStream::lat_lon_start`] gives.
 fn local_frame(
     vehicle_path: &Path,
     vehicle: &mut VehicleParams,
-    gnss: Option<&RawPositions>,
-    truth: Option<&RawPositions>,
+    starts: [Option<Option<(f64, f64)>>; 2],
 ) -> Result<Option<LocalFrame>, DriveError> {
-    let geo: Vec<&RawPositions> = [gnss, truth]
-        .into_iter()
-        .flatten()
-        .filter(|r| r.position == PositionKind::LatLon)
-        .collect();
-    if geo.is_empty() {
+    if starts.iter().all(Option::is_none) {
         return Ok(None);
     }
     let origin = match (vehicle.gnss.origin_lat_deg, vehicle.gnss.origin_lon_deg) {
         (Some(lat), Some(lon)) => Some((lat, lon)),
-        _ => geo.iter().find_map(|r| r.rows.first()).map(|r| (r.a, r.b)),
+        _ => starts.into_iter().flatten().flatten().next(),
     };
     let Some((lat, lon)) = origin else {
         // Lat/lon files without a single row: nothing to convert.
@@ -557,56 +552,6 @@ fn local_frame(
     vehicle.gnss.origin_lat_deg = Some(lat);
     vehicle.gnss.origin_lon_deg = Some(lon);
     Ok(Some(LocalFrame::new(lat, lon, 0.0)))
-}
-
-fn read_imu(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<ImuSample>, DriveError> {
-    let mut csv = CsvFile::open(path)?;
-    let t_col = csv.required("t_s")?;
-    let gz = csv.required("gz_rad_s")?;
-    let ax = csv.optional("ax_m_s2");
-    let ay = csv.optional("ay_m_s2");
-    let az = csv.optional("az_m_s2");
-    let gx = csv.optional("gx_rad_s");
-    let gy = csv.optional("gy_rad_s");
-    let mut out = Vec::new();
-    let mut previous = None;
-    csv.for_each_row(|row| {
-        let t_s = row.need(t_col)?;
-        row.check_time(t_s, &mut previous)?;
-        out.push(ImuSample {
-            t_s,
-            gz_rad_s: row.need(gz)?,
-            ax_m_s2: row.opt(ax)?,
-            ay_m_s2: row.opt(ay)?,
-            az_m_s2: row.opt(az)?,
-            gx_rad_s: row.opt(gx)?,
-            gy_rad_s: row.opt(gy)?,
-        });
-        Ok(())
-    })?;
-    warnings.extend(csv.unknown_columns_warning());
-    Ok(out)
-}
-
-fn read_heading(path: &Path, warnings: &mut Vec<String>) -> Result<Vec<HeadingSample>, DriveError> {
-    let mut csv = CsvFile::open(path)?;
-    let t_col = csv.required("t_s")?;
-    let yaw = csv.required("yaw_rad")?;
-    let sigma = csv.optional("sigma_rad");
-    let mut out = Vec::new();
-    let mut previous = None;
-    csv.for_each_row(|row| {
-        let t_s = row.need(t_col)?;
-        row.check_time(t_s, &mut previous)?;
-        out.push(HeadingSample {
-            t_s,
-            yaw_rad: row.need(yaw)?,
-            sigma_rad: row.opt(sigma)?,
-        });
-        Ok(())
-    })?;
-    warnings.extend(csv.unknown_columns_warning());
-    Ok(out)
 }
 
 // ---------------------------------------------------------------- writing
@@ -629,18 +574,6 @@ pub(super) fn truth_toml(truth: &TruthParams) -> Result<String, DriveError> {
     })
 }
 
-/// The `wheels.csv` column names for `units`, in Wheel::ALL order.
-pub(super) fn wheel_column_names(units: &WheelUnits) -> Vec<(Wheel, String)> {
-    Wheel::ALL
-        .iter()
-        .filter_map(|&w| {
-            units
-                .of(w)
-                .map(|u| (w, format!("{}_{}", w.prefix(), u.suffix())))
-        })
-        .collect()
-}
-
 /// Write a drive folder (the drive has been validated).
 pub(super) fn write_folder(drive: &Drive, dir: &Path) -> Result<(), DriveError> {
     std::fs::create_dir_all(dir).map_err(|e| DriveError::io(dir, e))?;
@@ -648,79 +581,10 @@ pub(super) fn write_folder(drive: &Drive, dir: &Path) -> Result<(), DriveError> 
         (VEHICLE_TOML, vehicle_toml(&drive.vehicle)?),
         (WHEELS_CSV, wheels_csv(drive)),
     ];
-    if let Some(g) = &drive.gnss {
-        let sigma = g.iter().any(|s| s.sigma_m.is_some());
-        let mut cols = vec!["t_s", "x_m", "y_m"];
-        if sigma {
-            cols.push("sigma_m");
-        }
-        let mut w = CsvWriter::new(&cols, g.len());
-        for s in g {
-            let row = [Some(s.t_s), Some(s.x_m), Some(s.y_m), s.sigma_m];
-            w.row(&row[..cols.len()]);
-        }
-        files.push((GNSS_CSV, w.finish()));
-    }
-    if let Some(imu) = &drive.imu {
-        let names = ["ax_m_s2", "ay_m_s2", "az_m_s2", "gx_rad_s", "gy_rad_s"];
-        let get = |s: &ImuSample| [s.ax_m_s2, s.ay_m_s2, s.az_m_s2, s.gx_rad_s, s.gy_rad_s];
-        // An optional column is written when any row has a value in it.
-        let present: Vec<bool> = (0..names.len())
-            .map(|k| imu.iter().any(|s| get(s)[k].is_some()))
-            .collect();
-        let mut cols = vec!["t_s", "gz_rad_s"];
-        cols.extend(
-            names
-                .iter()
-                .zip(&present)
-                .filter(|(_, p)| **p)
-                .map(|(n, _)| *n),
-        );
-        let mut w = CsvWriter::new(&cols, imu.len());
-        let mut row = Vec::with_capacity(cols.len());
-        for s in imu {
-            row.clear();
-            row.push(Some(s.t_s));
-            row.push(Some(s.gz_rad_s));
-            row.extend(
-                get(s)
-                    .iter()
-                    .zip(&present)
-                    .filter(|(_, p)| **p)
-                    .map(|(v, _)| *v),
-            );
-            w.row(&row);
-        }
-        files.push((IMU_CSV, w.finish()));
-    }
-    if let Some(h) = &drive.heading {
-        let sigma = h.iter().any(|s| s.sigma_rad.is_some());
-        let cols: &[&str] = if sigma {
-            &["t_s", "yaw_rad", "sigma_rad"]
-        } else {
-            &["t_s", "yaw_rad"]
-        };
-        let mut w = CsvWriter::new(cols, h.len());
-        for s in h {
-            let row = [Some(s.t_s), Some(s.yaw_rad), s.sigma_rad];
-            w.row(&row[..cols.len()]);
-        }
-        files.push((HEADING_CSV, w.finish()));
-    }
-    if let Some(t) = &drive.truth {
-        let yaw = t.iter().any(|s| s.yaw_rad.is_some());
-        let cols: &[&str] = if yaw {
-            &["t_s", "x_m", "y_m", "yaw_rad"]
-        } else {
-            &["t_s", "x_m", "y_m"]
-        };
-        let mut w = CsvWriter::new(cols, t.len());
-        for s in t {
-            let row = [Some(s.t_s), Some(s.x_m), Some(s.y_m), s.yaw_rad];
-            w.row(&row[..cols.len()]);
-        }
-        files.push((TRUTH_CSV, w.finish()));
-    }
+    files.extend(stream_csv::<GnssSample>(drive));
+    files.extend(stream_csv::<ImuSample>(drive));
+    files.extend(stream_csv::<HeadingSample>(drive));
+    files.extend(stream_csv::<TruthSample>(drive));
     if let Some(p) = &drive.truth_params {
         files.push((TRUTH_TOML, truth_toml(p)?));
     }
@@ -748,14 +612,36 @@ fn wheels_csv(drive: &Drive) -> String {
         row.clear();
         row.push(Some(s.t_s));
         for (wheel, _) in &columns {
-            row.push(match wheel {
-                Wheel::Rl => Some(s.rl),
-                Wheel::Rr => Some(s.rr),
-                Wheel::Fl => s.fl,
-                Wheel::Fr => s.fr,
-            });
+            row.push(wheel_value(s, *wheel));
         }
         w.row(&row);
     }
     w.finish()
+}
+
+/// The CSV file of stream `S` when the drive has it: `t_s` and the required
+/// columns, then each optional column that some row has a value in.
+fn stream_csv<S: Stream>(drive: &Drive) -> Option<(&'static str, String)> {
+    let samples = S::of(drive)?;
+    let present: Vec<bool> = (0..S::FIELDS.len())
+        .map(|k| S::FIELDS[k].required || samples.iter().any(|s| s.value(k).is_some()))
+        .collect();
+    let cols: Vec<&str> = S::FIELDS
+        .iter()
+        .zip(&present)
+        .filter(|(_, p)| **p)
+        .map(|(f, _)| f.name)
+        .collect();
+    let mut w = CsvWriter::new(&cols, samples.len());
+    let mut row = Vec::with_capacity(cols.len());
+    for s in samples {
+        row.clear();
+        row.extend(
+            (0..S::FIELDS.len())
+                .filter(|k| present[*k])
+                .map(|k| s.value(k)),
+        );
+        w.row(&row);
+    }
+    Some((S::CSV_FILE, w.finish()))
 }

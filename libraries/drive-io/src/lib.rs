@@ -17,6 +17,7 @@ mod folder;
 pub mod geodesy;
 mod info;
 mod recording;
+mod streams;
 
 pub use error::DriveError;
 pub use estimate_file::read_estimate;

@@ -1,8 +1,10 @@
 //! Checks that a drive obeys the format's rules before it is written, so that
 //! what is written always reads back (a NaN would be refused on reading).
 
+use super::folder::vehicle_values;
+use super::streams::{Stream, WHEELS_NAME};
 use super::DriveError;
-use interfaces::drive::{Drive, WheelUnit};
+use interfaces::drive::{Drive, GnssSample, HeadingSample, ImuSample, TruthSample, WheelUnit};
 
 fn invalid(stream: &str, index: usize, message: String) -> DriveError {
     DriveError::InvalidDrive {
@@ -49,17 +51,7 @@ fn series<T>(
 
 pub(super) fn drive(d: &Drive) -> Result<(), DriveError> {
     let v = &d.vehicle;
-    let vehicle_values = [
-        ("track_width_m", Some(v.track_width_m)),
-        ("nominal_circumference_m", Some(v.nominal_circumference_m)),
-        ("wheelbase_m", v.wheelbase_m),
-        ("ticks_per_rev", v.ticks_per_rev),
-        ("gnss.antenna_x_m", v.gnss.antenna_x_m),
-        ("gnss.antenna_y_m", v.gnss.antenna_y_m),
-        ("gnss.origin_lat_deg", v.gnss.origin_lat_deg),
-        ("gnss.origin_lon_deg", v.gnss.origin_lon_deg),
-    ];
-    for (name, value) in vehicle_values {
+    for (name, value) in vehicle_values(v) {
         if let Some(x) = value {
             if !x.is_finite() {
                 return Err(invalid("vehicle", 0, format!("{name} = {x} is not finite")));
@@ -77,7 +69,7 @@ pub(super) fn drive(d: &Drive) -> Result<(), DriveError> {
         ));
     }
     series(
-        "wheels",
+        WHEELS_NAME,
         &d.wheels.samples,
         |s| s.t_s,
         |s| {
@@ -97,58 +89,21 @@ pub(super) fn drive(d: &Drive) -> Result<(), DriveError> {
             out
         },
     )?;
-    if let Some(g) = &d.gnss {
-        series(
-            "gnss",
-            g,
-            |s| s.t_s,
-            |s| {
-                vec![
-                    ("x_m", Some(s.x_m)),
-                    ("y_m", Some(s.y_m)),
-                    ("sigma_m", s.sigma_m),
-                ]
-            },
-        )?;
-    }
-    if let Some(imu) = &d.imu {
-        series(
-            "imu",
-            imu,
-            |s| s.t_s,
-            |s| {
-                vec![
-                    ("gz_rad_s", Some(s.gz_rad_s)),
-                    ("ax_m_s2", s.ax_m_s2),
-                    ("ay_m_s2", s.ay_m_s2),
-                    ("az_m_s2", s.az_m_s2),
-                    ("gx_rad_s", s.gx_rad_s),
-                    ("gy_rad_s", s.gy_rad_s),
-                ]
-            },
-        )?;
-    }
-    if let Some(h) = &d.heading {
-        series(
-            "heading",
-            h,
-            |s| s.t_s,
-            |s| vec![("yaw_rad", Some(s.yaw_rad)), ("sigma_rad", s.sigma_rad)],
-        )?;
-    }
-    if let Some(t) = &d.truth {
-        series(
-            "truth",
-            t,
-            |s| s.t_s,
-            |s| {
-                vec![
-                    ("x_m", Some(s.x_m)),
-                    ("y_m", Some(s.y_m)),
-                    ("yaw_rad", s.yaw_rad),
-                ]
-            },
-        )?;
-    }
+    stream::<GnssSample>(d)?;
+    stream::<ImuSample>(d)?;
+    stream::<HeadingSample>(d)?;
+    stream::<TruthSample>(d)?;
     Ok(())
+}
+
+/// Check stream `S` of the drive, when it has it.
+fn stream<S: Stream>(d: &Drive) -> Result<(), DriveError> {
+    let Some(samples) = S::of(d) else {
+        return Ok(());
+    };
+    series(S::NAME, samples, S::t_s, |s| {
+        (1..S::FIELDS.len())
+            .map(|k| (S::FIELDS[k].name, s.value(k)))
+            .collect()
+    })
 }

@@ -26,10 +26,12 @@
 //!   here so that the model that scores a fix or a heading uses them.
 
 use interfaces::effects::Effect;
+use interfaces::wire::{ModelExtension, MAX_EXTENSION_PARAMS};
 use serde::{Deserialize, Serialize};
 
 /// One coefficient per catalogue effect; zero = not modelled.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
 pub struct EffectTerms {
     /// `side_slip`: k_beta, rad per m/s^2 of lateral acceleration.
     pub k_beta: f64,
@@ -57,6 +59,57 @@ pub struct EffectTerms {
     pub gyro_scale: f64,
     /// `heading_bias`: A, B, C of A + B sin(psi) + C cos(psi), rad.
     pub heading_bias_rad: [f64; 3],
+}
+
+/// The wheel-side terms alone (what an estimate carries to the odometer):
+/// side-slip, load transfer, speed growth, longitudinal slip, track width,
+/// radius drift. Small enough to travel in every estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default)]
+pub struct WheelEffects {
+    /// `side_slip` k_beta.
+    pub k_beta: f64,
+    /// `load_transfer_radius` k_z.
+    pub k_z: f64,
+    /// `speed_radius_growth` k_v.
+    pub k_v: f64,
+    /// `longitudinal_slip` k_s.
+    pub k_s: f64,
+    /// `track_width` rel.
+    pub track_rel: f64,
+    /// `radius_drift` d.
+    pub drift_d: f64,
+    /// `radius_drift` T, s.
+    pub drift_time_constant_s: f64,
+}
+
+impl From<EffectTerms> for WheelEffects {
+    fn from(t: EffectTerms) -> WheelEffects {
+        WheelEffects {
+            k_beta: t.k_beta,
+            k_z: t.k_z,
+            k_v: t.k_v,
+            k_s: t.k_s,
+            track_rel: t.track_rel,
+            drift_d: t.drift_d,
+            drift_time_constant_s: t.drift_time_constant_s,
+        }
+    }
+}
+
+impl From<WheelEffects> for EffectTerms {
+    fn from(w: WheelEffects) -> EffectTerms {
+        EffectTerms {
+            k_beta: w.k_beta,
+            k_z: w.k_z,
+            k_v: w.k_v,
+            k_s: w.k_s,
+            track_rel: w.track_rel,
+            drift_d: w.drift_d,
+            drift_time_constant_s: w.drift_time_constant_s,
+            ..EffectTerms::default()
+        }
+    }
 }
 
 /// The signals an effect term reads besides the wheels, at one step.
@@ -133,6 +186,72 @@ impl EffectTerms {
         let horizontal = along * (self.grade_gain * s.grade).atan().cos();
         let beta = -self.k_beta * s.a_y_m_s2;
         (horizontal, (d_rr - d_rl) / track, beta)
+    }
+
+    /// The wheel-side terms as wire model extensions (the catalogue code
+    /// and its parameters: side-slip k_beta; load transfer k_z; speed growth
+    /// k_v; longitudinal slip k_s; track width rel; radius drift d, T). The
+    /// antenna travels as its own extension, the gyro terms in the
+    /// estimate's own fields, GNSS latency and grade stay with the diagnosis.
+    pub fn to_extensions(&self) -> Vec<ModelExtension> {
+        let one = |e: Effect, p: &[f64]| {
+            let mut params = [0.0; MAX_EXTENSION_PARAMS];
+            params[..p.len()].copy_from_slice(p);
+            ModelExtension {
+                effect_code: e.code(),
+                param_count: p.len() as u32,
+                params,
+            }
+        };
+        let mut out = Vec::new();
+        if self.k_beta != 0.0 {
+            out.push(one(Effect::SideSlip, &[self.k_beta]));
+        }
+        if self.k_z != 0.0 {
+            out.push(one(Effect::LoadTransferRadius, &[self.k_z]));
+        }
+        if self.k_v != 0.0 {
+            out.push(one(Effect::SpeedRadiusGrowth, &[self.k_v]));
+        }
+        if self.k_s != 0.0 {
+            out.push(one(Effect::LongitudinalSlip, &[self.k_s]));
+        }
+        if self.track_rel != 0.0 {
+            out.push(one(Effect::TrackWidth, &[self.track_rel]));
+        }
+        if self.drift_d != 0.0 && self.drift_time_constant_s > 0.0 {
+            out.push(one(
+                Effect::RadiusDrift,
+                &[self.drift_d, self.drift_time_constant_s],
+            ));
+        }
+        out
+    }
+
+    /// The wheel-side terms of wire model extensions (others are ignored;
+    /// a non-finite parameter leaves its term at zero).
+    pub fn from_extensions(xs: &[ModelExtension]) -> EffectTerms {
+        let mut t = EffectTerms::default();
+        for x in xs {
+            let n = (x.param_count as usize).min(MAX_EXTENSION_PARAMS);
+            let p = &x.params[..n];
+            if p.iter().any(|v| !v.is_finite()) || p.is_empty() {
+                continue;
+            }
+            match Effect::from_code(x.effect_code) {
+                Some(Effect::SideSlip) => t.k_beta = p[0],
+                Some(Effect::LoadTransferRadius) => t.k_z = p[0],
+                Some(Effect::SpeedRadiusGrowth) => t.k_v = p[0],
+                Some(Effect::LongitudinalSlip) => t.k_s = p[0],
+                Some(Effect::TrackWidth) => t.track_rel = p[0],
+                Some(Effect::RadiusDrift) if n >= 2 => {
+                    t.drift_d = p[0];
+                    t.drift_time_constant_s = p[1];
+                }
+                _ => {}
+            }
+        }
+        t
     }
 
     /// The true yaw rate from a gyro reading, with the gyro terms.
@@ -219,5 +338,30 @@ mod tests {
         };
         assert!((t.corrected_gyro(1.01 * 0.5 + 0.01) - 0.5).abs() < 1e-12);
         assert_eq!(t.active(), vec![Effect::GyroBias, Effect::GyroScale]);
+    }
+
+    #[test]
+    fn wheel_terms_survive_the_wire() {
+        let t = EffectTerms {
+            k_beta: 0.004,
+            k_z: 5e-5,
+            k_v: 2.5e-6,
+            k_s: 0.002,
+            track_rel: 0.02,
+            drift_d: 0.003,
+            drift_time_constant_s: 600.0,
+            gnss_latency_s: 0.08,
+            ..EffectTerms::default()
+        };
+        let back = EffectTerms::from_extensions(&t.to_extensions());
+        assert_eq!(
+            back,
+            EffectTerms {
+                gnss_latency_s: 0.0,
+                ..t
+            }
+        );
+        assert_eq!(t.to_extensions().len(), 6);
+        assert_eq!(EffectTerms::from_extensions(&[]), EffectTerms::default());
     }
 }

@@ -16,6 +16,7 @@
 //! `gz = (1 + gyro_scale) * w + gyro_bias_rad_s`, so the corrected yaw rate is
 //! `w = (gz - gyro_bias_rad_s) / (1 + gyro_scale)`.
 
+use crate::effects::{EffectTerms, WheelEffects};
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
 use interfaces::effects::Effect;
@@ -123,6 +124,9 @@ pub struct Estimate {
     /// Its 1-sigma (x, y), m, when given (`gyro.sigma_antenna_m`, else
     /// `sigma_gnss_antenna_m`).
     pub antenna_sigma_m: Option<[f64; 2]>,
+    /// The effect terms a diagnosis found (`effects` in the JSON, effect
+    /// model extensions on the wire); all zero: the plain 2W model.
+    pub effects: WheelEffects,
 }
 
 /// An antenna position whose 1-sigma is larger than this in either axis is
@@ -193,6 +197,8 @@ struct EstimateJson {
     gnss_antenna_m: Option<[f64; 2]>,
     #[serde(default)]
     sigma_gnss_antenna_m: Option<[f64; 2]>,
+    #[serde(default)]
+    effects: Option<EffectTerms>,
 }
 
 /// The part of the calibrator's `gyro` object the odometry uses.
@@ -238,6 +244,7 @@ impl Estimate {
             quality_m: None,
             antenna_m: antenna_m.map(|a| validate_antenna(a, source)).transpose()?,
             antenna_sigma_m,
+            effects: parsed.effects.unwrap_or_default().into(),
         })
     }
 
@@ -270,11 +277,13 @@ impl Estimate {
             quality_m: Some(wire.quality_m),
             antenna_m,
             antenna_sigma_m,
+            effects: EffectTerms::from_extensions(&wire.extensions[..used]).into(),
         })
     }
 
-    /// The estimate as the wire type; of the model extensions only the GNSS
-    /// antenna (`gnss_lever_arm`), when known. Unknown sigmas and quality are
+    /// The estimate as the wire type: the GNSS antenna (`gnss_lever_arm`),
+    /// when known, and the effect terms (one extension per wheel-side effect,
+    /// [`EffectTerms::to_extensions`]). Unknown sigmas and quality are
     /// sent as 0 (the wire type has no validity flag for them).
     pub fn to_wire(&self, header: Header, version: u64) -> CircumferenceEstimate {
         let (sigma_rl_m, sigma_rr_m) = self.sigma_m.unwrap_or((0.0, 0.0));
@@ -291,10 +300,18 @@ impl Estimate {
             quality_m: self.quality_m.unwrap_or(0.0),
             ..CircumferenceEstimate::default()
         };
+        let mut n = 0;
         if let Some(a) = self.antenna_m {
             wire.extensions[0] = antenna_extension(a, self.antenna_sigma_m);
-            wire.extension_count = 1;
+            n = 1;
         }
+        for x in EffectTerms::from(self.effects).to_extensions() {
+            if n < wire.extensions.len() {
+                wire.extensions[n] = x;
+                n += 1;
+            }
+        }
+        wire.extension_count = n as u32;
         wire
     }
 
@@ -412,6 +429,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(msg.contains("gyro_scale"), "{msg}");
+    }
+
+    #[test]
+    fn effect_terms_travel_in_the_json_and_on_the_wire() {
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5,
+            "effects": {"track_rel": 0.02, "k_z": 5e-5, "gnss_latency_s": 0.08}}"#;
+        let e = Estimate::from_json_str(text, "est.json").unwrap();
+        assert_eq!(e.effects.track_rel, 0.02);
+        assert_eq!(e.effects.k_z, 5e-5);
+        let back = Estimate::from_wire(&e.to_wire(Header::from_seconds(1.0, 0), 3)).unwrap();
+        assert_eq!(back.effects, e.effects);
+        // Without `effects`: the plain model.
+        let plain = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        assert_eq!(plain.effects, WheelEffects::default());
     }
 
     #[test]

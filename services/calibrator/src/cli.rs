@@ -97,6 +97,11 @@ pub struct CalibrateArgs {
     /// No progress bar.
     #[arg(long)]
     pub no_progress: bool,
+    /// Also diagnose the drive (`calibrator diagnose`) and put the effect
+    /// terms it accepts into the JSON (`effects`), where the odometry takes
+    /// them from.
+    #[arg(long)]
+    pub diagnose: bool,
 }
 
 impl CalibrateArgs {
@@ -210,9 +215,39 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
             println!("  - {w}");
         }
     }
+    let effects = if args.diagnose {
+        let d = calibrator::diagnose::diagnose(
+            &drive,
+            &calibrator::diagnose::DiagnoseConfig::default(),
+        )
+        .with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+        let found: Vec<&str> = d.findings.iter().map(|f| f.effect.id()).collect();
+        println!(
+            "diagnosis: {}",
+            if found.is_empty() {
+                "no effect beyond the noise".to_string()
+            } else {
+                format!(
+                    "{} (the terms go into the JSON's `effects`)",
+                    found.join(", ")
+                )
+            }
+        );
+        Some(d.terms)
+    } else {
+        None
+    };
     if let Some(path) = &args.json {
-        let text =
-            serde_json::to_string_pretty(&cal).context("cannot encode the calibration as JSON")?;
+        let mut value =
+            serde_json::to_value(&cal).context("cannot encode the calibration as JSON")?;
+        if let (Some(terms), Some(obj)) = (effects, value.as_object_mut()) {
+            obj.insert(
+                "effects".to_string(),
+                serde_json::to_value(terms).context("cannot encode the effect terms")?,
+            );
+        }
+        let text = serde_json::to_string_pretty(&value)
+            .context("cannot encode the calibration as JSON")?;
         std::fs::write(path, text + "\n")
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());

@@ -408,6 +408,7 @@ mod tests {
                 quality_m: None,
                 antenna_m: None,
                 antenna_sigma_m: None,
+                effects: vehicle_model::effects::WheelEffects::default(),
             },
         };
         seq.push(estimate);

@@ -50,6 +50,7 @@ struct EvaluateArgs {
     estimate: Option<PathBuf>,
     /// Dead-reckon with the 2W model extended by the effects a diagnosis
     /// found: the JSON `calibrator diagnose --json` wrote (its `terms`).
+    /// Without it, the effects the estimate carries (`calibrate --diagnose`).
     #[arg(long, value_name = "DIAGNOSIS_JSON")]
     effects: Option<PathBuf>,
     /// Outage length, seconds.
@@ -93,7 +94,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
-    let (params, source, antenna, antenna_sigma) = match &args.estimate {
+    let (params, source, antenna, antenna_sigma, estimate_effects) = match &args.estimate {
         Some(path) => {
             let estimate = drive_io::read_estimate(path).context("cannot use the estimate")?;
             (
@@ -101,6 +102,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
                 path.display().to_string(),
                 estimate.antenna_m,
                 estimate.antenna_sigma_m,
+                estimate.effects.into(),
             )
         }
         None => (
@@ -108,6 +110,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             "nominal (vehicle.toml)".to_string(),
             None,
             None,
+            vehicle_model::effects::EffectTerms::default(),
         ),
     };
     let truth_point =
@@ -117,9 +120,10 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         spacing_s: args.spacing,
         odometer: args.odometer.config(),
         truth_point,
+        // The diagnosis given, else the terms the estimate carries.
         effects: match &args.effects {
             Some(path) => read_effect_terms(path)?,
-            None => vehicle_model::effects::EffectTerms::default(),
+            None => estimate_effects,
         },
         ..EvaluateConfig::default()
     };

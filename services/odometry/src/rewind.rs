@@ -555,6 +555,7 @@ mod tests {
                 quality_m: None,
                 antenna_m: None,
                 antenna_sigma_m: None,
+                effects: vehicle_model::effects::WheelEffects::default(),
             },
         };
         // The estimate arrives right after the wheel sample of 3.0 s; the fix

@@ -690,7 +690,11 @@ pub fn serve(
     shutdown: &Shutdown,
 ) -> Result<ServeSummary, ServeError> {
     let mut fusion = match config.initial {
-        Some(e) => Fusion::new(e.params, 0, config.fusion),
+        Some(e) => {
+            let mut f = Fusion::new(e.params, 0, config.fusion);
+            f.set_effects(e.effects.into());
+            f
+        }
         None => Fusion::nominal(&config.vehicle, config.fusion),
     };
     let params = *fusion.params();
@@ -1138,6 +1142,7 @@ mod tests {
             quality_m: None,
             antenna_m: Some([0.5, -0.3]),
             antenna_sigma_m: None,
+            effects: vehicle_model::effects::WheelEffects::default(),
         };
         assert_eq!(gnss_lever_arm(&vehicle, None), ([0.0, 0.0], false));
         assert_eq!(

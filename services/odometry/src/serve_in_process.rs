@@ -248,6 +248,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 quality_m: Some(0.5),
                 antenna_m: None,
                 antenna_sigma_m: None,
+                effects: vehicle_model::effects::WheelEffects::default(),
             };
             estimates
                 .publish(new.to_wire(Header::from_seconds(t, 0), 1))
@@ -592,6 +593,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
                 quality_m: Some(0.5),
                 antenna_m: Some(arm),
                 antenna_sigma_m: Some([0.02, 0.02]),
+                effects: vehicle_model::effects::WheelEffects::default(),
             };
             estimates
                 .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))

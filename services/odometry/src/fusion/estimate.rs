@@ -7,6 +7,13 @@ use super::state::{State, N, SCALE, WHEEL_DIFF};
 use vehicle_model::estimate::OdometryParams;
 
 impl Fusion {
+    /// Dead-reckon with these effect terms of the extended 2W model (the
+    /// diagnosis's findings, carried by an estimate) from the next wheel
+    /// sample on; zero terms are the plain model.
+    pub fn set_effects(&mut self, effects: vehicle_model::effects::EffectTerms) {
+        self.odometer.set_effects(effects);
+    }
+
     /// Switch to a new estimate between two samples: the pose does not move,
     /// the next increments use the new parameters, and the residual gyro bias
     /// starts again from zero (the new estimate carries its own bias).

@@ -134,6 +134,7 @@ mod tests {
                 quality_m: None,
                 antenna_m: Some(arm),
                 antenna_sigma_m: None,
+                effects: vehicle_model::effects::WheelEffects::default(),
             },
         };
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));

@@ -75,6 +75,8 @@ impl Fusion {
                     self.set_lever_arm(antenna)?;
                 }
                 self.set_estimate(estimate.params, version);
+                // The effect terms a diagnosis found travel with the estimate.
+                self.set_effects(estimate.effects.into());
                 Ok(None)
             }
             Input::Wheels {

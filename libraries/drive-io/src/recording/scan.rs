@@ -1,0 +1,309 @@
+//! The record walk of an MCAP file: every whole record up to the first
+//! damage, chunk contents included (chunks are uncompressed), so that a
+//! truncated recording can be read up to where it is cut.
+
+use crate::DriveError;
+use mcap::records::{op, Record};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A message as found in the file.
+pub(super) struct RawMessage<'a> {
+    /// The channel it was written on.
+    pub channel_id: u16,
+    /// Byte offset of its record in the file.
+    pub offset: u64,
+    /// The message (JSON).
+    pub data: &'a [u8],
+}
+
+/// A channel record.
+pub(super) struct ChannelInfo {
+    /// Its topic.
+    pub topic: String,
+    /// Its message encoding.
+    pub encoding: String,
+    /// Its metadata.
+    pub metadata: BTreeMap<String, String>,
+}
+
+/// Where a file stops making sense.
+pub(super) struct Damage {
+    /// Byte offset of the damaged record.
+    pub offset: u64,
+    /// What is wrong with it.
+    pub record: String,
+}
+
+/// Everything a walk over the records found.
+#[derive(Default)]
+pub(super) struct Scan<'a> {
+    /// Channels by id.
+    pub channels: BTreeMap<u16, ChannelInfo>,
+    /// Metadata records by name.
+    pub metadata: BTreeMap<String, BTreeMap<String, String>>,
+    /// Messages in file order.
+    pub messages: Vec<RawMessage<'a>>,
+    /// The first damage found, if any.
+    pub damage: Option<Damage>,
+    /// A DataEnd record was read.
+    pub data_end_seen: bool,
+    footer_seen: bool,
+}
+
+fn op_name(op: u8) -> String {
+    match op {
+        op::HEADER => "Header".into(),
+        op::FOOTER => "Footer".into(),
+        op::SCHEMA => "Schema".into(),
+        op::CHANNEL => "Channel".into(),
+        op::MESSAGE => "Message".into(),
+        op::CHUNK => "Chunk".into(),
+        op::MESSAGE_INDEX => "MessageIndex".into(),
+        op::CHUNK_INDEX => "ChunkIndex".into(),
+        op::ATTACHMENT => "Attachment".into(),
+        op::ATTACHMENT_INDEX => "AttachmentIndex".into(),
+        op::STATISTICS => "Statistics".into(),
+        op::METADATA => "Metadata".into(),
+        op::METADATA_INDEX => "MetadataIndex".into(),
+        op::SUMMARY_OFFSET => "SummaryOffset".into(),
+        op::DATA_END => "DataEnd".into(),
+        other => format!("opcode 0x{other:02x}"),
+    }
+}
+
+fn le_u64(b: &[u8]) -> u64 {
+    let mut a = [0u8; 8];
+    a.copy_from_slice(&b[..8]);
+    u64::from_le_bytes(a)
+}
+
+fn le_u32(b: &[u8]) -> u32 {
+    let mut a = [0u8; 4];
+    a.copy_from_slice(&b[..4]);
+    u32::from_le_bytes(a)
+}
+
+/// One framed record: (opcode, body start, declared body length).
+enum Frame {
+    Complete {
+        op: u8,
+        body: std::ops::Range<usize>,
+    },
+    /// The record runs past the end of the buffer.
+    Cut {
+        op: Option<u8>,
+        declared: u64,
+        present: usize,
+    },
+}
+
+fn frame(buf: &[u8], pos: usize) -> Frame {
+    let rest = buf.len() - pos;
+    if rest < 9 {
+        return Frame::Cut {
+            op: buf.get(pos).copied(),
+            declared: 0,
+            present: rest,
+        };
+    }
+    let op = buf[pos];
+    let len = le_u64(&buf[pos + 1..]);
+    let start = pos + 9;
+    match usize::try_from(len).ok().and_then(|l| start.checked_add(l)) {
+        Some(end) if end <= buf.len() => Frame::Complete {
+            op,
+            body: start..end,
+        },
+        _ => Frame::Cut {
+            op: Some(op),
+            declared: len,
+            present: rest - 9,
+        },
+    }
+}
+
+/// Byte offset of the records inside a chunk body, and the compression.
+fn chunk_records_start(body: &[u8]) -> Option<(usize, String)> {
+    // message_start_time u64, message_end_time u64, uncompressed_size u64,
+    // uncompressed_crc u32, compression string (u32 length + bytes),
+    // records length u64, records.
+    let str_len = le_u32(body.get(28..32)?) as usize;
+    let compression = body.get(32..32 + str_len)?;
+    let start = 32 + str_len + 8;
+    if body.len() < start {
+        return None;
+    }
+    Some((start, String::from_utf8_lossy(compression).into_owned()))
+}
+
+impl<'a> Scan<'a> {
+    fn handle(
+        &mut self,
+        path: &Path,
+        op: u8,
+        body: &'a [u8],
+        offset: u64,
+    ) -> Result<(), DriveError> {
+        let record = mcap::parse_record(op, body).map_err(|e| DriveError::Mcap {
+            path: path.to_path_buf(),
+            location: format!("{} record at byte {offset}", op_name(op)),
+            message: e.to_string(),
+        })?;
+        match record {
+            Record::Channel(c) => {
+                self.channels.insert(
+                    c.id,
+                    ChannelInfo {
+                        topic: c.topic,
+                        encoding: c.message_encoding,
+                        metadata: c.metadata,
+                    },
+                );
+            }
+            Record::Message { header, data } => {
+                let data: &'a [u8] = match data {
+                    std::borrow::Cow::Borrowed(d) => d,
+                    // parse_record borrows from `body`; an owned copy never happens.
+                    std::borrow::Cow::Owned(_) => {
+                        return Err(DriveError::Mcap {
+                            path: path.to_path_buf(),
+                            location: format!("Message record at byte {offset}"),
+                            message: "unexpected owned message data".to_string(),
+                        })
+                    }
+                };
+                self.messages.push(RawMessage {
+                    channel_id: header.channel_id,
+                    offset,
+                    data,
+                });
+            }
+            Record::Metadata(m) => {
+                self.metadata.insert(m.name, m.metadata);
+            }
+            Record::DataEnd(_) => self.data_end_seen = true,
+            Record::Footer(_) => self.footer_seen = true,
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Walk the records of `buf[start..]` (the whole file, or a chunk's
+    /// records); `base` is the file offset of `buf[0]`. Stops at the first
+    /// damaged record (recorded in `self.damage`) or the footer.
+    pub fn walk(
+        &mut self,
+        path: &Path,
+        buf: &'a [u8],
+        start: usize,
+        base: u64,
+        in_chunk: bool,
+    ) -> Result<(), DriveError> {
+        let mut pos = start;
+        while pos < buf.len() {
+            let offset = base + pos as u64;
+            match frame(buf, pos) {
+                Frame::Complete { op, body } => {
+                    let end = body.end;
+                    let body = &buf[body];
+                    if op == op::CHUNK && !in_chunk {
+                        self.chunk(path, body, offset + 9)?;
+                        if self.damage.is_some() {
+                            return Ok(());
+                        }
+                    } else {
+                        self.handle(path, op, body, offset)?;
+                    }
+                    pos = end;
+                    if self.footer_seen {
+                        return Ok(());
+                    }
+                }
+                Frame::Cut {
+                    op,
+                    declared,
+                    present,
+                } => {
+                    let rest = buf.len() - pos;
+                    let record = match op {
+                        Some(op) if rest >= 9 => format!(
+                            "the {} record at byte {offset} declares {declared} bytes but only {present} follow",
+                            op_name(op)
+                        ),
+                        _ => format!("the record header at byte {offset} is cut after {rest} of 9 bytes"),
+                    };
+                    // A cut chunk: its records are uncompressed, so read those that are whole.
+                    if op == Some(op::CHUNK) && !in_chunk && rest > 9 {
+                        let body = &buf[pos + 9..];
+                        if let Some((records_start, compression)) = chunk_records_start(body) {
+                            if compression.is_empty() {
+                                self.walk(path, body, records_start, offset + 9, true)?;
+                            }
+                        }
+                    }
+                    self.damage = Some(Damage { offset, record });
+                    return Ok(());
+                }
+            }
+        }
+        if !in_chunk && !self.footer_seen {
+            self.damage = Some(Damage {
+                offset: buf.len() as u64,
+                record: format!(
+                    "the file ends at byte {} without a Footer record",
+                    buf.len()
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// A complete chunk record (body at file offset `base`).
+    fn chunk(&mut self, path: &Path, body: &'a [u8], base: u64) -> Result<(), DriveError> {
+        let Some((start, compression)) = chunk_records_start(body) else {
+            return Err(DriveError::Mcap {
+                path: path.to_path_buf(),
+                location: format!("Chunk record at byte {}", base - 9),
+                message: "malformed chunk header".to_string(),
+            });
+        };
+        if !compression.is_empty() {
+            return Err(DriveError::Mcap {
+                path: path.to_path_buf(),
+                location: format!("Chunk record at byte {}", base - 9),
+                message: format!(
+                    "chunk compressed with `{compression}`; this build reads uncompressed MCAP only \
+                     (re-write it with `mcap recover --compression none`)"
+                ),
+            });
+        }
+        let records_len = le_u64(&body[start - 8..]);
+        let end = usize::try_from(records_len)
+            .ok()
+            .and_then(|l| start.checked_add(l))
+            .filter(|e| *e <= body.len())
+            .ok_or_else(|| DriveError::Mcap {
+                path: path.to_path_buf(),
+                location: format!("Chunk record at byte {}", base - 9),
+                message: format!("records length {records_len} exceeds the chunk"),
+            })?;
+        let mut inner_damage = None;
+        std::mem::swap(&mut inner_damage, &mut self.damage);
+        self.walk(path, &body[..end], start, base, true)?;
+        if let Some(d) = self.damage.take() {
+            // A complete chunk whose records do not frame: corrupt, not truncated.
+            return Err(DriveError::Mcap {
+                path: path.to_path_buf(),
+                location: format!(
+                    "Chunk record at byte {}, inner record at byte {}",
+                    base - 9,
+                    d.offset
+                ),
+                message: d.record,
+            });
+        }
+        self.damage = inner_damage;
+        Ok(())
+    }
+}

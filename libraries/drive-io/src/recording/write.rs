@@ -1,0 +1,233 @@
+//! Writing a drive as an MCAP recording.
+
+use super::messages::{stream_schema, wheels_schema, MsgOut, WheelMsgOut};
+use super::{
+    wheel_units_text, DRIVE_METADATA, FORMAT_MAGIC, FORMAT_VERSION, TRUTH_KEY, TRUTH_METADATA,
+    VEHICLE_KEY, VEHICLE_METADATA, WHEELS_TOPIC, WHEEL_UNITS_KEY,
+};
+use crate::folder::{truth_toml, vehicle_toml};
+use crate::streams::{wheel_column_names, Stream, WHEELS_NAME, WHEELS_SCHEMA_TITLE};
+use crate::DriveError;
+use interfaces::drive::{
+    Drive, GnssSample, HeadingSample, ImuSample, TruthSample, Wheel, WheelSample, WheelUnits,
+};
+use mcap::records::{MessageHeader, Metadata};
+use std::collections::BTreeMap;
+use std::io::BufWriter;
+use std::path::Path;
+
+/// One stream of the drive on its way into the recording.
+trait Outgoing {
+    /// Name in errors.
+    fn name(&self) -> &'static str;
+    /// Channel topic.
+    fn topic(&self) -> &'static str;
+    /// Schema name.
+    fn schema_name(&self) -> &'static str;
+    /// Schema (JSON schema text).
+    fn schema(&self) -> Vec<u8>;
+    /// Channel metadata.
+    fn metadata(&self) -> BTreeMap<String, String>;
+    /// The sample times, in order.
+    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_>;
+    /// JSON of sample `i` into `buf`; `None` when there is no sample `i`.
+    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>>;
+}
+
+/// A stream with fixed columns.
+struct StreamOut<'a, S>(&'a [S]);
+
+impl<S: Stream> Outgoing for StreamOut<'_, S> {
+    fn name(&self) -> &'static str {
+        S::NAME
+    }
+    fn topic(&self) -> &'static str {
+        S::TOPIC
+    }
+    fn schema_name(&self) -> &'static str {
+        S::SCHEMA_TITLE
+    }
+    fn schema(&self) -> Vec<u8> {
+        stream_schema::<S>()
+    }
+    fn metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::new()
+    }
+    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
+        Box::new(self.0.iter().map(Stream::t_s))
+    }
+    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>> {
+        let sample = self.0.get(i)?;
+        Some(serde_json::to_writer(buf, &MsgOut(sample)))
+    }
+}
+
+/// The wheels, whose keys depend on their units.
+struct WheelsOut<'a> {
+    units: WheelUnits,
+    columns: Vec<(Wheel, String)>,
+    samples: &'a [WheelSample],
+}
+
+impl Outgoing for WheelsOut<'_> {
+    fn name(&self) -> &'static str {
+        WHEELS_NAME
+    }
+    fn topic(&self) -> &'static str {
+        WHEELS_TOPIC
+    }
+    fn schema_name(&self) -> &'static str {
+        WHEELS_SCHEMA_TITLE
+    }
+    fn schema(&self) -> Vec<u8> {
+        wheels_schema(&self.columns, &self.units)
+    }
+    fn metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::from([(WHEEL_UNITS_KEY.to_string(), wheel_units_text(&self.units))])
+    }
+    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
+        Box::new(self.samples.iter().map(|s| s.t_s))
+    }
+    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>> {
+        let sample = self.samples.get(i)?;
+        let columns = &self.columns;
+        Some(serde_json::to_writer(buf, &WheelMsgOut { columns, sample }))
+    }
+}
+
+/// Stream `S` of the drive, when it has it.
+fn outgoing<S: Stream + 'static>(drive: &Drive) -> Option<Box<dyn Outgoing + '_>> {
+    S::of(drive).map(|s| Box::new(StreamOut(s)) as Box<dyn Outgoing>)
+}
+
+/// Write a (validated) drive as an MCAP recording.
+pub(crate) fn write_mcap(drive: &Drive, path: &Path) -> Result<(), DriveError> {
+    let file = std::fs::File::create(path).map_err(|e| DriveError::io(path, e))?;
+    let err = |what: &str| {
+        let path = path.to_path_buf();
+        let what = what.to_string();
+        move |e: mcap::McapError| DriveError::Mcap {
+            path: path.clone(),
+            location: what.clone(),
+            message: e.to_string(),
+        }
+    };
+    let mut writer = mcap::WriteOptions::new()
+        .compression(None)
+        .profile("")
+        .create(BufWriter::new(file))
+        .map_err(err("writing the header"))?;
+
+    // The streams present, in channel order.
+    let units = drive.wheels.units;
+    let wheels = WheelsOut {
+        units,
+        columns: wheel_column_names(&units),
+        samples: &drive.wheels.samples,
+    };
+    let mut streams: Vec<Box<dyn Outgoing + '_>> = vec![Box::new(wheels)];
+    streams.extend(outgoing::<GnssSample>(drive));
+    streams.extend(outgoing::<ImuSample>(drive));
+    streams.extend(outgoing::<HeadingSample>(drive));
+    streams.extend(outgoing::<TruthSample>(drive));
+
+    // The earliest sample time of any stream sets the log-time offset.
+    let earliest = streams
+        .iter()
+        .filter_map(|s| s.times().next())
+        .reduce(f64::min);
+    let offset_ns: u64 = match earliest {
+        Some(t) if t < 0.0 => (-t * 1e9).ceil() as u64,
+        _ => 0,
+    };
+    let mut drive_meta = BTreeMap::new();
+    drive_meta.insert("format".to_string(), FORMAT_MAGIC.to_string());
+    drive_meta.insert("format_version".to_string(), FORMAT_VERSION.to_string());
+    drive_meta.insert("tool".to_string(), "sensor-bridge".to_string());
+    drive_meta.insert(
+        "tool_version".to_string(),
+        env!("CARGO_PKG_VERSION").to_string(),
+    );
+    drive_meta.insert(WHEEL_UNITS_KEY.to_string(), wheel_units_text(&units));
+    drive_meta.insert("log_time_offset_ns".to_string(), offset_ns.to_string());
+    writer
+        .write_metadata(&Metadata {
+            name: DRIVE_METADATA.to_string(),
+            metadata: drive_meta,
+        })
+        .map_err(err("writing metadata"))?;
+    writer
+        .write_metadata(&Metadata {
+            name: VEHICLE_METADATA.to_string(),
+            metadata: BTreeMap::from([(VEHICLE_KEY.to_string(), vehicle_toml(&drive.vehicle)?)]),
+        })
+        .map_err(err("writing metadata"))?;
+    if let Some(p) = &drive.truth_params {
+        writer
+            .write_metadata(&Metadata {
+                name: TRUTH_METADATA.to_string(),
+                metadata: BTreeMap::from([(TRUTH_KEY.to_string(), truth_toml(p)?)]),
+            })
+            .map_err(err("writing metadata"))?;
+    }
+
+    let mut channel_ids = Vec::with_capacity(streams.len());
+    for s in &streams {
+        let topic = s.topic();
+        let schema_id = writer
+            .add_schema(s.schema_name(), "jsonschema", &s.schema())
+            .map_err(err(topic))?;
+        let channel_id = writer
+            .add_channel(schema_id, topic, "json", &s.metadata())
+            .map_err(err(topic))?;
+        channel_ids.push(channel_id);
+    }
+
+    // Every message in time order across channels, for playback.
+    // (log time, stream, index within the stream)
+    let log_time = |t: f64| (t * 1e9).round() as i64 as i128 + offset_ns as i128;
+    let mut order: Vec<(i128, u8, u32)> = Vec::new();
+    for (stream, s) in streams.iter().enumerate() {
+        for (i, t) in s.times().enumerate() {
+            order.push((log_time(t), stream as u8, i as u32));
+        }
+    }
+    order.sort_unstable();
+
+    let mut sequence = vec![0u32; streams.len()];
+    let mut buf = Vec::with_capacity(256);
+    for (time, stream, index) in order {
+        let i = index as usize;
+        buf.clear();
+        let (Some(s), Some(&channel_id), Some(seq)) = (
+            streams.get(stream as usize),
+            channel_ids.get(stream as usize),
+            sequence.get_mut(stream as usize),
+        ) else {
+            continue; // never: `order` only holds samples of the streams
+        };
+        let Some(encoded) = s.encode(i, &mut buf) else {
+            continue; // never: `order` only holds samples that exist
+        };
+        encoded.map_err(|e| DriveError::InvalidDrive {
+            stream: s.name().to_string(),
+            index: i,
+            message: format!("cannot serialise as JSON: {e}"),
+        })?;
+        let log_time = time.clamp(0, u64::MAX as i128) as u64;
+        writer
+            .write_to_known_channel(
+                &MessageHeader {
+                    channel_id,
+                    sequence: *seq,
+                    log_time,
+                    publish_time: log_time,
+                },
+                &buf,
+            )
+            .map_err(err("writing a message"))?;
+        *seq = seq.wrapping_add(1);
+    }
+    writer.finish().map_err(err("writing the summary"))?;
+    Ok(())
+}
