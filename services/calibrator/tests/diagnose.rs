@@ -205,3 +205,29 @@ fn the_command_writes_json_pictures_and_an_index_page() {
     assert!(plots.join("residual_track_width.svg").is_file());
     assert!(plots.join("tracks.svg").is_file());
 }
+
+#[test]
+fn a_gnss_jump_is_reported_unexplained_not_forced_onto_an_effect() {
+    // A multipath jump no catalogue effect describes: 4 m east for 3 s.
+    let mut drive = drive_with(None, 2, VehicleKind::Van);
+    let gnss = drive.gnss.as_mut().expect("gnss");
+    let t0 = gnss[gnss.len() / 2].t_s;
+    for g in gnss.iter_mut().filter(|g| g.t_s >= t0 && g.t_s < t0 + 3.0) {
+        g.x_m += 4.0;
+    }
+    let d = diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose");
+    assert!(
+        d.findings.is_empty(),
+        "{:?}",
+        d.findings.iter().map(|f| f.effect).collect::<Vec<_>>()
+    );
+    let jump = d
+        .unexplained
+        .iter()
+        .find(|u| u.correlates_with.contains("GNSS jump"))
+        .unwrap_or_else(|| panic!("{:#?}", d.unexplained));
+    assert!(
+        jump.t_start_s <= t0 + 3.0 && jump.t_end_s >= t0 - 1.0,
+        "{jump:?} against {t0}"
+    );
+}

@@ -78,6 +78,8 @@ pub struct Epochs {
     pub gnss_sigma_m: f64,
     /// Half-width of the differencing interval, in fixes.
     pub half_width: usize,
+    /// The white part of the GNSS noise alone (from second differences), m.
+    pub gnss_white_sigma_m: f64,
 }
 
 /// Linear interpolation of a cumulative series at `t` (times increasing).
@@ -144,7 +146,8 @@ pub fn build(
     standstill_speed_m_s: f64,
 ) -> Epochs {
     let gnss: &[GnssSample] = drive.gnss.as_deref().unwrap_or(&[]);
-    let mut sigma = gnss_noise(gnss);
+    let white = gnss_noise(gnss);
+    let mut sigma = white;
     let col = median(&gnss.iter().filter_map(|g| g.sigma_m).collect::<Vec<_>>());
     if col.is_finite() && col > sigma {
         sigma = col;
@@ -329,6 +332,7 @@ pub fn build(
         epochs,
         gnss_sigma_m: sigma,
         half_width: half,
+        gnss_white_sigma_m: if white.is_finite() { white } else { sigma },
     }
 }
 

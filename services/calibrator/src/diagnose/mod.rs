@@ -642,7 +642,9 @@ fn gnss_jumps(ep: &Epochs) -> Vec<bool> {
     let steps: Vec<f64> = ep.epochs.iter().map(|e| e.gnss_step_m).collect();
     let m = median(&steps);
     let s = mad_sigma(&steps);
-    let limit = (m + 8.0 * s).max(4.0 * ep.gnss_sigma_m);
+    // A jump is a step far outside the drive's own step distribution and
+    // beyond the white GNSS noise (a slow wander is no jump).
+    let limit = (m + 8.0 * s).max(4.0 * ep.gnss_white_sigma_m);
     let n = ep.epochs.len();
     let mut out = vec![false; n];
     for (k, st) in steps.iter().enumerate() {
