@@ -83,6 +83,21 @@ pub struct WheelEffects {
     pub drift_time_constant_s: f64,
 }
 
+impl WheelEffects {
+    /// No term acts on the wheels: the plain 2W model (a warm-up without
+    /// its time constant does not act).
+    pub fn is_plain(&self) -> bool {
+        self.k_beta == 0.0
+            && self.k_z == 0.0
+            && self.k_v == 0.0
+            && self.k_s == 0.0
+            && self.track_rel == 0.0
+            && (self.drift_d == 0.0
+                || self.drift_time_constant_s.is_nan()
+                || self.drift_time_constant_s <= 0.0)
+    }
+}
+
 impl From<EffectTerms> for WheelEffects {
     fn from(t: EffectTerms) -> WheelEffects {
         WheelEffects {

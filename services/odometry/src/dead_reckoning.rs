@@ -55,7 +55,7 @@
 //! Pure: no clock, no I/O. Times are seconds on the drive's clock.
 
 use std::collections::VecDeque;
-use vehicle_model::effects::{EffectTerms, StepSignals};
+use vehicle_model::effects::{EffectTerms, StepSignals, WheelEffects};
 use vehicle_model::estimate::OdometryParams;
 use vehicle_model::two_wheel::{step, Pose2};
 
@@ -357,8 +357,8 @@ pub struct Odometer {
     bias: BiasLearning,
     bias_observation: Option<BiasObservation>,
     stats: OdometerStats,
-    /// Effect terms of the extended 2W model ([`Odometer::set_effects`]).
-    effects: EffectTerms,
+    /// Wheel-side effect terms of the extended 2W model ([`Odometer::set_effects`]).
+    effects: WheelEffects,
     /// With effect terms: the first wheel time, the smoothed speed and
     /// longitudinal acceleration they read.
     effect_state: EffectState,
@@ -390,7 +390,7 @@ impl Odometer {
             bias: BiasLearning::default(),
             bias_observation: None,
             stats: OdometerStats::default(),
-            effects: EffectTerms::default(),
+            effects: WheelEffects::default(),
             effect_state: EffectState::default(),
         }
     }
@@ -403,22 +403,12 @@ impl Odometer {
     /// the filter's business. All zero (the default) is the plain model,
     /// bit for bit.
     pub fn set_effects(&mut self, effects: EffectTerms) {
-        self.effects = EffectTerms {
-            grade_gain: 0.0,
-            ..effects
-        };
+        self.effects = effects.into();
     }
 
     /// The plain 2W increments, or the extended model's when effect terms are set.
     fn wheel_increments(&mut self, t_s: f64, dt: f64, dn_rl: f64, dn_rr: f64) -> (f64, f64, f64) {
-        let e = &self.effects;
-        let acts = e.k_beta != 0.0
-            || e.k_z != 0.0
-            || e.k_v != 0.0
-            || e.k_s != 0.0
-            || e.track_rel != 0.0
-            || (e.drift_d != 0.0 && e.drift_time_constant_s > 0.0);
-        if !acts {
+        if self.effects.is_plain() {
             let (ds, dyaw) = self.params.two_wheel.increments(dn_rl, dn_rr);
             return (ds, dyaw, 0.0);
         }
@@ -441,7 +431,14 @@ impl Odometer {
             grade: 0.0,
             t_since_start_s: t_s - t_first,
         };
-        e.increments(tw.c_rl, tw.c_rr, tw.track_width, dn_rl, dn_rr, &signals)
+        EffectTerms::from(self.effects).increments(
+            tw.c_rl,
+            tw.c_rr,
+            tw.track_width,
+            dn_rl,
+            dn_rr,
+            &signals,
+        )
     }
 
     /// The gyro bias in use, rad/s: the calibrated one, combined with what

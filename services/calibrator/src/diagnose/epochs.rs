@@ -80,10 +80,14 @@ pub struct Epochs {
     pub half_width: usize,
     /// The white part of the GNSS noise alone (from second differences), m.
     pub gnss_white_sigma_m: f64,
+    /// IMU times, s.
+    pub gyro_t: Vec<f64>,
+    /// The gyro heading (cumulative integral of gz) at the IMU times, rad.
+    pub gyro_psi: Vec<f64>,
 }
 
 /// Linear interpolation of a cumulative series at `t` (times increasing).
-fn interp(ts: &[f64], vs: &[f64], t: f64) -> Option<f64> {
+pub fn interp(ts: &[f64], vs: &[f64], t: f64) -> Option<f64> {
     if ts.is_empty() || t < ts[0] || t > ts[ts.len() - 1] {
         return None;
     }
@@ -333,6 +337,8 @@ pub fn build(
         gnss_sigma_m: sigma,
         half_width: half,
         gnss_white_sigma_m: if white.is_finite() { white } else { sigma },
+        gyro_t: it,
+        gyro_psi: psi_g,
     }
 }
 

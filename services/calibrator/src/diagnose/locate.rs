@@ -84,56 +84,21 @@ pub enum HeadingSource {
     Gyro,
 }
 
-/// What dead-reckoning reads, prepared once per drive.
-#[derive(Debug, Clone)]
+/// What dead-reckoning reads: the wheels, the fixes, and the epochs (with
+/// the accelerations, grade and gyro heading the effect terms read).
+#[derive(Debug, Clone, Copy)]
 pub struct Context<'a> {
     /// Wheel revolutions.
     pub revs: &'a [WheelRevs],
     /// GNSS fixes.
     pub gnss: &'a [GnssSample],
-    /// The epochs (accelerations and grade for the effect terms).
+    /// The epochs.
     pub ep: &'a Epochs,
-    /// IMU times.
-    pub imu_t: Vec<f64>,
-    /// Cumulative gyro heading at the IMU times, rad.
-    pub imu_psi: Vec<f64>,
 }
 
-impl<'a> Context<'a> {
-    /// Prepare the cumulative gyro heading.
-    pub fn new(
-        revs: &'a [WheelRevs],
-        gnss: &'a [GnssSample],
-        imu: &[interfaces::drive::ImuSample],
-        ep: &'a Epochs,
-    ) -> Context<'a> {
-        let imu_t: Vec<f64> = imu.iter().map(|s| s.t_s).collect();
-        let mut imu_psi = Vec::with_capacity(imu.len());
-        let mut acc = 0.0;
-        for i in 0..imu.len() {
-            if i > 0 {
-                acc += 0.5 * (imu[i].gz_rad_s + imu[i - 1].gz_rad_s) * (imu_t[i] - imu_t[i - 1]);
-            }
-            imu_psi.push(acc);
-        }
-        Context {
-            revs,
-            gnss,
-            ep,
-            imu_t,
-            imu_psi,
-        }
-    }
-
+impl Context<'_> {
     fn gyro_heading(&self, t: f64) -> Option<f64> {
-        let ts = &self.imu_t;
-        if ts.is_empty() || t < ts[0] || t > ts[ts.len() - 1] {
-            return None;
-        }
-        let i = ts.partition_point(|&x| x < t).max(1);
-        let (t0, t1) = (ts[i - 1], ts[i.min(ts.len() - 1)]);
-        let u = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-        Some(self.imu_psi[i - 1] + u * (self.imu_psi[i.min(ts.len() - 1)] - self.imu_psi[i - 1]))
+        super::epochs::interp(&self.ep.gyro_t, &self.ep.gyro_psi, t)
     }
 }
 

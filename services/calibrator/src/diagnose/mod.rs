@@ -355,7 +355,11 @@ pub fn diagnose_with_progress(
     }
     let excluded = gnss_jumps(&ep);
     let gnss = drive.gnss.as_deref().unwrap_or(&[]);
-    let cx = locate::Context::new(&revs, gnss, drive.imu.as_deref().unwrap_or(&[]), &ep);
+    let cx = locate::Context {
+        revs: &revs,
+        gnss,
+        ep: &ep,
+    };
     let duration = ep.epochs.last().map_or(0.0, |e| e.t_rel_s);
     let block_s = cfg.block_s.unwrap_or((duration / 12.0).clamp(5.0, 60.0));
     let design = design::build(
