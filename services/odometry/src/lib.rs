@@ -9,6 +9,7 @@
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
 //! - [`fused_outages`]: GNSS outages through the filter (the served pose).
 //! - [`rewind`]: samples that arrive late, taken in order by going back.
+//! - [`restart`]: whether a pose kept by an earlier run may be started from.
 //!
 //! The `odometry` binary holds the process: the `serve` loop over iceoryx2
 //! and the pose state file.
@@ -19,6 +20,7 @@ pub mod evaluate;
 pub mod fused_outages;
 pub mod fusion;
 pub mod inputs;
+pub mod restart;
 pub mod rewind;
 #[cfg(test)]
 mod test_drive;

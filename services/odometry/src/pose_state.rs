@@ -3,14 +3,28 @@
 //! A car parked in a garage powers on where it was switched off, without
 //! GNSS. The service writes its last pose with a position (`Fused` or
 //! `DeadReckoning`) to a small JSON file, and a new service starts from it
-//! ([`odometry::fusion::Fusion::resume`]). The file is replaced atomically (a
-//! temporary file renamed over it), so a crash never leaves half a pose.
+//! ([`odometry::fusion::Fusion::resume`]) when [`odometry::restart`] judges
+//! it can: the file keeps the rear wheels' counts, the drive time and the
+//! speed at the pose, and whether it was the service's last word, so that a
+//! car that moved while the service was down is not placed where it was.
+//!
+//! Written the way a power loss cannot corrupt and another local user cannot
+//! redirect: a fresh temporary file beside it (created exclusively, so an
+//! existing file or a planted symlink of that name is never followed or
+//! overwritten; readable by the owner only), fsynced, renamed over the file,
+//! and the directory fsynced. Read only when it is a regular file of at most
+//! [`MAX_STATE_BYTES`].
 
 use interfaces::wire::PoseMode;
 use odometry::fusion::FusedPose;
+use odometry::restart::{KeptRecord, WheelMark};
 use serde::{Deserialize, Serialize};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use vehicle_model::two_wheel::Pose2;
+
+/// The largest state file read, bytes (a kept pose is about 600).
+pub const MAX_STATE_BYTES: u64 = 64 * 1024;
 
 /// A pose as the state file keeps it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -35,6 +49,21 @@ pub struct SavedPose {
     /// `vehicle.toml` gives a measured one. Absent in files written before it.
     #[serde(default)]
     pub gnss_antenna_m: Option<[f64; 2]>,
+    /// The rear wheels' cumulative revolutions (left, right) at the pose's
+    /// wheel sample. Absent in files written before it.
+    #[serde(default)]
+    pub wheel_rev: Option<[f64; 2]>,
+    /// Speed of the rear-axle centre at the pose, m/s. Absent in files
+    /// written before it.
+    #[serde(default)]
+    pub speed_m_s: Option<f64>,
+    /// Written when the service stopped (a clean stop, stale inputs), not
+    /// periodically while it ran.
+    #[serde(default)]
+    pub last_word: bool,
+    /// How often the service wrote the file while it ran, s.
+    #[serde(default)]
+    pub write_every_s: Option<f64>,
 }
 
 impl SavedPose {
@@ -55,7 +84,28 @@ impl SavedPose {
             mode: mode.to_string(),
             estimate_version: pose.estimate_version,
             gnss_antenna_m: Some(gnss_antenna_m),
+            wheel_rev: None,
+            speed_m_s: None,
+            last_word: false,
+            write_every_s: None,
         })
+    }
+
+    /// What [`odometry::restart::judge_restart`] judges; a file without
+    /// `write_every_s` is taken as written every `default_every_s`.
+    pub fn record(&self, default_every_s: f64) -> KeptRecord {
+        KeptRecord {
+            pose: self.pose(),
+            covariance: self.covariance,
+            wheels: self.wheel_rev.map(|[rl_rev, rr_rev]| WheelMark {
+                t_s: self.t_s,
+                rl_rev,
+                rr_rev,
+            }),
+            speed_m_s: self.speed_m_s,
+            last_word: self.last_word,
+            write_every_s: self.write_every_s.unwrap_or(default_every_s),
+        }
     }
 
     /// Position and yaw.
@@ -90,18 +140,38 @@ pub enum PoseStateError {
     },
 }
 
-/// Read the kept pose; `Ok(None)` when the file does not exist yet.
+/// Read the kept pose; `Ok(None)` when the file does not exist yet. Anything
+/// but a regular file, or one larger than [`MAX_STATE_BYTES`], is an error
+/// naming it (a FIFO is never opened: that would block).
 pub fn load(path: &Path) -> Result<Option<SavedPose>, PoseStateError> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => {
-            return Err(PoseStateError::Io {
-                path: path.to_path_buf(),
-                source,
-            })
-        }
+    let io = |source| PoseStateError::Io {
+        path: path.to_path_buf(),
+        source,
     };
+    let meta = match std::fs::metadata(path) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => return Err(io(source)),
+    };
+    if !meta.is_file() {
+        return Err(PoseStateError::Parse {
+            path: path.to_path_buf(),
+            detail: format!("not a regular file ({})", file_kind(&meta)),
+        });
+    }
+    if meta.len() > MAX_STATE_BYTES {
+        return Err(PoseStateError::Parse {
+            path: path.to_path_buf(),
+            detail: format!(
+                "{} bytes, larger than a kept pose can be ({MAX_STATE_BYTES})",
+                meta.len()
+            ),
+        });
+    }
+    let mut text = String::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(MAX_STATE_BYTES + 1).read_to_string(&mut text))
+        .map_err(io)?;
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| PoseStateError::Parse {
@@ -110,19 +180,74 @@ pub fn load(path: &Path) -> Result<Option<SavedPose>, PoseStateError> {
         })
 }
 
-/// Write the kept pose: to `FILE.tmp`, then renamed over `FILE`.
+/// What a path is, for an error.
+fn file_kind(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    if t.is_dir() {
+        "a directory"
+    } else if t.is_fifo() {
+        "a FIFO"
+    } else if t.is_char_device() || t.is_block_device() {
+        "a device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a file"
+    }
+}
+
+/// Write the kept pose: to a fresh temporary file beside `path` (created
+/// exclusively, mode 0600), fsynced, renamed over `path`, and the directory
+/// fsynced; the temporary file is removed when any step fails.
 pub fn save(path: &Path, saved: &SavedPose) -> Result<(), PoseStateError> {
+    use std::os::unix::fs::OpenOptionsExt;
     let io = |source| PoseStateError::Io {
         path: path.to_path_buf(),
         source,
     };
     let text = serde_json::to_string_pretty(saved)
         .map_err(|e| io(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = PathBuf::from(tmp);
-    std::fs::write(&tmp, text + "\n").map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "pose".into());
+    // A name no other writer uses: the process, a per-process count and the
+    // clock's nanoseconds. `create_new` (O_CREAT | O_EXCL) fails on any
+    // existing entry, a symlink included, instead of following it.
+    static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let count = COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let tmp = dir.join(format!(
+        ".{name}.{}.{count}.{nanos:09}.tmp",
+        std::process::id()
+    ));
+    let written = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&tmp)
+        .and_then(|mut f| {
+            f.write_all(text.as_bytes())?;
+            f.write_all(b"\n")?;
+            f.sync_all()
+        })
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(source) = written {
+        // Best effort: the temporary file may not even exist.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(io(source));
+    }
+    std::fs::File::open(&dir)
+        .and_then(|d| d.sync_all())
+        .map_err(io)
 }
 
 #[cfg(test)]
@@ -161,7 +286,11 @@ mod tests {
         let newer = SavedPose { x_m: 11.0, ..saved };
         save(&path, &newer).unwrap();
         assert_eq!(load(&path).unwrap().unwrap().x_m, 11.0);
-        assert!(!dir.path().join("pose.json.tmp").exists());
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(leftovers, vec![std::ffi::OsString::from("pose.json")]);
         assert_eq!(
             load(&path).unwrap().unwrap().gnss_antenna_m,
             Some([0.5, -0.3])
@@ -190,5 +319,44 @@ mod tests {
         std::fs::write(&path, text).unwrap();
         let e = load(&path).unwrap_err().to_string();
         assert!(e.contains("pose.json: number out of range"), "{e}");
+    }
+
+    #[test]
+    fn the_file_is_replaced_safely_and_only_a_small_regular_file_is_read() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("pose.json");
+        let saved = SavedPose::from_fused(&fused(PoseMode::Fused), [0.0; 2]).unwrap();
+        // A symlink planted where the old fixed temporary name was, and one
+        // at the file itself: neither target is written through.
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, "keep me").unwrap();
+        std::os::unix::fs::symlink(&victim, dir.path().join("pose.json.tmp")).unwrap();
+        std::os::unix::fs::symlink(&victim, &path).unwrap();
+        save(&path, &saved).unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+        let meta = std::fs::symlink_metadata(&path).unwrap();
+        assert!(
+            meta.file_type().is_file(),
+            "the link is replaced, not followed"
+        );
+        assert_eq!(meta.permissions().mode() & 0o777, 0o600);
+        assert_eq!(load(&path).unwrap(), Some(saved.clone()));
+        // A directory, a device and an oversized file are named as such.
+        let sub = dir.path().join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        let e = load(&sub).unwrap_err().to_string();
+        assert!(e.contains("sub: not a regular file (a directory)"), "{e}");
+        let zero = dir.path().join("zero");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        let e = load(&zero).unwrap_err().to_string();
+        assert!(e.contains("zero: not a regular file (a device)"), "{e}");
+        let big = dir.path().join("big.json");
+        std::fs::write(&big, vec![b' '; MAX_STATE_BYTES as usize + 1]).unwrap();
+        let e = load(&big).unwrap_err().to_string();
+        assert!(e.contains("larger than a kept pose can be"), "{e}");
+        // A write into a directory that does not exist fails and leaves nothing.
+        let nowhere = dir.path().join("missing").join("pose.json");
+        assert!(save(&nowhere, &saved).is_err());
     }
 }

@@ -75,6 +75,7 @@ use odometry::cadence::WheelCadence;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::fusion::{FusedPose, Fusion, FusionConfig, FusionError, FusionStats, ProcessError};
 use odometry::inputs::{Input, Sequencer};
+use odometry::restart::{judge_restart, Restart, RestartConfig, WheelMark};
 use odometry::rewind::{RewindConfig, RewindStats, RewindingFusion};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -90,8 +91,13 @@ pub const SIDE_EVENTS_EVERY: Duration = Duration::from_millis(100);
 /// restarted (a new replay, a restarted bridge): the filter starts over, s.
 pub const RESTART_BACKSTEP_S: f64 = 1.0;
 
-/// Drive time between two writes of the kept pose (`--pose-state`), s.
-pub const POSE_STATE_EVERY_S: f64 = 10.0;
+/// Drive time between two writes of the kept pose (`--pose-state`), s. A
+/// crash while parked leaves a pose at most this old: a car starting off may
+/// have gone `max_accel / 2 * this^2` since (2.5 m at 1 s, 250 m at 10 s), and
+/// a restart widens the pose by that ([`odometry::restart`]). While the car
+/// stands at the pose already written, nothing is written (no flash wear
+/// while parked).
+pub const POSE_STATE_EVERY_S: f64 = 1.0;
 
 /// The dead-reckoning flags `odometry serve` and `odometry evaluate` share.
 #[derive(Debug, Clone, clap::Args)]
@@ -166,9 +172,11 @@ pub struct ServeArgs {
     /// can be measured across processes (the clock is the machine's one).
     #[arg(long, value_name = "FILE")]
     pub latency_trace: Option<PathBuf>,
-    /// Keep the last pose in this JSON file (every 10 s of drive time, when
-    /// the inputs go stale, at exit) and start from it: a car parked in a
-    /// garage powers on without GNSS and dead-reckons from where it stood.
+    /// Keep the last pose in this JSON file (every second of drive time while
+    /// the car moves, when the inputs go stale, at exit) and start from it
+    /// when the wheel counts or a clean stop at a standstill say the car is
+    /// still there: a car parked in a garage powers on without GNSS and
+    /// dead-reckons from where it stood (README, "Deploying in a vehicle").
     #[arg(long, value_name = "FILE")]
     pub pose_state: Option<PathBuf>,
     /// iceoryx2 prefix of the graph (default: $WHEELCAL_IOX_PREFIX, else iceoryx2's).
@@ -503,32 +511,66 @@ impl Inputs {
     }
 }
 
-/// Start the filter from the pose kept in `path`, if there is one. A file
-/// that cannot be read is named in a warning and the service starts without
-/// it: a broken file must not keep the car from localising.
-fn resume_from_kept_pose(fusion: &mut Fusion, path: &Path) {
+/// The pose kept in `path`, if there is one. A file that cannot be read is
+/// named in a warning and the service starts without it: a broken file must
+/// not keep the car from localising.
+fn load_kept_pose(path: &Path) -> Option<SavedPose> {
     match pose_state::load(path) {
-        Ok(Some(saved)) => match resume(fusion, &saved) {
-            Ok(()) => tracing::info!(
-                "odometry: resuming from the pose kept in {}: ({:.2}, {:.2}) m, yaw {:.1} deg \
-                 ({}, t = {:.2} s of its run); DeadReckoning until a GNSS fix is accepted",
-                path.display(),
-                saved.x_m,
-                saved.y_m,
-                saved.yaw_rad.to_degrees(),
-                saved.mode,
-                saved.t_s
-            ),
-            Err(e) => tracing::warn!(
-                "odometry: {}: {e}; starting without the kept pose",
+        Ok(Some(saved)) => Some(saved),
+        Ok(None) => {
+            tracing::info!(
+                "odometry: no pose kept in {} yet; it will be written there",
                 path.display()
-            ),
-        },
-        Ok(None) => tracing::info!(
-            "odometry: no pose kept in {} yet; it will be written there",
-            path.display()
-        ),
-        Err(e) => tracing::warn!("odometry: {e}; starting without the kept pose"),
+            );
+            None
+        }
+        Err(e) => {
+            tracing::warn!("odometry: {e}; starting without the kept pose");
+            None
+        }
+    }
+}
+
+/// At the first wheel sample: start from the kept pose if
+/// [`odometry::restart::judge_restart`] trusts it, with the covariance it
+/// gives; else say why and start in `NoFix`.
+fn resume_if_trusted(fusion: &mut Fusion, saved: &SavedPose, first: &WheelMark) {
+    let judged = judge_restart(
+        &saved.record(POSE_STATE_EVERY_S),
+        first,
+        &fusion.params().two_wheel,
+        &RestartConfig::default(),
+    );
+    match judged {
+        Restart::Resume {
+            pose,
+            covariance,
+            why,
+            ..
+        } => {
+            let carried = SavedPose {
+                x_m: pose.x,
+                y_m: pose.y,
+                yaw_rad: pose.yaw,
+                covariance,
+                ..saved.clone()
+            };
+            match resume(fusion, &carried) {
+                Ok(()) => tracing::info!(
+                    "odometry: resuming from the kept pose ({why}): ({:.2}, {:.2}) m +- {:.2} m, \
+                     yaw {:.1} +- {:.1} deg; DeadReckoning until a GNSS fix is accepted",
+                    pose.x,
+                    pose.y,
+                    covariance[0].max(covariance[4]).sqrt(),
+                    pose.yaw.to_degrees(),
+                    covariance[8].sqrt().to_degrees(),
+                ),
+                Err(e) => tracing::warn!("odometry: kept pose: {e}; starting without it"),
+            }
+        }
+        Restart::Refuse { why } => {
+            tracing::warn!("odometry: the kept pose is not used: {why}; NoFix until GNSS")
+        }
     }
 }
 
@@ -541,50 +583,92 @@ fn resume(fusion: &mut Fusion, saved: &SavedPose) -> Result<(), FusionError> {
     fusion.resume(saved.pose(), &saved.covariance)
 }
 
-/// The last pose with a position, for `--pose-state`.
+/// The last pose with a position, for `--pose-state`, with the wheel counts
+/// and speed at it.
 #[derive(Debug, Default)]
 struct KeptPose {
     /// The pose and the GNSS antenna position the filter used for it.
     last: Option<(FusedPose, [f64; 2])>,
+    /// The wheel sample of that pose and the speed there.
+    last_wheels: Option<(WheelMark, Option<f64>)>,
+    /// The newest wheel sample and the speed up to it.
+    wheels: Option<(WheelMark, Option<f64>)>,
     written: bool,
+    /// The last write was at a standstill, at this position.
+    written_standing: Option<[f64; 2]>,
     next_write_t: Option<f64>,
 }
 
 impl KeptPose {
+    /// Before each wheel sample is processed.
+    fn wheels_at(&mut self, mark: WheelMark, params: &vehicle_model::two_wheel::TwoWheelParams) {
+        let speed = self
+            .wheels
+            .and_then(|(previous, _)| mark.speed_since(&previous, params));
+        self.wheels = Some((mark, speed));
+    }
+
     /// After each published pose (a `NoFix` pose keeps the one before).
     fn update(&mut self, pose: &FusedPose, gnss_antenna_m: [f64; 2]) {
         if pose.mode != PoseMode::NoFix {
             self.last = Some((*pose, gnss_antenna_m));
+            self.last_wheels = self.wheels.filter(|(m, _)| m.t_s == pose.t_s);
             self.written = false;
         }
     }
 
-    /// Write when [`POSE_STATE_EVERY_S`] of drive time passed since the last write.
+    /// Write when [`POSE_STATE_EVERY_S`] of drive time passed since the last
+    /// write, unless the car stands where the last write already put it.
     fn write_if_due(&mut self, path: &Path) {
-        let Some(t) = self.last.map(|(p, _)| p.t_s) else {
+        let Some((pose, _)) = self.last else {
             return;
         };
+        let t = pose.t_s;
         let due = *self.next_write_t.get_or_insert(t);
         // A restarted stream (time back) is due at once.
         if t >= due || t < due - POSE_STATE_EVERY_S {
-            self.write(path);
+            let standing = self
+                .last_wheels
+                .and_then(|(_, v)| v)
+                .is_some_and(|v| v.abs() <= RestartConfig::default().standstill_m_s);
+            let same_place = self
+                .written_standing
+                .is_some_and(|[x, y]| (pose.pose.x - x).hypot(pose.pose.y - y) < 0.01);
+            if standing && same_place {
+                self.next_write_t = Some(t + POSE_STATE_EVERY_S);
+                return;
+            }
+            self.write(path, false);
         }
     }
 
-    /// Write the last pose now, unless it is written already. A failure is
-    /// logged, not fatal: the poses on the bus matter more.
-    fn write(&mut self, path: &Path) {
-        let Some(saved) = self
+    /// Write the last pose now; `last_word` when the service stops or its
+    /// inputs went stale (always written then). A failure is logged, not
+    /// fatal: the poses on the bus matter more.
+    fn write(&mut self, path: &Path, last_word: bool) {
+        let Some(mut saved) = self
             .last
-            .filter(|_| !self.written)
+            .filter(|_| last_word || !self.written)
             .and_then(|(p, antenna)| SavedPose::from_fused(&p, antenna))
         else {
             return;
         };
+        if let Some((mark, speed)) = self.last_wheels {
+            saved.wheel_rev = Some([mark.rl_rev, mark.rr_rev]);
+            saved.speed_m_s = speed;
+        }
+        saved.last_word = last_word;
+        saved.write_every_s = Some(POSE_STATE_EVERY_S);
         // Tried again after the same drive time when it fails (no log flood).
         self.next_write_t = Some(saved.t_s + POSE_STATE_EVERY_S);
         match pose_state::save(path, &saved) {
-            Ok(()) => self.written = true,
+            Ok(()) => {
+                self.written = true;
+                let standing = saved
+                    .speed_m_s
+                    .is_some_and(|v| v.abs() <= RestartConfig::default().standstill_m_s);
+                self.written_standing = standing.then_some([saved.x_m, saved.y_m]);
+            }
             Err(e) => tracing::warn!("odometry: cannot keep the pose: {e}"),
         }
     }
@@ -689,7 +773,7 @@ pub fn serve(
     config: &ServeConfig,
     shutdown: &Shutdown,
 ) -> Result<ServeSummary, ServeError> {
-    let mut fusion = match config.initial {
+    let fusion = match config.initial {
         Some(e) => {
             let mut f = Fusion::new(e.params, 0, config.fusion);
             f.set_effects(e.effects.into());
@@ -699,9 +783,8 @@ pub fn serve(
     };
     let params = *fusion.params();
     params.validate("vehicle parameters")?;
-    if let Some(path) = &config.pose_state {
-        resume_from_kept_pose(&mut fusion, path);
-    }
+    // Judged at the first wheel sample, which says whether the car moved.
+    let mut kept_to_judge = config.pose_state.as_deref().and_then(load_kept_pose);
     // The filter, behind the log that lets it take late samples in order;
     // `fusion()` to read it.
     let mut filter = RewindingFusion::new(fusion, config.rewind);
@@ -826,7 +909,23 @@ pub fn serve(
                 }
                 latest_t[k] = Some(latest_t[k].map_or(t, |l| l.max(t)));
             }
-            if let Input::Wheels { t_s, .. } = input {
+            if let Input::Wheels {
+                t_s,
+                rl_rev,
+                rr_rev,
+            } = *input
+            {
+                let mark = WheelMark {
+                    t_s,
+                    rl_rev,
+                    rr_rev,
+                };
+                if let Some(saved) = kept_to_judge.take() {
+                    resume_if_trusted(filter.fusion_mut(), &saved, &mark);
+                }
+                if config.pose_state.is_some() {
+                    kept.wheels_at(mark, &filter.fusion().params().two_wheel);
+                }
                 if stale {
                     stale = false;
                     tracing::info!("odometry: wheel samples again at t = {t_s:.2} s; starting over (NoFix until GNSS)");
@@ -936,7 +1035,7 @@ pub fn serve(
                 filter.fusion_mut().mark_stale();
                 mode = PoseMode::NoFix;
                 if let Some(path) = &config.pose_state {
-                    kept.write(path);
+                    kept.write(path, true);
                 }
                 if let Some(t) = last_wheel_t {
                     let marker = FusedPose {
@@ -968,7 +1067,7 @@ pub fn serve(
         write_latency_trace(path, &trace)?;
     }
     if let Some(path) = &config.pose_state {
-        kept.write(path);
+        kept.write(path, true);
     }
     let stats = filter.fusion().stats();
     summary.fusion = stats;
@@ -1175,6 +1274,10 @@ mod tests {
             mode: "Fused".to_string(),
             estimate_version: 1,
             gnss_antenna_m: Some([0.5, -0.3]),
+            wheel_rev: None,
+            speed_m_s: None,
+            last_word: true,
+            write_every_s: None,
         };
         // The antenna it was kept with comes back, and the pose with it: a
         // later estimate with the same antenna then moves nothing.

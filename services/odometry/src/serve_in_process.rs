@@ -139,6 +139,8 @@ struct Sensors {
     gnss: TopicPublisher<GnssFix>,
     imu: TopicPublisher<Imu>,
     heading: TopicPublisher<Heading>,
+    /// The car stops (at once) at this time, s.
+    stop_at_s: f64,
 }
 
 impl Sensors {
@@ -153,11 +155,12 @@ impl Sensors {
                 ..Imu::default()
             })
             .expect("publish imu");
+        let x = V * t.min(self.stop_at_s);
         if let (Some([ax, ay]), true) = (antenna, i.is_multiple_of(20) && i > 0) {
             self.gnss
                 .publish(GnssFix {
                     header: Header::from_seconds(t, 0),
-                    x_m: V * t + ax,
+                    x_m: x + ax,
                     y_m: ay,
                     sigma_m: 0.05,
                     fix: 1,
@@ -165,7 +168,15 @@ impl Sensors {
                 })
                 .expect("publish gnss");
         }
-        publish_east_wheels(&mut self.wheels, t);
+        let rev = x / C;
+        self.wheels
+            .publish(WheelRotations {
+                header: Header::from_seconds(t, 0),
+                rl_rev: rev,
+                rr_rev: rev,
+                ..WheelRotations::default()
+            })
+            .expect("publish wheels");
     }
 
     /// Open them, wait for the service's subscribers, announce, and let
@@ -176,6 +187,7 @@ impl Sensors {
             gnss: bus.publisher().expect("gnss publisher"),
             imu: bus.publisher().expect("imu publisher"),
             heading: bus.publisher().expect("heading publisher"),
+            stop_at_s: f64::INFINITY,
         };
         let start = Instant::now();
         while sensors.wheels.subscriber_count() < 1
@@ -218,6 +230,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
         mut gnss,
         mut imu,
         mut heading,
+        ..
     } = Sensors::open_when_subscribed(&bus);
 
     // 20 s straight east at 10 m/s; GNSS and heading (5 Hz) from 0.2 s to 10 s.
@@ -418,13 +431,15 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
 }
 
 /// One run of the service in its own iceoryx2 prefix: straight east at 10 m/s
-/// for `seconds` (wheels and IMU at 100 Hz from revolution 0; GNSS at 5 Hz
-/// when `gnss`), keeping its pose in `pose_state`. Returns its poses.
-fn drive_east(
+/// over the instants `from..=to` (0.01 s apart; wheels and IMU at 100 Hz
+/// from revolution 0 at instant 0; GNSS at 5 Hz when `gnss`), stopping at
+/// `stop_at_s`, keeping its pose in `pose_state`. Returns its poses.
+fn drive_east_over(
     root: &std::path::Path,
     pose_state: &std::path::Path,
-    seconds: f64,
+    (from, to): (usize, usize),
     gnss: bool,
+    stop_at_s: f64,
 ) -> Vec<Pose> {
     let settings = BusSettings::isolated("odokept", root);
     let (shutdown, service) = spawn_service(ServeConfig {
@@ -434,20 +449,31 @@ fn drive_east(
     let bus = Bus::open(&settings, "test-publisher").expect("test bus");
     let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
     let mut sensors = Sensors::open_when_subscribed(&bus);
-    let n = (seconds / 0.01).round() as usize;
+    sensors.stop_at_s = stop_at_s;
     let mut poses = Vec::new();
-    for i in 0..=n {
+    for i in from..=to {
         while let Some(p) = poses_sub.receive().expect("receive pose") {
             poses.push(p);
         }
         sensors.east_instant(i, gnss.then_some([0.0, 0.0]));
     }
-    collect(&poses_sub, &mut poses, n + 1);
+    collect(&poses_sub, &mut poses, to - from + 1);
     stop_service(&shutdown, service);
     drop((sensors, poses_sub));
     drop(bus);
     settings.remove_leftovers();
     poses
+}
+
+/// [`drive_east_over`] from instant 0 for `seconds`, without stopping.
+fn drive_east(
+    root: &std::path::Path,
+    pose_state: &std::path::Path,
+    seconds: f64,
+    gnss: bool,
+) -> Vec<Pose> {
+    let n = (seconds / 0.01).round() as usize;
+    drive_east_over(root, pose_state, (0, n), gnss, f64::INFINITY)
 }
 
 /// 2 s straight east with GNSS, paced at 100 Hz in real time as a car's
@@ -514,8 +540,9 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
     let kept = root.path().join("pose.json");
     let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
 
-    // Outside: 6 s east with GNSS. At exit the service keeps its last pose.
-    let outside = drive_east(root.path(), &kept, 6.0, true);
+    // Outside: 4 s east with GNSS, then 2 s parked. At exit the service
+    // keeps its last pose, at a standstill, as its last word.
+    let outside = drive_east_over(root.path(), &kept, (0, 600), true, 4.0);
     assert_eq!(mode(&outside[0]), PoseMode::NoFix);
     let last = outside.last().expect("poses");
     assert_eq!(mode(last), PoseMode::Fused);
@@ -528,14 +555,16 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
         (last.x_m, last.y_m, last.yaw_rad)
     );
     assert!(
-        (saved.x_m - 60.0).abs() < 0.2 && saved.y_m.abs() < 0.2,
+        (saved.x_m - 40.0).abs() < 0.2 && saved.y_m.abs() < 0.2,
         "{saved:?}"
     );
+    assert!(saved.last_word && saved.speed_m_s == Some(0.0), "{saved:?}");
+    assert_eq!(saved.wheel_rev, Some([20.0, 20.0]));
 
-    // Power on in the garage: no GNSS at all. Every pose has a position,
-    // dead-reckoned from the kept one (a new drive: time and wheel
-    // revolutions start again from 0), its uncertainty at least the
-    // resume floor; without the kept pose they would all be NoFix.
+    // Power on in the garage: no GNSS at all, a new drive (time and wheel
+    // revolutions start again from 0). Every pose has a position,
+    // dead-reckoned from the kept one, its uncertainty at least the resume
+    // floor; without the kept pose they would all be NoFix.
     let garage = drive_east(root.path(), &kept, 3.0, false);
     assert_eq!(garage.len(), 301);
     assert!(garage.iter().all(|p| mode(p) == PoseMode::DeadReckoning));
@@ -548,18 +577,87 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
     let end = garage.last().expect("poses");
     assert!((end.x_m - (saved.x_m + 30.0)).abs() < 0.05, "{end:?}");
     assert!((end.y_m - saved.y_m).abs() < 0.05, "{end:?}");
-    // The garage run keeps its own last pose for the next power-on.
+    // The garage run keeps its own last pose for the next power-on: taken
+    // while moving, so a new drive that starts over does not use it.
     let again = crate::pose_state::load(&kept)
         .expect("state")
         .expect("kept");
     assert_eq!(again.mode, "DeadReckoning");
     assert_eq!(again.x_m, end.x_m);
+    assert_eq!(again.speed_m_s, Some(V));
+    let moving = drive_east(root.path(), &kept, 1.0, false);
+    assert!(moving.iter().all(|p| mode(p) == PoseMode::NoFix));
 
     // A broken state file is named in a warning and the service starts
     // without it (NoFix until GNSS), rather than not at all.
     std::fs::write(&kept, "not json").expect("write");
     let broken = drive_east(root.path(), &kept, 1.0, false);
     assert!(broken.iter().all(|p| mode(p) == PoseMode::NoFix));
+}
+
+/// The odometry alone restarts (killed) while the car drives on and the
+/// wheel stream goes on: the kept pose is carried over the gap with the
+/// wheel counts, with a covariance that holds the truth.
+#[test]
+fn a_restart_while_driving_carries_the_kept_pose_over_the_gap() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let kept = root.path().join("pose.json");
+    let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
+    // Up to 3 s with GNSS; the file then holds a pose of that run.
+    drive_east_over(root.path(), &kept, (0, 300), true, f64::INFINITY);
+    let mut saved = crate::pose_state::load(&kept)
+        .expect("state")
+        .expect("kept");
+    assert_eq!(saved.speed_m_s, Some(V));
+    // As a kill -9 would have left it: a periodic write, 1 s before the end.
+    saved.t_s = 2.0;
+    saved.x_m -= V;
+    saved.wheel_rev = Some([V * 2.0 / C; 2]);
+    saved.last_word = false;
+    crate::pose_state::save(&kept, &saved).expect("save");
+    // The new service sees the stream from 5 s on, without GNSS.
+    let after = drive_east_over(root.path(), &kept, (500, 700), false, f64::INFINITY);
+    assert!(after.iter().all(|p| mode(p) == PoseMode::DeadReckoning));
+    for p in [&after[0], after.last().expect("poses")] {
+        let t = p.header.t_s();
+        let e = (p.x_m - V * t).hypot(p.y_m);
+        let sigma = p.covariance[0].min(p.covariance[4]).sqrt();
+        assert!(e < 3.0 * sigma, "t = {t}: {e} m off, sigma {sigma} m");
+        // 30 m driven in the gap: the covariance says metres, not centimetres.
+        assert!(sigma > 10.0, "{sigma}");
+    }
+    assert!((after[0].x_m - 50.0).abs() < 0.5, "{:?}", after[0]);
+}
+
+/// Powered on somewhere other than where the kept pose says (and facing the
+/// other way), with GNSS: the first fixes disagree and the filter starts
+/// again from them within a second; no pose after that is off.
+#[test]
+fn a_power_on_somewhere_else_with_gnss_is_corrected_by_the_fixes() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let kept = root.path().join("pose.json");
+    let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
+    drive_east_over(root.path(), &kept, (0, 200), true, 1.0);
+    let mut saved = crate::pose_state::load(&kept)
+        .expect("state")
+        .expect("kept");
+    assert!(saved.last_word && saved.speed_m_s == Some(0.0));
+    saved.x_m += 1500.0;
+    saved.y_m -= 800.0;
+    saved.yaw_rad = 3.0;
+    crate::pose_state::save(&kept, &saved).expect("save");
+    let poses = drive_east(root.path(), &kept, 5.0, true);
+    assert_eq!(mode(&poses[0]), PoseMode::DeadReckoning);
+    for p in &poses {
+        let t = p.header.t_s();
+        if t > 1.5 {
+            assert_eq!(mode(p), PoseMode::Fused, "t = {t}");
+            let e = (p.x_m - V * t).hypot(p.y_m);
+            assert!(e < 0.5, "t = {t}: {e} m");
+        }
+    }
 }
 
 #[test]

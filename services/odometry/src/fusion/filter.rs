@@ -44,8 +44,15 @@ pub struct FusionStats {
     pub dropped_late: u64,
     /// Times the filter was initialised.
     pub initialisations: u64,
-    /// Times the position was reset after persistent rejections.
+    /// Times the filter found itself lost (fixes rejected in a row, see
+    /// [`FusionConfig::reset_after_rejected_s`]) and started again from the
+    /// fixes: position from the fix, yaw from a recent heading or a new
+    /// GNSS baseline.
     pub position_resets: u64,
+    /// Times the yaw was taken from the headings after they were rejected
+    /// in a row with no fix accepted meanwhile (see
+    /// [`FusionConfig::reset_after_rejected_s`]).
+    pub yaw_resets: u64,
     /// Times the inputs went stale.
     pub stale: u64,
     /// Gyro bias measurements taken at standstill.
@@ -69,6 +76,17 @@ pub struct Fusion {
     pub(super) last_accepted_fix_s: Option<f64>,
     pub(super) first_rejected_fix_s: Option<f64>,
     pub(super) rejected_in_a_row: u32,
+    /// Headings rejected in a row, and the time of the first of them.
+    pub(super) headings_rejected_in_a_row: u32,
+    pub(super) first_rejected_heading_s: Option<f64>,
+    /// Distance driven (sum of |ds|) at the first of those headings, m.
+    pub(super) travelled_at_rejected_heading_m: f64,
+    /// Distance driven since the filter was made, sum of |ds|, m.
+    pub(super) travelled_m: f64,
+    /// Resumed from a kept pose and no fix accepted since: three fixes
+    /// rejected in a row are enough to start again from the fixes (the kept
+    /// pose may be from somewhere else).
+    pub(super) resumed_unconfirmed: bool,
     /// Time of the last standstill gyro bias measurement, s.
     pub(super) last_standstill_bias_s: Option<f64>,
     pub(super) stats: FusionStats,
@@ -92,6 +110,11 @@ impl Fusion {
             last_accepted_fix_s: None,
             first_rejected_fix_s: None,
             rejected_in_a_row: 0,
+            headings_rejected_in_a_row: 0,
+            first_rejected_heading_s: None,
+            travelled_at_rejected_heading_m: 0.0,
+            travelled_m: 0.0,
+            resumed_unconfirmed: false,
             last_standstill_bias_s: None,
             stats: FusionStats::default(),
         }

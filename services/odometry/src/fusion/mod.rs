@@ -51,8 +51,13 @@
 //! is guessed).
 //!
 //! Fixes rejected for longer than [`FusionConfig::reset_after_rejected_s`]
-//! (with at least three in a row) mean the filter has lost itself: the
-//! position is reset to the fix, with its covariance inflated.
+//! (with at least three in a row; after a resumed pose, any three in a row)
+//! mean the filter has lost itself, its yaw as much as its position (a wrong
+//! yaw makes every later fix look wrong): it starts again from the fixes,
+//! at once with a recent heading, else `NoFix` until the GNSS track gives
+//! the yaw over a baseline. Headings rejected in a row for that long, with
+//! no fix accepted meanwhile, give the yaw instead, and the position's
+//! covariance grows by what the wrong yaw may have swept.
 //!
 //! Pure: no clock, no I/O; numerical failure is a [`FusionError`].
 //!

@@ -27,6 +27,7 @@ impl Fusion {
         self.last_accepted_fix_s = Some(t_s);
         self.first_rejected_fix_s = None;
         self.rejected_in_a_row = 0;
+        self.resumed_unconfirmed = false;
     }
 
     /// The inputs went stale (the service saw no wheel sample for too long):
@@ -48,6 +49,9 @@ impl Fusion {
         self.last_accepted_fix_s = None;
         self.first_rejected_fix_s = None;
         self.rejected_in_a_row = 0;
+        self.headings_rejected_in_a_row = 0;
+        self.first_rejected_heading_s = None;
+        self.resumed_unconfirmed = false;
     }
 
     /// Start from a pose kept from an earlier run (the car was parked there,
@@ -87,7 +91,9 @@ impl Fusion {
         p[(WHEEL_DIFF, WHEEL_DIFF)] = difference_variance;
         let x = StateVec::new(pose.x, pose.y, wrap_angle(pose.yaw), 0.0, 0.0, 0.0);
         self.reset();
-        self.set_running(x, p, 0.0, "resume")
+        self.set_running(x, p, 0.0, "resume")?;
+        self.resumed_unconfirmed = true;
+        Ok(())
     }
 
     /// A fix before the filter is initialised: initialise it when a recent

@@ -15,6 +15,7 @@ impl Fusion {
         let config = self.config;
         let scale = 1.0 + self.odometer.params().gyro_scale;
         let track = self.odometer.params().two_wheel.track_width;
+        self.travelled_m += inc.ds_m.abs();
         match &mut self.state {
             State::Uninitialised { local, .. } => {
                 *local = vehicle_model::two_wheel::step(*local, inc.ds_m, inc.dyaw_rad, 0.0);
