@@ -2,20 +2,50 @@
 //! header, comma separated, `#` starts a comment line, an empty cell is a
 //! missing value, blank lines are skipped. Cells are trimmed.
 
+use super::files::open_regular;
 use super::DriveError;
 use std::fmt::Write as _;
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
-/// A CSV file's text with its header parsed.
+/// Longest line of a drive CSV file, bytes (64 KiB: a row of the widest
+/// stream is under 200 bytes). A longer line is
+/// [`DriveError::LineTooLong`], found without reading the line whole.
+pub const MAX_CSV_LINE_BYTES: usize = 64 << 10;
+
+/// Most characters of a file's text (a cell, a column name, a key) quoted
+/// in an error or warning; longer text is cut with an ellipsis.
+const MAX_ECHO_CHARS: usize = 40;
+
+/// `text` cut to [`MAX_ECHO_CHARS`] characters, with `…` when cut.
+pub(super) fn clip(text: &str) -> String {
+    match text.char_indices().nth(MAX_ECHO_CHARS) {
+        Some((i, _)) => format!("{}…", &text[..i]),
+        None => text.to_string(),
+    }
+}
+
+/// Each line of a parser's message cut to a few times [`MAX_ECHO_CHARS`]
+/// (a TOML error quotes the offending line, which may be huge).
+pub(super) fn clip_lines(text: &str) -> String {
+    const MAX: usize = 3 * MAX_ECHO_CHARS;
+    text.lines()
+        .map(|l| match l.char_indices().nth(MAX) {
+            Some((i, _)) => format!("{}…", &l[..i]),
+            None => l.to_string(),
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// A CSV file with its header parsed, read line by line.
 pub(super) struct CsvFile {
     path: PathBuf,
-    text: String,
+    reader: Box<dyn BufRead>,
     /// Column names of the header.
     pub columns: Vec<String>,
     /// 1-based line of the header.
     pub header_line: usize,
-    /// Byte offset of the first line after the header.
-    body_start: usize,
     /// Which columns some caller asked for.
     claimed: Vec<bool>,
 }
@@ -25,23 +55,59 @@ fn is_skipped(line: &str) -> bool {
     t.is_empty() || t.starts_with('#')
 }
 
+/// Read the next line (without its `\n`) into `buf`; `Ok(false)` at the end
+/// of the file. `line` is the 1-based number of the line read, for errors.
+fn next_line(
+    reader: &mut dyn BufRead,
+    buf: &mut Vec<u8>,
+    path: &Path,
+    line: usize,
+) -> Result<bool, DriveError> {
+    buf.clear();
+    let limit = MAX_CSV_LINE_BYTES as u64 + 1;
+    let n = reader
+        .take(limit)
+        .read_until(b'\n', buf)
+        .map_err(|e| DriveError::io(path, e))?;
+    if n == 0 {
+        return Ok(false);
+    }
+    if buf.last() == Some(&b'\n') {
+        buf.pop();
+    } else if buf.len() > MAX_CSV_LINE_BYTES {
+        return Err(DriveError::LineTooLong {
+            path: path.to_path_buf(),
+            line,
+            limit: MAX_CSV_LINE_BYTES,
+        });
+    }
+    Ok(true)
+}
+
+fn as_text<'b>(buf: &'b [u8], path: &Path, line: usize) -> Result<&'b str, DriveError> {
+    std::str::from_utf8(buf).map_err(|_| DriveError::NotUtf8 {
+        path: path.to_path_buf(),
+        line,
+    })
+}
+
 impl CsvFile {
-    /// Read and parse the header of `path`.
+    /// Open `path` (a regular file only) and parse its header.
     pub fn open(path: &Path) -> Result<CsvFile, DriveError> {
-        let text = std::fs::read_to_string(path).map_err(|e| DriveError::io(path, e))?;
-        CsvFile::from_text(path, text)
+        let (file, _) = open_regular(path)?;
+        CsvFile::from_reader(path, Box::new(BufReader::with_capacity(1 << 16, file)))
     }
 
-    /// Parse the header of `text` (read from `path`).
-    pub fn from_text(path: &Path, text: String) -> Result<CsvFile, DriveError> {
-        let mut offset = 0;
+    /// Parse the header of the text `reader` gives (read from `path`).
+    pub fn from_reader(path: &Path, mut reader: Box<dyn BufRead>) -> Result<CsvFile, DriveError> {
         let mut line_no = 0;
+        let mut buf = Vec::new();
         let mut header = None;
-        for line in text.split_inclusive('\n') {
+        while next_line(reader.as_mut(), &mut buf, path, line_no + 1)? {
             line_no += 1;
-            offset += line.len();
+            let line = as_text(&buf, path, line_no)?;
             if !is_skipped(line) {
-                header = Some(line);
+                header = Some(line.to_string());
                 break;
             }
         }
@@ -65,17 +131,16 @@ impl CsvFile {
                 return Err(DriveError::BadHeader {
                     path: path.to_path_buf(),
                     line: line_no,
-                    message: format!("column `{c}` appears twice"),
+                    message: format!("column `{}` appears twice", clip(c)),
                 });
             }
         }
         let claimed = vec![false; columns.len()];
         Ok(CsvFile {
             path: path.to_path_buf(),
-            text,
+            reader,
             columns,
             header_line: line_no,
-            body_start: offset,
             claimed,
         })
     }
@@ -109,12 +174,12 @@ impl CsvFile {
 
     /// A warning listing the columns nobody asked for, if any.
     pub fn unknown_columns_warning(&self) -> Option<String> {
-        let unknown: Vec<&str> = self
+        let unknown: Vec<String> = self
             .columns
             .iter()
             .zip(&self.claimed)
             .filter(|(_, used)| !**used)
-            .map(|(c, _)| c.as_str())
+            .map(|(c, _)| clip(c))
             .collect();
         if unknown.is_empty() {
             None
@@ -127,18 +192,21 @@ impl CsvFile {
         }
     }
 
-    /// Call `f(row)` for every data row, in order.
+    /// Call `f(row)` for every data row, in order (the file is read as it
+    /// goes, one line at a time).
     pub fn for_each_row(
-        &self,
+        &mut self,
         mut f: impl FnMut(&Row<'_>) -> Result<(), DriveError>,
     ) -> Result<(), DriveError> {
-        let mut cells: Vec<&str> = Vec::with_capacity(self.columns.len());
-        let lines = self.text[self.body_start..].split('\n');
-        for (line_no, line) in (self.header_line + 1..).zip(lines) {
+        let mut buf = Vec::with_capacity(256);
+        let mut line_no = self.header_line;
+        while next_line(self.reader.as_mut(), &mut buf, &self.path, line_no + 1)? {
+            line_no += 1;
+            let line = as_text(&buf, &self.path, line_no)?;
             if is_skipped(line) {
                 continue;
             }
-            cells.clear();
+            let mut cells: Vec<&str> = Vec::with_capacity(self.columns.len());
             cells.extend(line.split(',').map(str::trim));
             if cells.len() != self.columns.len() {
                 return Err(DriveError::CellCount {
@@ -149,7 +217,8 @@ impl CsvFile {
                 });
             }
             f(&Row {
-                file: self,
+                path: &self.path,
+                columns: &self.columns,
                 line: line_no,
                 cells: &cells,
             })?;
@@ -160,7 +229,8 @@ impl CsvFile {
 
 /// One data row.
 pub(super) struct Row<'a> {
-    file: &'a CsvFile,
+    path: &'a Path,
+    columns: &'a [String],
     /// 1-based line number.
     pub line: usize,
     cells: &'a [&'a str],
@@ -184,9 +254,9 @@ impl Row<'_> {
     /// The value of column `i`, which must not be empty.
     pub fn need(&self, i: usize) -> Result<f64, DriveError> {
         self.get(i)?.ok_or_else(|| DriveError::MissingValue {
-            path: self.file.path.clone(),
+            path: self.path.to_path_buf(),
             line: self.line,
-            column: self.file.columns[i].clone(),
+            column: clip(&self.columns[i]),
         })
     }
 
@@ -198,13 +268,14 @@ impl Row<'_> {
         }
     }
 
-    /// A [`DriveError::BadCell`] for column `i` of this row.
+    /// A [`DriveError::BadCell`] for column `i` of this row (the cell's
+    /// text cut to 40 characters).
     pub fn bad_cell(&self, i: usize, reason: &'static str) -> DriveError {
         DriveError::BadCell {
-            path: self.file.path.clone(),
+            path: self.path.to_path_buf(),
             line: self.line,
-            column: self.file.columns[i].clone(),
-            cell: self.cells[i].into(),
+            column: clip(&self.columns[i]),
+            cell: clip(self.cells[i]).into(),
             reason,
         }
     }
@@ -214,7 +285,7 @@ impl Row<'_> {
         if let Some(p) = *previous {
             if t <= p {
                 return Err(DriveError::TimeNotIncreasing {
-                    path: self.file.path.clone(),
+                    path: self.path.to_path_buf(),
                     line: self.line,
                     t_s: t,
                     previous_t_s: p,

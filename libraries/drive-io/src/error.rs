@@ -158,6 +158,79 @@ pub enum DriveError {
         /// damage); `None` when even the drive metadata was lost.
         partial: Option<Box<LoadedDrive>>,
     },
+    /// A chunk's records do not give the CRC its header states: the file
+    /// was changed after it was written. Reading with
+    /// [`crate::ReadOptions::skip_corrupt_chunks`] leaves the chunk out
+    /// (with a warning naming it) instead.
+    #[error(
+        "{}: chunk {chunk_index} (Chunk record at byte {offset}) is corrupt: its records have CRC {actual:#010x}, the chunk says {expected:#010x}",
+        path.display()
+    )]
+    ChunkCrc {
+        /// The MCAP file.
+        path: PathBuf,
+        /// Index of the chunk in the file, 0 first.
+        chunk_index: usize,
+        /// Byte offset of the Chunk record.
+        offset: u64,
+        /// The CRC the chunk header states.
+        expected: u32,
+        /// The CRC of its records as they are.
+        actual: u32,
+    },
+    /// The bytes before the DataEnd record do not give the data section CRC
+    /// it states (a record outside the chunks, or a chunk header, changed).
+    #[error(
+        "{}: the data section is corrupt: its CRC is {actual:#010x}, the DataEnd record at byte {data_end_offset} says {expected:#010x}",
+        path.display()
+    )]
+    DataSectionCrc {
+        /// The MCAP file.
+        path: PathBuf,
+        /// Byte offset of the DataEnd record.
+        data_end_offset: u64,
+        /// The CRC the DataEnd record states.
+        expected: u32,
+        /// The CRC of the data section as it is.
+        actual: u32,
+    },
+    /// Something other than a regular file (a directory, a FIFO, a device,
+    /// a socket, a broken link) where a file is expected. Nothing was opened.
+    #[error("{}: expected a regular file, found {what}", path.display())]
+    NotAFile {
+        /// The path given.
+        path: PathBuf,
+        /// What it is ("a FIFO (named pipe)", "a symbolic link to /dev/zero (a character device)", ...).
+        what: String,
+    },
+    /// A file is larger than the limit for its kind (TOML files).
+    #[error("{}: {size} bytes, more than the {limit} bytes allowed for this file", path.display())]
+    FileTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size (at least), bytes.
+        size: u64,
+        /// The limit, bytes.
+        limit: u64,
+    },
+    /// A CSV line is longer than the limit (it was not read whole).
+    #[error("{}:{line}: line longer than {limit} bytes", path.display())]
+    LineTooLong {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// The limit, bytes.
+        limit: usize,
+    },
+    /// A CSV line is not valid UTF-8.
+    #[error("{}:{line}: not valid UTF-8 text", path.display())]
+    NotUtf8 {
+        /// The CSV file.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+    },
     /// An in-memory drive cannot be written because it breaks the format's
     /// rules (a non-finite value, times not increasing, ticks without
     /// `ticks_per_rev`).

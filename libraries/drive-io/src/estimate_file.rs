@@ -2,14 +2,34 @@
 //! disk; the parsing is the estimate contract's
 //! ([`Estimate::from_json_str`]).
 
+use crate::files::{read_text_limited, MAX_TEXT_FILE_BYTES};
+use crate::DriveError;
+use std::io::{Error, ErrorKind};
 use std::path::Path;
 use vehicle_model::estimate::{Estimate, ParamsError};
 
 /// Read and parse an estimate file written by `calibrator calibrate --json`.
+///
+/// Only a regular file of at most [`MAX_TEXT_FILE_BYTES`] is read: a FIFO,
+/// a directory or a link to a device is refused without opening it, and a
+/// larger file without reading it (both [`ParamsError::Io`], whose message
+/// says what the path is or the size and the limit).
 pub fn read_estimate(path: &Path) -> Result<Estimate, ParamsError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ParamsError::Io {
+    let io = |source: Error| ParamsError::Io {
         path: path.to_path_buf(),
         source,
+    };
+    let text = read_text_limited(path, MAX_TEXT_FILE_BYTES).map_err(|e| match e {
+        DriveError::Io { source, .. } => io(source),
+        DriveError::NotAFile { what, .. } => io(Error::new(
+            ErrorKind::InvalidInput,
+            format!("expected a regular file, found {what}"),
+        )),
+        DriveError::FileTooLarge { size, limit, .. } => io(Error::new(
+            ErrorKind::FileTooLarge,
+            format!("{size} bytes, more than the {limit} bytes allowed for an estimate file"),
+        )),
+        other => io(Error::other(other.to_string())),
     })?;
     Estimate::from_json_str(&text, &path.display().to_string())
 }

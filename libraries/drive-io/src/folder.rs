@@ -1,6 +1,7 @@
 //! The drive folder (`shared/design/drive-format.md`), read and written.
 
-use super::csv::{CsvFile, CsvWriter, Row};
+use super::csv::{clip, clip_lines, CsvFile, CsvWriter, Row};
+use super::files::{read_text_limited, regular_file_present, MAX_TEXT_FILE_BYTES};
 use super::geodesy::LocalFrame;
 use super::streams::{wheel_column_names, wheel_value, Stream, MAX_FIELDS, WHEELS_CSV};
 use super::{DriveError, LoadedDrive};
@@ -45,15 +46,14 @@ const GNSS_KEYS: [&str; 4] = [
 pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     let mut warnings = Vec::new();
     let vehicle_path = dir.join(VEHICLE_TOML);
-    if !vehicle_path.is_file() {
+    if !regular_file_present(&vehicle_path)? {
         return Err(DriveError::MissingFile { path: vehicle_path });
     }
-    let text =
-        std::fs::read_to_string(&vehicle_path).map_err(|e| DriveError::io(&vehicle_path, e))?;
+    let text = read_text_limited(&vehicle_path, MAX_TEXT_FILE_BYTES)?;
     let mut vehicle = parse_vehicle_toml(&vehicle_path, &text, &mut warnings)?;
 
     let wheels_path = dir.join(WHEELS_CSV);
-    if !wheels_path.is_file() {
+    if !regular_file_present(&wheels_path)? {
         return Err(DriveError::MissingFile { path: wheels_path });
     }
     let wheels = read_wheels(&wheels_path, &vehicle, &mut warnings)?;
@@ -62,9 +62,9 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     let imu = optional_stream::<ImuSample>(dir, &mut warnings)?;
     let heading = optional_stream::<HeadingSample>(dir, &mut warnings)?;
     let truth = optional_stream::<TruthSample>(dir, &mut warnings)?;
-    let truth_params = match optional_file(dir, TRUTH_TOML) {
+    let truth_params = match optional_file(dir, TRUTH_TOML)? {
         Some(p) => {
-            let text = std::fs::read_to_string(&p).map_err(|e| DriveError::io(&p, e))?;
+            let text = read_text_limited(&p, MAX_TEXT_FILE_BYTES)?;
             Some(parse_truth_toml(&p, &text)?)
         }
         None => None,
@@ -100,9 +100,12 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     })
 }
 
-fn optional_file(dir: &Path, name: &str) -> Option<PathBuf> {
+/// `dir/name` when it is there: `None` when nothing is at that path, an
+/// error when something other than a regular file is (a directory, a FIFO,
+/// a link to a device is not "no such stream").
+fn optional_file(dir: &Path, name: &str) -> Result<Option<PathBuf>, DriveError> {
     let p = dir.join(name);
-    p.is_file().then_some(p)
+    Ok(regular_file_present(&p)?.then_some(p))
 }
 
 /// Read stream `S`'s file when the folder has it.
@@ -110,7 +113,7 @@ fn optional_stream<S: Stream>(
     dir: &Path,
     warnings: &mut Vec<String>,
 ) -> Result<Option<RawStream<S>>, DriveError> {
-    optional_file(dir, S::CSV_FILE)
+    optional_file(dir, S::CSV_FILE)?
         .map(|p| read_stream(&p, warnings))
         .transpose()
 }
@@ -160,7 +163,7 @@ pub(super) fn parse_vehicle_toml(
 ) -> Result<VehicleParams, DriveError> {
     let toml_error = |e: toml::de::Error| DriveError::Toml {
         path: path.to_path_buf(),
-        message: e.to_string().trim_end().to_string(),
+        message: clip_lines(e.to_string().trim_end()),
     };
     let table: toml::Table = toml::from_str(text).map_err(toml_error)?;
     let mut unknown: Vec<String> = table
@@ -176,10 +179,11 @@ pub(super) fn parse_vehicle_toml(
         );
     }
     if !unknown.is_empty() {
+        let listed: Vec<String> = unknown.iter().map(|k| clip(k)).collect();
         warnings.push(format!(
             "{}: ignored unknown key(s): {}",
             path.display(),
-            unknown.join(", ")
+            listed.join(", ")
         ));
     }
     let vehicle: VehicleParams = toml::from_str(text).map_err(toml_error)?;
@@ -206,7 +210,7 @@ pub(super) fn parse_vehicle_toml(
 pub(super) fn parse_truth_toml(path: &Path, text: &str) -> Result<TruthParams, DriveError> {
     toml::from_str(text).map_err(|e| DriveError::Toml {
         path: path.to_path_buf(),
-        message: e.to_string().trim_end().to_string(),
+        message: clip_lines(e.to_string().trim_end()),
     })
 }
 
@@ -270,9 +274,10 @@ fn read_wheels(
                         path: path.to_path_buf(),
                         line: csv.header_line,
                         message: format!(
-                            "wheel {} has two columns, `{}` and `{name}`; give exactly one",
+                            "wheel {} has two columns, `{}` and `{}`; give exactly one",
                             wheel.prefix(),
-                            columns[*other]
+                            columns[*other],
+                            clip(name)
                         ),
                     });
                 }
@@ -283,7 +288,7 @@ fn read_wheels(
                 return Err(DriveError::UnknownWheelColumn {
                     path: path.to_path_buf(),
                     line: csv.header_line,
-                    column: name.clone(),
+                    column: clip(name),
                 })
             }
             WheelColumn::Other => {}
@@ -590,11 +595,12 @@ pub(super) fn write_folder(drive: &Drive, dir: &Path) -> Result<(), DriveError> 
     }
     for name in ALL_FILES {
         let path = dir.join(name);
+        // Never open a FIFO or a device in place of a drive file (the open
+        // would block, or write into the device).
+        let present = regular_file_present(&path)?;
         match files.iter().find(|(n, _)| *n == name) {
             Some((_, text)) => std::fs::write(&path, text).map_err(|e| DriveError::io(&path, e))?,
-            None if path.is_file() => {
-                std::fs::remove_file(&path).map_err(|e| DriveError::io(&path, e))?
-            }
+            None if present => std::fs::remove_file(&path).map_err(|e| DriveError::io(&path, e))?,
             None => {}
         }
     }

@@ -13,14 +13,18 @@ mod csv;
 pub mod dev_data;
 mod error;
 mod estimate_file;
+mod files;
 mod folder;
 pub mod geodesy;
 mod info;
+pub mod plausibility;
 mod recording;
 mod streams;
 
+pub use csv::MAX_CSV_LINE_BYTES;
 pub use error::DriveError;
 pub use estimate_file::read_estimate;
+pub use files::MAX_TEXT_FILE_BYTES;
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
 pub use recording::{
     FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, TRUTH_TOPIC, WHEELS_TOPIC,
@@ -44,15 +48,43 @@ pub struct LoadedDrive {
 /// recording).
 ///
 /// A truncated MCAP gives [`DriveError::TruncatedMcap`], which carries the
-/// drive as far as it could be read.
+/// drive as far as it could be read. An MCAP chunk whose records fail
+/// their CRC is [`DriveError::ChunkCrc`] (see [`read_drive_with`] to skip
+/// it instead). Anything that is neither a directory nor a regular file
+/// (a FIFO, a device, a broken link) is [`DriveError::NotAFile`].
 pub fn read_drive(path: &Path) -> Result<LoadedDrive, DriveError> {
-    let meta = std::fs::metadata(path).map_err(|e| DriveError::io(path, e))?;
+    read_drive_with(path, ReadOptions::default())
+}
+
+/// How [`read_drive_with`] treats a damaged recording.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Recovery: leave out an MCAP chunk whose records fail their CRC (a
+    /// warning names each one, its index and byte offset) and accept a
+    /// data section CRC mismatch with a warning, instead of failing with
+    /// [`DriveError::ChunkCrc`] / [`DriveError::DataSectionCrc`]. Off by
+    /// default: a changed byte is never read silently.
+    pub skip_corrupt_chunks: bool,
+}
+
+/// [`read_drive`] with explicit [`ReadOptions`].
+pub fn read_drive_with(path: &Path, options: ReadOptions) -> Result<LoadedDrive, DriveError> {
+    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
+        // A broken symbolic link: say so rather than "not found".
+        std::io::ErrorKind::NotFound if std::fs::symlink_metadata(path).is_ok() => {
+            DriveError::NotAFile {
+                path: path.to_path_buf(),
+                what: files::describe(path),
+            }
+        }
+        _ => DriveError::io(path, e),
+    })?;
     if meta.is_dir() {
         return folder::read_folder(path);
     }
-    let bytes = std::fs::read(path).map_err(|e| DriveError::io(path, e))?;
+    let bytes = files::read_regular(path)?;
     if bytes.starts_with(mcap::MAGIC) {
-        recording::read_mcap_bytes(path, &bytes)
+        recording::read_mcap_bytes(path, &bytes, options.skip_corrupt_chunks)
     } else {
         Err(DriveError::UnknownFormat {
             path: path.to_path_buf(),
@@ -76,13 +108,14 @@ pub struct LoadedVehicle {
 /// vehicle, the ENU origin derived from the first fix included; a truncated
 /// recording's vehicle is as good as a whole one's). A `*.toml` is checked
 /// as a drive's `vehicle.toml` is: unknown keys are a warning, a non-finite
-/// value is an error naming the key.
+/// value is an error naming the key; it must be a regular file of at most
+/// [`MAX_TEXT_FILE_BYTES`].
 pub fn read_vehicle(path: &Path) -> Result<LoadedVehicle, DriveError> {
     let is_toml = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     if is_toml && !path.is_dir() {
-        let text = std::fs::read_to_string(path).map_err(|e| DriveError::io(path, e))?;
+        let text = files::read_text_limited(path, MAX_TEXT_FILE_BYTES)?;
         let mut warnings = Vec::new();
         let vehicle = folder::parse_vehicle_toml(path, &text, &mut warnings)?;
         return Ok(LoadedVehicle { vehicle, warnings });

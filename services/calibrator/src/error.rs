@@ -43,6 +43,11 @@ pub enum CalibrationError {
         /// Its revolutions.
         other_revs: f64,
     },
+    /// The drive holds physically impossible values (a wheel faster than
+    /// any car's, wheel signs reversed, a wheel stuck over much of the
+    /// drive); the finding names the stream, the time and the value.
+    #[error("{0}")]
+    ImplausibleInput(drive_io::plausibility::Finding),
     /// The wheel values cannot be turned into revolutions.
     #[error("wheels: {0}")]
     WheelUnits(#[from] WheelConversionError),

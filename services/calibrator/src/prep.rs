@@ -9,6 +9,12 @@
 //!   times (NaN across pauses of the IMU stream). The accelerations are not
 //!   copied: the reference reads them from the drive.
 //! - Streams that stop early or pause are named in warnings.
+//! - Physics ([`drive_io::plausibility`]): wheel tick counters that wrap are
+//!   unwrapped (warning); wheel rates beyond any car, reversed or exchanged
+//!   wheel signs and a wheel stuck over much of the drive are errors
+//!   ([`CalibrationError::ImplausibleInput`]); a gyro that is exactly
+//!   constant while the wheels turn is dropped (or not used where stuck),
+//!   stuck accelerations likewise, each with a warning saying so.
 //!
 //! Memory: a 1 h drive at 100 Hz has 360 000 wheel rows; everything here is
 //! a handful of `f64` per wheel sample, built in one pass over the drive.
@@ -19,6 +25,7 @@
 use crate::config::CalibrationConfig;
 use crate::error::CalibrationError;
 use crate::warnings::{Warning, WarningCode};
+use drive_io::plausibility::{self, Finding};
 use interfaces::drive::{Drive, HeadingSample, WheelConversionError, WheelSample, WheelUnit};
 
 /// A GNSS fix in local ENU (antenna position).
@@ -170,8 +177,32 @@ pub fn prepare(
         )));
     }
 
+    // Counters that wrap are unwrapped before anything reads them.
+    let unwrapped = plausibility::unwrap_wheel_counters(drive);
+    let drive = match &unwrapped {
+        Some((d, findings)) => {
+            for f in findings {
+                warnings.push(Warning::new(WarningCode::CounterWrapped, f.to_string()));
+            }
+            d
+        }
+        None => drive,
+    };
+    // A wheel faster than any car's would distort every check after this
+    // one: refused first. The other findings come after the basic checks
+    // (an empty or wholly stuck channel is named as such).
+    let findings = plausibility::check(drive);
+    if let Some(f) = findings
+        .iter()
+        .find(|f| matches!(f, Finding::ImpossibleWheelRate { .. }))
+    {
+        return Err(CalibrationError::ImplausibleInput(f.clone()));
+    }
     let (t, dn_rl, dn_rr, piece_starts, wheel_dt, wheel_offsets) = wheels(drive, warnings)?;
     let fixes = gnss(drive, warnings)?;
+    if let Some(f) = findings.iter().find(|f| f.is_error()) {
+        return Err(CalibrationError::ImplausibleInput(f.clone()));
+    }
     if let (Some(&w0), Some(&w1), Some(g0), Some(g1)) =
         (t.first(), t.last(), fixes.first(), fixes.last())
     {
@@ -184,7 +215,46 @@ pub fn prepare(
             });
         }
     }
-    let (gyro, has_accel, imu_end) = imu(drive, &t, warnings);
+    let (mut gyro, mut has_accel, imu_end) = imu(drive, &t, warnings);
+    for f in &findings {
+        match f {
+            Finding::ImuStuck {
+                field,
+                t_start_s,
+                t_end_s,
+                whole_drive,
+                ..
+            } => {
+                let what = match (*field, *whole_drive) {
+                    ("gz_rad_s", true) if gyro.is_some() => {
+                        gyro = None;
+                        "the gyro is dropped: no gyro bias or scale is fitted and no gyro heading is used"
+                            .to_string()
+                    }
+                    ("gz_rad_s", _) => {
+                        if let Some(g) = gyro.as_mut() {
+                            for (gk, tk) in g.iter_mut().zip(&t) {
+                                if *tk > *t_start_s && *tk < *t_end_s {
+                                    *gk = f64::NAN;
+                                }
+                            }
+                        }
+                        format!("the gyro is not used from t = {t_start_s:.2} to {t_end_s:.2} s")
+                    }
+                    _ if has_accel => {
+                        has_accel = false;
+                        "the IMU accelerations are not used".to_string()
+                    }
+                    _ => "not used".to_string(),
+                };
+                warnings.push(Warning::new(WarningCode::ImuStuck, format!("{f}; {what}")));
+            }
+            Finding::WheelStuck { .. } => {
+                warnings.push(Warning::new(WarningCode::WheelStuck, f.to_string()));
+            }
+            _ => {}
+        }
+    }
     let headings = heading(drive, warnings);
     check_stream_ends(&t, &fixes, imu_end, warnings);
 
@@ -837,7 +907,8 @@ mod tests {
                     if unit.is_rate() {
                         (t, a, b)
                     } else {
-                        (t, (10.0 * a * t).floor(), (10.0 * b * t).floor())
+                        // Counts below 100 rev/s (faster is refused as no car's wheel).
+                        (t, (4.0 * a * t).floor(), (4.0 * b * t).floor())
                     }
                 })
                 .collect();
@@ -873,6 +944,106 @@ mod tests {
         assert!((o_rl + 0.02).abs() < 1e-9 && (o_rr - 0.01).abs() < 1e-9 && secs > 2.5);
         let standing: f64 = p.dn_rl[..250].iter().sum();
         assert!(standing.abs() < 1e-12, "{standing}");
+    }
+
+    /// Wheels turning left and right (rad/s), rows of (t, rl, rr).
+    fn weaving_rows() -> Vec<(f64, f64, f64)> {
+        (0..2000)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                (t, 5.0 - t.sin(), 5.0 + t.sin())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_dead_gyro_is_dropped_with_a_warning() {
+        let mut d = drive(WheelUnit::RadS, weaving_rows());
+        d.imu = Some(
+            (0..2000)
+                .map(|i| interfaces::drive::ImuSample {
+                    t_s: i as f64 * 0.01,
+                    gz_rad_s: 0.0,
+                    ax_m_s2: None,
+                    ay_m_s2: None,
+                    az_m_s2: None,
+                    gx_rad_s: None,
+                    gy_rad_s: None,
+                })
+                .collect(),
+        );
+        let mut w = Vec::new();
+        let p = prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+        assert!(p.gyro.is_none(), "no gyro fit from a dead gyro");
+        let stuck = w
+            .iter()
+            .find(|w| w.code == WarningCode::ImuStuck)
+            .unwrap_or_else(|| panic!("{w:?}"));
+        assert!(
+            stuck.message.contains("gz_rad_s") && stuck.message.contains("the gyro is dropped"),
+            "{}",
+            stuck.message
+        );
+    }
+
+    #[test]
+    fn an_impossible_wheel_rate_is_refused() {
+        let mut rows = weaving_rows();
+        rows[700].1 = 1e308;
+        let d = drive(WheelUnit::RadS, rows);
+        let e = prepare(&d, &CalibrationConfig::default(), &mut Vec::new()).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CalibrationError::ImplausibleInput(Finding::ImpossibleWheelRate { .. })
+            ),
+            "{e}"
+        );
+        assert!(
+            e.to_string().contains("wheels.rl") && e.to_string().contains("t = 7 s"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn opposed_wheels_are_refused() {
+        let rows = weaving_rows()
+            .into_iter()
+            .map(|(t, l, r)| (t, l, -r))
+            .collect();
+        let d = drive(WheelUnit::RadS, rows);
+        let e = prepare(&d, &CalibrationConfig::default(), &mut Vec::new()).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                CalibrationError::ImplausibleInput(Finding::WheelsOpposed { .. })
+            ),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_wrapping_counter_is_unwrapped_with_a_warning() {
+        let rows: Vec<(f64, f64, f64)> = (0..2000)
+            .map(|i| {
+                let t = i as f64 * 0.01;
+                (t, (100.0 * t).floor(), (101.0 * t).floor())
+            })
+            .collect();
+        let wrapped = rows
+            .iter()
+            .map(|&(t, a, b)| (t, (a + 200.0) % 256.0, (b + 200.0) % 256.0))
+            .collect();
+        let config = CalibrationConfig::default();
+        let mut w = Vec::new();
+        let p = prepare(&drive(WheelUnit::Ticks, wrapped), &config, &mut w).expect("prepare");
+        assert!(
+            w.iter().any(|w| w.code == WarningCode::CounterWrapped),
+            "{w:?}"
+        );
+        let q = prepare(&drive(WheelUnit::Ticks, rows), &config, &mut Vec::new()).expect("prepare");
+        assert_eq!(p.dn_rl, q.dn_rl);
+        assert_eq!(p.dn_rr, q.dn_rr);
     }
 
     #[test]

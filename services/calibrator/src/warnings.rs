@@ -50,6 +50,13 @@ pub enum WarningCode {
     ScaleFromGyroModel,
     /// The GNSS antenna position is poorly determined by the drive.
     AntennaUnobservable,
+    /// An encoder tick counter wraps around; it was unwrapped.
+    CounterWrapped,
+    /// An IMU value is exactly constant while the wheels show motion (a
+    /// dead or stuck sensor); it was not used where stuck.
+    ImuStuck,
+    /// One rear wheel stands still over a stretch while the other rolls on.
+    WheelStuck,
 }
 
 /// A warning: a stable code and a message naming the cause.

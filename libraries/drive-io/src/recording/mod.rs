@@ -25,6 +25,7 @@
 //! descriptions of [`crate::streams`]), [`write`], [`scan`] (the record walk
 //! that survives truncation) and [`read`].
 
+mod crc;
 mod messages;
 mod read;
 mod scan;

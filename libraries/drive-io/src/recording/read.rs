@@ -16,8 +16,15 @@ use serde::de::DeserializeSeed;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Read an MCAP drive recording from its bytes.
-pub(crate) fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<LoadedDrive, DriveError> {
+/// Read an MCAP drive recording from its bytes. Chunk and data section
+/// CRCs (when the file gives them) are checked; with `skip_corrupt_chunks`
+/// a chunk that fails its CRC is left out with a warning naming it, and a
+/// data section CRC mismatch is a warning, instead of an error.
+pub(crate) fn read_mcap_bytes(
+    path: &Path,
+    bytes: &[u8],
+    skip_corrupt_chunks: bool,
+) -> Result<LoadedDrive, DriveError> {
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(DriveError::UnknownFormat {
             path: path.to_path_buf(),
@@ -25,10 +32,37 @@ pub(crate) fn read_mcap_bytes(path: &Path, bytes: &[u8]) -> Result<LoadedDrive, 
         });
     }
     let mut scan = Scan::default();
+    scan.skip_corrupt_chunks = skip_corrupt_chunks;
     scan.walk(path, bytes, mcap::MAGIC.len(), 0, false)?;
     let file_len = bytes.len() as u64;
     let messages_read = scan.messages.len();
     let mut warnings = Vec::new();
+    for c in &scan.corrupt_chunks {
+        warnings.push(format!(
+            "{}: chunk {} (Chunk record at byte {}) fails its CRC (file says {:#010x}, records give {:#010x}): \
+             skipped with every message in it (recovery requested)",
+            path.display(),
+            c.index,
+            c.offset,
+            c.expected,
+            c.actual
+        ));
+    }
+    if let Some(c) = &scan.data_crc_mismatch {
+        warnings.push(format!(
+            "{}: the data section fails its CRC (DataEnd record at byte {}: file says {:#010x}, data gives {:#010x}){}: \
+             read anyway (recovery requested)",
+            path.display(),
+            c.offset,
+            c.expected,
+            c.actual,
+            if scan.corrupt_chunks.is_empty() {
+                ""
+            } else {
+                " (the skipped chunks are part of it)"
+            }
+        ));
+    }
     match scan.damage.take() {
         // Damage after the data section: every message was read.
         Some(d) if scan.data_end_seen => {

@@ -2,6 +2,7 @@
 //! damage, chunk contents included (chunks are uncompressed), so that a
 //! truncated recording can be read up to where it is cut.
 
+use super::crc::crc32;
 use crate::DriveError;
 use mcap::records::{op, Record};
 use std::collections::BTreeMap;
@@ -48,7 +49,30 @@ pub(super) struct Scan<'a> {
     pub damage: Option<Damage>,
     /// A DataEnd record was read.
     pub data_end_seen: bool,
+    /// Recovery: skip a chunk whose records fail their CRC (listed in
+    /// `corrupt_chunks`) and accept a data section CRC mismatch (kept in
+    /// `data_crc_mismatch`) instead of failing.
+    pub skip_corrupt_chunks: bool,
+    /// Chunks skipped for a CRC mismatch (recovery only).
+    pub corrupt_chunks: Vec<CorruptChunk>,
+    /// The data section CRC mismatch accepted under recovery.
+    pub data_crc_mismatch: Option<CorruptChunk>,
+    /// Chunks met so far (the next chunk's index).
+    chunk_count: usize,
     footer_seen: bool,
+}
+
+/// A checksum that does not match: which chunk (or the data section) and
+/// the two values.
+pub(super) struct CorruptChunk {
+    /// Index of the chunk in the file (0 first); unused for the data section.
+    pub index: usize,
+    /// Byte offset of the Chunk (or DataEnd) record.
+    pub offset: u64,
+    /// The CRC the file gives.
+    pub expected: u32,
+    /// The CRC of the bytes as they are.
+    pub actual: u32,
 }
 
 fn op_name(op: u8) -> String {
@@ -207,6 +231,9 @@ impl<'a> Scan<'a> {
                 Frame::Complete { op, body } => {
                     let end = body.end;
                     let body = &buf[body];
+                    if op == op::DATA_END && !in_chunk {
+                        self.check_data_crc(path, buf, body, offset)?;
+                    }
                     if op == op::CHUNK && !in_chunk {
                         self.chunk(path, body, offset + 9)?;
                         if self.damage.is_some() {
@@ -234,6 +261,9 @@ impl<'a> Scan<'a> {
                         _ => format!("the record header at byte {offset} is cut after {rest} of 9 bytes"),
                     };
                     // A cut chunk: its records are uncompressed, so read those that are whole.
+                    if op == Some(op::CHUNK) && !in_chunk {
+                        self.chunk_count += 1;
+                    }
                     if op == Some(op::CHUNK) && !in_chunk && rest > 9 {
                         let body = &buf[pos + 9..];
                         if let Some((records_start, compression)) = chunk_records_start(body) {
@@ -259,8 +289,49 @@ impl<'a> Scan<'a> {
         Ok(())
     }
 
+    /// Check the DataEnd record's data section CRC (when nonzero) against
+    /// the bytes before the record (`buf` is the whole file).
+    fn check_data_crc(
+        &mut self,
+        path: &Path,
+        buf: &[u8],
+        body: &[u8],
+        offset: u64,
+    ) -> Result<(), DriveError> {
+        let Some(expected) = body.get(..4).map(le_u32) else {
+            return Ok(());
+        };
+        let Some(data) = usize::try_from(offset).ok().and_then(|o| buf.get(..o)) else {
+            return Ok(());
+        };
+        if expected == 0 {
+            return Ok(());
+        }
+        let actual = crc32(data);
+        if actual == expected {
+            return Ok(());
+        }
+        if self.skip_corrupt_chunks {
+            self.data_crc_mismatch = Some(CorruptChunk {
+                index: 0,
+                offset,
+                expected,
+                actual,
+            });
+            return Ok(());
+        }
+        Err(DriveError::DataSectionCrc {
+            path: path.to_path_buf(),
+            data_end_offset: offset,
+            expected,
+            actual,
+        })
+    }
+
     /// A complete chunk record (body at file offset `base`).
     fn chunk(&mut self, path: &Path, body: &'a [u8], base: u64) -> Result<(), DriveError> {
+        let index = self.chunk_count;
+        self.chunk_count += 1;
         let Some((start, compression)) = chunk_records_start(body) else {
             return Err(DriveError::Mcap {
                 path: path.to_path_buf(),
@@ -288,6 +359,30 @@ impl<'a> Scan<'a> {
                 location: format!("Chunk record at byte {}", base - 9),
                 message: format!("records length {records_len} exceeds the chunk"),
             })?;
+        // uncompressed_crc: 0 means "not computed".
+        let expected = le_u32(&body[24..28]);
+        if expected != 0 {
+            let actual = crc32(&body[start..end]);
+            if actual != expected {
+                let corrupt = CorruptChunk {
+                    index,
+                    offset: base - 9,
+                    expected,
+                    actual,
+                };
+                if self.skip_corrupt_chunks {
+                    self.corrupt_chunks.push(corrupt);
+                    return Ok(());
+                }
+                return Err(DriveError::ChunkCrc {
+                    path: path.to_path_buf(),
+                    chunk_index: corrupt.index,
+                    offset: corrupt.offset,
+                    expected,
+                    actual,
+                });
+            }
+        }
         let mut inner_damage = None;
         std::mem::swap(&mut inner_damage, &mut self.damage);
         self.walk(path, &body[..end], start, base, true)?;

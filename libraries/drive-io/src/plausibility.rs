@@ -1,0 +1,813 @@
+//! Physically impossible or broken values in a drive, found on the
+//! in-memory [`Drive`] (pure functions; the readers keep values as given so
+//! that conversions stay lossless, and refuse only what the format forbids:
+//! a NaN or infinite value is already an error on reading).
+//!
+//! Thresholds come from physics, never from a particular data set:
+//! - no car's wheel turns faster than [`MAX_CAR_SPEED_M_S`] over its
+//!   circumference (and at least [`MAX_WHEEL_REV_PER_S`] is allowed);
+//! - a car cannot turn about a point between its rear wheels, so the rear
+//!   wheels never turn in opposite directions over a drive, and one rear
+//!   wheel cannot stand still while the other rolls on;
+//! - a circumference mismatch of a few per cent bends the wheels' path by at
+//!   most [`MAX_CIRCUMFERENCE_MISMATCH`] / track; a sharper bend is a turn.
+//!
+//! [`unwrap_wheel_counters`] repairs encoder counters that wrap (8, 16 or
+//! 32 bit); [`check`] reports the rest as [`Finding`]s, each an error or a
+//! warning ([`Finding::severity`]).
+
+use interfaces::drive::{Drive, ImuSample, Wheel, WheelSample, WheelUnit};
+use std::f64::consts::{FRAC_PI_2, TAU};
+
+/// Fastest plausible car, m/s.
+pub const MAX_CAR_SPEED_M_S: f64 = 100.0;
+/// The wheel rate always allowed, rev/s (100 m/s on a 1 m wheel); with a
+/// smaller nominal circumference the limit is [`MAX_CAR_SPEED_M_S`] / c.
+pub const MAX_WHEEL_REV_PER_S: f64 = 100.0;
+/// Largest relative circumference difference between the rear wheels that
+/// tyres explain; a sharper bend of the wheels' path than this / track is
+/// a real turn.
+pub const MAX_CIRCUMFERENCE_MISMATCH: f64 = 0.03;
+/// Distance a wheel must roll before its partner's standstill, or the
+/// drive's direction, counts as evidence, m.
+pub const EVIDENCE_DISTANCE_M: f64 = 20.0;
+/// Turning (by the wheels) that a constant gyro cannot have missed, rad.
+pub const EVIDENCE_TURN_RAD: f64 = FRAC_PI_2;
+
+/// How serious a [`Finding`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Severity {
+    /// The data cannot be used as it is (a calibration must refuse it).
+    Error,
+    /// The data are usable; a user should know.
+    Warning,
+}
+
+/// Something physically impossible or broken in a drive.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Finding {
+    /// A wheel turns faster than any car's wheel can.
+    #[error(
+        "wheels.{}: at t = {t_s} s the value {} ({}) means {rev_per_s:.4e} rev/s, beyond any car \
+         (limit {limit_rev_per_s:.0} rev/s); {samples} sample(s) like it",
+        wheel.prefix(),
+        num(*value),
+        unit.suffix()
+    )]
+    ImpossibleWheelRate {
+        /// The wheel.
+        wheel: Wheel,
+        /// Time of the first offending sample, s.
+        t_s: f64,
+        /// Its value as given (in `unit`).
+        value: f64,
+        /// The wheel's unit.
+        unit: WheelUnit,
+        /// The wheel rate it implies (for counts: its step over the step's time), rev/s.
+        rev_per_s: f64,
+        /// The limit, rev/s.
+        limit_rev_per_s: f64,
+        /// Samples over the limit.
+        samples: usize,
+    },
+    /// An encoder counter wraps around; the values were unwrapped.
+    #[error(
+        "wheels.{}: the tick counter wraps {wraps} time(s) as a {bits}-bit counter (first at t = {first_t_s} s); \
+         unwrapped",
+        wheel.prefix()
+    )]
+    CounterWrapped {
+        /// The wheel.
+        wheel: Wheel,
+        /// Counter width, bits.
+        bits: u32,
+        /// Wraps found.
+        wraps: usize,
+        /// Time of the first, s.
+        first_t_s: f64,
+    },
+    /// The rear wheels turn in opposite directions over the drive: one
+    /// wheel's sign is reversed.
+    #[error(
+        "wheels: rl turns {rl_revs:+.1} and rr {rr_revs:+.1} revolutions over the drive, in opposite directions; \
+         a car cannot turn about a point between its rear wheels: one wheel's sign is reversed"
+    )]
+    WheelsOpposed {
+        /// Net rear-left revolutions.
+        rl_revs: f64,
+        /// Net rear-right revolutions.
+        rr_revs: f64,
+    },
+    /// Both rear wheels count down while the car drives forward per GNSS
+    /// (their turns are opposite to the GNSS course's turns).
+    #[error(
+        "wheels: both rear wheels count backward ({backward_percent:.0} % of their distance) while the GNSS \
+         says the car drives forward (the wheels' turns are {ratio:+.2} times the GNSS course's turns over \
+         {turned_rad:.1} rad of turning): both wheel signs are reversed"
+    )]
+    WheelsReversed {
+        /// Share of the wheel distance driven backward, %.
+        backward_percent: f64,
+        /// Wheel heading change per GNSS course change (about -1).
+        ratio: f64,
+        /// GNSS course turning compared, rad.
+        turned_rad: f64,
+    },
+    /// The rear wheels turn the wrong way round in curves while the car
+    /// drives forward: rl and rr are exchanged.
+    #[error(
+        "wheels: the wheels' turns are {ratio:+.2} times the GNSS course's turns over {turned_rad:.1} rad of \
+         turning while the car drives forward: rl and rr are exchanged"
+    )]
+    WheelsSwapped {
+        /// Wheel heading change per GNSS course change (about -1).
+        ratio: f64,
+        /// GNSS course turning compared, rad.
+        turned_rad: f64,
+    },
+    /// An IMU value is exactly constant while the wheels show the motion it
+    /// should measure (a dead or stuck sensor).
+    #[error(
+        "imu.{field}: {samples} samples from t = {t_start_s} to {t_end_s} s are all exactly {} while the \
+         wheels show {evidence}: the sensor is dead or stuck{}",
+        num(*value),
+        if *whole_drive { " for the whole drive" } else { "" }
+    )]
+    ImuStuck {
+        /// `gz_rad_s`, `ax_m_s2` or `ay_m_s2`.
+        field: &'static str,
+        /// The constant value.
+        value: f64,
+        /// Samples in the stuck stretch.
+        samples: usize,
+        /// Start of the stretch, s.
+        t_start_s: f64,
+        /// End of the stretch, s.
+        t_end_s: f64,
+        /// What the wheels show meanwhile.
+        evidence: String,
+        /// The stretch holds (nearly) every sample of the field.
+        whole_drive: bool,
+    },
+    /// One rear wheel's value stays exactly constant while the other rolls on.
+    #[error(
+        "wheels.{}: stays exactly at {} from t = {t_start_s} to {t_end_s} s while wheels.{} rolls \
+         {other_distance_m:.0} m{}: the {} wheel is stuck or its channel broken",
+        wheel.prefix(),
+        num(*value),
+        other.prefix(),
+        if *changing_speed { " and changes speed" } else { "" },
+        wheel.prefix()
+    )]
+    WheelStuck {
+        /// The stuck wheel.
+        wheel: Wheel,
+        /// The other rear wheel.
+        other: Wheel,
+        /// The constant value.
+        value: f64,
+        /// Start of the stretch, s.
+        t_start_s: f64,
+        /// End of the stretch, s.
+        t_end_s: f64,
+        /// Distance the other wheel rolls meanwhile (nominal circumference), m.
+        other_distance_m: f64,
+        /// The other wheel's speed changes meanwhile (rate units).
+        changing_speed: bool,
+        /// The stretch is a large part (a fifth or more) of the drive's distance.
+        major: bool,
+    },
+}
+
+impl Finding {
+    /// Whether the finding makes the drive unusable as it is.
+    pub fn severity(&self) -> Severity {
+        match self {
+            Finding::ImpossibleWheelRate { .. }
+            | Finding::WheelsOpposed { .. }
+            | Finding::WheelsReversed { .. }
+            | Finding::WheelsSwapped { .. } => Severity::Error,
+            Finding::WheelStuck { major, .. } if *major => Severity::Error,
+            Finding::CounterWrapped { .. }
+            | Finding::ImuStuck { .. }
+            | Finding::WheelStuck { .. } => Severity::Warning,
+        }
+    }
+
+    /// True for [`Severity::Error`].
+    pub fn is_error(&self) -> bool {
+        self.severity() == Severity::Error
+    }
+}
+
+/// A value as text: plain, or in exponent form when very large or small
+/// (`1e308`, not 309 digits).
+fn num(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && !(1e-4..1e15).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+fn value_of(s: &WheelSample, w: Wheel) -> Option<f64> {
+    match w {
+        Wheel::Rl => Some(s.rl),
+        Wheel::Rr => Some(s.rr),
+        Wheel::Fl => s.fl,
+        Wheel::Fr => s.fr,
+    }
+}
+
+fn set_value(s: &mut WheelSample, w: Wheel, v: f64) {
+    match w {
+        Wheel::Rl => s.rl = v,
+        Wheel::Rr => s.rr = v,
+        Wheel::Fl => s.fl = Some(v),
+        Wheel::Fr => s.fr = Some(v),
+    }
+}
+
+/// Revolutions per unit (per unit·s for rates); `None` when the unit cannot
+/// be converted (ticks without a positive `ticks_per_rev`, ...).
+fn rev_scale(drive: &Drive, unit: WheelUnit) -> Option<f64> {
+    let c = drive.vehicle.nominal_circumference_m;
+    match unit {
+        WheelUnit::Rev => Some(1.0),
+        WheelUnit::Ticks => drive
+            .vehicle
+            .ticks_per_rev
+            .filter(|t| t.is_finite() && *t > 0.0)
+            .map(|t| 1.0 / t),
+        WheelUnit::RadS => Some(1.0 / TAU),
+        WheelUnit::MS => (c.is_finite() && c > 0.0).then(|| 1.0 / c),
+    }
+}
+
+/// The wheel-rate limit of this drive, rev/s.
+pub fn wheel_rate_limit(drive: &Drive) -> f64 {
+    let c = drive.vehicle.nominal_circumference_m;
+    if c.is_finite() && c > 0.0 {
+        MAX_WHEEL_REV_PER_S.max(MAX_CAR_SPEED_M_S / c)
+    } else {
+        MAX_WHEEL_REV_PER_S
+    }
+}
+
+// ------------------------------------------------------------ counter wraps
+
+/// Counter widths tried, smallest first.
+const COUNTER_BITS: [u32; 3] = [8, 16, 32];
+
+/// Unwrap the `_ticks` wheel counters that wrap around (8, 16 or 32 bit,
+/// signed or unsigned): a step of about minus the counter's modulus (plus,
+/// driving backward) while the neighbouring steps are normal. Returns the
+/// corrected drive and a [`Finding::CounterWrapped`] per wheel, or `None`
+/// when no counter wraps.
+pub fn unwrap_wheel_counters(drive: &Drive) -> Option<(Drive, Vec<Finding>)> {
+    let mut out: Option<Drive> = None;
+    let mut findings = Vec::new();
+    for wheel in Wheel::ALL {
+        if drive.wheels.units.of(wheel) != Some(WheelUnit::Ticks) {
+            continue;
+        }
+        let samples = &drive.wheels.samples;
+        let Some((bits, wraps)) = counter_wraps(samples, wheel) else {
+            continue;
+        };
+        let modulus = 2f64.powi(bits as i32);
+        let d = out.get_or_insert_with(|| drive.clone());
+        let mut offset = 0.0;
+        let mut next = wraps.iter().peekable();
+        for (i, s) in d.wheels.samples.iter_mut().enumerate() {
+            if let Some(&&(k, sign)) = next.peek() {
+                if k == i {
+                    offset -= sign * modulus;
+                    next.next();
+                }
+            }
+            if let Some(v) = value_of(s, wheel).filter(|v| v.is_finite()) {
+                set_value(s, wheel, v + offset);
+            }
+        }
+        findings.push(Finding::CounterWrapped {
+            wheel,
+            bits,
+            wraps: wraps.len(),
+            first_t_s: wraps.first().map_or(f64::NAN, |&(k, _)| samples[k].t_s),
+        });
+    }
+    out.map(|d| (d, findings))
+}
+
+/// The counter width and the wraps (sample index, sign of the raw step) of
+/// one wheel's counter, when it wraps.
+fn counter_wraps(samples: &[WheelSample], wheel: Wheel) -> Option<(u32, Vec<(usize, f64)>)> {
+    // (sample index, value) of the finite values.
+    let values: Vec<(usize, f64)> = samples
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| value_of(s, wheel).filter(|v| v.is_finite()).map(|v| (i, v)))
+        .collect();
+    if values.len() < 3 {
+        return None;
+    }
+    let (lo, hi) = values
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(_, v)| {
+            (a.min(v), b.max(v))
+        });
+    // The narrowest counter that holds every value.
+    let bits = COUNTER_BITS
+        .into_iter()
+        .find(|&b| hi - lo < 2f64.powi(b as i32))?;
+    let modulus = 2f64.powi(bits as i32);
+    let steps: Vec<f64> = values.windows(2).map(|w| w[1].1 - w[0].1).collect();
+    let big = |s: f64| s.abs() > 0.5 * modulus;
+    let mut wraps = Vec::new();
+    for (j, &s) in steps.iter().enumerate() {
+        if !big(s) {
+            continue;
+        }
+        // Neighbouring steps (up to 5 each side) that are not wraps themselves.
+        let lo_j = j.saturating_sub(5);
+        let hi_j = (j + 6).min(steps.len());
+        let scale = steps[lo_j..hi_j]
+            .iter()
+            .enumerate()
+            .filter(|&(k, s)| lo_j + k != j && !big(*s))
+            .map(|(_, s)| s.abs())
+            .fold(0.0, f64::max);
+        let corrected = s - s.signum() * modulus;
+        // Normal: like its neighbours, give or take a few counts.
+        if corrected.abs() <= 2.0 * scale + 2.0 {
+            wraps.push((values[j + 1].0, s.signum()));
+        }
+    }
+    (!wraps.is_empty()).then_some((bits, wraps))
+}
+
+// ------------------------------------------------------------ the checks
+
+/// Every [`Finding`] about `drive` except counter wraps (run
+/// [`unwrap_wheel_counters`] first: a wrap otherwise looks like an
+/// impossible wheel rate).
+pub fn check(drive: &Drive) -> Vec<Finding> {
+    let mut out = Vec::new();
+    for wheel in Wheel::ALL {
+        out.extend(impossible_rate(drive, wheel));
+    }
+    let Some(rear) = Rear::of(drive) else {
+        return out;
+    };
+    out.extend(rear.opposed());
+    out.extend(rear.reversed(drive));
+    out.extend(rear.stuck(Wheel::Rl));
+    out.extend(rear.stuck(Wheel::Rr));
+    out.extend(imu_stuck(drive, &rear));
+    out
+}
+
+/// The first sample of `wheel` whose rate is beyond any car's.
+fn impossible_rate(drive: &Drive, wheel: Wheel) -> Option<Finding> {
+    let unit = drive.wheels.units.of(wheel)?;
+    let k = rev_scale(drive, unit)?;
+    let limit = wheel_rate_limit(drive);
+    let samples = &drive.wheels.samples;
+    let mut first: Option<(f64, f64, f64)> = None;
+    let mut count = 0usize;
+    let mut flag = |t: f64, v: f64, r: f64| {
+        count += 1;
+        first.get_or_insert((t, v, r));
+    };
+    if unit.is_rate() {
+        for s in samples {
+            if let Some(v) = value_of(s, wheel).filter(|v| v.is_finite()) {
+                let r = (v * k).abs();
+                if r > limit {
+                    flag(s.t_s, v, r);
+                }
+            }
+        }
+    } else {
+        let values: Vec<(f64, f64)> = samples
+            .iter()
+            .filter_map(|s| value_of(s, wheel).map(|v| (s.t_s, v)))
+            .filter(|(t, v)| t.is_finite() && v.is_finite())
+            .collect();
+        // The counter's resolution (its smallest step) is allowed on top.
+        let quantum = values
+            .windows(2)
+            .map(|w| ((w[1].1 - w[0].1) * k).abs())
+            .filter(|d| *d > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let quantum = if quantum.is_finite() { quantum } else { 0.0 };
+        for w in values.windows(2) {
+            let dt = w[1].0 - w[0].0;
+            let d = ((w[1].1 - w[0].1) * k).abs();
+            if dt > 0.0 && d - quantum > limit * dt {
+                flag(w[1].0, w[1].1, d / dt);
+            }
+        }
+    }
+    let (t_s, value, rev_per_s) = first?;
+    Some(Finding::ImpossibleWheelRate {
+        wheel,
+        t_s,
+        value,
+        unit,
+        rev_per_s,
+        limit_rev_per_s: limit,
+        samples: count,
+    })
+}
+
+/// The rear wheels as cumulative revolutions at the rows where both are
+/// finite, with the vehicle's nominal values.
+struct Rear {
+    t: Vec<f64>,
+    /// Cumulative revolutions.
+    l: Vec<f64>,
+    r: Vec<f64>,
+    /// Raw values (for the stuck check).
+    raw_l: Vec<f64>,
+    raw_r: Vec<f64>,
+    c: f64,
+    track: f64,
+    rate: [bool; 2],
+}
+
+impl Rear {
+    fn of(drive: &Drive) -> Option<Rear> {
+        let units = drive.wheels.units;
+        let (kl, kr) = (rev_scale(drive, units.rl)?, rev_scale(drive, units.rr)?);
+        let c = drive.vehicle.nominal_circumference_m;
+        let track = drive.vehicle.track_width_m;
+        if !(c.is_finite() && c > 0.0 && track.is_finite() && track > 0.0) {
+            return None;
+        }
+        let rows: Vec<&WheelSample> = drive
+            .wheels
+            .samples
+            .iter()
+            .filter(|s| s.t_s.is_finite() && s.rl.is_finite() && s.rr.is_finite())
+            .collect();
+        if rows.len() < 3 {
+            return None;
+        }
+        let cumulate = |unit: WheelUnit, k: f64, pick: fn(&WheelSample) -> f64| {
+            let mut out = Vec::with_capacity(rows.len());
+            let mut acc = 0.0;
+            for (i, s) in rows.iter().enumerate() {
+                if unit.is_rate() {
+                    if i > 0 {
+                        let p = rows[i - 1];
+                        acc += 0.5 * (pick(p) + pick(s)) * k * (s.t_s - p.t_s);
+                    }
+                    out.push(acc);
+                } else {
+                    out.push(pick(s) * k);
+                }
+            }
+            out
+        };
+        Some(Rear {
+            t: rows.iter().map(|s| s.t_s).collect(),
+            l: cumulate(units.rl, kl, |s| s.rl),
+            r: cumulate(units.rr, kr, |s| s.rr),
+            raw_l: rows.iter().map(|s| s.rl).collect(),
+            raw_r: rows.iter().map(|s| s.rr).collect(),
+            c,
+            track,
+            rate: [units.rl.is_rate(), units.rr.is_rate()],
+        })
+    }
+
+    /// Distance of the axle centre (signed, cumulative), m.
+    fn s(&self, i: usize) -> f64 {
+        0.5 * self.c * (self.l[i] + self.r[i])
+    }
+
+    /// Heading by the wheels (cumulative), rad.
+    fn psi(&self, i: usize) -> f64 {
+        self.c * (self.r[i] - self.l[i]) / self.track
+    }
+
+    /// Path length of a cumulative series between samples `a..=b`, revolutions.
+    fn path(x: &[f64], a: usize, b: usize) -> f64 {
+        x[a..=b].windows(2).map(|w| (w[1] - w[0]).abs()).sum()
+    }
+
+    /// One wheel counts forward and the other backward over the drive.
+    fn opposed(&self) -> Option<Finding> {
+        let n = self.t.len() - 1;
+        let (dl, dr) = (self.l[n] - self.l[0], self.r[n] - self.r[0]);
+        let big = dl.abs().max(dr.abs());
+        (dl * dr < 0.0
+            && dl.abs().min(dr.abs()) >= 0.5 * big
+            && big * self.c >= EVIDENCE_DISTANCE_M)
+            .then_some(Finding::WheelsOpposed {
+                rl_revs: dl,
+                rr_revs: dr,
+            })
+    }
+
+    /// Index of the wheel sample at or before `t`.
+    fn at(&self, t: f64) -> Option<usize> {
+        let i = self.t.partition_point(|&x| x <= t);
+        (i > 0).then(|| i - 1)
+    }
+
+    /// Turning by the wheels over windows of about 1 s between samples
+    /// `a..=b`, counting only bends sharper than a circumference mismatch
+    /// explains, rad.
+    fn turning(&self, a: usize, b: usize) -> f64 {
+        let kappa_min = MAX_CIRCUMFERENCE_MISMATCH / self.track;
+        let mut total = 0.0;
+        let mut i = a;
+        for j in a + 1..=b {
+            if self.t[j] - self.t[i] < 1.0 && j < b {
+                continue;
+            }
+            let ds = self.s(j) - self.s(i);
+            let dpsi = self.psi(j) - self.psi(i);
+            if ds.abs() >= 0.5 && (dpsi / ds).abs() >= kappa_min {
+                total += dpsi.abs();
+            }
+            i = j;
+        }
+        total
+    }
+
+    /// Speeds over windows of about 1 s between samples `a..=b`: (min, max), m/s.
+    fn speed_range(&self, a: usize, b: usize) -> (f64, f64) {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut i = a;
+        for j in a + 1..=b {
+            let dt = self.t[j] - self.t[i];
+            if dt < 1.0 {
+                continue;
+            }
+            let v = (self.s(j) - self.s(i)) / dt;
+            lo = lo.min(v);
+            hi = hi.max(v);
+            i = j;
+        }
+        (lo, hi)
+    }
+
+    /// Both wheels reversed, or rl and rr exchanged: the wheels' heading
+    /// changes are opposite to the GNSS course's.
+    fn reversed(&self, drive: &Drive) -> Option<Finding> {
+        let fixes = drive.gnss.as_deref()?;
+        let mut sigmas: Vec<f64> = fixes
+            .iter()
+            .filter_map(|f| f.sigma_m)
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .collect();
+        sigmas.sort_by(f64::total_cmp);
+        let sigma = sigmas.get(sigmas.len() / 2).copied().unwrap_or(0.0);
+        // Fixes far enough apart for a course well above the GNSS noise.
+        let spacing = (5.0f64).max(5.0 * sigma);
+        let mut picked: Vec<(f64, f64, f64)> = Vec::new();
+        for f in fixes {
+            if !(f.t_s.is_finite() && f.x_m.is_finite() && f.y_m.is_finite()) {
+                continue;
+            }
+            if self.at(f.t_s).is_none() || f.t_s > self.t[self.t.len() - 1] {
+                continue;
+            }
+            match picked.last() {
+                Some(&(_, x, y)) if (f.x_m - x).hypot(f.y_m - y) < spacing => {}
+                _ => picked.push((f.t_s, f.x_m, f.y_m)),
+            }
+        }
+        // Course and wheel heading of each segment (at its mid-time).
+        let segs: Vec<(f64, f64)> = picked
+            .windows(2)
+            .filter_map(|w| {
+                let course = (w[1].2 - w[0].2).atan2(w[1].1 - w[0].1);
+                let i = self.at(0.5 * (w[0].0 + w[1].0))?;
+                Some((course, self.psi(i)))
+            })
+            .collect();
+        let (mut a, mut b, mut turned, mut wheel_turned) = (0.0, 0.0, 0.0, 0.0);
+        for w in segs.windows(2) {
+            let dc = wrap(w[1].0 - w[0].0);
+            let dpsi = w[1].1 - w[0].1;
+            // A cusp (the course flips when the car changes direction) says nothing.
+            if dc.abs() > 2.0 {
+                continue;
+            }
+            a += dpsi * dc;
+            b += dc * dc;
+            turned += dc.abs();
+            wheel_turned += dpsi.abs();
+        }
+        if b <= 0.0 || turned < EVIDENCE_TURN_RAD || wheel_turned < EVIDENCE_TURN_RAD {
+            return None;
+        }
+        let ratio = a / b;
+        if ratio > -0.5 {
+            return None;
+        }
+        let n = self.t.len() - 1;
+        let (mut fwd, mut back) = (0.0, 0.0);
+        for k in 1..=n {
+            let ds = self.s(k) - self.s(k - 1);
+            if ds >= 0.0 {
+                fwd += ds;
+            } else {
+                back -= ds;
+            }
+        }
+        let backward_percent = 100.0 * back / (fwd + back).max(f64::MIN_POSITIVE);
+        Some(if backward_percent > 50.0 {
+            Finding::WheelsReversed {
+                backward_percent,
+                ratio,
+                turned_rad: turned,
+            }
+        } else {
+            Finding::WheelsSwapped {
+                ratio,
+                turned_rad: turned,
+            }
+        })
+    }
+
+    /// The longest stretch where `wheel` stays exactly constant while the
+    /// other rear wheel rolls on (and, for rates, changes speed).
+    fn stuck(&self, wheel: Wheel) -> Option<Finding> {
+        let (raw, other_cum, is_rate, other_wheel) = match wheel {
+            Wheel::Rl => (&self.raw_l, &self.r, self.rate[0], Wheel::Rr),
+            _ => (&self.raw_r, &self.l, self.rate[1], Wheel::Rl),
+        };
+        let total = Self::path(other_cum, 0, self.t.len() - 1) * self.c;
+        let mut best: Option<(usize, usize, f64, bool)> = None;
+        let mut a = 0;
+        let n = raw.len();
+        while a < n {
+            let mut b = a;
+            while b + 1 < n && raw[b + 1].to_bits() == raw[a].to_bits() {
+                b += 1;
+            }
+            if b > a {
+                let dist = Self::path(other_cum, a, b) * self.c;
+                let quantum = self.c * min_step(other_cum, a, b);
+                let (lo, hi) = self.other_speed_range(other_cum, a, b);
+                let changing = hi - lo >= 1.0;
+                let evidence =
+                    dist >= EVIDENCE_DISTANCE_M.max(20.0 * quantum) && (!is_rate || changing);
+                if evidence && best.is_none_or(|(_, _, d, _)| dist > d) {
+                    best = Some((a, b, dist, changing));
+                }
+            }
+            a = b + 1;
+        }
+        let (a, b, dist, changing) = best?;
+        Some(Finding::WheelStuck {
+            wheel,
+            other: other_wheel,
+            value: raw[a],
+            t_start_s: self.t[a],
+            t_end_s: self.t[b],
+            other_distance_m: dist,
+            changing_speed: is_rate && changing,
+            major: dist >= 0.2 * total,
+        })
+    }
+
+    /// The speed range of one wheel (cumulative revolutions `x`) over
+    /// windows of about 1 s between samples `a..=b`, m/s.
+    fn other_speed_range(&self, x: &[f64], a: usize, b: usize) -> (f64, f64) {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        let mut i = a;
+        for j in a + 1..=b {
+            let dt = self.t[j] - self.t[i];
+            if dt < 1.0 {
+                continue;
+            }
+            let v = self.c * (x[j] - x[i]) / dt;
+            lo = lo.min(v);
+            hi = hi.max(v);
+            i = j;
+        }
+        if lo > hi {
+            (0.0, 0.0)
+        } else {
+            (lo, hi)
+        }
+    }
+}
+
+/// Smallest nonzero step of a cumulative series between samples `a..=b`.
+fn min_step(x: &[f64], a: usize, b: usize) -> f64 {
+    let m = x[a..=b]
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    if m.is_finite() {
+        m
+    } else {
+        0.0
+    }
+}
+
+/// An angle wrapped to (-pi, pi].
+fn wrap(a: f64) -> f64 {
+    let w = a.rem_euclid(TAU);
+    if w > std::f64::consts::PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+/// Reads one value of an IMU sample.
+type ImuField = fn(&ImuSample) -> Option<f64>;
+
+/// IMU fields that stay exactly constant while the wheels show motion.
+fn imu_stuck(drive: &Drive, rear: &Rear) -> Vec<Finding> {
+    let Some(rows) = drive.imu.as_deref() else {
+        return Vec::new();
+    };
+    let fields: [(&'static str, ImuField); 3] = [
+        ("gz_rad_s", |s| Some(s.gz_rad_s)),
+        ("ax_m_s2", |s| s.ax_m_s2),
+        ("ay_m_s2", |s| s.ay_m_s2),
+    ];
+    let mut out = Vec::new();
+    for (field, get) in fields {
+        let values: Vec<(f64, f64)> = rows
+            .iter()
+            .filter_map(|s| get(s).map(|v| (s.t_s, v)))
+            .filter(|(t, v)| t.is_finite() && v.is_finite())
+            .collect();
+        if values.len() < 10 {
+            continue;
+        }
+        // The longest run of bit-identical values.
+        let (mut best_a, mut best_b, mut a) = (0usize, 0usize, 0usize);
+        for i in 1..=values.len() {
+            if i == values.len() || values[i].1.to_bits() != values[a].1.to_bits() {
+                if i - 1 - a > best_b - best_a {
+                    (best_a, best_b) = (a, i - 1);
+                }
+                a = i;
+            }
+        }
+        let samples = best_b - best_a + 1;
+        if samples < 10 {
+            continue;
+        }
+        let (t0, t1) = (values[best_a].0, values[best_b].0);
+        let (Some(i0), Some(i1)) = (rear.at(t0), rear.at(t1)) else {
+            continue;
+        };
+        if i1 <= i0 {
+            continue;
+        }
+        let evidence = match field {
+            "ax_m_s2" => {
+                let (lo, hi) = rear.speed_range(i0, i1);
+                (hi - lo >= 2.0).then(|| format!("the speed change by {:.1} m/s", hi - lo))
+            }
+            _ => {
+                let turned = rear.turning(i0, i1);
+                (turned >= EVIDENCE_TURN_RAD).then(|| {
+                    format!(
+                        "the car turn {turned:.1} rad ({:.0} deg)",
+                        turned.to_degrees()
+                    )
+                })
+            }
+        };
+        let Some(evidence) = evidence else {
+            continue;
+        };
+        out.push(Finding::ImuStuck {
+            field,
+            value: values[best_a].1,
+            samples,
+            t_start_s: t0,
+            t_end_s: t1,
+            evidence,
+            whole_drive: samples as f64 >= 0.9 * values.len() as f64,
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wrap_keeps_angles_in_range() {
+        assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap(-0.1) + 0.1).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,652 @@
+//! Files checked like a vehicle's software must be: MCAP checksums, things
+//! that are not regular files, bounded reads, and physically impossible
+//! values (`drive_io::plausibility`).
+
+// Helpers outside #[test] functions unwrap too: a failure is a test failure.
+#![allow(clippy::unwrap_used)]
+
+use drive_io::plausibility::{self, Finding, Severity};
+use drive_io::{
+    read_drive, read_drive_with, read_estimate, read_vehicle, write_drive, DriveError, ReadOptions,
+    MAX_CSV_LINE_BYTES, MAX_TEXT_FILE_BYTES,
+};
+use interfaces::drive::{
+    Drive, GnssAntenna, GnssSample, ImuSample, VehicleParams, Wheel, WheelSample, WheelSeries,
+    WheelUnit, WheelUnits,
+};
+use std::path::{Path, PathBuf};
+
+const TPR: f64 = 48.0;
+const C: f64 = 2.0;
+const TRACK: f64 = 1.5;
+
+/// A car at 10 m/s weaving left and right (yaw rate 0.4 sin(2 pi t / 30)
+/// rad/s) for `secs` seconds: wheels at 100 Hz in `unit` (cumulative ticks
+/// never wrap here), GNSS at 10 Hz, IMU at 100 Hz with a little noise.
+fn weaving(unit: WheelUnit, secs: f64) -> Drive {
+    let dt = 0.01;
+    let n = (secs / dt) as usize;
+    let (mut x, mut y, mut yaw) = (0.0f64, 0.0f64, 0.0f64);
+    let (mut nl, mut nr) = (0.0f64, 0.0f64);
+    let mut wheels = Vec::with_capacity(n);
+    let mut gnss = Vec::new();
+    let mut imu = Vec::with_capacity(n);
+    for i in 0..n {
+        let t = i as f64 * dt;
+        let v = 10.0;
+        let w = 0.4 * (std::f64::consts::TAU * t / 30.0).sin();
+        let (vl, vr) = (v - 0.5 * w * TRACK, v + 0.5 * w * TRACK);
+        let value = |n: f64, vw: f64| match unit {
+            WheelUnit::Ticks => (n * TPR).floor(),
+            WheelUnit::Rev => n,
+            WheelUnit::RadS => vw / C * std::f64::consts::TAU,
+            WheelUnit::MS => vw,
+        };
+        wheels.push(WheelSample {
+            t_s: t,
+            rl: value(nl, vl),
+            rr: value(nr, vr),
+            fl: None,
+            fr: None,
+        });
+        if i % 10 == 0 {
+            gnss.push(GnssSample {
+                t_s: t,
+                x_m: x,
+                y_m: y,
+                sigma_m: None,
+            });
+        }
+        imu.push(ImuSample {
+            t_s: t,
+            gz_rad_s: w + 1e-3 * (37.0 * t).sin(),
+            ax_m_s2: Some(0.01 * (3.0 * t).sin()),
+            ay_m_s2: Some(v * w),
+            az_m_s2: None,
+            gx_rad_s: None,
+            gy_rad_s: None,
+        });
+        x += v * yaw.cos() * dt;
+        y += v * yaw.sin() * dt;
+        yaw += w * dt;
+        nl += vl / C * dt;
+        nr += vr / C * dt;
+    }
+    Drive {
+        vehicle: VehicleParams {
+            name: None,
+            track_width_m: TRACK,
+            nominal_circumference_m: C,
+            wheelbase_m: None,
+            ticks_per_rev: Some(TPR),
+            gnss: GnssAntenna::default(),
+        },
+        wheels: WheelSeries {
+            units: WheelUnits::rear(unit),
+            samples: wheels,
+        },
+        gnss: Some(gnss),
+        imu: Some(imu),
+        heading: None,
+        truth: None,
+        truth_params: None,
+    }
+}
+
+// ------------------------------------------------------------ MCAP CRCs
+
+/// (opcode, record offset, body range) of the top-level records.
+fn records(bytes: &[u8]) -> Vec<(u8, usize, std::ops::Range<usize>)> {
+    let mut out = Vec::new();
+    let mut pos = 8;
+    while pos + 9 <= bytes.len() {
+        let op = bytes[pos];
+        let len = u64::from_le_bytes(bytes[pos + 1..pos + 9].try_into().unwrap()) as usize;
+        out.push((op, pos, pos + 9..pos + 9 + len));
+        if op == 0x02 {
+            break; // footer
+        }
+        pos += 9 + len;
+    }
+    out
+}
+
+fn written_mcap(dir: &Path) -> (PathBuf, Vec<u8>, Drive) {
+    let d = weaving(WheelUnit::Ticks, 20.0);
+    let path = dir.join("drive.mcap");
+    write_drive(&d, &path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    (path, bytes, d)
+}
+
+#[test]
+fn an_intact_recording_passes_its_crcs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, bytes, d) = written_mcap(dir.path());
+    // The writer does give CRCs (else this test would prove nothing).
+    let chunk = records(&bytes).into_iter().find(|r| r.0 == 0x06).unwrap();
+    let crc = u32::from_le_bytes(
+        bytes[chunk.2.start + 24..chunk.2.start + 28]
+            .try_into()
+            .unwrap(),
+    );
+    assert_ne!(crc, 0);
+    let loaded = read_drive(&path).unwrap();
+    assert_eq!(loaded.drive, d);
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+}
+
+#[test]
+fn a_changed_byte_in_a_chunk_is_an_error_naming_the_chunk() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut bytes, d) = written_mcap(dir.path());
+    let (_, offset, body) = records(&bytes).into_iter().find(|r| r.0 == 0x06).unwrap();
+    // A byte in the middle of the chunk's records (a digit of some value).
+    let k = (body.start + body.end) / 2;
+    bytes[k] ^= 0x01;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = read_drive(&path).unwrap_err();
+    let msg = e.to_string();
+    match e {
+        DriveError::ChunkCrc {
+            chunk_index,
+            offset: at,
+            expected,
+            actual,
+            ..
+        } => {
+            assert_eq!(chunk_index, 0);
+            assert_eq!(at, offset as u64);
+            assert_ne!(expected, actual);
+        }
+        other => panic!("not a ChunkCrc: {other}"),
+    }
+    assert!(
+        msg.contains("drive.mcap")
+            && msg.contains("chunk 0")
+            && msg.contains(&format!("byte {offset}")),
+        "{msg}"
+    );
+    // Recovery only when asked: the chunk is left out with a warning naming it.
+    let rec = read_drive_with(
+        &path,
+        ReadOptions {
+            skip_corrupt_chunks: true,
+        },
+    )
+    .unwrap_or_else(|e| match e {
+        DriveError::TruncatedMcap {
+            partial: Some(p), ..
+        } => *p,
+        e => panic!("{e}"),
+    });
+    assert!(
+        rec.warnings.iter().any(|w| w.contains("chunk 0")
+            && w.contains(&format!("byte {offset}"))
+            && w.contains("skipped")),
+        "{:?}",
+        rec.warnings
+    );
+    assert!(rec.drive.wheels.samples.len() < d.wheels.samples.len());
+}
+
+#[test]
+fn a_changed_byte_outside_the_chunks_fails_the_data_section_crc() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, mut bytes, _) = written_mcap(dir.path());
+    // The last byte of the first Metadata record (inside a value string).
+    let (_, _, body) = records(&bytes).into_iter().find(|r| r.0 == 0x0C).unwrap();
+    bytes[body.end - 1] ^= 0x01;
+    std::fs::write(&path, &bytes).unwrap();
+    let e = read_drive(&path).unwrap_err();
+    assert!(matches!(e, DriveError::DataSectionCrc { .. }), "{e}");
+    assert!(e.to_string().contains("data section is corrupt"), "{e}");
+    let rec = read_drive_with(
+        &path,
+        ReadOptions {
+            skip_corrupt_chunks: true,
+        },
+    );
+    // With recovery the mismatch is a warning (the changed text itself may
+    // still be refused by the TOML parser, naming the metadata record).
+    if let Ok(rec) = rec {
+        assert!(
+            rec.warnings
+                .iter()
+                .any(|w| w.contains("data section fails its CRC")),
+            "{:?}",
+            rec.warnings
+        );
+    }
+}
+
+// ------------------------------------------------------------ not regular files
+
+fn minimal_folder() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("vehicle.toml"),
+        "track_width_m = 1.5\nnominal_circumference_m = 2.0\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("wheels.csv"),
+        "t_s,rl_rev,rr_rev\n0,0,0\n0.1,1,1\n",
+    )
+    .unwrap();
+    dir
+}
+
+#[test]
+fn a_directory_in_place_of_a_stream_file_is_named() {
+    let dir = minimal_folder();
+    std::fs::create_dir(dir.path().join("imu.csv")).unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(matches!(e, DriveError::NotAFile { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("imu.csv") && msg.contains("a directory"),
+        "{msg}"
+    );
+}
+
+fn mkfifo(path: &Path) -> bool {
+    match std::process::Command::new("mkfifo").arg(path).status() {
+        Ok(s) if s.success() => true,
+        other => {
+            eprintln!("skipped: mkfifo is not available ({other:?})");
+            false
+        }
+    }
+}
+
+#[test]
+fn a_fifo_is_refused_without_opening_it() {
+    let dir = minimal_folder();
+    let fifo = dir.path().join("gnss.csv");
+    if !mkfifo(&fifo) {
+        return;
+    }
+    // Opening a FIFO would block this test forever.
+    let e = read_drive(dir.path()).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("gnss.csv") && msg.contains("FIFO"), "{msg}");
+    // As the drive itself, as vehicle.toml, as an estimate file.
+    let e = read_drive(&fifo).unwrap_err();
+    assert!(e.to_string().contains("FIFO"), "{e}");
+    let toml = dir.path().join("v.toml");
+    assert!(mkfifo(&toml));
+    let e = read_vehicle(&toml).unwrap_err();
+    assert!(
+        e.to_string().contains("v.toml") && e.to_string().contains("FIFO"),
+        "{e}"
+    );
+    let json = dir.path().join("est.json");
+    assert!(mkfifo(&json));
+    let e = read_estimate(&json).unwrap_err().to_string();
+    assert!(e.contains("est.json") && e.contains("FIFO"), "{e}");
+    // vehicle.toml itself a FIFO: not "missing".
+    let v = dir.path().join("vehicle.toml");
+    std::fs::remove_file(&v).unwrap();
+    assert!(mkfifo(&v));
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(matches!(e, DriveError::NotAFile { .. }), "{e}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_link_to_a_device_is_refused() {
+    use std::os::unix::fs::symlink;
+    let dir = minimal_folder();
+    symlink("/dev/zero", dir.path().join("heading.csv")).unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("heading.csv")
+            && msg.contains("/dev/zero")
+            && msg.contains("character device"),
+        "{msg}"
+    );
+    let drive = dir.path().join("zero.mcap");
+    symlink("/dev/urandom", &drive).unwrap();
+    let e = read_drive(&drive).unwrap_err();
+    assert!(e.to_string().contains("/dev/urandom"), "{e}");
+    let toml = dir.path().join("zero.toml");
+    symlink("/dev/zero", &toml).unwrap();
+    let e = read_vehicle(&toml).unwrap_err();
+    assert!(e.to_string().contains("character device"), "{e}");
+    let json = dir.path().join("zero.json");
+    symlink("/dev/zero", &json).unwrap();
+    let e = read_estimate(&json).unwrap_err().to_string();
+    assert!(
+        e.contains("zero.json") && e.contains("character device"),
+        "{e}"
+    );
+    // A broken link is named as such, not taken as "no such stream".
+    let dir = minimal_folder();
+    symlink(dir.path().join("nowhere.csv"), dir.path().join("imu.csv")).unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(e.to_string().contains("symbolic link"), "{e}");
+}
+
+// ------------------------------------------------------------ bounded reads
+
+#[test]
+fn an_overlong_csv_line_is_an_error_naming_file_and_line() {
+    let dir = minimal_folder();
+    let wheels = dir.path().join("wheels.csv");
+    // A header line of 1 MiB without a newline.
+    std::fs::write(&wheels, "t".repeat(1 << 20)).unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(
+        matches!(e, DriveError::LineTooLong { line: 1, limit, .. } if limit == MAX_CSV_LINE_BYTES),
+        "{e}"
+    );
+    assert!(e.to_string().contains("wheels.csv:1"), "{e}");
+    // A row line.
+    let long = format!("t_s,rl_rev,rr_rev\n0,0,0\n0.1,1,{}\n", "9".repeat(100_000));
+    std::fs::write(&wheels, long).unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(matches!(e, DriveError::LineTooLong { line: 3, .. }), "{e}");
+    // A line of exactly the limit is read (a comment here).
+    let at = format!("t_s,rl_rev,rr_rev\n{}\n", "#".repeat(MAX_CSV_LINE_BYTES));
+    std::fs::write(&wheels, at).unwrap();
+    read_drive(dir.path()).unwrap();
+}
+
+#[test]
+fn echoed_cells_are_cut_to_forty_characters() {
+    let dir = minimal_folder();
+    let cell = "x".repeat(5000);
+    std::fs::write(
+        dir.path().join("wheels.csv"),
+        format!("t_s,rl_rev,rr_rev\n0,0,{cell}\n"),
+    )
+    .unwrap();
+    let e = read_drive(dir.path()).unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains(&format!("{}…", "x".repeat(40))), "{msg}");
+    assert!(!msg.contains(&"x".repeat(41)), "{msg}");
+    assert!(msg.len() < 300, "{}", msg.len());
+}
+
+#[test]
+fn oversized_toml_and_json_are_refused_naming_the_limit() {
+    let dir = minimal_folder();
+    let big = |p: &Path| {
+        let f = std::fs::File::create(p).unwrap();
+        f.set_len(MAX_TEXT_FILE_BYTES + 1).unwrap(); // sparse: no disk used
+    };
+    big(&dir.path().join("vehicle.toml"));
+    let e = read_drive(dir.path()).unwrap_err();
+    assert!(matches!(e, DriveError::FileTooLarge { .. }), "{e}");
+    assert!(
+        e.to_string().contains("vehicle.toml")
+            && e.to_string().contains(&MAX_TEXT_FILE_BYTES.to_string()),
+        "{e}"
+    );
+    let toml = dir.path().join("big.toml");
+    big(&toml);
+    assert!(matches!(
+        read_vehicle(&toml),
+        Err(DriveError::FileTooLarge { .. })
+    ));
+    let json = dir.path().join("big.json");
+    big(&json);
+    let e = read_estimate(&json).unwrap_err().to_string();
+    assert!(
+        e.contains("big.json") && e.contains(&MAX_TEXT_FILE_BYTES.to_string()),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_finite_and_overflowing_cells_are_refused_on_reading() {
+    let dir = minimal_folder();
+    for cell in ["1e309", "inf", "NaN", "-1e400"] {
+        std::fs::write(
+            dir.path().join("wheels.csv"),
+            format!("t_s,rl_rev,rr_rev\n0,0,0\n0.1,{cell},1\n"),
+        )
+        .unwrap();
+        let e = read_drive(dir.path()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("NaN or infinite values are not allowed"),
+            "{cell}: {e}"
+        );
+    }
+}
+
+// ------------------------------------------------------------ plausibility
+
+#[test]
+fn a_clean_drive_has_no_findings() {
+    for unit in WheelUnit::ALL {
+        let d = weaving(unit, 120.0);
+        assert!(
+            plausibility::unwrap_wheel_counters(&d).is_none(),
+            "{unit:?}"
+        );
+        let f = plausibility::check(&d);
+        assert!(f.is_empty(), "{unit:?}: {f:?}");
+    }
+}
+
+#[test]
+fn an_impossible_wheel_rate_names_stream_time_and_value() {
+    let mut d = weaving(WheelUnit::RadS, 30.0);
+    d.wheels.samples[500].rl = 1e308;
+    let f = plausibility::check(&d);
+    let e = f.iter().find(|f| f.is_error()).expect("an error");
+    assert!(
+        matches!(e, Finding::ImpossibleWheelRate { wheel: Wheel::Rl, value, samples: 1, .. } if *value == 1e308),
+        "{e}"
+    );
+    let msg = e.to_string();
+    assert!(
+        msg.contains("wheels.rl") && msg.contains("t = 5 s") && msg.contains("1e308"),
+        "{msg}"
+    );
+    // A count that jumps (one changed digit) is as impossible.
+    let mut d = weaving(WheelUnit::Ticks, 30.0);
+    d.wheels.samples[1000].rr += 90_000.0;
+    let f = plausibility::check(&d);
+    assert!(
+        f.iter().any(|f| matches!(
+            f,
+            Finding::ImpossibleWheelRate {
+                wheel: Wheel::Rr,
+                ..
+            }
+        )),
+        "{f:?}"
+    );
+}
+
+#[test]
+fn a_wrapping_tick_counter_is_unwrapped_and_reported() {
+    let clean = weaving(WheelUnit::Ticks, 120.0);
+    for bits in [16u32, 8] {
+        let m = 2f64.powi(bits as i32);
+        let mut d = clean.clone();
+        for s in &mut d.wheels.samples {
+            // Start near the top so that even a 16-bit counter wraps.
+            s.rl = (s.rl + 60_000.0).rem_euclid(m);
+            s.rr = (s.rr + 60_000.0).rem_euclid(m);
+        }
+        // Wrapped, the counter looks like an impossible jump.
+        assert!(plausibility::check(&d).iter().any(Finding::is_error));
+        let (fixed, findings) = plausibility::unwrap_wheel_counters(&d).expect("wraps found");
+        assert_eq!(findings.len(), 2, "{findings:?}");
+        assert!(
+            findings.iter().all(
+                |f| matches!(f, Finding::CounterWrapped { bits: b, .. } if *b == bits)
+                    && f.severity() == Severity::Warning
+            ),
+            "{findings:?}"
+        );
+        assert!(findings[0].to_string().contains("unwrapped"));
+        // Unwrapped = the original up to a constant per wheel.
+        let (a, b) = (&fixed.wheels.samples, &clean.wheels.samples);
+        let off = b[0].rl - a[0].rl;
+        assert!(a
+            .iter()
+            .zip(b)
+            .all(|(x, y)| (y.rl - x.rl - off).abs() < 1e-6));
+        assert!(plausibility::check(&fixed).is_empty());
+    }
+}
+
+#[test]
+fn reversed_wheel_signs_are_reported() {
+    let clean = weaving(WheelUnit::Ticks, 120.0);
+    // Both count down while the car drives forward.
+    let mut d = clean.clone();
+    for s in &mut d.wheels.samples {
+        (s.rl, s.rr) = (-s.rl, -s.rr);
+    }
+    let f = plausibility::check(&d);
+    assert!(
+        f.iter().any(
+            |f| matches!(f, Finding::WheelsReversed { ratio, .. } if *ratio < -0.8) && f.is_error()
+        ),
+        "{f:?}"
+    );
+    // One counts down, the other up.
+    let mut d = clean.clone();
+    for s in &mut d.wheels.samples {
+        s.rr = -s.rr;
+    }
+    let f = plausibility::check(&d);
+    assert!(
+        f.iter().any(|f| matches!(f, Finding::WheelsOpposed { .. })),
+        "{f:?}"
+    );
+    assert!(f[0].to_string().contains("opposite directions"), "{f:?}");
+    // Left and right exchanged.
+    let mut d = clean;
+    for s in &mut d.wheels.samples {
+        (s.rl, s.rr) = (s.rr, s.rl);
+    }
+    let f = plausibility::check(&d);
+    assert!(
+        f.iter().any(|f| matches!(f, Finding::WheelsSwapped { .. })),
+        "{f:?}"
+    );
+}
+
+#[test]
+fn a_dead_imu_is_reported_while_the_wheels_turn() {
+    let mut d = weaving(WheelUnit::RadS, 120.0);
+    for s in d.imu.as_mut().unwrap() {
+        s.gz_rad_s = 0.0;
+        s.ax_m_s2 = Some(0.0);
+        s.ay_m_s2 = Some(0.0);
+    }
+    let f = plausibility::check(&d);
+    let gz = f
+        .iter()
+        .find(|f| {
+            matches!(
+                f,
+                Finding::ImuStuck {
+                    field: "gz_rad_s",
+                    whole_drive: true,
+                    ..
+                }
+            )
+        })
+        .unwrap_or_else(|| panic!("{f:?}"));
+    assert!(gz.to_string().contains("dead or stuck"), "{gz}");
+    assert!(
+        f.iter().any(|f| matches!(
+            f,
+            Finding::ImuStuck {
+                field: "ay_m_s2",
+                ..
+            }
+        )),
+        "{f:?}"
+    );
+    // A constant gyro on a straight drive is no evidence of anything.
+    let mut d = weaving(WheelUnit::RadS, 120.0);
+    for s in &mut d.wheels.samples {
+        s.rr = s.rl;
+    }
+    for s in d.imu.as_mut().unwrap() {
+        s.gz_rad_s = 0.0;
+    }
+    let f = plausibility::check(&d);
+    assert!(
+        !f.iter().any(|f| matches!(
+            f,
+            Finding::ImuStuck {
+                field: "gz_rad_s",
+                ..
+            }
+        )),
+        "{f:?}"
+    );
+}
+
+#[test]
+fn a_stuck_wheel_is_reported() {
+    // rl stays at one count for 10 s (100 m) of a 120 s drive: a warning.
+    let mut d = weaving(WheelUnit::Ticks, 120.0);
+    let held = d.wheels.samples[3000].rl;
+    for s in &mut d.wheels.samples[3000..4000] {
+        s.rl = held;
+    }
+    // (unstick the rest so the counter does not jump back)
+    let jump = d.wheels.samples[4000].rl - held;
+    for s in &mut d.wheels.samples[4000..] {
+        s.rl -= jump;
+    }
+    let f = plausibility::check(&d);
+    let stuck = f
+        .iter()
+        .find(|f| {
+            matches!(
+                f,
+                Finding::WheelStuck {
+                    wheel: Wheel::Rl,
+                    ..
+                }
+            )
+        })
+        .unwrap_or_else(|| panic!("{f:?}"));
+    assert_eq!(stuck.severity(), Severity::Warning, "{stuck}");
+    assert!(
+        stuck.to_string().contains("wheels.rl") && stuck.to_string().contains("stuck"),
+        "{stuck}"
+    );
+    // A rate wheel frozen at 30 rad/s for 60 s while the car speeds up: an error.
+    let mut d = weaving(WheelUnit::RadS, 120.0);
+    for (i, s) in d
+        .wheels
+        .samples
+        .iter_mut()
+        .enumerate()
+        .skip(3000)
+        .take(6000)
+    {
+        s.rl = 30.0;
+        s.rr += 0.001 * (i - 3000) as f64;
+    }
+    let f = plausibility::check(&d);
+    let stuck = f
+        .iter()
+        .find(|f| {
+            matches!(
+                f,
+                Finding::WheelStuck {
+                    wheel: Wheel::Rl,
+                    changing_speed: true,
+                    ..
+                }
+            )
+        })
+        .unwrap_or_else(|| panic!("{f:?}"));
+    assert!(stuck.is_error(), "{stuck}");
+}
