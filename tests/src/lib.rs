@@ -1,7 +1,9 @@
 //! Integration tests of the workspace: [`graph`] starts the real binaries as a
 //! process graph over iceoryx2 for the `graph_*` tests; [`latency`] has what
-//! the latency benchmarks share. The main job (`wheelcal-demo`) lives in
+//! the latency benchmarks share; [`faults`] is the fault suite (services
+//! killed at random moments). The main job (`wheelcal-demo`) lives in
 //! `examples/demo`.
 
+pub mod faults;
 pub mod graph;
 pub mod latency;
