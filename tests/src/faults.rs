@@ -126,7 +126,23 @@ pub fn run_faults(config: &FaultConfig) -> FaultReport {
     let vehicle = format!("{folder}/vehicle.toml");
     let state = g.path("state.json").to_str().expect("utf-8").to_string();
     let kept = g.path("pose.json").to_str().expect("utf-8").to_string();
-    let cal_args = ["serve", "--vehicle", &vehicle, "--state", &state];
+    // Short thresholds, so that the calibrator publishes (and persists)
+    // estimates within the drive and a kill can fall on one.
+    let cal_args = [
+        "serve",
+        "--vehicle",
+        &vehicle,
+        "--state",
+        &state,
+        "--min-distance",
+        "300",
+        "--min-turn",
+        "90",
+        "--recalibrate-distance",
+        "200",
+        "--holdout-window",
+        "5",
+    ];
     let odo_args = ["serve", "--vehicle", &vehicle, "--pose-state", &kept];
 
     let bus = g.bus("fault-test");
@@ -273,6 +289,10 @@ pub fn run_faults(config: &FaultConfig) -> FaultReport {
                 }
             };
         report.survived += usize::from(back);
+    }
+    if std::env::var_os("FAULT_LOGS").is_some() {
+        eprintln!("--- calibrator ---\n{}", g.log(cal));
+        eprintln!("--- odometry ---\n{}", g.log(odo));
     }
     report.estimates_kept &= versions.windows(2).all(|w| w[1] >= w[0]);
     report.versions = versions;
