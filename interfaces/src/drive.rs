@@ -35,6 +35,60 @@ pub struct VehicleParams {
     pub gnss: GnssAntenna,
 }
 
+impl VehicleParams {
+    /// Whether the values can be a road car's: a rear track of 0.1-5 m, a
+    /// nominal circumference of 0.1-10 m, an antenna (when given) within
+    /// 20 m of the rear axle, a wheelbase (when given) of 0.3-20 m, and
+    /// ticks per revolution (when given) of 1-1e6. Every service checks
+    /// `vehicle.toml` with this; the message names the field and its value.
+    pub fn check_plausible(&self) -> Result<(), String> {
+        let within = |field: &str, v: f64, lo: f64, hi: f64, what: &str| {
+            if v.is_finite() && v > lo && v < hi {
+                Ok(())
+            } else {
+                Err(format!(
+                    "{field} = {v} is not a plausible {what} ({lo}..{hi})"
+                ))
+            }
+        };
+        within(
+            "track_width_m",
+            self.track_width_m,
+            0.1,
+            5.0,
+            "rear track, m",
+        )?;
+        within(
+            "nominal_circumference_m",
+            self.nominal_circumference_m,
+            0.1,
+            10.0,
+            "circumference, m",
+        )?;
+        if let Some(w) = self.wheelbase_m {
+            within("wheelbase_m", w, 0.3, 20.0, "wheelbase, m")?;
+        }
+        if let Some(n) = self.ticks_per_rev {
+            within(
+                "ticks_per_rev",
+                n,
+                0.999,
+                1e6,
+                "number of ticks per revolution",
+            )?;
+        }
+        for (field, v) in [
+            ("[gnss] antenna_x_m", self.gnss.antenna_x_m),
+            ("[gnss] antenna_y_m", self.gnss.antenna_y_m),
+        ] {
+            if let Some(v) = v {
+                within(field, v, -20.0, 20.0, "antenna position, m")?;
+            }
+        }
+        Ok(())
+    }
+}
+
 /// The `[gnss]` table of `vehicle.toml`.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct GnssAntenna {
@@ -453,6 +507,34 @@ mod tests {
             truth: None,
             truth_params: None,
         }
+    }
+
+    #[test]
+    fn implausible_vehicle_values_are_named() {
+        let good = drive(WheelUnits::rear(WheelUnit::Rev), Vec::new()).vehicle;
+        assert_eq!(good.check_plausible(), Ok(()));
+        let huge = VehicleParams {
+            nominal_circumference_m: 1e6,
+            ..good.clone()
+        };
+        let e = huge.check_plausible().unwrap_err();
+        assert!(e.contains("nominal_circumference_m = 1000000"), "{e}");
+        let nan_track = VehicleParams {
+            track_width_m: f64::NAN,
+            ..good.clone()
+        };
+        assert!(nan_track
+            .check_plausible()
+            .unwrap_err()
+            .contains("track_width_m"));
+        let mut far = good.clone();
+        far.gnss.antenna_x_m = Some(150.0);
+        assert!(far.check_plausible().unwrap_err().contains("antenna_x_m"));
+        let zero_ticks = VehicleParams {
+            ticks_per_rev: Some(0.0),
+            ..good
+        };
+        assert!(zero_ticks.check_plausible().is_err());
     }
 
     fn row(t_s: f64, rl: f64, rr: f64) -> WheelSample {

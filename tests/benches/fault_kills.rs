@@ -1,5 +1,5 @@
 //! The fault suite, long: `cargo bench -p integration-tests --bench
-//! fault_kills -- [--seeds N] [--odometry-kills K] [--calibrator-kills K]
+//! fault_kills -- [--seeds N] [--first-seed S] [--odometry-kills K] [--calibrator-kills K]
 //! [--speed F]`. Each seed simulates the paper's drive with a GNSS outage
 //! over 45-75 % of it, replays it through the graph of real processes, and
 //! kills the odometry and the calibrator at moments drawn from the seed
@@ -26,9 +26,13 @@ fn main() {
     println!(
         "seed | kills odo/cal | back | poses | lost | after restart: judged, beyond 3 sigma, worst d (error m) | all: judged, beyond 3 sigma, worst d | versions | kept"
     );
-    let mut totals = (0usize, 0usize, 0usize, 0u64, 0usize, 0usize, 0.0f64, 0usize, 0usize);
+    let mut totals = (
+        0usize, 0usize, 0usize, 0u64, 0usize, 0usize, 0.0f64, 0usize, 0usize,
+    );
     let mut all_kept = true;
-    for seed in 1..=seeds {
+    let mut killed_starting = 0usize;
+    let first: u64 = arg(&args, "--first-seed", 1);
+    for seed in first..first + seeds {
         let config = FaultConfig {
             seed,
             scenario: Scenario::Paper,
@@ -38,11 +42,15 @@ fn main() {
             outage: (0.45, 0.75),
         };
         let r = run_faults(&config);
+        let back = format!(
+            "{} (+{} killed while starting)",
+            r.survived, r.killed_while_starting
+        );
         println!(
             "{seed} | {}/{} | {} | {} | {} | {}, {}, {:.2} ({:.2} m) | {}, {}, {:.2} | {:?} | {}",
             r.kills.0,
             r.kills.1,
-            r.survived,
+            back,
             r.poses,
             r.poses_lost,
             r.judged_after_restart,
@@ -55,11 +63,15 @@ fn main() {
             r.versions,
             r.estimates_kept
         );
-        for (t, mode, e, sigma) in &r.first_poses {
-            println!("    first pose after a restart: t = {t:.1} s, {mode:?}, error {e:.2} m, sigma {sigma:.2} m");
+        for line in &r.not_back {
+            println!("    not back: {line}");
+        }
+        for (t, mode, e, sigma, d) in &r.first_poses {
+            println!("    first pose after a restart: t = {t:.1} s, {mode:?}, error {e:.2} m, sigma {sigma:.2} m, Mahalanobis {d:.2}");
         }
         totals.0 += r.kills.0 + r.kills.1;
         totals.1 += r.survived;
+        killed_starting += r.killed_while_starting;
         totals.2 += r.poses;
         totals.3 += r.poses_lost;
         totals.4 += r.judged_after_restart;
@@ -70,7 +82,7 @@ fn main() {
         all_kept &= r.estimates_kept;
     }
     println!(
-        "total: {} kills, {} came back; {} poses, {} lost; in the {AFTER_RESTART_S} s after restarts {} poses judged, {} beyond their 3-sigma ellipse (worst Mahalanobis {:.2}); over the whole drives {} judged, {} beyond ({:.2} %); estimates kept: {all_kept}",
+        "total: {} kills; {} restarts came back ({killed_starting} more were killed again while starting, before they could); {} poses, {} lost; in the {AFTER_RESTART_S} s after restarts {} poses judged, {} beyond their 3-sigma ellipse (worst Mahalanobis {:.2}); over the whole drives {} judged, {} beyond ({:.2} %); estimates kept: {all_kept}",
         totals.0,
         totals.1,
         totals.2,

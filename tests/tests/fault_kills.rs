@@ -19,14 +19,29 @@ fn services_killed_at_random_moments_come_back_and_never_lie() {
     };
     let r = run_faults(&config);
     eprintln!("{r:#?}");
-    assert_eq!(r.kills, (2, 1), "every kill was done before the drive ended");
+    assert_eq!(
+        r.kills,
+        (2, 1),
+        "every kill was done before the drive ended"
+    );
     assert_eq!(r.survived, 3, "every restarted service came back");
     assert_eq!(r.poses_lost, 0, "no pose lost on the bus");
     assert!(r.estimates_kept, "estimate versions: {:?}", r.versions);
+    assert_eq!(r.first_poses.len(), 2, "{r:?}");
+    for (t, mode, e, sigma, d) in &r.first_poses {
+        assert!(
+            *d <= 3.0,
+            "the first pose after a restart (t = {t} s, {mode:?}) is {e} m off with sigma {sigma} m"
+        );
+    }
+    // A consistent filter has 1.1 % of its poses beyond their 3-sigma
+    // ellipse; a restart must not make that much worse.
     assert!(r.judged_after_restart > 100, "{r:?}");
-    assert_eq!(
-        r.beyond_3_sigma_after_restart, 0,
-        "a pose after a restart outside its own 3-sigma ellipse: worst {:?}",
+    let share = r.beyond_3_sigma_after_restart as f64 / r.judged_after_restart as f64;
+    assert!(
+        share <= 0.03,
+        "{:.1} % of the poses after restarts beyond their 3-sigma ellipse (worst {:?})",
+        100.0 * share,
         r.worst_after_restart
     );
 }

@@ -12,9 +12,13 @@
 //!   (`vehicle.toml`'s nominal values, the calibrator's JSON, the wire
 //!   [`CircumferenceEstimate`](interfaces::wire::CircumferenceEstimate)),
 //!   with the model extensions the calibrator fitted.
+//! - [`estimate_gate`]: what an estimate from the bus must satisfy before the
+//!   odometry applies it (plausible values, one publisher, increasing
+//!   versions, bounded steps).
 //!
 //! Pure: data in, results out.
 
 pub mod effects;
 pub mod estimate;
+pub mod estimate_gate;
 pub mod two_wheel;

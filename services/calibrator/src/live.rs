@@ -13,6 +13,9 @@
 //! 3. its held-out dead-reckoning error is lower than that of the estimate in
 //!    use (or the nominal values).
 //!
+//! A live service keeps only a window of the drive ([`keep_window`]), so that
+//! its memory does not grow with the length of the drive.
+//!
 //! Everything here is pure; the service binary owns the bus, the worker
 //! thread and the state file.
 
@@ -21,7 +24,8 @@ use crate::error::CalibrationError;
 use crate::holdout::{holdout_errors, split_drive};
 use crate::pipeline::calibrate;
 use crate::result::RearPair;
-use interfaces::drive::{Drive, VehicleParams};
+use interfaces::collect::DriveBuilder;
+use interfaces::drive::{Drive, GnssSample, HeadingSample, ImuSample, VehicleParams, WheelSample};
 use serde::{Deserialize, Serialize};
 use vehicle_model::two_wheel::TwoWheelParams;
 
@@ -228,6 +232,55 @@ pub fn attempt(
     })
 }
 
+/// The drive window a live service keeps by default: the last 30 minutes.
+///
+/// Memory: a collected sample takes [`SAMPLE_BYTES`] bytes (wheels 56, GNSS
+/// 40, IMU 96, heading 32). At the simulator's and a typical car's rates
+/// (wheels and IMU at 100 Hz, GNSS and heading at 10 Hz) that is 15.9 kB per
+/// second of drive, 57 MB per hour. [`keep_window`] lets the window grow to
+/// [`WINDOW_SLACK`] more (33 minutes) before it cuts it back, so at most
+/// 1980 s x 15.9 kB = 31.5 MB of samples are held, and at most twice that of
+/// vector capacity (63 MB), whatever the length of the drive. A running
+/// attempt works on a copy of the window (one more 31.5 MB, plus the fit and
+/// held-out parts it splits it into). 30 minutes is plenty: the default
+/// thresholds ask for 1.5 km and a full turn before an attempt, which a
+/// drive covers in a few minutes.
+pub const DEFAULT_WINDOW_S: f64 = 1800.0;
+
+/// How far beyond its length a window grows before [`keep_window`] cuts it
+/// back, as a fraction of the length: cutting moves the whole window in
+/// memory, so it is done once per this much new drive, not on every sample.
+pub const WINDOW_SLACK: f64 = 0.1;
+
+/// Bytes of one collected sample: wheels, GNSS, IMU, heading.
+pub const SAMPLE_BYTES: [usize; 4] = [
+    std::mem::size_of::<WheelSample>(),
+    std::mem::size_of::<GnssSample>(),
+    std::mem::size_of::<ImuSample>(),
+    std::mem::size_of::<HeadingSample>(),
+];
+
+/// Bytes taken by these many samples (wheels, GNSS, IMU, heading) of a drive.
+pub fn sample_bytes(counts: [usize; 4]) -> usize {
+    counts.iter().zip(SAMPLE_BYTES).map(|(n, b)| n * b).sum()
+}
+
+/// Keep the last `window_s` of the drive in `builder`: once its wheel data
+/// spans more than `window_s` (1 + [`WINDOW_SLACK`]), drop every sample older
+/// than `window_s` before the last wheel sample. Returns the samples dropped
+/// (0 most of the time).
+pub fn keep_window(builder: &mut DriveBuilder, window_s: f64) -> usize {
+    let (first, last) = match (builder.wheels().first(), builder.wheels().last()) {
+        (Some(a), Some(b)) => (a.t_s, b.t_s),
+        _ => return 0,
+    };
+    if last - first > window_s * (1.0 + WINDOW_SLACK) {
+        builder.forget_before(last - window_s)
+    } else {
+        0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -306,5 +359,62 @@ mod tests {
         cand.windows = 5;
         cand.current_error_m = 0.5;
         assert!(matches!(gate(&cand, 0.005, 3), Verdict::Reject(m) if m.contains("not below")));
+    }
+
+    #[test]
+    fn the_window_bounds_what_is_kept_of_a_long_drive() {
+        use interfaces::wire::{GnssFix, Header, Heading, Imu, WheelRotations};
+        // The documented per-sample sizes.
+        assert_eq!(SAMPLE_BYTES, [56, 40, 96, 32]);
+        let window_s = DEFAULT_WINDOW_S;
+        let mut b = DriveBuilder::new(vehicle());
+        // Two hours at 100 Hz (wheels, IMU) and 10 Hz (GNSS, heading), fed
+        // 0.1 s at a time as the service drains the bus, windowed after each.
+        let rates = [100.0, 10.0, 100.0, 10.0];
+        let bound = rates.map(|r| (r * window_s * (1.0 + WINDOW_SLACK)) as usize + 1);
+        let mut most = [0usize; 4];
+        for i in 0..720_000u64 {
+            let t = i as f64 * 0.01;
+            if i % 10 == 0 {
+                b.push_gnss(&GnssFix {
+                    header: Header::from_seconds(t, i),
+                    x_m: t,
+                    fix: 1,
+                    ..GnssFix::default()
+                });
+                b.push_heading(&Heading {
+                    header: Header::from_seconds(t, i),
+                    ..Heading::default()
+                });
+            }
+            b.push_imu(&Imu {
+                header: Header::from_seconds(t, i),
+                ..Imu::default()
+            });
+            b.push_wheels(&WheelRotations {
+                header: Header::from_seconds(t, i),
+                rl_rev: t * 5.0,
+                rr_rev: t * 5.0,
+                ..WheelRotations::default()
+            });
+            if i % 10 == 9 {
+                keep_window(&mut b, window_s);
+                let n = b.sample_counts();
+                for k in 0..4 {
+                    most[k] = most[k].max(n[k]);
+                    assert!(n[k] <= bound[k], "t = {t}: {n:?} above {bound:?}");
+                }
+            }
+        }
+        // Everything was collected (nothing refused), the old part dropped.
+        assert!(b.warnings().is_empty(), "{:?}", b.warnings());
+        assert_eq!(b.forgotten()[0] as usize + b.wheel_count(), 720_000);
+        // The window is kept whole.
+        let d = b.snapshot();
+        assert!(d.wheel_duration_s() >= window_s - 0.02);
+        // The documented bound: 31.5 MB of samples.
+        let bytes = sample_bytes(most);
+        assert!(bytes <= 31_600_000, "{bytes} bytes");
+        assert!(bytes >= 31_000_000, "{bytes} bytes: the window fills");
     }
 }

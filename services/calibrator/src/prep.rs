@@ -148,34 +148,13 @@ pub fn prepare(
 ) -> Result<Prepared, CalibrationError> {
     let _ = config;
     let vehicle = &drive.vehicle;
-    if !(vehicle.track_width_m.is_finite()
-        && vehicle.track_width_m > 0.1
-        && vehicle.track_width_m < 5.0)
-    {
-        return Err(CalibrationError::BadVehicle(format!(
-            "track_width_m = {} is not a plausible rear track (0.1..5 m)",
-            vehicle.track_width_m
-        )));
-    }
-    if !(vehicle.nominal_circumference_m.is_finite()
-        && vehicle.nominal_circumference_m > 0.1
-        && vehicle.nominal_circumference_m < 10.0)
-    {
-        return Err(CalibrationError::BadVehicle(format!(
-            "nominal_circumference_m = {} is not a plausible circumference (0.1..10 m)",
-            vehicle.nominal_circumference_m
-        )));
-    }
+    vehicle
+        .check_plausible()
+        .map_err(CalibrationError::BadVehicle)?;
     let lever_arm = [
         vehicle.gnss.antenna_x_m.unwrap_or(0.0),
         vehicle.gnss.antenna_y_m.unwrap_or(0.0),
     ];
-    if !lever_arm.iter().all(|v| v.is_finite() && v.abs() < 20.0) {
-        return Err(CalibrationError::BadVehicle(format!(
-            "[gnss] antenna position ({}, {}) m is not plausible",
-            lever_arm[0], lever_arm[1]
-        )));
-    }
 
     // Counters that wrap are unwrapped before anything reads them.
     let unwrapped = plausibility::unwrap_wheel_counters(drive);

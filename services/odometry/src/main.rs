@@ -94,9 +94,22 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
+    drive
+        .vehicle
+        .check_plausible()
+        .map_err(|e| anyhow::anyhow!("{}: vehicle.toml: {e}", args.drive.display()))?;
     let (params, source, antenna, antenna_sigma, estimate_effects) = match &args.estimate {
         Some(path) => {
             let estimate = drive_io::read_estimate(path).context("cannot use the estimate")?;
+            vehicle_model::estimate_gate::EstimateGate::new(&drive.vehicle)
+                .check(0, None, &estimate)
+                .map_err(|e| {
+                    anyhow::anyhow!(
+                        "{}: not an estimate of the vehicle of {}: {e}",
+                        path.display(),
+                        args.drive.display()
+                    )
+                })?;
             (
                 estimate.params,
                 path.display().to_string(),

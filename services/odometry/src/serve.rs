@@ -82,6 +82,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use vehicle_model::estimate::{gnss_lever_arm, Estimate, OdometryParams, ParamsError};
+use vehicle_model::estimate_gate::EstimateGate;
 
 /// How often the notifications of the topics that wake nobody (IMU, GNSS,
 /// heading) are taken: they carry nothing the loop needs at once.
@@ -290,6 +291,13 @@ pub fn load_vehicle(path: &Path) -> Result<VehicleParams, ServeError> {
     for warning in &loaded.warnings {
         tracing::warn!("odometry: {warning}");
     }
+    loaded
+        .vehicle
+        .check_plausible()
+        .map_err(|detail| ServeError::Vehicle {
+            path: path.to_path_buf(),
+            detail,
+        })?;
     Ok(loaded.vehicle)
 }
 
@@ -310,6 +318,9 @@ pub enum ServeError {
     /// The initial estimate could not be read.
     #[error(transparent)]
     Estimate(#[from] ParamsError),
+    /// The initial estimate is not one this vehicle can have.
+    #[error("{0}")]
+    ImplausibleEstimate(String),
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),
@@ -381,16 +392,19 @@ struct Inputs {
     imu: TopicSubscriber<Imu>,
     heading: TopicSubscriber<Heading>,
     estimate: TopicSubscriber<CircumferenceEstimate>,
+    /// What an estimate from the bus must pass before it is used.
+    gate: std::cell::RefCell<EstimateGate>,
 }
 
 impl Inputs {
-    fn open(bus: &Bus) -> Result<Inputs, BusError> {
+    fn open(bus: &Bus, gate: EstimateGate) -> Result<Inputs, BusError> {
         Ok(Inputs {
             wheels: bus.subscriber()?,
             gnss: bus.subscriber()?,
             imu: bus.subscriber()?,
             heading: bus.subscriber()?,
             estimate: bus.subscriber()?,
+            gate: std::cell::RefCell::new(gate),
         })
     }
 
@@ -473,7 +487,11 @@ impl Inputs {
             self.heading.take_events()?;
         }
         if estimate {
-            self.estimate.take_events()?;
+            if self.estimate.take_events()?.publisher_gone {
+                // A calibrator restarted without its state numbers from v1
+                // again: the next publisher is taken with its own versions.
+                self.gate.borrow_mut().forget_publisher();
+            }
             rejected = self.drain_estimates(sequencer, bus_estimates)?;
         }
         Ok(rejected)
@@ -486,7 +504,7 @@ impl Inputs {
         bus_estimates: bool,
     ) -> Result<u64, BusError> {
         let mut rejected = 0;
-        while let Some(s) = self.estimate.receive()? {
+        while let Some((s, publisher)) = self.estimate.receive_with_publisher()? {
             if !bus_estimates {
                 tracing::info!(
                     "odometry: estimate v{} on the bus ignored (--no-bus-estimate)",
@@ -494,7 +512,16 @@ impl Inputs {
                 );
                 continue;
             }
-            match Estimate::from_wire(&s) {
+            let checked = Estimate::from_wire(&s)
+                .map_err(|e| e.to_string())
+                .and_then(|estimate| {
+                    self.gate
+                        .borrow_mut()
+                        .check(s.version, Some(publisher), &estimate)
+                        .map(|()| estimate)
+                        .map_err(|e| format!("v{}: {e}", s.version))
+                });
+            match checked {
                 // Taken between two samples: sorted before the wheels of this batch.
                 Ok(estimate) => sequencer.push(Input::Estimate {
                     t_s: f64::NEG_INFINITY,
@@ -788,7 +815,12 @@ pub fn serve(
     // The filter, behind the log that lets it take late samples in order;
     // `fusion()` to read it.
     let mut filter = RewindingFusion::new(fusion, config.rewind);
-    let inputs = Inputs::open(bus)?;
+    let mut gate = EstimateGate::new(&config.vehicle);
+    if let Some(initial) = &config.initial {
+        gate.check(0, None, initial)
+            .map_err(|e| ServeError::ImplausibleEstimate(format!("the initial estimate: {e}")))?;
+    }
+    let inputs = Inputs::open(bus, gate)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
     // handed to the publisher), all ns: only with --latency-trace.

@@ -868,3 +868,86 @@ fn fixes_delivered_late_by_their_own_publisher_are_taken_in_their_place() {
     assert!(applied_late > 0.3, "{applied_late:.3} m");
     assert_eq!(plain_summary.rewind.rewinds, 0);
 }
+
+/// Estimates on the bus that no calibration of this car can give (a wheel
+/// of 0.1 m or 1 km, a gyro bias of 10 rad/s, a version going back, a
+/// second publisher) are refused and counted; the poses keep the one good
+/// estimate, and go on where the car is.
+#[test]
+fn estimates_no_calibration_can_give_are_refused() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odogate", root.path());
+    let (shutdown, service) = spawn_service(base_config(&settings));
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let mut estimates: TopicPublisher<CircumferenceEstimate> =
+        bus.publisher().expect("estimate publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let mut sensors = Sensors::open_when_subscribed(&bus);
+    let good = Estimate {
+        params: OdometryParams::nominal(&vehicle()),
+        sigma_m: Some((1e-3, 1e-3)),
+        quality_m: Some(0.5),
+        antenna_m: None,
+        antenna_sigma_m: None,
+        effects: vehicle_model::effects::WheelEffects::default(),
+    };
+    let with_c = |c: f64| {
+        let mut e = good;
+        e.params.two_wheel.c_rl = c;
+        e.params.two_wheel.c_rr = c;
+        e
+    };
+    let mut biased = good;
+    biased.params.gyro_bias_rad_s = 10.0;
+    // (instant, estimate, version)
+    let plan = [
+        (200usize, good, 99u64),
+        (300, with_c(0.1), 100),
+        (400, with_c(1e6), 101),
+        (500, biased, 102),
+        (600, good, 1),
+        (700, good, 7),
+    ];
+    let n = 1000usize;
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        if let Some((_, e, v)) = plan.iter().find(|(at, _, _)| *at == i) {
+            estimates
+                .publish(e.to_wire(Header::from_seconds(i as f64 * 0.01, 0), *v))
+                .expect("publish estimate");
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        sensors.east_instant(i, Some([0.0, 0.0]));
+    }
+    // A second publisher of estimates while the first is still there.
+    let other_bus = Bus::open(&settings, "intruder").expect("intruder bus");
+    let mut intruder: TopicPublisher<CircumferenceEstimate> =
+        other_bus.publisher().expect("second estimate publisher");
+    intruder
+        .publish(good.to_wire(Header::from_seconds(10.0, 0), 200))
+        .expect("publish");
+    std::thread::sleep(Duration::from_millis(300));
+    for i in n + 1..=n + 100 {
+        sensors.east_instant(i, Some([0.0, 0.0]));
+    }
+    collect(&poses_sub, &mut poses, n + 101);
+    let summary = stop_service(&shutdown, service);
+    assert_eq!(summary.estimate_switches, 1, "only v99 was taken");
+    assert_eq!(
+        summary.skipped, 6,
+        "five refused on the bus and the intruder's"
+    );
+    assert!(poses[250..].iter().all(|p| p.estimate_version == 99));
+    let last = poses.last().expect("poses");
+    assert!(
+        (last.x_m - V * 11.0).abs() < 0.5 && last.y_m.abs() < 0.5,
+        "{last:?}"
+    );
+    drop((sensors, estimates, intruder, poses_sub));
+    drop((bus, other_bus));
+    settings.remove_leftovers();
+}

@@ -12,6 +12,14 @@
 //!    collected, which the fit never saw) its dead-reckoning error is lower
 //!    than that of the estimate in use (or the nominal values).
 //!
+//! Memory is bounded: only the last [`ServeConfig::window_s`] of the drive
+//! is kept (default [`DEFAULT_WINDOW_S`], 30 minutes: at most about 32 MB of
+//! samples at 100 Hz wheels and IMU, see [`DEFAULT_WINDOW_S`] for the
+//! numbers), and attempts calibrate on that window. The collector checks
+//! what comes over the bus ([`interfaces::collect`]): a sample whose time or
+//! revolutions jump is refused, and a wheel stream that restarts starts a new
+//! drive (logged; distance and turning are counted again from there).
+//!
 //! The held-out error is the mean position error at the end of
 //! [`ServeConfig::holdout_window_s`]-long 2W dead-reckoning windows, each
 //! started from the GNSS/IMU reference pose: the situation of a GNSS outage.
@@ -25,7 +33,9 @@
 
 mod state;
 
-use calibrator::live::{attempt, gate, Candidate, Coverage, Verdict};
+use calibrator::live::{
+    attempt, gate, keep_window, sample_bytes, Candidate, Coverage, Verdict, DEFAULT_WINDOW_S,
+};
 use calibrator::{CalibrationConfig, CalibrationError};
 use iceoryx2::prelude::CallbackProgression;
 use interfaces::bus::{self, Bus, BusError, TopicPublisher};
@@ -67,6 +77,10 @@ pub struct ServeConfig {
     pub state_file: Option<PathBuf>,
     /// Stop after the sensor stream ended and no attempt is running.
     pub exit_on_end: bool,
+    /// Length of the drive kept and calibrated on: the last this many
+    /// seconds (of wheel time), s. Bounds the memory of the service; see
+    /// [`DEFAULT_WINDOW_S`] for what the default costs.
+    pub window_s: f64,
 }
 
 impl ServeConfig {
@@ -85,6 +99,7 @@ impl ServeConfig {
             max_sigma_m: 0.005,
             state_file: None,
             exit_on_end: false,
+            window_s: DEFAULT_WINDOW_S,
         }
     }
 
@@ -108,6 +123,9 @@ impl ServeConfig {
         }
         if !(self.max_sigma_m.is_finite() && self.max_sigma_m > 0.0) {
             return bad("max_sigma_m", self.max_sigma_m);
+        }
+        if !(self.window_s.is_finite() && self.window_s >= 60.0) {
+            return bad("window_s", self.window_s);
         }
         self.calibration.validate().map_err(ServeError::Calibration)
     }
@@ -147,7 +165,9 @@ pub struct ServeSummary {
     pub accepted: usize,
     /// The estimate in use at the end.
     pub current: Option<Accepted>,
-    /// Wheel samples collected.
+    /// Wheel samples of the drive collected now: since the last time the
+    /// wheel stream restarted (which starts a new drive), also those dropped
+    /// since out of the window.
     pub wheel_samples: usize,
     /// Sensor samples lost on the bus (sequence gaps): wheels, gnss, imu, heading.
     pub lost: [u64; 4],
@@ -200,7 +220,11 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
 
     let mut builder = DriveBuilder::new(cfg.vehicle.clone());
     let mut coverage = Coverage::new(&cfg.vehicle);
-    let mut seen = 0usize;
+    // Time of the last wheel sample counted into `coverage`, and the
+    // collector's resets seen so far.
+    let mut seen_t: Option<f64> = None;
+    let mut resets_seen = 0u64;
+    let mut wheel_samples = 0usize;
     let mut last_attempt_distance = f64::NEG_INFINITY;
     let mut running: Option<Running> = None;
     let mut ended = false;
@@ -209,10 +233,34 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
     loop {
         let result = bus::wait_once(&waitset, None, |_| CallbackProgression::Continue)?;
         let outcome = subs.drain_into(&mut builder)?;
-        for s in &builder.wheels()[seen..] {
+        if builder.resets() > resets_seen {
+            // A new drive: what was collected before is set aside.
+            let new = (builder.resets() - resets_seen) as usize;
+            let log = builder.reset_log();
+            for line in &log[log.len().saturating_sub(new)..] {
+                tracing::warn!("calibrator: {line}");
+            }
+            resets_seen = builder.resets();
+            coverage = Coverage::new(&cfg.vehicle);
+            seen_t = None;
+            wheel_samples = 0;
+            last_attempt_distance = f64::NEG_INFINITY;
+            announced_ready = false;
+        }
+        let wheels = builder.wheels();
+        let from = seen_t.map_or(0, |t| wheels.partition_point(|w| w.t_s <= t));
+        for s in &wheels[from..] {
             coverage.add(s.t_s, s.rl, s.rr);
         }
-        seen = builder.wheel_count();
+        wheel_samples += wheels.len() - from;
+        seen_t = wheels.last().map(|w| w.t_s).or(seen_t);
+        if keep_window(&mut builder, cfg.window_s) > 0 {
+            tracing::debug!(
+                "calibrator: keeping the last {:.0} s of the drive ({:.1} MB of samples)",
+                cfg.window_s,
+                sample_bytes(builder.sample_counts()) as f64 / 1e6
+            );
+        }
         publisher.update_connections()?;
         if outcome.end_of_stream() && !ended {
             ended = true;
@@ -337,7 +385,13 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
         }
     }
     summary.current = current;
-    summary.wheel_samples = builder.wheel_count();
+    summary.wheel_samples = wheel_samples;
+    // What the collector refused (the resets were logged as they happened).
+    for warning in builder.warnings() {
+        if !builder.reset_log().contains(&warning) {
+            tracing::warn!("calibrator: {warning}");
+        }
+    }
     summary.lost = subs.lost();
     Ok(summary)
 }
