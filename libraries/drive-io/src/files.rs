@@ -1,6 +1,9 @@
 //! Opening the files of a drive with care: only regular files are opened
 //! (a FIFO would block the open, a device such as `/dev/zero` never ends),
 //! and small text files (TOML, JSON) are read only up to a size limit.
+//! The services' state files are read the same way ([`read_state_text`])
+//! and written so that neither a power loss nor another local user can
+//! corrupt or redirect them ([`write_durably`]).
 
 use super::DriveError;
 use std::fs::{File, FileType};
@@ -139,4 +142,63 @@ pub(crate) fn read_text_limited(path: &Path, limit: u64) -> Result<String, Drive
             ),
         )
     })
+}
+
+/// The text of a small state file, `Ok(None)` when nothing is at `path`;
+/// anything but a regular file, or one larger than `limit` bytes, is an
+/// error naming it (a FIFO is never opened).
+pub fn read_state_text(path: &Path, limit: u64) -> Result<Option<String>, DriveError> {
+    if !regular_file_present(path)? {
+        return Ok(None);
+    }
+    read_text_limited(path, limit).map(Some)
+}
+
+/// Replace `path` with `bytes` durably: a fresh temporary file beside it,
+/// created exclusively (`O_CREAT | O_EXCL`: an existing file or a planted
+/// symbolic link of that name is never followed or overwritten) and
+/// readable by the owner only, fsynced, renamed over `path` (a link at
+/// `path` is replaced, not followed), and the directory fsynced. A crash or
+/// power loss at any point leaves the old file or the new one, whole. The
+/// temporary file is removed when a step fails.
+pub fn write_durably(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    use std::sync::atomic::{AtomicU64, Ordering};
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => std::path::PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "state".into());
+    // A name no other writer uses: the process, a per-process count and
+    // the clock's nanoseconds.
+    static COUNT: AtomicU64 = AtomicU64::new(0);
+    let count = COUNT.fetch_add(1, Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    let tmp = dir.join(format!(
+        ".{name}.{}.{count}.{nanos:09}.tmp",
+        std::process::id()
+    ));
+    let written = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&tmp)
+        .and_then(|mut f| {
+            f.write_all(bytes)?;
+            f.sync_all()
+        })
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if let Err(e) = written {
+        // Best effort: the temporary file may not even exist.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e);
+    }
+    File::open(&dir).and_then(|d| d.sync_all())
 }

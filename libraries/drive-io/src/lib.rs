@@ -24,7 +24,7 @@ mod streams;
 pub use csv::MAX_CSV_LINE_BYTES;
 pub use error::DriveError;
 pub use estimate_file::read_estimate;
-pub use files::MAX_TEXT_FILE_BYTES;
+pub use files::{read_state_text, write_durably, MAX_TEXT_FILE_BYTES};
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
 pub use recording::{
     FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, TRUTH_TOPIC, WHEELS_TOPIC,
@@ -166,3 +166,30 @@ pub fn validate(drive: &Drive) -> Result<(), DriveError> {
 }
 
 mod validate;
+
+/// [`read_drive_with`] on an MCAP recording already in memory (the fuzz
+/// targets' entry): `path` only names the input in errors and warnings.
+pub fn read_mcap_from_bytes(
+    path: &Path,
+    bytes: &[u8],
+    options: ReadOptions,
+) -> Result<LoadedDrive, DriveError> {
+    recording::read_mcap_bytes(path, bytes, options.skip_corrupt_chunks)
+}
+
+/// [`read_vehicle`] on `vehicle.toml` text already in memory (the fuzz
+/// targets' entry): `path` only names the input in errors and warnings.
+pub fn vehicle_from_toml_str(path: &Path, text: &str) -> Result<LoadedVehicle, DriveError> {
+    let mut warnings = Vec::new();
+    let vehicle = folder::parse_vehicle_toml(path, text, &mut warnings)?;
+    Ok(LoadedVehicle { vehicle, warnings })
+}
+
+/// `truth.toml` text parsed as a drive folder's is (the fuzz targets'
+/// entry): `path` only names the input in errors.
+pub fn truth_from_toml_str(
+    path: &Path,
+    text: &str,
+) -> Result<interfaces::drive::TruthParams, DriveError> {
+    folder::parse_truth_toml(path, text)
+}

@@ -148,7 +148,40 @@ pub enum InputError {
         /// Its time.
         t_s: f64,
     },
+    /// Wheel counts that moved further than any car's wheel turns
+    /// ([`MAX_WHEEL_REV_PER_S`]) since the previous sample: held; the next
+    /// sample tells a glitch (refused) from counters that jumped (taken as
+    /// the new reference, [`InputError::CounterJump`]).
+    #[error(
+        "wheel sample at t = {t_s} s moved the counts by {dn_rl:.4e} / {dn_rr:.4e} revolutions \
+         in {dt_s:.4} s, beyond any car; skipped"
+    )]
+    ImplausibleStep {
+        /// Its time.
+        t_s: f64,
+        /// Rear-left step, revolutions.
+        dn_rl: f64,
+        /// Rear-right step, revolutions.
+        dn_rr: f64,
+        /// Time since the previous sample, s.
+        dt_s: f64,
+    },
+    /// The wheel counters jumped and stayed (two samples agree on the new
+    /// counts): they are the new reference; the motion over the jump is lost.
+    #[error(
+        "wheel counters jumped at t = {t_s} s and stayed there: taken as the new reference \
+         (the motion of that step is lost)"
+    )]
+    CounterJump {
+        /// Time of the sample that confirmed the jump.
+        t_s: f64,
+    },
 }
+
+/// The fastest a road car's wheel turns, revolutions per second (a 2 m
+/// circumference at 200 m/s): a step beyond it (plus one revolution of
+/// slack for a coarse counter) is a glitch or a jump, not motion.
+pub const MAX_WHEEL_REV_PER_S: f64 = 100.0;
 
 /// Tuning of the [`Odometer`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -292,6 +325,10 @@ pub struct OdometerStats {
     pub standstills: u64,
     /// Standstills whose gyro mean went into the gyro bias.
     pub gyro_bias_updates: u64,
+    /// Wheel samples refused for a step beyond any car.
+    pub implausible_steps: u64,
+    /// Counter jumps taken as a new reference.
+    pub counter_jumps: u64,
 }
 
 /// The gyro bias measured over one standstill, as
@@ -362,6 +399,8 @@ pub struct Odometer {
     /// With effect terms: the first wheel time, the smoothed speed and
     /// longitudinal acceleration they read.
     effect_state: EffectState,
+    /// A wheel sample held because it jumped from the reference (t, rl, rr).
+    jump_candidate: Option<(f64, f64, f64)>,
 }
 
 /// What the effect terms read that one wheel step does not give.
@@ -392,6 +431,7 @@ impl Odometer {
             stats: OdometerStats::default(),
             effects: WheelEffects::default(),
             effect_state: EffectState::default(),
+            jump_candidate: None,
         }
     }
 
@@ -581,6 +621,7 @@ impl Odometer {
     /// learned wheel offsets are kept.
     pub fn restart(&mut self) {
         self.last_wheels = None;
+        self.jump_candidate = None;
         self.gyro_mark = None;
         self.gyro = GyroIntegral::default();
         self.standstill = Standstill::default();
@@ -618,6 +659,31 @@ impl Odometer {
             Some((t0, rl0, rr0)) => {
                 let dt = t_s - t0;
                 let (mut dn_rl, mut dn_rr) = (rl_rev - rl0, rr_rev - rr0);
+                let possible = |dn: f64, dt: f64| dn.abs() <= MAX_WHEEL_REV_PER_S * dt + 1.0;
+                if !(possible(dn_rl, dt) && possible(dn_rr, dt)) {
+                    let confirmed = self.jump_candidate.is_some_and(|(tc, rlc, rrc)| {
+                        t_s > tc
+                            && possible(rl_rev - rlc, t_s - tc)
+                            && possible(rr_rev - rrc, t_s - tc)
+                    });
+                    if confirmed {
+                        self.jump_candidate = None;
+                        self.last_wheels = Some((t_s, rl_rev, rr_rev));
+                        self.gyro_mark = GyroAt::fresh_integral(gyro);
+                        self.gyro.prune_before(t_s);
+                        self.stats.counter_jumps += 1;
+                        return Err(InputError::CounterJump { t_s });
+                    }
+                    self.jump_candidate = Some((t_s, rl_rev, rr_rev));
+                    self.stats.implausible_steps += 1;
+                    return Err(InputError::ImplausibleStep {
+                        t_s,
+                        dn_rl,
+                        dn_rr,
+                        dt_s: dt,
+                    });
+                }
+                self.jump_candidate = None;
                 let mut standing = false;
                 if self.config.learn_wheel_offsets || self.config.learn_gyro_bias {
                     standing = self.watch_standstill(t_s, dt, dn_rl, dn_rr, gyro);
@@ -739,6 +805,53 @@ mod tests {
             learn_wheel_offsets: false,
             learn_gyro_bias: false,
             ..OdometerConfig::default()
+        }
+    }
+
+    /// Straight at 10 m/s with 2 m wheels (5 rev/s), wheels at 100 Hz: a
+    /// single sample 1e6 revolutions off is refused and the distance goes on
+    /// from the sample before; counters that jump by 1e6 and stay are taken
+    /// as the new reference after one more sample, losing only that step.
+    #[test]
+    fn a_wheel_glitch_is_refused_and_a_lasting_jump_becomes_the_reference() {
+        let mut odo = Odometer::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference));
+        let mut distance = 0.0;
+        let mut errors = Vec::new();
+        for k in 0..=300 {
+            let t = k as f64 * 0.01;
+            let mut rev = 0.05 * k as f64;
+            if k == 100 {
+                rev += 1e6; // one glitch
+            }
+            if k >= 200 {
+                rev += 1e6; // a jump that stays
+            }
+            match odo.wheels(t, rev, rev) {
+                Ok(Some(inc)) => distance += inc.ds_m,
+                Ok(None) => {}
+                Err(e) => errors.push((k, e)),
+            }
+        }
+        assert_eq!(errors.len(), 3, "{errors:?}");
+        assert!(matches!(
+            errors[0],
+            (100, InputError::ImplausibleStep { .. })
+        ));
+        assert!(matches!(
+            errors[1],
+            (200, InputError::ImplausibleStep { .. })
+        ));
+        assert!(matches!(errors[2], (201, InputError::CounterJump { .. })));
+        // 3 s at 10 m/s, less the two steps lost over the jump.
+        assert!((distance - (30.0 - 0.2)).abs() < 1e-9, "{distance}");
+        let stats = odo.stats();
+        assert_eq!((stats.implausible_steps, stats.counter_jumps), (2, 1));
+        // A fast but possible car (70 m/s: 35 rev/s) is not refused.
+        let mut fast = Odometer::new(params(2.0, 2.0, 1.5), config(HeadingMode::WheelDifference));
+        for k in 0..100 {
+            assert!(fast
+                .wheels(k as f64 * 0.01, 0.35 * k as f64, 0.35 * k as f64)
+                .is_ok());
         }
     }
 

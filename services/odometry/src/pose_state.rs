@@ -19,7 +19,6 @@ use interfaces::wire::PoseMode;
 use odometry::fusion::FusedPose;
 use odometry::restart::{KeptRecord, WheelMark};
 use serde::{Deserialize, Serialize};
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use vehicle_model::two_wheel::Pose2;
 
@@ -144,34 +143,14 @@ pub enum PoseStateError {
 /// but a regular file, or one larger than [`MAX_STATE_BYTES`], is an error
 /// naming it (a FIFO is never opened: that would block).
 pub fn load(path: &Path) -> Result<Option<SavedPose>, PoseStateError> {
-    let io = |source| PoseStateError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let meta = match std::fs::metadata(path) {
-        Ok(meta) => meta,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
-        Err(source) => return Err(io(source)),
-    };
-    if !meta.is_file() {
-        return Err(PoseStateError::Parse {
+    let text =
+        drive_io::read_state_text(path, MAX_STATE_BYTES).map_err(|e| PoseStateError::Parse {
             path: path.to_path_buf(),
-            detail: format!("not a regular file ({})", file_kind(&meta)),
-        });
-    }
-    if meta.len() > MAX_STATE_BYTES {
-        return Err(PoseStateError::Parse {
-            path: path.to_path_buf(),
-            detail: format!(
-                "{} bytes, larger than a kept pose can be ({MAX_STATE_BYTES})",
-                meta.len()
-            ),
-        });
-    }
-    let mut text = String::new();
-    std::fs::File::open(path)
-        .and_then(|f| f.take(MAX_STATE_BYTES + 1).read_to_string(&mut text))
-        .map_err(io)?;
+            detail: e.to_string(),
+        })?;
+    let Some(text) = text else {
+        return Ok(None);
+    };
     serde_json::from_str(&text)
         .map(Some)
         .map_err(|e| PoseStateError::Parse {
@@ -180,74 +159,16 @@ pub fn load(path: &Path) -> Result<Option<SavedPose>, PoseStateError> {
         })
 }
 
-/// What a path is, for an error.
-fn file_kind(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    if t.is_dir() {
-        "a directory"
-    } else if t.is_fifo() {
-        "a FIFO"
-    } else if t.is_char_device() || t.is_block_device() {
-        "a device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "not a file"
-    }
-}
-
-/// Write the kept pose: to a fresh temporary file beside `path` (created
-/// exclusively, mode 0600), fsynced, renamed over `path`, and the directory
-/// fsynced; the temporary file is removed when any step fails.
+/// Write the kept pose durably ([`drive_io::write_durably`]: a fresh 0600
+/// temporary file, fsynced, renamed over `path`, the directory fsynced).
 pub fn save(path: &Path, saved: &SavedPose) -> Result<(), PoseStateError> {
-    use std::os::unix::fs::OpenOptionsExt;
     let io = |source| PoseStateError::Io {
         path: path.to_path_buf(),
         source,
     };
     let text = serde_json::to_string_pretty(saved)
         .map_err(|e| io(std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "pose".into());
-    // A name no other writer uses: the process, a per-process count and the
-    // clock's nanoseconds. `create_new` (O_CREAT | O_EXCL) fails on any
-    // existing entry, a symlink included, instead of following it.
-    static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
-    let count = COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.subsec_nanos())
-        .unwrap_or(0);
-    let tmp = dir.join(format!(
-        ".{name}.{}.{count}.{nanos:09}.tmp",
-        std::process::id()
-    ));
-    let written = std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .mode(0o600)
-        .open(&tmp)
-        .and_then(|mut f| {
-            f.write_all(text.as_bytes())?;
-            f.write_all(b"\n")?;
-            f.sync_all()
-        })
-        .and_then(|()| std::fs::rename(&tmp, path));
-    if let Err(source) = written {
-        // Best effort: the temporary file may not even exist.
-        let _ = std::fs::remove_file(&tmp);
-        return Err(io(source));
-    }
-    std::fs::File::open(&dir)
-        .and_then(|d| d.sync_all())
-        .map_err(io)
+    drive_io::write_durably(path, (text + "\n").as_bytes()).map_err(io)
 }
 
 #[cfg(test)]
@@ -346,15 +267,21 @@ mod tests {
         let sub = dir.path().join("sub");
         std::fs::create_dir(&sub).unwrap();
         let e = load(&sub).unwrap_err().to_string();
-        assert!(e.contains("sub: not a regular file (a directory)"), "{e}");
+        assert!(
+            e.contains("sub: expected a regular file, found a directory"),
+            "{e}"
+        );
         let zero = dir.path().join("zero");
         std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
         let e = load(&zero).unwrap_err().to_string();
-        assert!(e.contains("zero: not a regular file (a device)"), "{e}");
+        assert!(
+            e.contains("a symbolic link to /dev/zero (a character device)"),
+            "{e}"
+        );
         let big = dir.path().join("big.json");
         std::fs::write(&big, vec![b' '; MAX_STATE_BYTES as usize + 1]).unwrap();
         let e = load(&big).unwrap_err().to_string();
-        assert!(e.contains("larger than a kept pose can be"), "{e}");
+        assert!(e.contains("more than the 65536 bytes allowed"), "{e}");
         // A write into a directory that does not exist fails and leaves nothing.
         let nowhere = dir.path().join("missing").join("pose.json");
         assert!(save(&nowhere, &saved).is_err());

@@ -80,9 +80,9 @@ impl Accepted {
 
 /// Read the state file; `Ok(None)` when it does not exist.
 pub fn load_state(path: &Path) -> Result<Option<Accepted>, StateError> {
-    let text = match std::fs::read_to_string(path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+    let text = match drive_io::read_state_text(path, MAX_STATE_BYTES) {
+        Ok(Some(t)) => t,
+        Ok(None) => return Ok(None),
         Err(e) => {
             return Err(StateError {
                 path: path.to_path_buf(),
@@ -103,7 +103,13 @@ pub fn load_state(path: &Path) -> Result<Option<Accepted>, StateError> {
     Ok(Some(a))
 }
 
-/// Write the state file atomically (a temporary file renamed over it).
+/// The largest state file read, bytes (an accepted estimate is under 1 kB).
+pub const MAX_STATE_BYTES: u64 = 64 * 1024;
+
+/// Write the state file durably ([`drive_io::write_durably`]: a fresh 0600
+/// temporary file, fsynced, renamed over `path`, the directory fsynced), so
+/// that an accepted estimate survives a power loss and a planted link is
+/// never followed.
 pub fn save_state(path: &Path, a: &Accepted) -> Result<(), StateError> {
     let err = |e: std::io::Error| StateError {
         path: path.to_path_buf(),
@@ -116,9 +122,7 @@ pub fn save_state(path: &Path, a: &Accepted) -> Result<(), StateError> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(err)?;
     }
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text + "\n").map_err(err)?;
-    std::fs::rename(&tmp, path).map_err(err)
+    drive_io::write_durably(path, (text + "\n").as_bytes()).map_err(err)
 }
 
 #[cfg(test)]
@@ -173,6 +177,34 @@ mod tests {
             err.contains("state.json") && err.contains("missing field"),
             "{err}"
         );
+    }
+
+    /// The state file is written through a fresh private temporary file
+    /// (a link planted at the old fixed temporary name is not followed), and
+    /// only a small regular file is read.
+    #[test]
+    fn the_state_file_is_written_safely_and_read_with_bounds() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.json");
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, "keep me").unwrap();
+        std::os::unix::fs::symlink(&victim, dir.path().join("state.json.tmp")).unwrap();
+        save_state(&path, &accepted()).unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep me");
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode();
+        assert_eq!(mode & 0o777, 0o600);
+        assert_eq!(load_state(&path).unwrap(), Some(accepted()));
+        let zero = dir.path().join("zero.json");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        let e = load_state(&zero).unwrap_err().to_string();
+        assert!(e.contains("character device"), "{e}");
+        let big = dir.path().join("big.json");
+        std::fs::write(&big, vec![b' '; MAX_STATE_BYTES as usize + 1]).unwrap();
+        assert!(load_state(&big)
+            .unwrap_err()
+            .to_string()
+            .contains("bytes allowed"));
     }
 
     #[test]
