@@ -1,5 +1,6 @@
 //! The `info` summary of a drive: duration, distance, the rate and gaps of
-//! every stream, and the GNSS outages.
+//! every stream, the GNSS outages, and the physically impossible or broken
+//! values [`plausibility::findings`] finds (after unwrapping counter wraps).
 //!
 //! Rules (also in the README):
 //! - a stream's *rate* is 1 / its median sample interval;
@@ -10,6 +11,7 @@
 //!   two fixes, or between the wheel data's start/end and the first/last fix.
 
 use super::LoadedDrive;
+use crate::plausibility::{self, FindingSummary, Severity};
 use interfaces::drive::{Drive, Wheel};
 use serde::Serialize;
 use std::fmt;
@@ -86,6 +88,8 @@ pub struct DriveSummary {
     pub gnss_outage_threshold_s: Option<f64>,
     /// True when the drive has truth parameters (`truth.toml`).
     pub has_truth_params: bool,
+    /// Physically impossible or broken values ([`plausibility::findings`]).
+    pub findings: Vec<FindingSummary>,
     /// Warnings from loading (filled by [`DriveSummary::with_warnings`]).
     pub warnings: Vec<String>,
 }
@@ -285,6 +289,10 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
         gnss_outages,
         gnss_outage_threshold_s,
         has_truth_params: drive.truth_params.is_some(),
+        findings: plausibility::findings(drive)
+            .into_iter()
+            .map(|f| f.summary())
+            .collect(),
         warnings: Vec::new(),
     }
 }
@@ -372,6 +380,19 @@ impl fmt::Display for DriveSummary {
                         g.start_s, g.end_s, g.duration_s
                     )?;
                 }
+            }
+        }
+        writeln!(f)?;
+        if self.findings.is_empty() {
+            writeln!(f, "plausibility: nothing physically impossible found")?;
+        } else {
+            writeln!(f, "plausibility ({}):", self.findings.len())?;
+            for p in &self.findings {
+                let what = match p.severity {
+                    Severity::Error => "error (the calibrator refuses this drive)",
+                    Severity::Warning => "warning",
+                };
+                writeln!(f, "  {what}: {}", p.message)?;
             }
         }
         if !self.warnings.is_empty() {

@@ -10,7 +10,15 @@
 //!   wheels never turn in opposite directions over a drive, and one rear
 //!   wheel cannot stand still while the other rolls on;
 //! - a circumference mismatch of a few per cent bends the wheels' path by at
-//!   most [`MAX_CIRCUMFERENCE_MISMATCH`] / track; a sharper bend is a turn.
+//!   most [`MAX_CIRCUMFERENCE_MISMATCH`] / track; a sharper bend is a turn;
+//! - the effective track differs from the physical one by tyre slip and
+//!   scrub (a few per cent): a track the wheels and the gyro put more than
+//!   [`TRACK_CONTRADICTION_REL`] (and [`TRACK_CONTRADICTION_SIGMAS`] of its
+//!   own uncertainty) away from `vehicle.toml`'s contradicts the drive
+//!   ([`Finding::TrackWidthContradicted`], see there for the method);
+//! - a wheel stream that stops for more than [`PAUSE_FACTOR`] of its own
+//!   sample intervals and more than [`PAUSE_MIN_S`] is a pause in the drive
+//!   ([`Finding::WheelPause`]), not a late sample.
 //!
 //! [`unwrap_wheel_counters`] repairs encoder counters that wrap (8, 16 or
 //! 32 bit); [`check`] reports the rest as [`Finding`]s, each an error or a
@@ -34,8 +42,35 @@ pub const EVIDENCE_DISTANCE_M: f64 = 20.0;
 /// Turning (by the wheels) that a constant gyro cannot have missed, rad.
 pub const EVIDENCE_TURN_RAD: f64 = FRAC_PI_2;
 
+/// A track from the wheels and the gyro this far (relative) from
+/// `vehicle.toml`'s contradicts it: tyre slip and scrub make the effective
+/// track differ from the physical one by 1-3 %, a MEMS gyro's scale error is
+/// a few per cent, and an uncorrected circumference mismatch adds a little;
+/// 15 % is beyond all of them together (the calibrator itself does not
+/// believe a fitted track more than 10 % from the nominal).
+pub const TRACK_CONTRADICTION_REL: f64 = 0.15;
+/// ... and this many standard errors of the fitted track from it (so that a
+/// drive with little turning cannot raise it by noise).
+pub const TRACK_CONTRADICTION_SIGMAS: f64 = 5.0;
+/// A window turns when the gyro's mean rate (bias removed) is this many of
+/// its own noise sigmas from zero: the gyro noise then biases the fitted
+/// ratio by at most 1 / (1 + 1/25), 4 % (errors in the regressor).
+pub const TURN_NOISE_SIGMAS: f64 = 5.0;
+/// Windows of the track comparison and the noise estimate, s.
+pub const TRACK_WINDOW_S: f64 = 1.0;
+/// A gyro whose noise over a [`TRACK_WINDOW_S`] window is below this is taken
+/// as this noisy, rad/s (0.006 deg/s, far below any vehicle gyro; keeps a
+/// noise-free simulated gyro from making every window a turn).
+pub const GYRO_NOISE_FLOOR_RAD_S: f64 = 1e-4;
+/// A gap in the wheel stream longer than this many median sample intervals
+/// (and [`PAUSE_MIN_S`]) is a pause of the drive.
+pub const PAUSE_FACTOR: f64 = 100.0;
+/// A pause lasts at least this long, s (a sample lost or late is no pause).
+pub const PAUSE_MIN_S: f64 = 5.0;
+
 /// How serious a [`Finding`] is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Severity {
     /// The data cannot be used as it is (a calibration must refuse it).
     Error,
@@ -177,6 +212,65 @@ pub enum Finding {
         /// The stretch is a large part (a fifth or more) of the drive's distance.
         major: bool,
     },
+    /// `vehicle.toml`'s track width contradicts the drive: the wheels' yaw
+    /// rate `c (n_rr' - n_rl') / B_nominal` is `s` times the gyro's over the
+    /// turning windows, so the effective track is `s B_nominal`.
+    ///
+    /// Method: [`TRACK_WINDOW_S`] windows of the rear wheels (nominal
+    /// circumference) and the IMU's `gz` (trapezoidal integral), none across
+    /// a pause of either stream. The gyro's bias and noise come from the
+    /// drive's standstill windows (median and MAD of the mean rate; at least
+    /// 3), else the bias from the windows where the wheels bend less than a
+    /// circumference mismatch explains and the noise from the gyro's
+    /// sample-to-sample scatter (white noise scaled to the window). A window
+    /// turns when its gyro rate is [`TURN_NOISE_SIGMAS`] noise sigmas from
+    /// zero. Over those windows a least-squares fit `dpsi_wheels = s
+    /// dpsi_gyro + mu ds` (`mu`: a circumference mismatch bends the wheels'
+    /// path in proportion to distance; left out where the drive cannot tell
+    /// it from the turning), one pass of 5-MAD outlier removal, standard
+    /// error from the residuals (windows taken as independent). Reported when
+    /// `s` is more than [`TRACK_CONTRADICTION_REL`] and more than
+    /// [`TRACK_CONTRADICTION_SIGMAS`] standard errors from 1, with at least
+    /// 10 turning windows and [`EVIDENCE_TURN_RAD`] of turning.
+    ///
+    /// A gyro with a scale error `k` confounds this (it reads `(1 + k)` times
+    /// the yaw rate, and the track comes out `1 / (1 + k)` times the true
+    /// one), so this is only a warning: the calibrator can fit the track.
+    #[error(
+        "vehicle.toml's track_width_m = {nominal_m} m contradicts the drive: the wheels and the gyro agree on \
+         {effective_m:.3} ± {sigma_m:.3} m ({:+.0} %, over {windows} turning windows, {:.0} deg of turning); \
+         check track_width_m (a gyro scale error would also show this way)",
+        100.0 * (effective_m / nominal_m - 1.0),
+        turned_rad.to_degrees()
+    )]
+    TrackWidthContradicted {
+        /// `vehicle.toml`'s track width, m.
+        nominal_m: f64,
+        /// The effective track the wheels and the gyro agree on, m.
+        effective_m: f64,
+        /// Its standard error, m.
+        sigma_m: f64,
+        /// Turning windows used.
+        windows: usize,
+        /// The gyro's turning over them, rad.
+        turned_rad: f64,
+    },
+    /// The wheel stream pauses: no wheel sample for far longer than its own
+    /// sample interval (more than [`PAUSE_FACTOR`] median intervals and
+    /// [`PAUSE_MIN_S`]).
+    #[error(
+        "wheels: the stream pauses for {duration_s:.1} s at t = {t_s} s ({:.0} times its median sample \
+         interval of {median_interval_s:.3e} s): the drive has a hole there",
+        duration_s / median_interval_s
+    )]
+    WheelPause {
+        /// Last wheel sample before the pause, s.
+        t_s: f64,
+        /// Length of the pause, s.
+        duration_s: f64,
+        /// The wheel stream's median sample interval, s.
+        median_interval_s: f64,
+    },
 }
 
 impl Finding {
@@ -190,7 +284,9 @@ impl Finding {
             Finding::WheelStuck { major, .. } if *major => Severity::Error,
             Finding::CounterWrapped { .. }
             | Finding::ImuStuck { .. }
-            | Finding::WheelStuck { .. } => Severity::Warning,
+            | Finding::WheelStuck { .. }
+            | Finding::TrackWidthContradicted { .. }
+            | Finding::WheelPause { .. } => Severity::Warning,
         }
     }
 
@@ -198,6 +294,23 @@ impl Finding {
     pub fn is_error(&self) -> bool {
         self.severity() == Severity::Error
     }
+
+    /// The severity and the message, as `info` shows (and serialises) it.
+    pub fn summary(&self) -> FindingSummary {
+        FindingSummary {
+            severity: self.severity(),
+            message: self.to_string(),
+        }
+    }
+}
+
+/// A [`Finding`] as text with its [`Severity`] (for summaries and JSON).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FindingSummary {
+    /// `error` (a calibration refuses the drive) or `warning`.
+    pub severity: Severity,
+    /// The finding's message (names the stream, the time and the value).
+    pub message: String,
 }
 
 /// A value as text: plain, or in exponent form when very large or small
@@ -350,6 +463,19 @@ fn counter_wraps(samples: &[WheelSample], wheel: Wheel) -> Option<(u32, Vec<(usi
 
 // ------------------------------------------------------------ the checks
 
+/// Every [`Finding`] about `drive` as it is read: the counter wraps
+/// ([`unwrap_wheel_counters`]) and then [`check`] on the unwrapped drive
+/// (what the calibrator sees; `info` and `convert` print these).
+pub fn findings(drive: &Drive) -> Vec<Finding> {
+    match unwrap_wheel_counters(drive) {
+        Some((unwrapped, mut wraps)) => {
+            wraps.extend(check(&unwrapped));
+            wraps
+        }
+        None => check(drive),
+    }
+}
+
 /// Every [`Finding`] about `drive` except counter wraps (run
 /// [`unwrap_wheel_counters`] first: a wrap otherwise looks like an
 /// impossible wheel rate).
@@ -358,6 +484,7 @@ pub fn check(drive: &Drive) -> Vec<Finding> {
     for wheel in Wheel::ALL {
         out.extend(impossible_rate(drive, wheel));
     }
+    out.extend(wheel_pauses(drive));
     let Some(rear) = Rear::of(drive) else {
         return out;
     };
@@ -366,7 +493,287 @@ pub fn check(drive: &Drive) -> Vec<Finding> {
     out.extend(rear.stuck(Wheel::Rl));
     out.extend(rear.stuck(Wheel::Rr));
     out.extend(imu_stuck(drive, &rear));
+    // A rate beyond any car's would dominate the fit: no track comparison then.
+    if !out
+        .iter()
+        .any(|f| matches!(f, Finding::ImpossibleWheelRate { .. }))
+    {
+        out.extend(track_contradicted(drive, &rear));
+    }
     out
+}
+
+/// The median of `values` (reordered), `None` when empty.
+fn median_of(values: &mut [f64]) -> Option<f64> {
+    if values.is_empty() {
+        return None;
+    }
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
+}
+
+/// Median and 1.4826 MAD (a Gaussian sigma) of `values`.
+fn median_sigma(values: &[f64]) -> Option<(f64, f64)> {
+    let mut v = values.to_vec();
+    let m = median_of(&mut v)?;
+    for x in &mut v {
+        *x = (*x - m).abs();
+    }
+    Some((m, 1.4826 * median_of(&mut v)?))
+}
+
+/// Pauses of the wheel stream.
+fn wheel_pauses(drive: &Drive) -> Vec<Finding> {
+    let t: Vec<f64> = drive
+        .wheels
+        .samples
+        .iter()
+        .map(|s| s.t_s)
+        .filter(|t| t.is_finite())
+        .collect();
+    let mut dts: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    let Some(med) = median_of(&mut dts) else {
+        return Vec::new();
+    };
+    let limit = (PAUSE_FACTOR * med).max(PAUSE_MIN_S);
+    t.windows(2)
+        .filter(|w| w[1] - w[0] > limit)
+        .map(|w| Finding::WheelPause {
+            t_s: w[0],
+            duration_s: w[1] - w[0],
+            median_interval_s: med,
+        })
+        .collect()
+}
+
+/// The gyro's trapezoidal integral at its own (finite, increasing) times.
+struct GyroIntegral {
+    t: Vec<f64>,
+    cum: Vec<f64>,
+    rate: Vec<f64>,
+    /// An interval longer than this is a pause of the IMU stream, s.
+    gap: f64,
+    /// Median sample interval, s.
+    dt: f64,
+}
+
+impl GyroIntegral {
+    fn of(rows: &[ImuSample]) -> Option<GyroIntegral> {
+        let (mut t, mut cum, mut rate) = (Vec::new(), Vec::new(), Vec::new());
+        let mut acc = 0.0;
+        for s in rows {
+            if !(s.t_s.is_finite() && s.gz_rad_s.is_finite()) {
+                continue;
+            }
+            if let (Some(&t0), Some(&w0)) = (t.last(), rate.last()) {
+                if s.t_s <= t0 {
+                    continue;
+                }
+                acc += 0.5 * (w0 + s.gz_rad_s) * (s.t_s - t0);
+            }
+            t.push(s.t_s);
+            cum.push(acc);
+            rate.push(s.gz_rad_s);
+        }
+        if t.len() < 10 {
+            return None;
+        }
+        let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        let dt = median_of(&mut dts)?;
+        Some(GyroIntegral {
+            t,
+            cum,
+            rate,
+            gap: 10.0 * dt,
+            dt,
+        })
+    }
+
+    /// The integral from `a` to `b`, `None` when the IMU does not cover it
+    /// or pauses within.
+    fn change(&self, a: f64, b: f64) -> Option<f64> {
+        let n = self.t.len();
+        if !(a >= self.t[0] && b <= self.t[n - 1] && b > a) {
+            return None;
+        }
+        // Samples bracketing a and b.
+        let i0 = self.t.partition_point(|&x| x <= a).clamp(1, n - 1) - 1;
+        let i1 = self.t.partition_point(|&x| x < b).clamp(1, n - 1);
+        if self.t[i0..=i1].windows(2).any(|w| w[1] - w[0] > self.gap) {
+            return None;
+        }
+        let at = |t: f64, i: usize| {
+            let (t0, t1) = (self.t[i], self.t[i + 1]);
+            let f = (t - t0) / (t1 - t0);
+            // Trapezoid with the rate interpolated linearly inside the interval.
+            let (w0, w1) = (self.rate[i], self.rate[i + 1]);
+            let w = w0 + f * (w1 - w0);
+            self.cum[i] + 0.5 * (w0 + w) * (t - t0)
+        };
+        Some(at(b, i1 - 1) - at(a, i0))
+    }
+
+    /// The noise of the mean rate over a window of `secs`, from the
+    /// sample-to-sample scatter (white noise), rad/s.
+    fn window_noise(&self, secs: f64) -> Option<f64> {
+        let steps: Vec<f64> = self
+            .t
+            .windows(2)
+            .zip(self.rate.windows(2))
+            .filter(|(t, _)| t[1] - t[0] <= self.gap)
+            .map(|(_, w)| w[1] - w[0])
+            .collect();
+        let (_, s) = median_sigma(&steps)?;
+        let per_sample = s / std::f64::consts::SQRT_2;
+        Some(per_sample / (secs / self.dt).max(1.0).sqrt())
+    }
+}
+
+/// A window of the track comparison.
+#[derive(Clone, Copy)]
+struct TrackWindow {
+    dt: f64,
+    /// Distance of the axle centre, m (signed).
+    ds: f64,
+    /// Heading change by the wheels with the nominal track, rad.
+    dpsi_w: f64,
+    /// Heading change by the gyro (bias not removed), rad.
+    dpsi_g: f64,
+}
+
+/// Least squares `y = s x1 (+ mu x2)` through the origin: (s, standard
+/// error of s, residuals). `x2` is left out where it cannot be told from
+/// `x1` (squared correlation above 0.9) or is absent.
+fn fit_track(rows: &[(f64, f64, f64)]) -> Option<(f64, f64, Vec<f64>)> {
+    let (mut s11, mut s12, mut s22, mut s1y, mut s2y) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for &(y, x1, x2) in rows {
+        s11 += x1 * x1;
+        s12 += x1 * x2;
+        s22 += x2 * x2;
+        s1y += x1 * y;
+        s2y += x2 * y;
+    }
+    if s11 <= 0.0 {
+        return None;
+    }
+    let det = s11 * s22 - s12 * s12;
+    let two = s22 > 0.0 && s12 * s12 < 0.9 * s11 * s22 && rows.len() > 3;
+    let (s, mu, inv11, p) = if two {
+        (
+            (s22 * s1y - s12 * s2y) / det,
+            (s11 * s2y - s12 * s1y) / det,
+            s22 / det,
+            2.0,
+        )
+    } else {
+        (s1y / s11, 0.0, 1.0 / s11, 1.0)
+    };
+    let res: Vec<f64> = rows
+        .iter()
+        .map(|&(y, x1, x2)| y - s * x1 - mu * x2)
+        .collect();
+    let dof = rows.len() as f64 - p;
+    if dof < 1.0 {
+        return None;
+    }
+    let var = res.iter().map(|r| r * r).sum::<f64>() / dof;
+    Some((s, (var * inv11).sqrt(), res))
+}
+
+/// `vehicle.toml`'s track against the track the wheels and the gyro agree
+/// on (see [`Finding::TrackWidthContradicted`]).
+fn track_contradicted(drive: &Drive, rear: &Rear) -> Option<Finding> {
+    let gyro = GyroIntegral::of(drive.imu.as_deref()?)?;
+    let n = rear.t.len();
+    let mut wheel_dts: Vec<f64> = rear.t.windows(2).map(|w| w[1] - w[0]).collect();
+    let wheel_gap = 10.0 * median_of(&mut wheel_dts)?;
+    let mut windows = Vec::new();
+    let mut i = 0;
+    for j in 1..n {
+        if rear.t[j] - rear.t[j - 1] > wheel_gap {
+            i = j;
+            continue;
+        }
+        if rear.t[j] - rear.t[i] < TRACK_WINDOW_S {
+            continue;
+        }
+        if let Some(dpsi_g) = gyro.change(rear.t[i], rear.t[j]) {
+            windows.push(TrackWindow {
+                dt: rear.t[j] - rear.t[i],
+                ds: rear.s(j) - rear.s(i),
+                dpsi_w: rear.psi(j) - rear.psi(i),
+                dpsi_g,
+            });
+        }
+        i = j;
+    }
+    let still = |w: &TrackWindow| w.ds.abs() < 0.05 * w.dt;
+    let standstill: Vec<f64> = windows
+        .iter()
+        .filter(|w| still(w))
+        .map(|w| w.dpsi_g / w.dt)
+        .collect();
+    let (bias, noise) = if standstill.len() >= 3 {
+        median_sigma(&standstill)?
+    } else {
+        let kappa_min = MAX_CIRCUMFERENCE_MISMATCH / rear.track;
+        let straight: Vec<f64> = windows
+            .iter()
+            .filter(|w| !still(w) && w.dpsi_w.abs() < kappa_min * w.ds.abs())
+            .map(|w| w.dpsi_g / w.dt)
+            .collect();
+        let bias = if straight.len() >= 3 {
+            median_sigma(&straight)?.0
+        } else {
+            0.0
+        };
+        (bias, gyro.window_noise(TRACK_WINDOW_S)?)
+    };
+    let noise = noise.max(GYRO_NOISE_FLOOR_RAD_S);
+    let turning: Vec<(f64, f64, f64)> = windows
+        .iter()
+        .filter(|w| !still(w))
+        .map(|w| (w.dpsi_w, w.dpsi_g - bias * w.dt, w.ds))
+        .filter(|&(_, g, _)| g.abs() > TURN_NOISE_SIGMAS * noise * TRACK_WINDOW_S)
+        .collect();
+    if turning.len() < 10 {
+        return None;
+    }
+    // One pass of outlier removal (a wheel spinning, a pothole).
+    let (_, _, res) = fit_track(&turning)?;
+    let (_, spread) = median_sigma(&res)?;
+    let kept: Vec<(f64, f64, f64)> = if spread > 0.0 {
+        turning
+            .iter()
+            .zip(&res)
+            .filter(|(_, r)| r.abs() <= 5.0 * spread)
+            .map(|(w, _)| *w)
+            .collect()
+    } else {
+        turning
+    };
+    let turned: f64 = kept.iter().map(|w| w.1.abs()).sum();
+    if kept.len() < 10 || turned < EVIDENCE_TURN_RAD {
+        return None;
+    }
+    let (s, se, _) = fit_track(&kept)?;
+    let off = (s - 1.0).abs();
+    (s > 0.0
+        && s.is_finite()
+        && off > TRACK_CONTRADICTION_REL
+        && off > TRACK_CONTRADICTION_SIGMAS * se)
+        .then_some(Finding::TrackWidthContradicted {
+            nominal_m: rear.track,
+            effective_m: s * rear.track,
+            sigma_m: se * rear.track,
+            windows: kept.len(),
+            turned_rad: turned,
+        })
 }
 
 /// The first sample of `wheel` whose rate is beyond any car's.

@@ -650,3 +650,189 @@ fn a_stuck_wheel_is_reported() {
         .unwrap_or_else(|| panic!("{f:?}"));
     assert!(stuck.is_error(), "{stuck}");
 }
+
+/// Gaussian noise from a fixed seed (no rand dependency here).
+struct Noise(u64);
+
+impl Noise {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn gauss(&mut self, sigma: f64) -> f64 {
+        let (a, b) = (self.uniform(), self.uniform());
+        sigma * (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+    }
+}
+
+/// `weaving` with a 10 s standstill first and a real gyro: bias 0.005 rad/s
+/// and white noise of 0.003 rad/s per sample; wheel rates with noise too.
+fn stop_then_weave(secs: f64) -> Drive {
+    let mut d = weaving(WheelUnit::RadS, secs);
+    let mut noise = Noise(7);
+    let stop = 1000;
+    let n = d.wheels.samples.len();
+    // Shift the motion 10 s later; the car stands before it.
+    let shift = |t: f64| t + 10.0;
+    for s in &mut d.wheels.samples {
+        s.t_s = shift(s.t_s);
+    }
+    for g in d.gnss.as_mut().unwrap() {
+        g.t_s = shift(g.t_s);
+    }
+    for s in d.imu.as_mut().unwrap() {
+        s.t_s = shift(s.t_s);
+    }
+    let mut wheels: Vec<WheelSample> = (0..stop)
+        .map(|i| WheelSample {
+            t_s: i as f64 * 0.01,
+            rl: 0.0,
+            rr: 0.0,
+            fl: None,
+            fr: None,
+        })
+        .collect();
+    wheels.append(&mut d.wheels.samples);
+    for s in &mut wheels {
+        s.rl += noise.gauss(0.05);
+        s.rr += noise.gauss(0.05);
+    }
+    d.wheels.samples = wheels;
+    let mut imu: Vec<ImuSample> = (0..stop)
+        .map(|i| ImuSample {
+            t_s: i as f64 * 0.01,
+            gz_rad_s: 0.0,
+            ax_m_s2: Some(0.0),
+            ay_m_s2: Some(0.0),
+            az_m_s2: None,
+            gx_rad_s: None,
+            gy_rad_s: None,
+        })
+        .collect();
+    imu.extend(d.imu.take().unwrap());
+    for s in &mut imu {
+        s.gz_rad_s += 0.005 + noise.gauss(0.003);
+    }
+    d.imu = Some(imu);
+    assert_eq!(d.wheels.samples.len(), n + stop);
+    d
+}
+
+#[test]
+fn a_track_width_that_contradicts_the_drive_is_reported() {
+    // The car's track is TRACK; vehicle.toml says 30 % more or less.
+    for (unit, base) in [
+        (WheelUnit::Ticks, weaving(WheelUnit::Ticks, 120.0)),
+        (WheelUnit::RadS, stop_then_weave(120.0)),
+    ] {
+        for factor in [1.3, 0.7] {
+            let mut d = base.clone();
+            d.vehicle.track_width_m = TRACK * factor;
+            let f = plausibility::check(&d);
+            let Some(found) = f
+                .iter()
+                .find(|f| matches!(f, Finding::TrackWidthContradicted { .. }))
+            else {
+                panic!("{unit:?} x{factor}: {f:?}")
+            };
+            let Finding::TrackWidthContradicted {
+                nominal_m,
+                effective_m,
+                sigma_m,
+                ..
+            } = found
+            else {
+                unreachable!()
+            };
+            assert_eq!(*nominal_m, TRACK * factor);
+            assert!(
+                (effective_m / TRACK - 1.0).abs() < 0.03 && *sigma_m < 0.05,
+                "{unit:?} x{factor}: {found}"
+            );
+            assert_eq!(found.severity(), Severity::Warning);
+            let msg = found.to_string();
+            assert!(
+                msg.contains(&format!(
+                    "vehicle.toml's track_width_m = {} m contradicts the drive: the wheels and the gyro agree on 1.",
+                    TRACK * factor
+                )) && msg.contains(" ± "),
+                "{msg}"
+            );
+            // Nothing else is wrong with the drive.
+            assert_eq!(f.len(), 1, "{f:?}");
+        }
+        // The right track: no finding; 5 % off (tyre scrub): none either.
+        for factor in [1.0, 1.05, 0.95] {
+            let mut d = base.clone();
+            d.vehicle.track_width_m = TRACK * factor;
+            let f = plausibility::check(&d);
+            assert!(f.is_empty(), "{unit:?} x{factor}: {f:?}");
+        }
+    }
+}
+
+#[test]
+fn a_straight_drive_or_no_gyro_says_nothing_about_the_track() {
+    let mut d = weaving(WheelUnit::RadS, 120.0);
+    d.vehicle.track_width_m = TRACK * 1.3;
+    d.imu = None;
+    assert!(plausibility::check(&d).is_empty());
+    // Straight: the gyro shows no turn above its noise.
+    let mut d = weaving(WheelUnit::RadS, 120.0);
+    d.vehicle.track_width_m = TRACK * 1.3;
+    for s in &mut d.wheels.samples {
+        s.rr = s.rl;
+    }
+    for s in d.imu.as_mut().unwrap() {
+        s.gz_rad_s = 1e-3 * (37.0 * s.t_s).sin();
+    }
+    let f = plausibility::check(&d);
+    assert!(f.is_empty(), "{f:?}");
+}
+
+#[test]
+fn a_ten_minute_pause_is_reported_with_time_and_length() {
+    let mut d = weaving(WheelUnit::Ticks, 120.0);
+    let later = |t: &mut f64| {
+        if *t >= 60.0 {
+            *t += 600.0;
+        }
+    };
+    d.wheels.samples.iter_mut().for_each(|s| later(&mut s.t_s));
+    d.gnss
+        .as_mut()
+        .unwrap()
+        .iter_mut()
+        .for_each(|s| later(&mut s.t_s));
+    d.imu
+        .as_mut()
+        .unwrap()
+        .iter_mut()
+        .for_each(|s| later(&mut s.t_s));
+    let f = plausibility::check(&d);
+    assert_eq!(f.len(), 1, "{f:?}");
+    let Finding::WheelPause {
+        t_s,
+        duration_s,
+        median_interval_s,
+    } = f[0]
+    else {
+        panic!("{f:?}")
+    };
+    assert!((t_s - 59.99).abs() < 1e-6 && (duration_s - 600.01).abs() < 1e-6);
+    assert!((median_interval_s - 0.01).abs() < 1e-9);
+    assert_eq!(f[0].severity(), Severity::Warning);
+    let msg = f[0].to_string();
+    assert!(
+        msg.contains("pauses for 600.0 s at t = 59.99") && msg.contains("1.000e-2 s"),
+        "{msg}"
+    );
+    // A 2 s hole (200 intervals, but shorter than 5 s) is no pause.
+    let mut d = weaving(WheelUnit::Ticks, 120.0);
+    d.wheels.samples.retain(|s| !(50.0..52.0).contains(&s.t_s));
+    assert!(plausibility::check(&d).is_empty());
+}

@@ -102,6 +102,10 @@ pub struct CalibrateArgs {
     /// them from.
     #[arg(long)]
     pub diagnose: bool,
+    /// Read a damaged MCAP recording by leaving out each chunk whose records
+    /// fail their CRC (a warning names each one) instead of refusing it.
+    #[arg(long)]
+    pub skip_corrupt_chunks: bool,
 }
 
 impl CalibrateArgs {
@@ -186,7 +190,10 @@ impl Bar {
 
 /// Run `calibrator calibrate`.
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
-    let loaded = drive_io::read_drive(&args.drive)
+    let options = drive_io::ReadOptions {
+        skip_corrupt_chunks: args.skip_corrupt_chunks,
+    };
+    let loaded = drive_io::read_drive_with(&args.drive, options)
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");

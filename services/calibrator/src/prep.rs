@@ -14,7 +14,12 @@
 //!   wheel signs and a wheel stuck over much of the drive are errors
 //!   ([`CalibrationError::ImplausibleInput`]); a gyro that is exactly
 //!   constant while the wheels turn is dropped (or not used where stuck),
-//!   stuck accelerations likewise, each with a warning saying so.
+//!   stuck accelerations likewise, each with a warning saying so. A track
+//!   width the wheels and the gyro contradict and a pause of the wheel
+//!   stream (far longer than its sample interval) are warnings: the track
+//!   can be fitted, and nothing is integrated across a pause (it is a piece
+//!   break, see below; the EKF, the dead reckoning and the batch segments
+//!   restart on the reference after it).
 //!
 //! Memory: a 1 h drive at 100 Hz has 360 000 wheel rows; everything here is
 //! a handful of `f64` per wheel sample, built in one pass over the drive.
@@ -22,7 +27,7 @@
 //! rules as [`Drive::wheel_revolutions`] (which materialises 56 bytes per
 //! row); a unit test checks that the two agree.
 
-use crate::config::CalibrationConfig;
+use crate::config::{CalibrationConfig, TrackWidthMode};
 use crate::error::CalibrationError;
 use crate::warnings::{Warning, WarningCode};
 use drive_io::plausibility::{self, Finding};
@@ -146,7 +151,6 @@ pub fn prepare(
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
 ) -> Result<Prepared, CalibrationError> {
-    let _ = config;
     let vehicle = &drive.vehicle;
     vehicle
         .check_plausible()
@@ -230,6 +234,33 @@ pub fn prepare(
             }
             Finding::WheelStuck { .. } => {
                 warnings.push(Warning::new(WarningCode::WheelStuck, f.to_string()));
+            }
+            Finding::TrackWidthContradicted { .. } => {
+                let what = match config.track_width {
+                    TrackWidthMode::Fixed => {
+                        "--track-width fixed keeps vehicle.toml's value: the circumferences and the gyro scale \
+                         absorb the difference"
+                    }
+                    TrackWidthMode::Estimate => "the track width is fitted (--track-width estimate)",
+                    TrackWidthMode::Auto => {
+                        "correct vehicle.toml, or run with --track-width estimate (auto does not believe a fitted \
+                         track this far from vehicle.toml's)"
+                    }
+                };
+                warnings.push(Warning::new(
+                    WarningCode::TrackWidthContradicted,
+                    format!("{f}; {what}"),
+                ));
+            }
+            Finding::WheelPause { .. } => {
+                // A pause is always longer than the piece-break threshold of `wheels`.
+                warnings.push(Warning::new(
+                    WarningCode::WheelPause,
+                    format!(
+                        "{f}; the wheels are not integrated across it: the drive is cut there, the EKF and the \
+                         dead reckoning restart on the reference after it and the batch segments end at it"
+                    ),
+                ));
             }
             _ => {}
         }
@@ -1023,6 +1054,84 @@ mod tests {
         let q = prepare(&drive(WheelUnit::Ticks, rows), &config, &mut Vec::new()).expect("prepare");
         assert_eq!(p.dn_rl, q.dn_rl);
         assert_eq!(p.dn_rr, q.dn_rr);
+    }
+
+    #[test]
+    fn a_contradicting_track_width_is_a_warning() {
+        // The car's track is 1.5 / 1.3 m; vehicle.toml says 1.5 m (30 % too wide).
+        let true_track = 1.5 / 1.3;
+        let mut d = drive(WheelUnit::RadS, weaving_rows());
+        d.imu = Some(
+            (0..2000)
+                .map(|i| {
+                    let t = i as f64 * 0.01;
+                    // (v_r - v_l) / B with v = omega_wheel c / 2 pi.
+                    let gz = 2.0 * t.sin() * 2.0 / std::f64::consts::TAU / true_track;
+                    interfaces::drive::ImuSample {
+                        t_s: t,
+                        gz_rad_s: gz,
+                        ax_m_s2: None,
+                        ay_m_s2: None,
+                        az_m_s2: None,
+                        gx_rad_s: None,
+                        gy_rad_s: None,
+                    }
+                })
+                .collect(),
+        );
+        let mut w = Vec::new();
+        prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+        let found = w
+            .iter()
+            .find(|w| w.code == WarningCode::TrackWidthContradicted)
+            .unwrap_or_else(|| panic!("{w:?}"));
+        assert!(
+            found
+                .message
+                .contains("vehicle.toml's track_width_m = 1.5 m contradicts the drive: the wheels and the gyro agree on 1.15"),
+            "{}",
+            found.message
+        );
+        // The right track: no such warning.
+        d.vehicle.track_width_m = true_track;
+        let mut w = Vec::new();
+        prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+        assert!(
+            !w.iter()
+                .any(|w| w.code == WarningCode::TrackWidthContradicted),
+            "{w:?}"
+        );
+    }
+
+    #[test]
+    fn a_ten_minute_pause_is_a_warning_and_a_piece_break() {
+        let rows = weaving_rows()
+            .into_iter()
+            .map(|(t, l, r)| (if t >= 10.0 { t + 600.0 } else { t }, l, r))
+            .collect();
+        let mut d = drive(WheelUnit::RadS, rows);
+        if let Some(g) = d.gnss.as_mut() {
+            for (i, f) in g.iter_mut().enumerate() {
+                if i >= 10 {
+                    f.t_s += 600.0;
+                }
+            }
+        }
+        let mut w = Vec::new();
+        let p = prepare(&d, &CalibrationConfig::default(), &mut w).expect("prepare");
+        let pause = w
+            .iter()
+            .find(|w| w.code == WarningCode::WheelPause)
+            .unwrap_or_else(|| panic!("{w:?}"));
+        assert!(
+            pause.message.contains("pauses for 600.0 s at t = 9.99")
+                && pause.message.contains("not integrated across it"),
+            "{}",
+            pause.message
+        );
+        // Nothing is integrated across it: a piece starts after the pause.
+        assert_eq!(p.piece_starts, vec![0, 1000]);
+        assert_eq!((p.dn_rl[1000], p.dn_rr[1000]), (0.0, 0.0));
     }
 
     #[test]

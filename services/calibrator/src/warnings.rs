@@ -57,6 +57,12 @@ pub enum WarningCode {
     ImuStuck,
     /// One rear wheel stands still over a stretch while the other rolls on.
     WheelStuck,
+    /// `vehicle.toml`'s track width contradicts the track the wheels and
+    /// the gyro agree on (`drive_io::plausibility`).
+    TrackWidthContradicted,
+    /// The wheel stream pauses far longer than its sample interval (a hole
+    /// in the drive); the models restart after it.
+    WheelPause,
 }
 
 /// A warning: a stable code and a message naming the cause.

@@ -7,7 +7,8 @@ mod simulate_cmd;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
-use drive_io::{read_drive, write_drive, DriveError, DriveSummary, LoadedDrive};
+use drive_io::plausibility::{self, Severity};
+use drive_io::{read_drive_with, write_drive, DriveError, DriveSummary, LoadedDrive, ReadOptions};
 use std::path::{Path, PathBuf};
 
 /// Drives in and out, the simulator, and the iceoryx2 bridge.
@@ -24,7 +25,7 @@ enum Command {
     /// direction; OUT ending in .mcap is written as MCAP, anything else as a folder).
     Convert(ConvertArgs),
     /// Summarise a drive: duration, distance, rate and gaps of every stream,
-    /// GNSS outages, loading warnings.
+    /// GNSS outages, physically impossible values (plausibility), loading warnings.
     Info(InfoArgs),
     /// Publish a drive over iceoryx2 with its recorded timestamps, paced at
     /// --speed FACTOR times real time or as fast as subscribers take it (--max).
@@ -47,6 +48,10 @@ struct ConvertArgs {
     /// Convert what can be read from a truncated MCAP instead of failing.
     #[arg(long)]
     allow_truncated: bool,
+    /// Leave out each MCAP chunk whose records fail their CRC (a warning
+    /// names each one) instead of refusing the recording.
+    #[arg(long)]
+    skip_corrupt_chunks: bool,
 }
 
 #[derive(Args)]
@@ -56,6 +61,10 @@ struct InfoArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// Leave out each MCAP chunk whose records fail their CRC (a warning
+    /// names each one) instead of refusing the recording.
+    #[arg(long)]
+    skip_corrupt_chunks: bool,
 }
 
 fn main() -> Result<()> {
@@ -83,7 +92,10 @@ fn convert(args: &ConvertArgs) -> Result<()> {
             args.input.display()
         );
     }
-    let loaded = match read_drive(&args.input) {
+    let options = ReadOptions {
+        skip_corrupt_chunks: args.skip_corrupt_chunks,
+    };
+    let loaded = match read_drive_with(&args.input, options) {
         Ok(l) => l,
         Err(DriveError::TruncatedMcap {
             partial: Some(partial),
@@ -94,6 +106,16 @@ fn convert(args: &ConvertArgs) -> Result<()> {
         }
     };
     print_warnings(&loaded);
+    // The conversion keeps every value as it is; what is physically
+    // impossible is said here, before anyone calibrates on it.
+    for f in plausibility::findings(&loaded.drive) {
+        match f.severity() {
+            Severity::Error => {
+                tracing::warn!("plausibility error (the calibrator refuses this drive): {f}")
+            }
+            Severity::Warning => tracing::warn!("plausibility warning: {f}"),
+        }
+    }
     write_drive(&loaded.drive, &args.output)
         .with_context(|| format!("writing {}", args.output.display()))?;
     tracing::info!(
@@ -116,7 +138,10 @@ fn print_summary(loaded: &LoadedDrive, path: &Path, json: bool) -> Result<()> {
 }
 
 fn info(args: &InfoArgs) -> Result<()> {
-    match read_drive(&args.drive) {
+    let options = ReadOptions {
+        skip_corrupt_chunks: args.skip_corrupt_chunks,
+    };
+    match read_drive_with(&args.drive, options) {
         Ok(loaded) => print_summary(&loaded, &args.drive, args.json),
         Err(DriveError::TruncatedMcap {
             partial: Some(partial),
