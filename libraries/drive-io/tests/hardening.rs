@@ -836,3 +836,22 @@ fn a_ten_minute_pause_is_reported_with_time_and_length() {
     d.wheels.samples.retain(|s| !(50.0..52.0).contains(&s.t_s));
     assert!(plausibility::check(&d).is_empty());
 }
+
+/// The 21-byte recording the fuzzer found: a header whose profile string
+/// declares 4 GiB. It is refused naming the field, without asking for the
+/// memory (the `mcap` crate reserves a declared length before reading it).
+#[test]
+fn a_length_prefix_beyond_its_record_is_refused_without_allocating_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("tiny.mcap");
+    let mut bytes = b"\x89MCAP0\r\n".to_vec();
+    bytes.push(0x01);
+    bytes.extend_from_slice(&4u64.to_le_bytes());
+    bytes.extend_from_slice(&[0xFF; 4]);
+    assert_eq!(bytes.len(), 21);
+    std::fs::write(&path, &bytes).expect("write");
+    let e = drive_io::read_drive(&path)
+        .expect_err("refused")
+        .to_string();
+    assert!(e.contains("header profile"), "{e}");
+}

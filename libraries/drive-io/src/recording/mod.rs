@@ -26,6 +26,7 @@
 //! that survives truncation) and [`read`].
 
 mod crc;
+mod layout;
 mod messages;
 mod read;
 mod scan;

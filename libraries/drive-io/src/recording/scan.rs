@@ -3,6 +3,7 @@
 //! truncated recording can be read up to where it is cut.
 
 use super::crc::crc32;
+use super::layout;
 use crate::DriveError;
 use mcap::records::{op, Record};
 use std::collections::BTreeMap;
@@ -169,6 +170,11 @@ impl<'a> Scan<'a> {
         body: &'a [u8],
         offset: u64,
     ) -> Result<(), DriveError> {
+        layout::check(op, body).map_err(|message| DriveError::Mcap {
+            path: path.to_path_buf(),
+            location: format!("{} record at byte {offset}", op_name(op)),
+            message,
+        })?;
         let record = mcap::parse_record(op, body).map_err(|e| DriveError::Mcap {
             path: path.to_path_buf(),
             location: format!("{} record at byte {offset}", op_name(op)),
