@@ -24,6 +24,8 @@
 //! - [`error`]: why a drive could not be calibrated;
 //! - [`config`]: the tuning of a calibration and its range check;
 //! - [`warnings`]: the warning codes and messages;
+//! - [`clocks`]: the clock offsets of the streams against the wheels
+//!   (pure functions on arrays);
 //! - [`prep`]: checking the drive and converting it to the arrays the layers
 //!   use;
 //! - [`reference`](mod@reference), [`ekf`]: layers 1 and 2 (above);
@@ -55,6 +57,7 @@
 //! ```
 
 pub mod batch;
+pub mod clocks;
 pub mod config;
 pub mod diagnose;
 pub mod ekf;
@@ -75,6 +78,7 @@ pub mod track_width;
 pub mod uncertainty;
 pub mod warnings;
 
+pub use clocks::{ClockOffsets, OffsetStatus, StreamOffset};
 pub use config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};
 pub use error::CalibrationError;
 pub use method::Method;

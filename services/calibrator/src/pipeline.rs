@@ -309,6 +309,10 @@ fn assemble(
             segments: primary.segments,
             wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
         },
+        clock_offsets: crate::clocks::ClockOffsets {
+            gnss_s: r.gnss_clock.clone(),
+            imu_s: p.imu_clock.clone(),
+        },
         comparison,
         tracks: Tracks {
             reference,

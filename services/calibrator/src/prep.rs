@@ -8,6 +8,9 @@
 //! - IMU: the yaw rate is integrated to a cumulative angle, kept at the wheel
 //!   times (NaN across pauses of the IMU stream). The accelerations are not
 //!   copied: the reference reads them from the drive.
+//! - The IMU clock's offset against the wheels is estimated over +-3 s
+//!   ([`clocks::imu_offset`]) and, when significant and compensation is on,
+//!   subtracted from the IMU time stamps before they are used.
 //! - Streams that stop early or pause are named in warnings.
 //! - Physics ([`drive_io::plausibility`]): wheel tick counters that wrap are
 //!   unwrapped (warning); wheel rates beyond any car, reversed or exchanged
@@ -27,7 +30,8 @@
 //! rules as [`Drive::wheel_revolutions`] (which materialises 56 bytes per
 //! row); a unit test checks that the two agree.
 
-use crate::config::{CalibrationConfig, TrackWidthMode};
+use crate::clocks::{self, StreamOffset, CLOCK_SEARCH_S};
+use crate::config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};
 use crate::error::CalibrationError;
 use crate::warnings::{Warning, WarningCode};
 use drive_io::plausibility::{self, Finding};
@@ -86,6 +90,12 @@ pub struct Prepared {
     /// Offsets subtracted from rate-type wheel channels (rl, rr in the
     /// channel's unit) and the standstill seconds they come from.
     pub wheel_offsets: Option<(f64, f64, f64)>,
+    /// The IMU clock offset against the wheels, determined or not (and why).
+    pub imu_clock: StreamOffset,
+    /// Subtracted from the IMU time stamps before use (the IMU offset when
+    /// it is compensated, else 0), s. The reference subtracts it from the
+    /// accelerations' times too.
+    pub imu_shift_s: f64,
 }
 
 impl Prepared {
@@ -198,7 +208,13 @@ pub fn prepare(
             });
         }
     }
-    let (mut gyro, mut has_accel, imu_end) = imu(drive, &t, warnings);
+    let imu_clock = imu_clock(drive, config, &t, &dn_rl, &dn_rr, warnings);
+    let imu_shift_s = if imu_clock.applied {
+        imu_clock.offset_s.unwrap_or(0.0)
+    } else {
+        0.0
+    };
+    let (mut gyro, mut has_accel, imu_end) = imu(drive, &t, imu_shift_s, warnings);
     for f in &findings {
         match f {
             Finding::ImuStuck {
@@ -217,7 +233,7 @@ pub fn prepare(
                     ("gz_rad_s", _) => {
                         if let Some(g) = gyro.as_mut() {
                             for (gk, tk) in g.iter_mut().zip(&t) {
-                                if *tk > *t_start_s && *tk < *t_end_s {
+                                if *tk > *t_start_s - imu_shift_s && *tk < *t_end_s - imu_shift_s {
                                     *gk = f64::NAN;
                                 }
                             }
@@ -297,7 +313,78 @@ pub fn prepare(
         standstill,
         lateral_accel,
         wheel_offsets,
+        imu_clock,
+        imu_shift_s,
     })
+}
+
+/// The IMU clock offset against the wheels ([`clocks::imu_offset`]),
+/// marked applied when it is significant (beyond 3 sigma and one IMU sample
+/// interval) and `config` compensates; warnings say what was found.
+fn imu_clock(
+    drive: &Drive,
+    config: &CalibrationConfig,
+    t: &[f64],
+    dn_rl: &[f64],
+    dn_rr: &[f64],
+    warnings: &mut Vec<Warning>,
+) -> StreamOffset {
+    if config.time_offset == TimeOffsetMode::Off {
+        return StreamOffset::not_checked("time offset check switched off");
+    }
+    let Some(rows) = drive.imu.as_ref().filter(|r| !r.is_empty()) else {
+        return StreamOffset::not_checked("the drive has no IMU");
+    };
+    let rows: Vec<clocks::ImuRow> = rows
+        .iter()
+        .map(|r| (r.t_s, r.gz_rad_s, r.ax_m_s2))
+        .collect();
+    let wheels = clocks::WheelTrack {
+        t,
+        dn_rl,
+        dn_rr,
+        circumference_m: drive.vehicle.nominal_circumference_m,
+        track_m: drive.vehicle.track_width_m,
+    };
+    let mut o = clocks::imu_offset(&wheels, &rows, CLOCK_SEARCH_S);
+    let ts: Vec<f64> = rows
+        .iter()
+        .take(10_001)
+        .map(|r| r.0)
+        .filter(|t| t.is_finite())
+        .collect();
+    let interval = clocks::median_interval(&ts).unwrap_or(0.01).max(0.005);
+    match (o.significant(interval), o.sigma_s) {
+        (Some(off), Some(sigma)) => {
+            o.applied = config.time_offset == TimeOffsetMode::Compensate;
+            warnings.push(Warning::new(
+                WarningCode::TimeOffset,
+                format!(
+                    "imu time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms, from the {}){}",
+                    1000.0 * off.abs(),
+                    if off > 0.0 { "later" } else { "earlier" },
+                    1000.0 * sigma,
+                    o.from.as_deref().unwrap_or("yaw rate"),
+                    if o.applied {
+                        "; the IMU times were shifted to match"
+                    } else {
+                        "; not compensated"
+                    }
+                ),
+            ));
+        }
+        _ if o.status == clocks::OffsetStatus::NotDetermined => {
+            warnings.push(Warning::new(
+                WarningCode::TimeOffset,
+                format!(
+                    "the wheel/IMU time offset could not be determined within +-{CLOCK_SEARCH_S:.1} s ({}); it is not checked",
+                    o.reason.as_deref().unwrap_or("no reason")
+                ),
+            ));
+        }
+        _ => {}
+    }
+    o
 }
 
 /// `v omega` over a centred window of 0.5 s, from the wheels (running
@@ -613,6 +700,7 @@ fn gnss(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<Vec<Fix>, Calibrat
 fn imu(
     drive: &Drive,
     t: &[f64],
+    shift: f64,
     warnings: &mut Vec<Warning>,
 ) -> (Option<Vec<f64>>, bool, Option<f64>) {
     let Some(rows) = drive.imu.as_ref().filter(|r| !r.is_empty()) else {
@@ -648,28 +736,30 @@ fn imu(
     let mut has_accel = false;
     let mut last_t = None;
     for r in rows {
-        if !usable(&r) || prev.is_some_and(|(t0, _)| r.t_s <= t0) {
+        // The IMU time on the wheels' clock.
+        let rt = r.t_s - shift;
+        if !usable(&r) || prev.is_some_and(|(t0, _)| rt <= t0) {
             skipped += 1;
             first_bad.get_or_insert(r.t_s);
             continue;
         }
         has_accel |= r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite);
         used += 1;
-        last_t = Some(r.t_s);
+        last_t = Some(rt);
         match prev {
             None => {
                 // Wheel times before the IMU starts are not covered.
-                while k < t.len() && t[k] < r.t_s {
+                while k < t.len() && t[k] < rt {
                     out.push(f64::NAN);
                     k += 1;
                 }
-                if k < t.len() && t[k] == r.t_s {
+                if k < t.len() && t[k] == rt {
                     out.push(0.0);
                     k += 1;
                 }
             }
             Some((t0, w0)) => {
-                let dt = r.t_s - t0;
+                let dt = rt - t0;
                 let next = acc + 0.5 * (w0 + r.gz_rad_s) * dt;
                 let pause = dt > threshold;
                 if pause {
@@ -678,8 +768,8 @@ fn imu(
                         longest = (dt, t0);
                     }
                 }
-                while k < t.len() && t[k] <= r.t_s {
-                    if pause && t[k] > t0 && t[k] < r.t_s {
+                while k < t.len() && t[k] <= rt {
+                    if pause && t[k] > t0 && t[k] < rt {
                         out.push(f64::NAN);
                     } else {
                         let f = (t[k] - t0) / dt;
@@ -690,7 +780,7 @@ fn imu(
                 acc = next;
             }
         }
-        prev = Some((r.t_s, r.gz_rad_s));
+        prev = Some((rt, r.gz_rad_s));
     }
     out.resize(t.len(), f64::NAN);
     if skipped > 0 {

@@ -15,12 +15,15 @@
 //!   and heading) and by an absolute heading when the drive has one; smoothed.
 //! - Side-slip: beta = course - heading, filtered as a first-order Markov
 //!   process (Bevly et al.); also summarised as a gain beta = -k a_y.
-//! - The wheel/GNSS time offset is estimated from the speeds (GNSS speed
-//!   against wheel speed at shifted times) and optionally compensated.
+//! - The wheel/GNSS time offset is estimated over +-3 s from the speeds
+//!   (GNSS speed against wheel speed at shifted times) or, where the speed
+//!   hardly changes, the GNSS course rate against the wheels' yaw rate
+//!   (`crate::clocks`), and optionally compensated.
 //!
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
+use crate::clocks::{self, StreamOffset, CLOCK_SEARCH_S};
 use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
 use crate::prep::{Fix, Prepared};
@@ -36,6 +39,10 @@ const Q_ACCEL_FREE: f64 = 4.0;
 const Q_ACCEL_IMU: f64 = 0.5;
 /// Minimum speed for a usable GNSS course, m/s.
 const COURSE_MIN_SPEED: f64 = 2.0;
+/// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
+/// rate lags the yaw rate by about k v, a systematic error of the GNSS time
+/// offset found from the course rate.
+const SLIP_GAIN_TYPICAL: f64 = 0.005;
 
 /// The estimated wheel/GNSS time offset.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -87,6 +94,8 @@ pub struct Reference {
     pub outliers: usize,
     /// The wheel/GNSS time offset, when checked and determinable.
     pub time_offset: Option<TimeOffset>,
+    /// The GNSS clock offset against the wheels, determined or not (and why).
+    pub gnss_clock: StreamOffset,
     /// Side-slip gain k in beta = -k a_y, rad per m/s^2, when estimated.
     pub side_slip_gain: Option<f64>,
     /// Mean gyro bias of the heading filter, rad/s.
@@ -348,126 +357,83 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
     Some(1.4826 * mad / 6f64.sqrt())
 }
 
-/// Estimate the GNSS latency relative to the wheels from the speeds:
-/// minimise `sum (v_gnss(t) - k v_wheel(t - tau))^2` over `tau` in +-0.5 s
-/// (k absorbs the unknown circumference), refine with a parabola fitted
-/// over +-0.15 s around the minimum. The sigma is the time-delay Fisher
-/// bound `s / (k sqrt(sum a^2))` (a the wheel acceleration, s the residual
-/// RMS), inflated by the number of samples per second because the smoothed
-/// GNSS speeds are correlated over about a second. `None` when the speed
-/// hardly changes (no timing information) or the minimum is at the edge.
-fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> Option<(f64, f64)> {
+/// Estimate the GNSS clock offset against the wheels over
+/// +-[`CLOCK_SEARCH_S`] with [`clocks::fit_lag`]: the speed of the smoothed
+/// GNSS track against the wheel speed at shifted times, `sum (v_gnss(t) - k
+/// v_wheel(t - tau))^2` (k absorbs the unknown circumference; coarse grid,
+/// then the fine grid and parabola near its minimum); where the speed hardly
+/// changes, the GNSS course rate against the wheels' yaw rate (its sigma
+/// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
+/// determined (with the reason and the manoeuvre that would determine it)
+/// when neither does.
+fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
     let h = 0.25;
-    // Wheel speed over +-h at every wheel time (running window sums, f32 to
-    // keep a long drive small), then interpolated by a forward cursor.
     let n = p.len();
-    let mut speed: Vec<f32> = Vec::with_capacity(n);
-    let (mut j0, mut j1) = (0usize, 0usize);
-    let mut sum = 0.0;
-    for k in 0..n {
-        while j1 + 1 < n && p.t[j1 + 1] - p.t[k] <= h {
-            j1 += 1;
-            sum += 0.5 * (p.dn_rl[j1] + p.dn_rr[j1]) * p.nominal_c;
-        }
-        while p.t[k] - p.t[j0] > h {
-            j0 += 1;
-            sum -= 0.5 * (p.dn_rl[j0] + p.dn_rr[j0]) * p.nominal_c;
-        }
-        let dt = p.t[j1] - p.t[j0];
-        speed.push(if dt > 0.0 { (sum / dt) as f32 } else { 0.0 });
-    }
-    let speed_at = |t: f64, cursor: &mut usize| -> Option<f64> {
-        if !(t >= p.t[0] && t <= p.t[n - 1]) {
-            return None;
-        }
-        while *cursor + 1 < n - 1 && p.t[*cursor + 1] <= t {
-            *cursor += 1;
-        }
-        let i = *cursor;
-        let (t0, t1) = (p.t[i], p.t[i + 1]);
-        let f = if t1 > t0 {
-            ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        let (a, b) = (f64::from(speed[i]), f64::from(speed[i + 1]));
-        Some(a + f * (b - a))
-    };
     if n < 3 {
-        return None;
+        return StreamOffset::not_determined("too few wheel samples".to_string());
     }
-    let (t_first, t_last) = (p.t[0] + 0.5 + 2.0 * h, p.t[p.len() - 1] - 0.5 - 2.0 * h);
-    let mut obs = Vec::new();
-    for (j, &t) in track.t.iter().enumerate() {
-        if !track.accepted[j] || t < t_first || t > t_last {
+    // Wheel speed and yaw rate over +-h at every wheel time (f32 to keep a
+    // long drive small).
+    let inc: Vec<f64> = (0..n)
+        .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c)
+        .collect();
+    let speed = clocks::windowed_rate(&p.t, &inc, h);
+    let inc: Vec<f64> = (0..n)
+        .map(|k| (p.dn_rr[k] - p.dn_rl[k]) * p.nominal_c / p.track)
+        .collect();
+    let yaw_rate = clocks::windowed_rate(&p.t, &inc, h);
+    drop(inc);
+    let mut speeds = Vec::new();
+    let mut course_rates = Vec::new();
+    let mut course_speed = 0.0;
+    let m = track.t.len();
+    let v_of = |j: usize| {
+        let s = track.s[j];
+        (s[2] * s[2] + s[3] * s[3]).sqrt()
+    };
+    for j in 0..m {
+        if !track.accepted[j] {
             continue;
         }
-        let s = track.s[j];
-        let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
+        let v = v_of(j);
         if v > 1.0 {
-            obs.push((t, v));
+            speeds.push((track.t[j], v));
+        }
+        if j == 0 || j + 1 >= m || !track.accepted[j - 1] || !track.accepted[j + 1] {
+            continue;
+        }
+        let (a, b) = (track.s[j - 1], track.s[j + 1]);
+        let dt = track.t[j + 1] - track.t[j - 1];
+        if v_of(j - 1) > COURSE_MIN_SPEED && v_of(j + 1) > COURSE_MIN_SPEED && dt > 0.0 {
+            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
+            course_rates.push((track.t[j], d / dt));
+            course_speed += v;
         }
     }
-    if obs.len() < 20 {
-        return None;
-    }
-    let step = 0.01;
-    let lags: Vec<f64> = (-50..=50).map(|i| i as f64 * step).collect();
-    let mut sse = Vec::with_capacity(lags.len());
-    let mut gain = 1.0;
-    for &lag in &lags {
-        let (mut sgw, mut sww, mut sgg) = (0.0, 0.0, 0.0);
-        let mut cursor = 0usize;
-        for &(t, vg) in &obs {
-            let vw = speed_at(t - lag, &mut cursor)?;
-            sgw += vg * vw;
-            sww += vw * vw;
-            sgg += vg * vg;
-        }
-        if sww <= 0.0 {
-            return None;
-        }
-        if lag == 0.0 {
-            gain = sgw / sww;
-        }
-        sse.push(sgg - sgw * sgw / sww);
-    }
-    let i_min = (0..sse.len()).min_by(|&a, &b| sse[a].total_cmp(&sse[b]))?;
-    if i_min < 15 || i_min + 15 >= sse.len() {
-        return None;
-    }
-    // Least-squares parabola over +-0.15 s around the minimum.
-    let (mut m, mut v) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
-    for i in i_min - 15..=i_min + 15 {
-        let x = lags[i] - lags[i_min];
-        let basis = [1.0, x, x * x];
-        for r in 0..3 {
-            v[r] += basis[r] * sse[i];
-            for c in 0..3 {
-                m[r][c] += basis[r] * basis[c];
-            }
-        }
-    }
-    let mat = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
-    let coef = mat.try_inverse()? * nalgebra::Vector3::new(v[0], v[1], v[2]);
-    if coef[2].is_nan() || coef[2] <= 0.0 {
-        return None;
-    }
-    let tau = lags[i_min] - coef[1] / (2.0 * coef[2]);
-    if tau.abs() > 0.5 {
-        return None;
-    }
-    // Fisher bound.
-    let mut sum_a2 = 0.0;
-    let (mut c0, mut c1) = (0usize, 0usize);
-    for &(t, _) in &obs {
-        let a = (speed_at(t + 0.1, &mut c1)? - speed_at(t - 0.1, &mut c0)?) / 0.2;
-        sum_a2 += a * a;
-    }
-    let s2 = sse[i_min] / (obs.len() as f64 - 2.0).max(1.0);
-    let per_second = (obs.len() as f64 / (obs.last()?.0 - obs.first()?.0).max(1.0)).max(1.0);
-    let sigma = (s2 * per_second / (gain * gain * sum_a2).max(1e-12)).sqrt();
-    Some((tau, sigma))
+    let fit = |obs: &[(f64, f64)], v: &[f32], intercept: bool| {
+        clocks::fit_lag(
+            obs,
+            &clocks::Sampled { t: &p.t, v },
+            CLOCK_SEARCH_S,
+            2.0 * h,
+            intercept,
+        )
+    };
+    let by_speed = fit(&speeds, &speed, false);
+    // The course leads or lags the heading by the side-slip's response,
+    // about k v (beta = -k a_y): a systematic the fit cannot see at
+    // constant speed, added to its sigma.
+    let slip_lag = SLIP_GAIN_TYPICAL * course_speed / (course_rates.len().max(1) as f64);
+    let by_course = fit(&course_rates, &yaw_rate, true).map(|mut f| {
+        f.sigma_s = f.sigma_s.hypot(slip_lag);
+        f
+    });
+    let tries = vec![("speed", by_speed), ("course rate", by_course)];
+    clocks::first_determined(
+        tries,
+        CLOCK_SEARCH_S,
+        "speed changes (accelerating and braking) or turns with GNSS",
+    )
 }
 
 /// The heading reference at the epochs and between them.
@@ -691,44 +657,49 @@ pub fn build(
     // Pass 1: GNSS alone, for the course and the time offset.
     let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
     let mut time_offset = None;
+    let mut clock = StreamOffset::not_checked("time offset check switched off");
     if config.time_offset != TimeOffsetMode::Off {
-        match estimate_time_offset(p, &pass1) {
-            Some((tau, sigma)) => {
-                let significant = tau.abs() >= 0.015 && tau.abs() > 3.0 * sigma;
-                let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
-                if significant {
-                    warnings.push(Warning::new(
-                        WarningCode::TimeOffset,
-                        format!(
-                            "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms){}",
-                            1000.0 * tau.abs(),
-                            if tau > 0.0 { "later" } else { "earlier" },
-                            1000.0 * sigma,
-                            if compensate {
-                                "; the GNSS times were shifted to match"
-                            } else {
-                                "; not compensated"
-                            }
-                        ),
-                    ));
-                }
-                if compensate {
-                    for f in &mut fixes {
-                        f.t -= tau;
-                    }
-                    pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
-                }
-                time_offset = Some(TimeOffset {
-                    gnss_late_s: tau,
-                    sigma_s: sigma,
-                    compensated: compensate,
-                });
+        clock = estimate_time_offset(p, &pass1);
+        if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
+            let significant = clock.significant(0.015).is_some();
+            let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
+            if significant {
+                warnings.push(Warning::new(
+                    WarningCode::TimeOffset,
+                    format!(
+                        "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms, from the {}){}",
+                        1000.0 * tau.abs(),
+                        if tau > 0.0 { "later" } else { "earlier" },
+                        1000.0 * sigma,
+                        clock.from.as_deref().unwrap_or("speed"),
+                        if compensate {
+                            "; the GNSS times were shifted to match"
+                        } else {
+                            "; not compensated"
+                        }
+                    ),
+                ));
             }
-            None => warnings.push(Warning::new(
+            if compensate {
+                for f in &mut fixes {
+                    f.t -= tau;
+                }
+                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
+            }
+            clock.applied = compensate;
+            time_offset = Some(TimeOffset {
+                gnss_late_s: tau,
+                sigma_s: sigma,
+                compensated: compensate,
+            });
+        } else {
+            warnings.push(Warning::new(
                 WarningCode::TimeOffset,
-                "the wheel/GNSS time offset could not be determined (too few speed changes with GNSS); it is not checked"
-                    .to_string(),
-            )),
+                format!(
+                    "the wheel/GNSS time offset could not be determined within +-{CLOCK_SEARCH_S:.1} s ({}); it is not checked",
+                    clock.reason.as_deref().unwrap_or("no reason")
+                ),
+            ));
         }
     }
     let outliers = pass1.accepted.iter().filter(|a| !**a).count();
@@ -938,6 +909,7 @@ pub fn build(
         gnss_sigma_estimated: estimated,
         outliers,
         time_offset,
+        gnss_clock: clock,
         side_slip_gain,
         heading_filter_gyro_bias,
         distance_m,
@@ -1098,8 +1070,10 @@ fn accel_inputs(
             && r.ax_m_s2.is_some_and(f64::is_finite)
             && r.ay_m_s2.is_some_and(f64::is_finite)
     };
+    // IMU times on the wheels' clock.
+    let shift = p.imu_shift_s;
     let t_start = fixes.first().map_or(0.0, |f| f.t);
-    let mut i = rows.partition_point(|r| r.t_s.is_nan() || r.t_s < t_start);
+    let mut i = rows.partition_point(|r| r.t_s.is_nan() || r.t_s - shift < t_start);
     let mut hc = 0usize;
     let mut gc = 0usize;
     for j in 1..fixes.len() {
@@ -1107,25 +1081,26 @@ fn accel_inputs(
         let (mut dvx, mut dvy, mut dpx, mut dpy) = (0.0, 0.0, 0.0, 0.0);
         let mut tprev = t0;
         let mut aprev: Option<[f64; 2]> = None;
-        while i < rows.len() && (rows[i].t_s.is_nan() || rows[i].t_s <= t1) {
+        while i < rows.len() && (rows[i].t_s.is_nan() || rows[i].t_s - shift <= t1) {
             let s = &rows[i];
             i += 1;
-            if !usable(s) || s.t_s < tprev {
+            let st = s.t_s - shift;
+            if !usable(s) || st < tprev {
                 continue;
             }
             let (ax, ay) = (s.ax_m_s2.unwrap_or(0.0), s.ay_m_s2.unwrap_or(0.0));
-            let g_t = gyro_at_cursor(p, s.t_s, &mut gc);
-            let th = heading.at(s.t_s, g_t, &mut hc);
+            let g_t = gyro_at_cursor(p, st, &mut gc);
+            let th = heading.at(st, g_t, &mut hc);
             let (sn, cs) = th.sin_cos();
             let a = [cs * ax - sn * ay, sn * ax + cs * ay];
             let a0 = aprev.unwrap_or(a);
-            let h = s.t_s - tprev;
+            let h = st - tprev;
             let am = [0.5 * (a0[0] + a[0]), 0.5 * (a0[1] + a[1])];
             dpx += dvx * h + 0.5 * am[0] * h * h;
             dpy += dvy * h + 0.5 * am[1] * h * h;
             dvx += am[0] * h;
             dvy += am[1] * h;
-            tprev = s.t_s;
+            tprev = st;
             aprev = Some(a);
         }
         if let Some(a) = aprev {

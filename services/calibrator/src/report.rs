@@ -2,6 +2,7 @@
 //! per-iteration table, the result with sigmas, the comparison and the
 //! warnings.
 
+use crate::clocks::{OffsetStatus, StreamOffset};
 use crate::result::Calibration;
 use std::fmt::Write as _;
 
@@ -9,6 +10,30 @@ fn mm(v: Option<f64>) -> String {
     v.map_or("not determined".to_string(), |v| {
         format!("{:.2} mm", 1000.0 * v)
     })
+}
+
+fn clock_offset(o: &StreamOffset) -> String {
+    match (o.status, o.offset_s, o.sigma_s) {
+        (OffsetStatus::Determined, Some(v), Some(sd)) => format!(
+            "{:+.0} ms relative to the wheels (sigma {:.0} ms, from the {}){}",
+            1000.0 * v,
+            1000.0 * sd,
+            o.from.as_deref().unwrap_or("signals"),
+            if o.applied {
+                ", compensated"
+            } else {
+                ", not applied"
+            }
+        ),
+        (OffsetStatus::NotChecked, _, _) => format!(
+            "not checked ({})",
+            o.reason.as_deref().unwrap_or("no reason")
+        ),
+        _ => format!(
+            "not determined ({})",
+            o.reason.as_deref().unwrap_or("no reason")
+        ),
+    }
 }
 
 /// The readable report: drive facts, the per-iteration table, the result
@@ -45,14 +70,11 @@ pub fn render_text(c: &Calibration) -> String {
             o[0], o[1]
         );
     }
-    if let Some(t) = d.time_offset {
-        let _ = writeln!(
-            s,
-            "time offset: GNSS {:+.0} ms relative to the wheels (sigma {:.0} ms){}",
-            1000.0 * t.gnss_late_s,
-            1000.0 * t.sigma_s,
-            if t.compensated { ", compensated" } else { "" }
-        );
+    for (name, o) in [
+        ("GNSS", &c.clock_offsets.gnss_s),
+        ("IMU", &c.clock_offsets.imu_s),
+    ] {
+        let _ = writeln!(s, "clock offset: {name} {}", clock_offset(o));
     }
     let _ = writeln!(s);
     let _ = writeln!(

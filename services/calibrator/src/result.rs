@@ -5,6 +5,7 @@
 //! `circumference_m.rl/.rr`, `sigma_m`, `track_width_m`, `gyro_bias_rad_s`,
 //! `gyro_scale`, `method`, `selected_iteration`, `iterations`, `warnings`.
 
+use crate::clocks::ClockOffsets;
 use crate::gyro::GyroEstimate;
 use crate::method::Method;
 use crate::reference::TimeOffset;
@@ -218,6 +219,10 @@ pub struct Calibration {
     pub nominal: Nominal,
     /// Facts about the drive.
     pub diagnostics: Diagnostics,
+    /// The clock offset of every stream against the wheels (determined or
+    /// not, and why), and whether it was applied.
+    #[serde(default)]
+    pub clock_offsets: ClockOffsets,
     /// Every method run, side by side (when comparing).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub comparison: Vec<MethodSummary>,

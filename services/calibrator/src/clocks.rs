@@ -1,0 +1,643 @@
+//! Clock offsets of the streams against the wheels' clock: one home for
+//! stream-offset estimation.
+//!
+//! Wheel speeds, IMU and GNSS are often logged by different devices whose
+//! clocks disagree by half a second or more. Every stream's offset is
+//! estimated against the wheels (the calibration's time base) over
+//! +-[`CLOCK_SEARCH_S`] by [`fit_lag`]: least squares of the stream's signal
+//! `y(t)` against a gain (and optionally an intercept) times a wheel-derived
+//! signal `x(t - lag)`, first on a coarse lag grid over the whole range, then
+//! on a fine grid near the coarse minimum with a parabola through the
+//! minimum. Its sigma is the larger of the curvature bound and a block
+//! jackknife (which sees correlated residuals).
+//!
+//! - GNSS: the speed of the smoothed GNSS track against the wheel speed, and
+//!   where the speed hardly changes the GNSS course rate against the wheels'
+//!   yaw rate `(v_r - v_l) / B` (see `reference`).
+//! - IMU: [`imu_offset`], the yaw rate against the wheels' yaw rate, and
+//!   where the drive has too few turns the longitudinal acceleration against
+//!   the wheel speed's derivative (when the IMU has accelerations).
+//!
+//! Everything here is pure: arrays in, estimates out.
+
+use serde::{Deserialize, Serialize};
+
+/// Half-width of the offset search, s: offsets up to this size are found;
+/// beyond it the estimate is "not determined" and says so.
+pub const CLOCK_SEARCH_S: f64 = 3.0;
+/// An offset with a larger sigma than this is "not determined", s.
+pub const MAX_OFFSET_SIGMA_S: f64 = 0.1;
+/// The lagged wheel signal must explain at least this share of the stream
+/// signal's variance (the rest is the drive's own noise) for a determined
+/// offset.
+pub const MIN_EXPLAINED: f64 = 0.5;
+/// Coarse grid step, s.
+const COARSE_STEP_S: f64 = 0.1;
+/// Fine grid step, s.
+const FINE_STEP_S: f64 = 0.01;
+/// Fine grid half-width in steps (+-0.5 s).
+const FINE_STEPS: i64 = 50;
+/// Parabola half-width in fine steps (+-0.15 s).
+const PARABOLA_STEPS: usize = 15;
+/// Blocks of the jackknife.
+const JACKKNIFE_BLOCKS: usize = 8;
+/// IMU samples are averaged over bins of this length, s.
+const IMU_BIN_S: f64 = 0.1;
+/// Half-width of the window of the wheel signals compared with the IMU, s.
+const IMU_WHEEL_HALF_WINDOW_S: f64 = 0.1;
+
+/// Whether an offset was determined.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OffsetStatus {
+    /// Estimated, with a sigma.
+    Determined,
+    /// Looked for, not found (the reason says which manoeuvre would find it).
+    NotDetermined,
+    /// Not looked for (switched off, or no such stream).
+    NotChecked,
+}
+
+/// The offset of one stream's clock against the wheels'.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StreamOffset {
+    /// Determined or not.
+    pub status: OffsetStatus,
+    /// The stream's time stamps are late by this much relative to the
+    /// wheels' (`t_stream = t_wheels + offset`), s.
+    pub offset_s: Option<f64>,
+    /// Its 1-sigma, s.
+    pub sigma_s: Option<f64>,
+    /// The signals compared (e.g. "speed", "course rate", "yaw rate").
+    pub from: Option<String>,
+    /// Whether the stream's time stamps were shifted by it.
+    pub applied: bool,
+    /// Why not determined / not checked.
+    pub reason: Option<String>,
+}
+
+impl StreamOffset {
+    /// Not looked for, because `reason`.
+    pub fn not_checked(reason: &str) -> StreamOffset {
+        StreamOffset {
+            status: OffsetStatus::NotChecked,
+            offset_s: None,
+            sigma_s: None,
+            from: None,
+            applied: false,
+            reason: Some(reason.to_string()),
+        }
+    }
+
+    /// Looked for, not determined, because `reason`.
+    pub fn not_determined(reason: String) -> StreamOffset {
+        StreamOffset {
+            status: OffsetStatus::NotDetermined,
+            offset_s: None,
+            sigma_s: None,
+            from: None,
+            applied: false,
+            reason: Some(reason),
+        }
+    }
+
+    /// Determined from the fit of the signals `from`.
+    pub fn determined(fit: &LagFit, from: &str) -> StreamOffset {
+        StreamOffset {
+            status: OffsetStatus::Determined,
+            offset_s: Some(fit.lag_s),
+            sigma_s: Some(fit.sigma_s),
+            from: Some(from.to_string()),
+            applied: false,
+            reason: None,
+        }
+    }
+
+    /// The offset when it is determined and significant: beyond 3 sigma and
+    /// beyond `resolution_s` (e.g. one sample interval of the stream).
+    pub fn significant(&self, resolution_s: f64) -> Option<f64> {
+        match (self.status, self.offset_s, self.sigma_s) {
+            (OffsetStatus::Determined, Some(o), Some(s))
+                if o.abs() > 3.0 * s && o.abs() > resolution_s =>
+            {
+                Some(o)
+            }
+            _ => None,
+        }
+    }
+}
+
+impl Default for StreamOffset {
+    fn default() -> Self {
+        StreamOffset::not_checked("not checked")
+    }
+}
+
+/// The clock offsets of every stream against the wheels.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ClockOffsets {
+    /// GNSS against the wheels.
+    pub gnss_s: StreamOffset,
+    /// IMU against the wheels.
+    pub imu_s: StreamOffset,
+}
+
+/// A signal sampled at increasing times, linear between samples.
+#[derive(Debug, Clone, Copy)]
+pub struct Sampled<'a> {
+    /// Times, s, increasing.
+    pub t: &'a [f64],
+    /// Values (f32 to keep a long drive small).
+    pub v: &'a [f32],
+}
+
+impl Sampled<'_> {
+    /// The value at `t` by a forward `cursor` (calls with increasing `t`);
+    /// `None` outside the samples.
+    pub fn at(&self, t: f64, cursor: &mut usize) -> Option<f64> {
+        let n = self.t.len().min(self.v.len());
+        if n < 2 || !(t >= self.t[0] && t <= self.t[n - 1]) {
+            return None;
+        }
+        while *cursor + 1 < n - 1 && self.t[*cursor + 1] <= t {
+            *cursor += 1;
+        }
+        let i = *cursor;
+        let (t0, t1) = (self.t[i], self.t[i + 1]);
+        let f = if t1 > t0 {
+            ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (a, b) = (f64::from(self.v[i]), f64::from(self.v[i + 1]));
+        Some(a + f * (b - a))
+    }
+}
+
+/// The mean rate of a cumulative quantity over `+-h` around every time
+/// (`inc[k]` the increment from `t[k-1]` to `t[k]`; running window sums).
+pub fn windowed_rate(t: &[f64], inc: &[f64], h: f64) -> Vec<f32> {
+    let n = t.len().min(inc.len());
+    let mut out: Vec<f32> = Vec::with_capacity(n);
+    let (mut j0, mut j1) = (0usize, 0usize);
+    let mut sum = 0.0;
+    for k in 0..n {
+        while j1 + 1 < n && t[j1 + 1] - t[k] <= h {
+            j1 += 1;
+            sum += inc[j1];
+        }
+        while t[k] - t[j0] > h {
+            j0 += 1;
+            sum -= inc[j0];
+        }
+        let dt = t[j1] - t[j0];
+        out.push(if dt > 0.0 { (sum / dt) as f32 } else { 0.0 });
+    }
+    out
+}
+
+/// A found lag.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LagFit {
+    /// `y(t)` matches `x(t - lag)`: the stream is late by this much, s.
+    pub lag_s: f64,
+    /// 1-sigma: the larger of `sigma_curvature_s` and `sigma_jackknife_s`, s.
+    pub sigma_s: f64,
+    /// From the curvature of the sum of squares at its minimum, s.
+    pub sigma_curvature_s: f64,
+    /// Block jackknife, s.
+    pub sigma_jackknife_s: f64,
+    /// Share of the stream signal's variance explained at the lag (0..1).
+    pub explained: f64,
+    /// Samples compared.
+    pub samples: usize,
+}
+
+/// Why no lag was found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum LagFailure {
+    /// Fewer than 20 samples inside the search range.
+    TooFew,
+    /// The wheel signal does not vary (or the sum of squares has no minimum).
+    Flat,
+    /// The best lag is at the edge of the search: the offset is larger
+    /// than the search range (or the signals do not match).
+    BeyondSearch,
+}
+
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    n: f64,
+    sx: f64,
+    sy: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+}
+
+impl Sums {
+    fn add(&mut self, x: f64, y: f64) {
+        self.n += 1.0;
+        self.sx += x;
+        self.sy += y;
+        self.sxx += x * x;
+        self.sxy += x * y;
+        self.syy += y * y;
+    }
+
+    fn minus(&self, o: &Sums) -> Sums {
+        Sums {
+            n: self.n - o.n,
+            sx: self.sx - o.sx,
+            sy: self.sy - o.sy,
+            sxx: self.sxx - o.sxx,
+            sxy: self.sxy - o.sxy,
+            syy: self.syy - o.syy,
+        }
+    }
+
+    /// Total and residual sum of squares of `y ~ k x (+ b)`.
+    fn sst_sse(&self, intercept: bool) -> Option<(f64, f64)> {
+        let (sxx, sxy, syy) = if intercept {
+            if self.n < 2.0 {
+                return None;
+            }
+            (
+                self.sxx - self.sx * self.sx / self.n,
+                self.sxy - self.sx * self.sy / self.n,
+                self.syy - self.sy * self.sy / self.n,
+            )
+        } else {
+            (self.sxx, self.sxy, self.syy)
+        };
+        if sxx <= 0.0 || sxx.is_nan() {
+            return None;
+        }
+        Some((syy, (syy - sxy * sxy / sxx).max(0.0)))
+    }
+}
+
+/// Vertex of the least-squares parabola through `sse` around `i_min`:
+/// (lag, curvature coefficient c2 of `sse ~ c0 + c1 x + c2 x^2`).
+fn parabola(lags: &[f64], sse: &[f64], i_min: usize) -> Option<(f64, f64)> {
+    if i_min < PARABOLA_STEPS || i_min + PARABOLA_STEPS >= sse.len() {
+        return None;
+    }
+    let (mut m, mut v) = ([[0.0f64; 3]; 3], [0.0f64; 3]);
+    for i in i_min - PARABOLA_STEPS..=i_min + PARABOLA_STEPS {
+        let x = lags[i] - lags[i_min];
+        let basis = [1.0, x, x * x];
+        for r in 0..3 {
+            v[r] += basis[r] * sse[i];
+            for c in 0..3 {
+                m[r][c] += basis[r] * basis[c];
+            }
+        }
+    }
+    let mat = nalgebra::Matrix3::from_fn(|r, c| m[r][c]);
+    let coef = mat.try_inverse()? * nalgebra::Vector3::new(v[0], v[1], v[2]);
+    if coef[2].is_nan() || coef[2] <= 0.0 {
+        return None;
+    }
+    Some((lags[i_min] - coef[1] / (2.0 * coef[2]), coef[2]))
+}
+
+fn argmin(v: &[f64]) -> Option<usize> {
+    (0..v.len()).min_by(|&a, &b| v[a].total_cmp(&v[b]))
+}
+
+/// Find the lag of `obs` (time, value; increasing times) against `x` over
+/// `+-search_s`: the minimum of `sum (y(t) - k x(t - lag) [- b])^2` (gain k
+/// and, with `intercept`, b fitted at every lag), on a coarse grid (0.1 s)
+/// over the whole range, then on a 0.01 s grid over +-0.5 s around the
+/// coarse minimum, refined with a parabola over +-0.15 s. Only samples whose
+/// shifted times stay `pad_s` inside `x` for every lag are compared.
+pub fn fit_lag(
+    obs: &[(f64, f64)],
+    x: &Sampled<'_>,
+    search_s: f64,
+    pad_s: f64,
+    intercept: bool,
+) -> Result<LagFit, LagFailure> {
+    let n = x.t.len().min(x.v.len());
+    if n < 3 {
+        return Err(LagFailure::TooFew);
+    }
+    let reach = search_s + FINE_STEPS as f64 * FINE_STEP_S;
+    let (lo, hi) = (x.t[0] + pad_s + reach, x.t[n - 1] - pad_s - reach);
+    let obs: Vec<(f64, f64)> = obs
+        .iter()
+        .copied()
+        .filter(|(t, y)| *t >= lo && *t <= hi && y.is_finite())
+        .collect();
+    if obs.len() < 20 {
+        return Err(LagFailure::TooFew);
+    }
+    let blocks = JACKKNIFE_BLOCKS;
+    let block_of = |i: usize| i * blocks / obs.len();
+    // Per-block sums at one lag.
+    let eval = |lag: f64| -> Option<Vec<Sums>> {
+        let mut s = vec![Sums::default(); blocks];
+        let t_first = obs[0].0 - lag;
+        let mut cursor = x.t.partition_point(|&t| t <= t_first).saturating_sub(1);
+        for (i, &(t, y)) in obs.iter().enumerate() {
+            let v = x.at(t - lag, &mut cursor)?;
+            s[block_of(i)].add(v, y);
+        }
+        Some(s)
+    };
+    let total = |s: &[Sums]| {
+        let mut a = Sums::default();
+        for b in s {
+            a.n += b.n;
+            a.sx += b.sx;
+            a.sy += b.sy;
+            a.sxx += b.sxx;
+            a.sxy += b.sxy;
+            a.syy += b.syy;
+        }
+        a
+    };
+    // Coarse.
+    let nc = (search_s / COARSE_STEP_S).round() as i64;
+    let mut coarse = Vec::with_capacity((2 * nc + 1) as usize);
+    for i in -nc..=nc {
+        let s = eval(i as f64 * COARSE_STEP_S).ok_or(LagFailure::TooFew)?;
+        coarse.push(total(&s).sst_sse(intercept).ok_or(LagFailure::Flat)?.1);
+    }
+    let ic = argmin(&coarse).ok_or(LagFailure::Flat)?;
+    if ic == 0 || ic + 1 == coarse.len() {
+        return Err(LagFailure::BeyondSearch);
+    }
+    let centre = (ic as i64 - nc) as f64 * COARSE_STEP_S;
+    // Fine, with the per-block sums kept for the jackknife.
+    let mut lags = Vec::with_capacity((2 * FINE_STEPS + 1) as usize);
+    let mut per_block = Vec::with_capacity(lags.capacity());
+    let mut sse = Vec::with_capacity(lags.capacity());
+    let mut sst = 0.0;
+    for k in -FINE_STEPS..=FINE_STEPS {
+        let lag = centre + k as f64 * FINE_STEP_S;
+        let s = eval(lag).ok_or(LagFailure::TooFew)?;
+        let (tt, e) = total(&s).sst_sse(intercept).ok_or(LagFailure::Flat)?;
+        if k == 0 {
+            sst = tt;
+        }
+        lags.push(lag);
+        sse.push(e);
+        per_block.push(s);
+    }
+    let i_min = argmin(&sse).ok_or(LagFailure::Flat)?;
+    let (tau, c2) = parabola(&lags, &sse, i_min).ok_or(LagFailure::Flat)?;
+    if tau.abs() > search_s {
+        return Err(LagFailure::BeyondSearch);
+    }
+    let m = obs.len() as f64;
+    let params = if intercept { 3.0 } else { 2.0 };
+    let s2 = sse[i_min] / (m - params).max(1.0);
+    let var_curv = s2 / c2;
+    // Block jackknife.
+    let mut taus = Vec::with_capacity(blocks);
+    for b in 0..blocks {
+        let e: Option<Vec<f64>> = per_block
+            .iter()
+            .map(|s| total(s).minus(&s[b]).sst_sse(intercept).map(|(_, e)| e))
+            .collect();
+        let Some(e) = e else { continue };
+        let Some(i) = argmin(&e) else { continue };
+        taus.push(parabola(&lags, &e, i).map_or(lags[i], |(t, _)| t));
+    }
+    let var_jk = if taus.len() >= 3 {
+        let k = taus.len() as f64;
+        let mean = taus.iter().sum::<f64>() / k;
+        (k - 1.0) / k * taus.iter().map(|t| (t - mean) * (t - mean)).sum::<f64>()
+    } else {
+        f64::INFINITY
+    };
+    let explained = if sst > 0.0 {
+        (1.0 - sse[i_min] / sst).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    Ok(LagFit {
+        lag_s: tau,
+        sigma_s: var_curv.max(var_jk).sqrt(),
+        sigma_curvature_s: var_curv.sqrt(),
+        sigma_jackknife_s: var_jk.sqrt(),
+        explained,
+        samples: obs.len(),
+    })
+}
+
+/// Whether a fit determines the offset, else why not.
+fn judge(fit: Result<LagFit, LagFailure>, search_s: f64) -> Result<LagFit, String> {
+    match fit {
+        Ok(f) if f.sigma_s <= MAX_OFFSET_SIGMA_S && f.explained >= MIN_EXPLAINED => Ok(f),
+        Ok(f) => Err(format!(
+            "the signals hardly vary: the best match at {:+.2} s has sigma {:.2} s and explains {:.0} % of the variance",
+            f.lag_s,
+            f.sigma_s,
+            100.0 * f.explained
+        )),
+        Err(LagFailure::TooFew) => Err("too few samples overlap".to_string()),
+        Err(LagFailure::Flat) => Err("the signals do not vary".to_string()),
+        Err(LagFailure::BeyondSearch) => Err(format!(
+            "the best match is at the edge of the +-{search_s:.1} s search: the offset may be larger"
+        )),
+    }
+}
+
+/// Determined from the first signal pair that determines it, else "not
+/// determined" naming every failure and `needs` (the manoeuvre that would
+/// determine it).
+pub fn first_determined(
+    tries: Vec<(&str, Result<LagFit, LagFailure>)>,
+    search_s: f64,
+    needs: &str,
+) -> StreamOffset {
+    let mut why = Vec::new();
+    for (from, fit) in tries {
+        match judge(fit, search_s) {
+            Ok(f) => return StreamOffset::determined(&f, from),
+            Err(e) => why.push(format!("{from}: {e}")),
+        }
+    }
+    StreamOffset::not_determined(format!("{}; needs {needs}", why.join("; ")))
+}
+
+/// Median sample interval of increasing times, s.
+pub fn median_interval(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t
+        .windows(2)
+        .take(10_000)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    d.sort_by(f64::total_cmp);
+    Some(d[d.len() / 2])
+}
+
+/// Averages of `(t, v)` (increasing finite `t`) over bins of `bin_s`: (mean
+/// time, mean value) per non-empty bin.
+fn binned(samples: impl Iterator<Item = (f64, f64)>, bin_s: f64) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    let mut cur: Option<(i64, f64, f64, f64)> = None; // bin, sum t, sum v, n
+    for (t, v) in samples {
+        let b = (t / bin_s).floor() as i64;
+        match cur.as_mut() {
+            Some(c) if c.0 == b => {
+                c.1 += t;
+                c.2 += v;
+                c.3 += 1.0;
+            }
+            _ => {
+                if let Some(c) = cur {
+                    out.push((c.1 / c.3, c.2 / c.3));
+                }
+                cur = Some((b, t, v, 1.0));
+            }
+        }
+    }
+    if let Some(c) = cur {
+        out.push((c.1 / c.3, c.2 / c.3));
+    }
+    out
+}
+
+/// The wheels as [`imu_offset`] sees them.
+#[derive(Debug, Clone, Copy)]
+pub struct WheelTrack<'a> {
+    /// Wheel times, s (increasing).
+    pub t: &'a [f64],
+    /// Rear-left revolutions since the previous sample.
+    pub dn_rl: &'a [f64],
+    /// Rear-right revolutions since the previous sample.
+    pub dn_rr: &'a [f64],
+    /// Circumference, m.
+    pub circumference_m: f64,
+    /// Rear track, m.
+    pub track_m: f64,
+}
+
+/// One IMU row as [`imu_offset`] reads it: time, yaw rate, longitudinal
+/// acceleration (when present).
+pub type ImuRow = (f64, f64, Option<f64>);
+
+/// The IMU's clock offset against the wheels over `+-search_s`: the IMU
+/// yaw rate (averaged over 0.1 s bins) against the wheels' yaw rate
+/// `(v_r - v_l) / B`; where that does not determine it and the IMU has
+/// longitudinal accelerations, those against the wheel speed's derivative.
+/// Rows with a non-finite value or out of time order are skipped.
+pub fn imu_offset(wheels: &WheelTrack<'_>, imu: &[ImuRow], search_s: f64) -> StreamOffset {
+    let n = wheels
+        .t
+        .len()
+        .min(wheels.dn_rl.len())
+        .min(wheels.dn_rr.len());
+    if n < 3 {
+        return StreamOffset::not_determined("too few wheel samples".to_string());
+    }
+    let t = &wheels.t[..n];
+    let c = wheels.circumference_m;
+    let mut last = f64::NEG_INFINITY;
+    let rows: Vec<ImuRow> = imu
+        .iter()
+        .copied()
+        .filter(|r| {
+            let ok = r.0.is_finite() && r.1.is_finite() && r.0 > last;
+            if ok {
+                last = r.0;
+            }
+            ok
+        })
+        .collect();
+    let h = IMU_WHEEL_HALF_WINDOW_S;
+    let yaw_inc: Vec<f64> = (0..n)
+        .map(|k| (wheels.dn_rr[k] - wheels.dn_rl[k]) * c / wheels.track_m)
+        .collect();
+    let yaw = windowed_rate(t, &yaw_inc, h);
+    let obs = binned(rows.iter().map(|r| (r.0, r.1)), IMU_BIN_S);
+    let mut tries = vec![(
+        "yaw rate",
+        fit_lag(&obs, &Sampled { t, v: &yaw }, search_s, 2.0 * h, true),
+    )];
+    let accel: Vec<(f64, f64)> = rows
+        .iter()
+        .filter_map(|r| r.2.filter(|a| a.is_finite()).map(|a| (r.0, a)))
+        .collect();
+    if accel.len() >= 20 {
+        let dist_inc: Vec<f64> = (0..n)
+            .map(|k| 0.5 * (wheels.dn_rl[k] + wheels.dn_rr[k]) * c)
+            .collect();
+        let speed = windowed_rate(t, &dist_inc, h);
+        // Central difference over +-h of the windowed speed.
+        let mut cursor = (0usize, 0usize);
+        let s = Sampled { t, v: &speed };
+        let acc: Vec<f32> = t
+            .iter()
+            .map(
+                |&tk| match (s.at(tk - h, &mut cursor.0), s.at(tk + h, &mut cursor.1)) {
+                    (Some(a), Some(b)) => ((b - a) / (2.0 * h)) as f32,
+                    _ => 0.0,
+                },
+            )
+            .collect();
+        let obs = binned(accel.into_iter(), IMU_BIN_S);
+        tries.push((
+            "longitudinal acceleration",
+            fit_lag(&obs, &Sampled { t, v: &acc }, search_s, 4.0 * h, true),
+        ));
+    }
+    first_determined(tries, search_s, "turns (left and right, with GNSS or not) for the IMU's yaw rate, or speed changes for its acceleration")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn weave(t: f64) -> f64 {
+        0.3 * (0.4 * t).sin() + 0.2 * (0.13 * t + 1.0).sin()
+    }
+
+    #[test]
+    fn a_lag_of_two_and_a_half_seconds_is_found() {
+        let t: Vec<f64> = (0..12_000).map(|k| k as f64 * 0.01).collect();
+        let v: Vec<f32> = t.iter().map(|&t| weave(t) as f32).collect();
+        let obs: Vec<(f64, f64)> = (0..1200)
+            .map(|k| {
+                let tk = k as f64 * 0.1;
+                (tk, 2.0 * weave(tk - 2.5) + 0.1)
+            })
+            .collect();
+        let f = fit_lag(&obs, &Sampled { t: &t, v: &v }, CLOCK_SEARCH_S, 0.0, true).unwrap();
+        assert!((f.lag_s - 2.5).abs() < 0.005, "{f:?}");
+        assert!(f.explained > 0.99);
+        let far: Vec<(f64, f64)> = obs.iter().map(|&(t, _)| (t, weave(t - 3.6))).collect();
+        let e = fit_lag(&far, &Sampled { t: &t, v: &v }, CLOCK_SEARCH_S, 0.0, true);
+        assert!(!matches!(e, Ok(f) if (f.lag_s - 3.6).abs() < 0.05), "{e:?}");
+    }
+
+    #[test]
+    fn a_straight_drive_does_not_determine_the_imu_offset() {
+        let n = 10_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.01).collect();
+        let dn = vec![0.1; n];
+        let imu: Vec<ImuRow> = t
+            .iter()
+            .enumerate()
+            .map(|(k, &t)| (t, 0.001 * ((k * 7919 % 13) as f64 - 6.0), None))
+            .collect();
+        let w = WheelTrack {
+            t: &t,
+            dn_rl: &dn,
+            dn_rr: &dn,
+            circumference_m: 2.0,
+            track_m: 1.5,
+        };
+        let o = imu_offset(&w, &imu, CLOCK_SEARCH_S);
+        assert_eq!(o.status, OffsetStatus::NotDetermined);
+        assert!(o.reason.unwrap().contains("needs turns"));
+    }
+}
