@@ -16,7 +16,7 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 cd "$here"
 
 seconds="${SECONDS_PER_TARGET:-60}"
-all_targets=(csv_stream mcap_recording vehicle_toml estimate_json wire_estimate)
+all_targets=(csv_stream mcap_recording vehicle_toml estimate_json wire_estimate state_files)
 if (($# > 0)); then targets=("$@"); else targets=("${all_targets[@]}"); fi
 
 max_len_of() {

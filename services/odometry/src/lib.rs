@@ -9,6 +9,7 @@
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
 //! - [`fused_outages`]: GNSS outages through the filter (the served pose).
 //! - [`rewind`]: samples that arrive late, taken in order by going back.
+//! - [`kept_pose`]: the pose kept across power cycles, as its file holds it.
 //! - [`restart`]: whether a pose kept by an earlier run may be started from.
 //!
 //! The `odometry` binary holds the process: the `serve` loop over iceoryx2
@@ -20,6 +21,7 @@ pub mod evaluate;
 pub mod fused_outages;
 pub mod fusion;
 pub mod inputs;
+pub mod kept_pose;
 pub mod restart;
 pub mod rewind;
 #[cfg(test)]
