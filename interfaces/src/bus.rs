@@ -642,15 +642,13 @@ impl Bus {
         let publisher = builder.create().map_err(|e| {
             use iceoryx2::service::port_factory::PortFactory as _;
             let in_use = service.dynamic_config().number_of_publishers();
-            BusError::Service {
-                service: T::SERVICE.to_string(),
-                action: "create publisher",
-                detail: format!(
-                    "{e:?} ({in_use} of {MAX_PUBLISHERS} publisher slots in use: another \
-                     process of this user holds them; a graph under its own user, prefix and \
-                     root keeps others out, README \"Deploying in a vehicle\")"
-                ),
-            }
+            port_err(
+                T::SERVICE,
+                ("create publisher", "publisher"),
+                e,
+                in_use,
+                MAX_PUBLISHERS,
+            )
         })?;
         let notifier = event
             .notifier_builder()
@@ -681,15 +679,13 @@ impl Bus {
         let subscriber = builder.create().map_err(|e| {
             use iceoryx2::service::port_factory::PortFactory as _;
             let in_use = service.dynamic_config().number_of_subscribers();
-            BusError::Service {
-                service: T::SERVICE.to_string(),
-                action: "create subscriber",
-                detail: format!(
-                    "{e:?} ({in_use} of {MAX_SUBSCRIBERS} subscriber slots in use: another \
-                     process of this user holds them; a graph under its own user, prefix and \
-                     root keeps others out, README \"Deploying in a vehicle\")"
-                ),
-            }
+            port_err(
+                T::SERVICE,
+                ("create subscriber", "subscriber"),
+                e,
+                in_use,
+                MAX_SUBSCRIBERS,
+            )
         })?;
         let listener = event
             .listener_builder()
@@ -702,6 +698,26 @@ impl Bus {
             listener,
             seq: RefCell::new(SeqTracker::default()),
         })
+    }
+}
+
+/// A port of `service` could not be created; the error says how many of
+/// its `max` slots of that `kind` are in use, and what keeps others out.
+fn port_err(
+    service: &str,
+    (action, kind): (&'static str, &str),
+    e: impl Debug,
+    in_use: usize,
+    max: usize,
+) -> BusError {
+    BusError::Service {
+        service: service.to_string(),
+        action,
+        detail: format!(
+            "{e:?} ({in_use} of {max} {kind} slots in use: another process of this user \
+             holds them; a graph under its own user, prefix and root keeps others out, \
+             README \"Deploying in a vehicle\")"
+        ),
     }
 }
 

@@ -77,7 +77,7 @@ impl Default for CollectLimits {
             max_backstep_s: 1.0,
             jump_intervals: 10.0,
             min_jump_s: 2.0,
-            max_wheel_rev_per_s: 100.0,
+            max_wheel_rev_per_s: crate::drive::MAX_WHEEL_REV_PER_S,
             wheel_step_slack_rev: 1.0,
         }
     }

@@ -13,6 +13,13 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// The fastest a road car's wheel turns, revolutions per second (a 2 m
+/// circumference at 200 m/s, a 1 m one at 100 m/s): a wheel step beyond it
+/// is a glitch, a jump or a unit mix-up, not motion. The one limit the
+/// file checks (`drive_io::plausibility`), the calibrator's collector
+/// ([`crate::collect`]) and the odometer share.
+pub const MAX_WHEEL_REV_PER_S: f64 = 100.0;
+
 /// Parameters of `vehicle.toml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct VehicleParams {

@@ -31,7 +31,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 pub const MAX_CAR_SPEED_M_S: f64 = 100.0;
 /// The wheel rate always allowed, rev/s (100 m/s on a 1 m wheel); with a
 /// smaller nominal circumference the limit is [`MAX_CAR_SPEED_M_S`] / c.
-pub const MAX_WHEEL_REV_PER_S: f64 = 100.0;
+pub use interfaces::drive::MAX_WHEEL_REV_PER_S;
 /// Largest relative circumference difference between the rear wheels that
 /// tyres explain; a sharper bend of the wheels' path than this / track is
 /// a real turn.

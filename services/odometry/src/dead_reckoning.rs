@@ -178,10 +178,9 @@ pub enum InputError {
     },
 }
 
-/// The fastest a road car's wheel turns, revolutions per second (a 2 m
-/// circumference at 200 m/s): a step beyond it (plus one revolution of
-/// slack for a coarse counter) is a glitch or a jump, not motion.
-pub const MAX_WHEEL_REV_PER_S: f64 = 100.0;
+/// A step beyond this (plus one revolution of slack for a coarse counter)
+/// is a glitch or a jump, not motion.
+pub use interfaces::drive::MAX_WHEEL_REV_PER_S;
 
 /// Tuning of the [`Odometer`].
 #[derive(Debug, Clone, Copy, PartialEq)]
