@@ -2,7 +2,12 @@
 //! drives with effects the diagnosis is not told about, scored against the
 //! simulator's truth.
 //!
-//! `cargo bench -p calibrator --bench diagnose_suite [-- --seeds N] [--quick]`
+//! `cargo bench -p calibrator --bench diagnose_suite [-- --seeds N] [--quick] [--scale K] [--only]`
+//!
+//! `--scale K` puts every single effect in at K times the simulator's
+//! typical size (the pairs, the paper case and the null drives as ever);
+//! `--only` runs the single effects alone (no pairs, no paper case). Both
+//! answer "from what size on does the diagnosis find it on these drives".
 //!
 //! Cases (the `mixed` scenario unless said otherwise, seeds 1..=N, the three
 //! vehicles in turn):
@@ -53,6 +58,9 @@ struct Tally {
     rmse_after: Vec<f64>,
     confused_with: BTreeMap<String, usize>,
     ambiguous: usize,
+    /// Undetected drives: the smallest size the drive would have shown, as a
+    /// multiple of the simulated one (`None`: not even 64x the typical).
+    needed: Vec<Option<f64>>,
 }
 
 /// The main parameter of an effect in the diagnosis and in the truth.
@@ -73,7 +81,7 @@ fn main_param(e: Effect) -> (&'static str, &'static str) {
     }
 }
 
-fn cases(seeds: u64, quick: bool) -> Vec<Case> {
+fn cases(seeds: u64, quick: bool, scale: f64, only: bool) -> Vec<Case> {
     let vehicles = VehicleKind::ALL;
     let mut out = Vec::new();
     let mk = |label: String, scenario, seed: u64, on: &[Effect], base: EffectSettings| {
@@ -98,15 +106,27 @@ fn cases(seeds: u64, quick: bool) -> Vec<Case> {
     };
     for seed in 1..=seeds {
         for e in &effects {
-            out.push(mk(
+            let mut case = mk(
                 e.id().to_string(),
                 Scenario::Mixed,
                 seed,
                 &[*e],
                 EffectSettings::none(),
-            ));
+            );
+            if scale != 1.0 {
+                let (p, v) = simulator::typical_effect(*e)
+                    .first()
+                    .copied()
+                    .unwrap_or(("", 0.0));
+                if case.effects.set(*e, Some(p), v * scale).is_err() {
+                    println!("{}: cannot scale {p} by {scale}", e.id());
+                    continue;
+                }
+                case.label = format!("{} x{scale}", e.id());
+            }
+            out.push(case);
         }
-        if !quick {
+        if !quick && !only {
             for (a, b) in [
                 (Effect::SideSlip, Effect::GnssLeverArm),
                 (Effect::LoadTransferRadius, Effect::TrackWidth),
@@ -130,6 +150,9 @@ fn cases(seeds: u64, quick: bool) -> Vec<Case> {
             );
             paper.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: 5e-4 });
             out.push(paper);
+        }
+        if only {
+            continue;
         }
         let mut null = mk(
             "null (inherent physics)".into(),
@@ -164,7 +187,15 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok())
         .unwrap_or(5);
-    let cases = cases(seeds, quick);
+    let num = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1))
+            .and_then(|s| s.parse::<f64>().ok())
+    };
+    let scale = num("--scale").unwrap_or(1.0);
+    let only = args.iter().any(|a| a == "--only");
+    let cases = cases(seeds, quick, scale, only);
     println!(
         "{} drives ({} seeds{})",
         cases.len(),
@@ -227,6 +258,26 @@ fn main() {
             };
             let t = tallies.entry(key).or_default();
             t.drives += 1;
+            if !found.contains(e) {
+                // How much of it this drive would have needed.
+                let (_, tp) = main_param(*e);
+                let sim = truth_value(case, *e, tp);
+                let need = d
+                    .not_accepted
+                    .iter()
+                    .find(|n| n.effect == *e)
+                    .and_then(|n| n.detectable.clone());
+                if let (Some(sim), Some(need)) = (sim, need) {
+                    t.needed.push(need.smallest.map(|v| {
+                        if *e == Effect::RoadGrade {
+                            // The gain on the slope: 1 is the simulated slope.
+                            v
+                        } else {
+                            v / sim
+                        }
+                    }));
+                }
+            }
             if amb.contains(e) {
                 t.ambiguous += 1;
             }
@@ -258,8 +309,8 @@ fn main() {
         }
     }
     println!();
-    println!("| effect | drives | detected | attributed | ambiguous | median rel. coef. error | held-out pos. RMSE before -> after (mean) | other ids found |");
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("| effect | drives | detected | attributed | ambiguous | median rel. coef. error | held-out pos. RMSE before -> after (mean) | other ids found | undetected: size needed (median, x simulated) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for (k, t) in &tallies {
         let mut errs = t.coef_err.clone();
         errs.sort_by(f64::total_cmp);
@@ -274,8 +325,28 @@ fn main() {
             .iter()
             .map(|(k, n)| format!("{k} x{n}"))
             .collect();
+        let needed = if t.needed.is_empty() {
+            String::new()
+        } else {
+            let mut v: Vec<f64> = t
+                .needed
+                .iter()
+                .map(|x| x.unwrap_or(f64::INFINITY))
+                .collect();
+            v.sort_by(f64::total_cmp);
+            let m = v[v.len() / 2];
+            format!(
+                "{} ({} drives)",
+                if m.is_finite() {
+                    format!("{m:.1}x")
+                } else {
+                    "> 64x typical".to_string()
+                },
+                v.len()
+            )
+        };
         println!(
-            "| {k} | {} | {:.0} % | {:.0} % | {} | {med} | {:.3} -> {:.3} m ({:+.0} %) | {} |",
+            "| {k} | {} | {:.0} % | {:.0} % | {} | {med} | {:.3} -> {:.3} m ({:+.0} %) | {} | {needed} |",
             t.drives,
             100.0 * t.detected as f64 / t.drives as f64,
             100.0 * t.attributed as f64 / t.drives as f64,

@@ -28,7 +28,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let drive = simulate(&cfg)?;
     let t = std::time::Instant::now();
-    let d = diagnose(&drive, &DiagnoseConfig::default())?;
+    let mut dc = DiagnoseConfig::default();
+    if let Ok(b) = std::env::var("BLOCK_S") {
+        dc.block_s = Some(b.parse()?);
+    }
+    let d = diagnose(&drive, &dc)?;
     eprintln!("diagnosed in {:.2} s", t.elapsed().as_secs_f64());
     println!("{}", serde_json::to_string_pretty(&d)?);
     Ok(())

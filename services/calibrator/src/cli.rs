@@ -240,7 +240,12 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
                 )
             }
         );
-        Some(d.terms)
+        // What the calibration fitted itself stays with it.
+        Some(calibrator::diagnose::terms_beside(
+            &d.terms,
+            cal.track_width_estimated,
+            cal.side_slip,
+        ))
     } else {
         None
     };

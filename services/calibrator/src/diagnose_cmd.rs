@@ -203,6 +203,12 @@ pub fn render_text(d: &Diagnosis) -> String {
             d.not_accepted[0].z_threshold,
             parts.join(", ")
         );
+        for n in &d.not_accepted {
+            let text = n.detectable_text();
+            if !text.is_empty() {
+                let _ = writeln!(s, "  {}: this drive {}", n.effect, text);
+            }
+        }
     }
     for u in &d.untestable {
         let _ = writeln!(s, "not testable here: {} (needs {})", u.effect, u.needs);

@@ -20,13 +20,16 @@
 //! thread and the state file.
 
 use crate::config::CalibrationConfig;
+use crate::diagnose::DiagnoseConfig;
 use crate::error::CalibrationError;
 use crate::holdout::{holdout_errors, split_drive};
 use crate::pipeline::calibrate;
 use crate::result::RearPair;
 use interfaces::collect::DriveBuilder;
 use interfaces::drive::{Drive, GnssSample, HeadingSample, ImuSample, VehicleParams, WheelSample};
+use interfaces::effects::Effect;
 use serde::{Deserialize, Serialize};
+use vehicle_model::effects::WheelEffects;
 use vehicle_model::two_wheel::TwoWheelParams;
 
 /// Distance and turning of the collected wheel data (nominal circumference).
@@ -115,6 +118,11 @@ pub struct LiveEstimate {
     pub sigma_gnss_antenna_m: Option<[f64; 2]>,
     /// Held-out dead-reckoning error, m.
     pub quality_m: f64,
+    /// The wheel-side effect terms a diagnosis of the same drive accepted
+    /// (`serve --diagnose`; the `effects` of `calibrate --diagnose --json`);
+    /// all zero: the plain 2W model. On the wire one model extension per term.
+    #[serde(default, skip_serializing_if = "WheelEffects::is_plain")]
+    pub effects: WheelEffects,
 }
 
 impl LiveEstimate {
@@ -129,7 +137,7 @@ impl LiveEstimate {
 }
 
 /// A calibration result with its held-out score.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
     /// The result, as it would be published.
     pub estimate: LiveEstimate,
@@ -137,6 +145,10 @@ pub struct Candidate {
     pub current_error_m: f64,
     /// Held-out windows.
     pub windows: usize,
+    /// What the diagnosis said, when one was asked for: the effects it
+    /// accepted (their terms are in the estimate), or why it could not
+    /// decide (the estimate then carries no terms).
+    pub diagnosis: Option<Result<Vec<Effect>, String>>,
 }
 
 /// The gate's verdict.
@@ -180,12 +192,17 @@ pub fn gate(c: &Candidate, max_sigma_m: f64, min_windows: usize) -> Verdict {
 /// Calibrate with `calibration` on all but the held-out tail of `drive` (the
 /// last `holdout_fraction` of its wheel time), then score the result and
 /// `current` on the tail with `holdout_window_s`-long dead-reckoning windows.
+/// With `diagnose`, the same part of the drive is also diagnosed
+/// ([`crate::diagnose`]) and the wheel-side terms of the effects it accepts
+/// travel with the estimate; the held-out score stays that of the plain
+/// 2W model (the gate compares like with like).
 pub fn attempt(
     drive: &Drive,
     current: &TwoWheelParams,
     calibration: &CalibrationConfig,
     holdout_fraction: f64,
     holdout_window_s: f64,
+    diagnose: Option<&DiagnoseConfig>,
 ) -> Result<Candidate, CalibrationError> {
     let (t0, t1) = match (drive.wheels.samples.first(), drive.wheels.samples.last()) {
         (Some(a), Some(b)) => (a.t_s, b.t_s),
@@ -194,6 +211,7 @@ pub fn attempt(
     let t_split = t0 + (1.0 - holdout_fraction) * (t1 - t0);
     let (fit, held) = split_drive(drive, t_split);
     let cal = calibrate(&fit, calibration)?;
+    let (track_estimated, side_slip_fitted) = (cal.track_width_estimated, cal.side_slip);
     let estimate = LiveEstimate {
         t_s: fit.wheels.samples.last().map_or(t0, |s| s.t_s),
         circumference_m: RearPair {
@@ -215,6 +233,25 @@ pub fn attempt(
             .map(|g| g.sigma_antenna_m)
             .or(cal.sigma_gnss_antenna_m),
         quality_m: f64::NAN,
+        effects: WheelEffects::default(),
+    };
+    let diagnosis = diagnose.map(|dc| {
+        crate::diagnose::diagnose(&fit, dc)
+            .map(|d| {
+                (
+                    d.findings.iter().map(|f| f.effect).collect::<Vec<_>>(),
+                    WheelEffects::from(crate::diagnose::terms_beside(
+                        &d.terms,
+                        track_estimated,
+                        side_slip_fitted,
+                    )),
+                )
+            })
+            .map_err(|e| e.to_string())
+    });
+    let effects = match &diagnosis {
+        Some(Ok((_, terms))) => *terms,
+        _ => WheelEffects::default(),
     };
     let score = holdout_errors(
         &held,
@@ -225,10 +262,12 @@ pub fn attempt(
     Ok(Candidate {
         estimate: LiveEstimate {
             quality_m: score.mean_error_m[0],
+            effects,
             ..estimate
         },
         current_error_m: score.mean_error_m[1],
         windows: score.windows,
+        diagnosis: diagnosis.map(|d| d.map(|(found, _)| found)),
     })
 }
 
@@ -309,6 +348,7 @@ mod tests {
             gnss_antenna_m: Some([0.5, -0.3]),
             sigma_gnss_antenna_m: Some([0.02, 0.03]),
             quality_m: 0.8,
+            effects: WheelEffects::default(),
         }
     }
 

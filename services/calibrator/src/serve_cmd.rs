@@ -49,6 +49,11 @@ pub struct ServeArgs {
     /// Stop once the sensor stream has ended and no attempt is running.
     #[arg(long)]
     pub exit_on_end: bool,
+    /// Also diagnose each attempt's drive (`calibrator diagnose`) and send
+    /// the wheel-side terms of the effects it accepts with the estimate
+    /// (the odometry applies them; about 1 s per 10 minutes of drive).
+    #[arg(long)]
+    pub diagnose: bool,
 }
 
 /// Vehicle parameters from a vehicle.toml or a drive; warnings to the log.
@@ -72,6 +77,7 @@ pub fn run_serve(args: &ServeArgs) -> Result<()> {
     cfg.holdout_window_s = args.holdout_window;
     cfg.max_sigma_m = args.max_sigma_mm * 1e-3;
     cfg.exit_on_end = args.exit_on_end;
+    cfg.diagnose = args.diagnose;
     cfg.state_file = (!args.no_state).then(|| args.state.clone());
     cfg.calibration.method = match args.method.as_str() {
         "batch" => calibrator::Method::Batch,

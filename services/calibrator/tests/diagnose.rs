@@ -231,3 +231,62 @@ fn a_gnss_jump_is_reported_unexplained_not_forced_onto_an_effect() {
         "{jump:?} against {t0}"
     );
 }
+
+/// The live service's attempt with a diagnosis: the wheel-side terms of what
+/// the diagnosis accepts travel with the estimate; without one they do not.
+#[test]
+fn a_live_attempt_with_a_diagnosis_carries_the_accepted_terms() {
+    use calibrator::live::attempt;
+    use calibrator::CalibrationConfig;
+    let drive = drive_with(Some(Effect::TrackWidth), 3, VehicleKind::Compact);
+    let truth = drive
+        .truth_params
+        .as_ref()
+        .and_then(|t| t.effects.get("track_width"))
+        .and_then(|p| p.get("rel"))
+        .copied()
+        .expect("truth");
+    let nominal = vehicle_model::two_wheel::TwoWheelParams {
+        c_rl: drive.vehicle.nominal_circumference_m,
+        c_rr: drive.vehicle.nominal_circumference_m,
+        track_width: drive.vehicle.track_width_m,
+    };
+    // The track kept at vehicle.toml's value: the diagnosis's term carries it.
+    let cal = CalibrationConfig {
+        track_width: calibrator::TrackWidthMode::Fixed,
+        ..CalibrationConfig::default()
+    };
+    let dc = DiagnoseConfig::default();
+    let with = attempt(&drive, &nominal, &cal, 0.3, 15.0, Some(&dc)).expect("attempt");
+    let found = with.diagnosis.clone().expect("asked").expect("diagnosed");
+    assert!(found.contains(&Effect::TrackWidth), "{found:?}");
+    let rel = with.estimate.effects.track_rel;
+    assert!(
+        (rel - truth).abs() < 0.3 * truth,
+        "rel {rel} against {truth}"
+    );
+    let without = attempt(&drive, &nominal, &cal, 0.3, 15.0, None).expect("attempt");
+    assert!(without.diagnosis.is_none() && without.estimate.effects.is_plain());
+    // Same circumferences either way: the diagnosis does not move the fit.
+    assert_eq!(
+        with.estimate.circumference_m,
+        without.estimate.circumference_m
+    );
+    // A calibration that estimates the track itself keeps it; the
+    // diagnosis's track term is not applied a second time.
+    let fitted = attempt(
+        &drive,
+        &nominal,
+        &CalibrationConfig::default(),
+        0.3,
+        15.0,
+        Some(&dc),
+    )
+    .expect("attempt");
+    let t = fitted.estimate.track_width_m / nominal.track_width - 1.0;
+    assert!(
+        (t - truth).abs() < 0.3 * truth,
+        "fitted track {t} against {truth}"
+    );
+    assert_eq!(fitted.estimate.effects.track_rel, 0.0);
+}

@@ -705,6 +705,33 @@ fn unwrap_near(a: f64, prev: Option<f64>) -> f64 {
     }
 }
 
+/// The catalogue's typical size of an effect's main parameter (the first of
+/// its parameters), in the design's units: what the detectable size a drive
+/// reports is compared with. Road grade's coefficient is the gain on the
+/// measured slope, 1 when the slope acts as it is; its size on a drive is
+/// the drive's slopes.
+pub fn typical_size(effect: Effect) -> f64 {
+    match effect {
+        Effect::SideSlip => 0.004,
+        // The catalogue gives "up to ~1e-3".
+        Effect::LoadTransferRadius => 2e-4,
+        // 0.2 % at 30 m/s.
+        Effect::SpeedRadiusGrowth => 0.002 / 900.0,
+        // 0.75 % at 3 m/s^2.
+        Effect::LongitudinalSlip => 0.0025,
+        Effect::TrackWidth => 0.02,
+        // 100 deg/h.
+        Effect::GyroBias => 100.0_f64.to_radians() / 3600.0,
+        Effect::GyroScale => 0.005,
+        Effect::GnssLatency => 0.08,
+        Effect::GnssLeverArm => 0.5,
+        Effect::RadiusDrift => 0.003,
+        Effect::RoadGrade => 1.0,
+        // 2 degrees.
+        Effect::HeadingBias => 2.0_f64.to_radians(),
+    }
+}
+
 /// What a drive needs to show an effect.
 pub fn needs(effect: Effect) -> &'static str {
     match effect {

@@ -217,6 +217,70 @@ pub struct NotAccepted {
     pub z: f64,
     /// The z it needed.
     pub z_threshold: f64,
+    /// Its main parameter, the catalogue's typical size of it, and the
+    /// smallest size this drive would show (the held-out test run on the
+    /// drive's own residual with that much of the effect put in); `None`
+    /// when not even 64 times the typical size would pass.
+    pub detectable: Option<Detectable>,
+}
+
+impl NotAccepted {
+    /// The smallest size this drive would show, in words
+    /// (`k_beta from 0.0113 rad/(m/s^2), typical 0.004`).
+    pub fn detectable_text(&self) -> String {
+        match &self.detectable {
+            Some(Detectable {
+                parameter,
+                unit,
+                typical,
+                smallest: Some(v),
+            }) => format!(
+                "shown from {parameter} = {v:.3e} {unit} ({:.1}x the typical {typical:.3e})",
+                v / typical
+            ),
+            Some(Detectable {
+                parameter,
+                typical,
+                unit,
+                smallest: None,
+            }) => format!("not shown even at 64x the typical {parameter} = {typical:.3e} {unit}"),
+            None => String::new(),
+        }
+    }
+}
+
+/// The terms of a diagnosis to send beside a calibration of the same drive:
+/// a term the calibration fitted itself (the track width when it estimated
+/// it, the side-slip gain when side-slip was in its model) is left to the
+/// calibration, else the odometry would apply it twice. The diagnosis's
+/// terms are relative to its own plain model (nominal track, no side-slip).
+pub fn terms_beside(
+    terms: &EffectTerms,
+    track_estimated: bool,
+    side_slip_fitted: bool,
+) -> EffectTerms {
+    let mut t = *terms;
+    if track_estimated {
+        t.track_rel = 0.0;
+    }
+    if side_slip_fitted {
+        t.k_beta = 0.0;
+    }
+    t
+}
+
+/// The smallest size of an effect a drive would show, against its typical size.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Detectable {
+    /// Parameter name.
+    pub parameter: &'static str,
+    /// Its unit (as reported).
+    pub unit: &'static str,
+    /// The catalogue's typical size.
+    pub typical: f64,
+    /// The smallest size the held-out test would accept on this drive;
+    /// absent when even 64 times the typical size would not pass.
+    pub smallest: Option<f64>,
 }
 
 /// An effect this drive cannot test.
@@ -745,6 +809,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
                 holdout_gain: g.relative,
                 z: g.z,
                 z_threshold: z_crit,
+                detectable: detectable(stats, &base_cols, &design.candidates[*i], z_crit),
             })
             .collect();
         let mut passing: Vec<(Effect, usize, select::Gain, Vec<f64>)> = best
@@ -839,6 +904,26 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         untestable,
         last_round,
     }
+}
+
+/// How large the candidate's main parameter would have to be for this
+/// drive to show it (positive sizes: the catalogue's sign).
+fn detectable(
+    stats: &BlockStats,
+    base: &[usize],
+    cand: &Candidate,
+    z_crit: f64,
+) -> Option<Detectable> {
+    let p = cand.params.first()?;
+    let typical = design::typical_size(cand.effect);
+    let smallest = select::detectable_size(stats, base, &cand.columns, p.column, typical, z_crit);
+    let (typical_r, _) = param_value(cand.effect, p.name, typical, 0.0);
+    Some(Detectable {
+        parameter: param_name(cand.effect, p.name),
+        unit: param_unit(cand.effect, p.name),
+        typical: typical_r,
+        smallest: smallest.map(|v| param_value(cand.effect, p.name, v, 0.0).0),
+    })
 }
 
 /// Effect terms from fitted coefficients.

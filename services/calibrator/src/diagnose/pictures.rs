@@ -1308,11 +1308,12 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
         for n in &d.not_accepted {
             let _ = writeln!(
                 s,
-                "<li><code>{}</code>: held-out gain {:+.1} %, signed-rank z {:.2} (needed {:.2})</li>",
+                "<li><code>{}</code>: held-out gain {:+.1} %, signed-rank z {:.2} (needed {:.2}); this drive {}</li>",
                 escape(n.effect.id()),
                 100.0 * n.holdout_gain,
                 n.z,
-                n.z_threshold
+                n.z_threshold,
+                escape(&n.detectable_text())
             );
         }
         s.push_str("</ul>\n");

@@ -146,6 +146,21 @@ impl BlockStats {
         Some((full, var.map(f64::sqrt)))
     }
 
+    /// The statistics of the drive as they would be with `delta` times
+    /// column `c` added to every residual: how a drive would look had it
+    /// more (or less) of one effect. Exact for the linear model, cheap (no
+    /// rows are touched).
+    pub fn shifted(&self, c: usize, delta: f64) -> BlockStats {
+        let mut s = self.clone();
+        for b in 0..s.rows.len() {
+            let xc = self.xtx[b].column(c).clone_owned();
+            s.yty[b] += 2.0 * delta * self.xty[b][c] + delta * delta * self.xtx[b][(c, c)];
+            s.yty[b] = s.yty[b].max(0.0);
+            s.xty[b] += xc * delta;
+        }
+        s
+    }
+
     /// Variance inflation of the columns of `a` given those of `b` and the
     /// base columns: 1 / (1 - R^2) of the worst column of `a` regressed on
     /// the others, all blocks pooled.
@@ -319,6 +334,58 @@ pub fn t_quantile(p: f64, dof: f64) -> f64 {
     z + (z.powi(3) + z) / (4.0 * v)
         + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * v * v)
         + (3.0 * z.powi(7) + 19.0 * z.powi(5) + 17.0 * z.powi(3) - 15.0 * z) / (384.0 * v.powi(3))
+}
+
+/// Whether adding `cand` to `base` passes the held-out test: a positive
+/// mean gain and a signed-rank z above `z_crit`.
+pub fn passes(stats: &BlockStats, base: &[usize], cand: &[usize], z_crit: f64) -> bool {
+    let mut cols = base.to_vec();
+    cols.extend_from_slice(cand);
+    let g = gain(&stats.cv_errors(base), &stats.cv_errors(&cols));
+    g.mean > 0.0 && g.z > z_crit
+}
+
+/// The smallest size of an effect this drive would show: the residual is
+/// cleared of what the candidate explains (its coefficient on column `main`,
+/// fitted on all blocks with `base`), then `size` times its column is put
+/// back, and the held-out test is run as in the selection, for sizes of
+/// `typical` times 1/8 up to 64 (then halved down to within 10 %). `None`
+/// when not even 64 times the typical size would pass: the drive lacks the
+/// manoeuvre. Uses the drive's own noise and manoeuvres, nothing else.
+pub fn detectable_size(
+    stats: &BlockStats,
+    base: &[usize],
+    cand: &[usize],
+    main: usize,
+    typical: f64,
+    z_crit: f64,
+) -> Option<f64> {
+    let mut cols = base.to_vec();
+    cols.extend_from_slice(cand);
+    let j = cols.iter().position(|&c| c == main)?;
+    let fitted = stats.fit(&cols, |_| true)?[j];
+    let ok = |size: f64| passes(&stats.shifted(main, size - fitted), base, cand, z_crit);
+    let mut lo = 0.0;
+    let mut hi = None;
+    let mut m = typical / 8.0;
+    while m <= 64.0 * typical.abs() + f64::EPSILON {
+        if ok(m) {
+            hi = Some(m);
+            break;
+        }
+        lo = m;
+        m *= 2.0;
+    }
+    let mut hi = hi?;
+    while hi - lo > 0.1 * hi {
+        let mid = 0.5 * (lo + hi);
+        if ok(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    Some(hi)
 }
 
 /// The columns of a set of candidates.

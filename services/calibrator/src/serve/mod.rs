@@ -33,6 +33,7 @@
 
 mod state;
 
+use calibrator::diagnose::DiagnoseConfig;
 use calibrator::live::{
     attempt, gate, keep_window, sample_bytes, Candidate, Coverage, Verdict, DEFAULT_WINDOW_S,
 };
@@ -81,6 +82,9 @@ pub struct ServeConfig {
     /// seconds (of wheel time), s. Bounds the memory of the service; see
     /// [`DEFAULT_WINDOW_S`] for what the default costs.
     pub window_s: f64,
+    /// Also diagnose each attempt's drive ([`calibrator::diagnose`]) and
+    /// send the wheel-side terms of the effects it accepts with the estimate.
+    pub diagnose: bool,
 }
 
 impl ServeConfig {
@@ -100,6 +104,7 @@ impl ServeConfig {
             state_file: None,
             exit_on_end: false,
             window_s: DEFAULT_WINDOW_S,
+            diagnose: false,
         }
     }
 
@@ -355,12 +360,14 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
             std::thread::Builder::new()
                 .name(format!("calibration-{number}"))
                 .spawn(move || {
+                    let diagnose = DiagnoseConfig::default();
                     let _ = tx.send(attempt(
                         &drive,
                         &params,
                         &worker_cfg.calibration,
                         worker_cfg.holdout_fraction,
                         worker_cfg.holdout_window_s,
+                        worker_cfg.diagnose.then_some(&diagnose),
                     ));
                 })
                 .map_err(|e| StateError {
@@ -412,6 +419,19 @@ fn handle_attempt(
         }
     };
     let e = &cand.estimate;
+    match &cand.diagnosis {
+        Some(Ok(found)) if found.is_empty() => {
+            tracing::info!("calibrator: attempt #{number}: diagnosis: no effect beyond the noise");
+        }
+        Some(Ok(found)) => tracing::info!(
+            "calibrator: attempt #{number}: diagnosis found {} (their terms go with the estimate)",
+            found.iter().map(|f| f.id()).collect::<Vec<_>>().join(", ")
+        ),
+        Some(Err(why)) => tracing::warn!(
+            "calibrator: attempt #{number}: no diagnosis, the estimate carries no effect terms: {why}"
+        ),
+        None => {}
+    }
     let verdict = gate(&cand, cfg.max_sigma_m, cfg.min_holdout_windows);
     tracing::info!(
         "calibrator: attempt #{number}: c_rl = {:.4} m, c_rr = {:.4} m (sigma {:.2}/{:.2} mm), \

@@ -10,6 +10,7 @@ use interfaces::effects::Effect;
 use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension, MAX_EXTENSIONS};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use vehicle_model::effects::EffectTerms;
 use vehicle_model::estimate::antenna_extension;
 
 /// An accepted estimate, as published and as kept in the state file.
@@ -38,7 +39,11 @@ impl Accepted {
         let e = &self.estimate;
         let mut extensions = [ModelExtension::default(); MAX_EXTENSIONS];
         let mut count = 0;
-        if let Some(k) = e.side_slip_gain_rad_per_m_s2 {
+        // A side-slip gain the diagnosis accepted goes with its other terms.
+        if let Some(k) = e
+            .side_slip_gain_rad_per_m_s2
+            .filter(|_| e.effects.k_beta == 0.0)
+        {
             extensions[0] = ModelExtension {
                 effect_code: Effect::SideSlip.code(),
                 param_count: 1,
@@ -49,6 +54,12 @@ impl Accepted {
         if let Some(a) = e.gnss_antenna_m {
             extensions[count] = antenna_extension(a, e.sigma_gnss_antenna_m);
             count += 1;
+        }
+        for x in EffectTerms::from(e.effects).to_extensions() {
+            if count < MAX_EXTENSIONS {
+                extensions[count] = x;
+                count += 1;
+            }
         }
         CircumferenceEstimate {
             header: Header::from_seconds(e.t_s, 0),
@@ -144,6 +155,7 @@ mod tests {
                 gnss_antenna_m: Some([0.5, -0.3]),
                 sigma_gnss_antenna_m: Some([0.02, 0.03]),
                 quality_m: 0.8,
+                effects: Default::default(),
             },
         }
     }
@@ -221,5 +233,39 @@ mod tests {
         assert_eq!(est.antenna_m, Some([0.5, -0.3]));
         assert_eq!(est.fusable_antenna(), Some([0.5, -0.3]));
         assert_eq!(w.header.t_ns, 12_500_000_000);
+    }
+
+    #[test]
+    fn a_diagnosis_s_terms_travel_on_the_wire_and_in_the_state_file() {
+        let mut a = accepted();
+        a.estimate.effects = vehicle_model::effects::WheelEffects {
+            track_rel: 0.02,
+            k_beta: 0.005,
+            ..Default::default()
+        };
+        let w = a.to_wire();
+        let est = vehicle_model::estimate::Estimate::from_wire(&w).unwrap();
+        assert_eq!(est.effects.track_rel, 0.02);
+        // The diagnosis's side-slip replaces the calibration's gain: one extension.
+        assert_eq!(est.effects.k_beta, 0.005);
+        let slips = w.extensions[..w.extension_count as usize]
+            .iter()
+            .filter(|x| x.effect_code == Effect::SideSlip.code())
+            .count();
+        assert_eq!(slips, 1);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.json");
+        save_state(&path, &a).unwrap();
+        assert_eq!(load_state(&path).unwrap(), Some(a));
+        // A state file without terms (written before they existed) reads as plain.
+        save_state(&path, &accepted()).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(!text.contains("effects"), "{text}");
+        assert!(load_state(&path)
+            .unwrap()
+            .unwrap()
+            .estimate
+            .effects
+            .is_plain());
     }
 }
