@@ -23,6 +23,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let e = Effect::from_id(id).ok_or("unknown effect")?;
             let mut s = EffectSettings::none();
             s.switch_on(e);
+            if let Ok(k) = std::env::var("SCALE") {
+                let (p, v) = simulator::typical_effect(e)[0];
+                s.set(e, Some(p), v * k.parse::<f64>()?)?;
+            }
             s
         }
     };

@@ -408,10 +408,13 @@ struct EffectState {
     t_first_s: Option<f64>,
     v_m_s: f64,
     a_x_m_s2: f64,
+    w_rad_s: f64,
 }
 
-/// Smoothing time of the speed and acceleration the effect terms read, s
-/// (encoder quantisation makes one 10 ms step's speed too coarse).
+/// Smoothing time of the speed, yaw rate and accelerations the effect terms
+/// read, s (encoder quantisation makes one 10 ms step's speed and yaw rate
+/// too coarse: a side-slip angle from their raw product swings by tenths of
+/// a radian from step to step and shortens the track).
 const EFFECT_SMOOTHING_S: f64 = 0.5;
 
 impl Odometer {
@@ -461,12 +464,12 @@ impl Odometer {
             let a_new = (v_new - st.v_m_s) / dt;
             st.a_x_m_s2 += k * (a_new - st.a_x_m_s2);
             st.v_m_s = v_new;
+            st.w_rad_s += k * (dyaw0 / dt - st.w_rad_s);
         }
-        let w = if dt > 0.0 { dyaw0 / dt } else { 0.0 };
         let signals = StepSignals {
             v_m_s: st.v_m_s,
             a_x_m_s2: st.a_x_m_s2,
-            a_y_m_s2: st.v_m_s * w,
+            a_y_m_s2: st.v_m_s * st.w_rad_s,
             grade: 0.0,
             t_since_start_s: t_s - t_first,
         };

@@ -146,7 +146,6 @@ pub fn dr_points(
         if dt > 0.0 && dn_l.is_finite() && dn_r.is_finite() {
             let t_mid = 0.5 * (r.t_s + p.t_s);
             let v = 0.5 * (dn_l * model.c_rl + dn_r * model.c_rr) / dt;
-            let w = (dn_r * model.c_rr - dn_l * model.c_rl) / (model.track_m * dt);
             let a_x = interp_epoch(epochs, t_mid, |e| e.a_x);
             let a_x = match model.slip_side {
                 -1 => a_x.min(0.0),
@@ -156,7 +155,10 @@ pub fn dr_points(
             let s = StepSignals {
                 v_m_s: v,
                 a_x_m_s2: a_x,
-                a_y_m_s2: v * w,
+                // The epochs' lateral acceleration: smooth over the GNSS
+                // differencing interval, as the design's columns read it
+                // (one wheel step's v w swings with the encoder's quantisation).
+                a_y_m_s2: interp_epoch(epochs, t_mid, |e| e.a_y),
                 grade: interp_epoch(epochs, t_mid, |e| e.grade),
                 t_since_start_s: t_mid - t_start,
             };
