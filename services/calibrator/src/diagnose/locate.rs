@@ -145,7 +145,6 @@ pub fn dr_points(
         let gyro_now = cx.gyro_heading(r.t_s);
         if dt > 0.0 && dn_l.is_finite() && dn_r.is_finite() {
             let t_mid = 0.5 * (r.t_s + p.t_s);
-            let v = 0.5 * (dn_l * model.c_rl + dn_r * model.c_rr) / dt;
             let a_x = interp_epoch(epochs, t_mid, |e| e.a_x);
             let a_x = match model.slip_side {
                 -1 => a_x.min(0.0),
@@ -153,11 +152,12 @@ pub fn dr_points(
                 _ => a_x,
             };
             let s = StepSignals {
-                v_m_s: v,
+                // Speed and lateral acceleration from the epochs: smooth over
+                // the GNSS differencing interval, as the design's columns read
+                // them (one wheel step's speed and v w swing with the
+                // encoder's quantisation, and the terms are not linear in them).
+                v_m_s: interp_epoch(epochs, t_mid, |e| e.v_odo),
                 a_x_m_s2: a_x,
-                // The epochs' lateral acceleration: smooth over the GNSS
-                // differencing interval, as the design's columns read it
-                // (one wheel step's v w swings with the encoder's quantisation).
                 a_y_m_s2: interp_epoch(epochs, t_mid, |e| e.a_y),
                 grade: interp_epoch(epochs, t_mid, |e| e.grade),
                 t_since_start_s: t_mid - t_start,

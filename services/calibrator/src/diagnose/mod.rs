@@ -492,9 +492,16 @@ pub fn diagnose_with_progress(
         let c = |col: usize| cols.iter().position(|&x| x == col).map_or(0.0, |i| beta[i]);
         let cands: Vec<&Candidate> = model_cands.iter().map(|&i| &design.candidates[i]).collect();
         let (terms, slip_side) = terms_of(&cands, &c);
+        // The circumferences' scale and left/right difference move with the
+        // effect (a speed growth, a warm-up or a slope change the mean
+        // scale the plain calibration absorbed): the position channels'
+        // nuisance coefficients, fitted with it, go into the model too.
+        let (scale, lr) = (c(design.nuisance[2]), c(design.nuisance[3]));
         Model {
             terms,
             slip_side,
+            c_rl: base_model.c_rl * (1.0 + scale) * (1.0 - lr),
+            c_rr: base_model.c_rr * (1.0 + scale) * (1.0 + lr),
             ..base_model
         }
     };
