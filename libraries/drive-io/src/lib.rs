@@ -57,7 +57,8 @@ pub struct LoadedDrive {
 /// Read a drive folder or an MCAP recording (detected from what `path` is:
 /// a directory is a drive folder, a file starting with the MCAP magic is a
 /// recording: ours, compressed or not, or a ROS 2 bag, which needs
-/// [`read_drive_with`] and a vehicle).
+/// [`read_drive_with`] and a vehicle; a rosbag2 folder, with its
+/// `metadata.yaml` and one `.mcap` file, is read as that file).
 ///
 /// A truncated MCAP gives [`DriveError::TruncatedMcap`], which carries the
 /// drive as far as it could be read. An MCAP chunk whose records fail
@@ -151,6 +152,10 @@ pub fn read_drive_with(path: &Path, options: ReadOptions) -> Result<LoadedDrive,
         _ => DriveError::io(path, e),
     })?;
     if meta.is_dir() {
+        if let Some(bag) = rosbag2_file(path)? {
+            let bytes = files::read_regular(&bag)?;
+            return recording::read_mcap_bytes(&bag, &bytes, &options);
+        }
         return folder::read_folder(path, options.vehicle.as_ref());
     }
     let bytes = files::read_regular(path)?;
@@ -161,6 +166,31 @@ pub fn read_drive_with(path: &Path, options: ReadOptions) -> Result<LoadedDrive,
             path: path.to_path_buf(),
             reason: "a file without the MCAP magic bytes".to_string(),
         })
+    }
+}
+
+/// The MCAP file of a rosbag2 folder (`metadata.yaml` and one `*.mcap`,
+/// no `wheels.csv`); `None` for any other folder. A bag split into several
+/// files is refused.
+fn rosbag2_file(dir: &Path) -> Result<Option<std::path::PathBuf>, DriveError> {
+    if !dir.join("metadata.yaml").is_file() || dir.join("wheels.csv").exists() {
+        return Ok(None);
+    }
+    let mut found: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| DriveError::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| is_mcap_path(p))
+        .collect();
+    found.sort();
+    match found.len() {
+        0 => Ok(None),
+        1 => Ok(found.pop()),
+        n => Err(DriveError::UnknownFormat {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "a rosbag2 folder split into {n} MCAP files; give one file (a drive is read from one)"
+            ),
+        }),
     }
 }
 
