@@ -231,6 +231,67 @@ pub enum DriveError {
         /// Line number (1-based).
         line: usize,
     },
+    /// A recording carries no vehicle parameters (a ROS 2 bag) and none
+    /// were given ([`crate::ReadOptions::vehicle`]).
+    #[error(
+        "{}: a ROS 2 bag carries no vehicle parameters; give a vehicle.toml (the tools' --vehicle)",
+        path.display()
+    )]
+    NoVehicle {
+        /// The recording.
+        path: PathBuf,
+    },
+    /// A topic-to-role assignment does not parse.
+    #[error("{origin}: {message}")]
+    TopicMap {
+        /// Where the assignment came from (e.g. `--topic`).
+        origin: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A topic of a ROS 2 bag does not fit the role it is read as: absent,
+    /// of another message type or encoding, or lacking the named joints.
+    #[error("{}: topic {topic} ({}): {message}", path.display(), role.name())]
+    Topic {
+        /// The bag.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// The role it was to fill.
+        role: crate::Role,
+        /// What was expected and what was found.
+        message: String,
+    },
+    /// More than one topic of a ROS 2 bag could fill a role and none was
+    /// named.
+    #[error(
+        "{}: {} topics could be the {} stream: {}; name one (e.g. --topic {}={})",
+        path.display(),
+        candidates.len(),
+        role.name(),
+        candidates.join(", "),
+        role.name(),
+        candidates.first().and_then(|c| c.split(' ').next()).unwrap_or("TOPIC")
+    )]
+    AmbiguousTopic {
+        /// The bag.
+        path: PathBuf,
+        /// The role.
+        role: crate::Role,
+        /// The candidates, each as `topic (type)`.
+        candidates: Vec<String>,
+    },
+    /// A line of an NMEA 0183 log is not a valid sentence (bad checksum,
+    /// garbage, a field out of range).
+    #[error("{}:{line}: {message}", path.display())]
+    Nmea {
+        /// The log.
+        path: PathBuf,
+        /// Line number (1-based).
+        line: usize,
+        /// What is wrong.
+        message: String,
+    },
     /// An in-memory drive cannot be written because it breaks the format's
     /// rules (a non-finite value, times not increasing, ticks without
     /// `ticks_per_rev`).

@@ -42,15 +42,31 @@ const GNSS_KEYS: [&str; 4] = [
 
 // ---------------------------------------------------------------- reading
 
-/// Read a drive folder.
-pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
+/// Read a drive folder; `given` vehicle parameters stand in for its
+/// `vehicle.toml`.
+pub(super) fn read_folder(
+    dir: &Path,
+    given: Option<&VehicleParams>,
+) -> Result<LoadedDrive, DriveError> {
     let mut warnings = Vec::new();
     let vehicle_path = dir.join(VEHICLE_TOML);
-    if !regular_file_present(&vehicle_path)? {
-        return Err(DriveError::MissingFile { path: vehicle_path });
-    }
-    let text = read_text_limited(&vehicle_path, MAX_TEXT_FILE_BYTES)?;
-    let mut vehicle = parse_vehicle_toml(&vehicle_path, &text, &mut warnings)?;
+    let present = regular_file_present(&vehicle_path)?;
+    let mut vehicle = match given {
+        Some(v) => {
+            if present {
+                warnings.push(format!(
+                    "{}: not read: the vehicle parameters given stand in for it",
+                    vehicle_path.display()
+                ));
+            }
+            v.clone()
+        }
+        None if !present => return Err(DriveError::MissingFile { path: vehicle_path }),
+        None => {
+            let text = read_text_limited(&vehicle_path, MAX_TEXT_FILE_BYTES)?;
+            parse_vehicle_toml(&vehicle_path, &text, &mut warnings)?
+        }
+    };
 
     let wheels_path = dir.join(WHEELS_CSV);
     if !regular_file_present(&wheels_path)? {
@@ -58,7 +74,42 @@ pub(super) fn read_folder(dir: &Path) -> Result<LoadedDrive, DriveError> {
     }
     let wheels = read_wheels(&wheels_path, &vehicle, &mut warnings)?;
 
-    let gnss = optional_stream::<GnssSample>(dir, &mut warnings)?;
+    let gnss = match (
+        optional_stream::<GnssSample>(dir, &mut warnings)?,
+        optional_file(dir, crate::nmea::NMEA_FILE)?,
+    ) {
+        (Some(_), Some(nmea)) => {
+            return Err(DriveError::Nmea {
+                path: nmea,
+                line: 1,
+                message: format!(
+                    "the folder also has {}: give the GNSS fixes in one of them",
+                    GnssSample::CSV_FILE
+                ),
+            })
+        }
+        (None, Some(nmea)) => {
+            // Latitude and longitude in x_m, y_m until `into_enu`, as for
+            // a lat/lon gnss.csv.
+            let log = crate::nmea::read_nmea(&nmea)?;
+            warnings.extend(log.warnings);
+            let samples = log
+                .fixes
+                .iter()
+                .map(|f| GnssSample {
+                    t_s: f.t_s,
+                    x_m: f.lat_deg,
+                    y_m: f.lon_deg,
+                    sigma_m: None,
+                })
+                .collect();
+            Some(RawStream {
+                position: PositionKind::LatLon,
+                samples,
+            })
+        }
+        (gnss, None) => gnss,
+    };
     let imu = optional_stream::<ImuSample>(dir, &mut warnings)?;
     let heading = optional_stream::<HeadingSample>(dir, &mut warnings)?;
     let truth = optional_stream::<TruthSample>(dir, &mut warnings)?;

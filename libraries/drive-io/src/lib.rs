@@ -1,7 +1,13 @@
 //! Drives in and out: the drive folder (`shared/design/drive-format.md`), the
 //! native MCAP recording, and the `info` summary.
 //!
-//! [`read_drive`] takes either format (auto-detected); [`write_drive`] picks the
+//! Other tools' recordings read as drives too: an MCAP with `zstd` or `lz4`
+//! chunks, a ROS 2 bag (rosbag2's MCAP; [`ReadOptions::vehicle`] and
+//! [`ReadOptions::topics`] say what it lacks), and an NMEA 0183 log as the
+//! GNSS stream of a drive folder (`gnss.nmea` in place of `gnss.csv`).
+//! The crate README says how each maps onto a drive.
+//!
+//! [`read_drive`] takes any of them (auto-detected); [`write_drive`] picks the
 //! format from the path (`*.mcap` is MCAP, anything else a folder). Both keep
 //! every value bit-identical, so a round trip through either format gives back
 //! an equal [`Drive`].
@@ -17,18 +23,23 @@ mod files;
 mod folder;
 pub mod geodesy;
 mod info;
+mod nmea;
 pub mod plausibility;
 mod recording;
 mod streams;
+mod topic_map;
 
 pub use csv::MAX_CSV_LINE_BYTES;
 pub use error::DriveError;
 pub use estimate_file::read_estimate;
 pub use files::{read_state_text, write_durably, MAX_TEXT_FILE_BYTES};
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
+pub use nmea::{parse_nmea, read_nmea, NmeaFix, NmeaLog, NMEA_FILE};
 pub use recording::{
-    FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, TRUTH_TOPIC, WHEELS_TOPIC,
+    FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, MAX_CHUNK_RECORDS_BYTES,
+    TRUTH_TOPIC, WHEELS_TOPIC,
 };
+pub use topic_map::{Role, TopicMap};
 
 use interfaces::drive::{Drive, VehicleParams};
 use std::path::Path;
@@ -45,7 +56,9 @@ pub struct LoadedDrive {
 
 /// Read a drive folder or an MCAP recording (detected from what `path` is:
 /// a directory is a drive folder, a file starting with the MCAP magic is a
-/// recording).
+/// recording: ours, compressed or not, or a ROS 2 bag, which needs
+/// [`read_drive_with`] and a vehicle; a rosbag2 folder, with its
+/// `metadata.yaml` and one `.mcap` file, is read as that file).
 ///
 /// A truncated MCAP gives [`DriveError::TruncatedMcap`], which carries the
 /// drive as far as it could be read. An MCAP chunk whose records fail
@@ -56,8 +69,9 @@ pub fn read_drive(path: &Path) -> Result<LoadedDrive, DriveError> {
     read_drive_with(path, ReadOptions::default())
 }
 
-/// How [`read_drive_with`] treats a damaged recording.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// How [`read_drive_with`] treats a damaged recording, and what it gives
+/// a recording that lacks it.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReadOptions {
     /// Recovery: leave out an MCAP chunk whose records fail their CRC (a
     /// warning names each one, its index and byte offset) and accept a
@@ -65,6 +79,64 @@ pub struct ReadOptions {
     /// [`DriveError::ChunkCrc`] / [`DriveError::DataSectionCrc`]. Off by
     /// default: a changed byte is never read silently.
     pub skip_corrupt_chunks: bool,
+    /// Vehicle parameters: required for a ROS 2 bag (it has none,
+    /// [`DriveError::NoVehicle`]); for a drive folder they stand in for
+    /// its `vehicle.toml` (which then need not exist), for our recording
+    /// they replace the recorded ones (its ENU origin kept when these have
+    /// none). Either replacement is a warning.
+    pub vehicle: Option<VehicleParams>,
+    /// ROS 2 bag: which topic is which stream (empty: chosen by type).
+    pub topics: TopicMap,
+}
+
+impl ReadOptions {
+    /// Options from what a command line gives: recovery, a vehicle file
+    /// (a `vehicle.toml`, or a drive to take it from, as [`read_vehicle`]
+    /// reads it), a topic-map TOML file and `role=topic` assignments over
+    /// it (`origin` names them in errors, e.g. `--topic`). The vehicle's
+    /// warnings are returned.
+    pub fn from_sources(
+        skip_corrupt_chunks: bool,
+        vehicle: Option<&Path>,
+        topics_file: Option<&Path>,
+        topic_assignments: &[String],
+        origin: &str,
+    ) -> Result<(ReadOptions, Vec<String>), DriveError> {
+        let (vehicle, warnings) = match vehicle {
+            Some(p) => {
+                let loaded = read_vehicle(p)?;
+                (Some(loaded.vehicle), loaded.warnings)
+            }
+            None => (None, Vec::new()),
+        };
+        let topics = TopicMap::from_sources(topics_file, topic_assignments, origin)?;
+        Ok((
+            ReadOptions {
+                skip_corrupt_chunks,
+                vehicle,
+                topics,
+            },
+            warnings,
+        ))
+    }
+}
+
+/// Put `given` in place of a loaded drive's vehicle, keeping the drive's
+/// ENU origin when `given` has none (its positions are relative to it).
+pub(crate) fn replace_vehicle(path: &Path, loaded: &mut LoadedDrive, given: &VehicleParams) {
+    let old = &loaded.drive.vehicle;
+    let mut vehicle = given.clone();
+    if vehicle.gnss.origin_lat_deg.is_none() {
+        vehicle.gnss.origin_lat_deg = old.gnss.origin_lat_deg;
+        vehicle.gnss.origin_lon_deg = old.gnss.origin_lon_deg;
+    }
+    if vehicle != *old {
+        loaded.warnings.push(format!(
+            "{}: the vehicle parameters given replace the drive's own",
+            path.display()
+        ));
+    }
+    loaded.drive.vehicle = vehicle;
 }
 
 /// [`read_drive`] with explicit [`ReadOptions`].
@@ -80,16 +152,45 @@ pub fn read_drive_with(path: &Path, options: ReadOptions) -> Result<LoadedDrive,
         _ => DriveError::io(path, e),
     })?;
     if meta.is_dir() {
-        return folder::read_folder(path);
+        if let Some(bag) = rosbag2_file(path)? {
+            let bytes = files::read_regular(&bag)?;
+            return recording::read_mcap_bytes(&bag, &bytes, &options);
+        }
+        return folder::read_folder(path, options.vehicle.as_ref());
     }
     let bytes = files::read_regular(path)?;
     if bytes.starts_with(mcap::MAGIC) {
-        recording::read_mcap_bytes(path, &bytes, options.skip_corrupt_chunks)
+        recording::read_mcap_bytes(path, &bytes, &options)
     } else {
         Err(DriveError::UnknownFormat {
             path: path.to_path_buf(),
             reason: "a file without the MCAP magic bytes".to_string(),
         })
+    }
+}
+
+/// The MCAP file of a rosbag2 folder (`metadata.yaml` and one `*.mcap`,
+/// no `wheels.csv`); `None` for any other folder. A bag split into several
+/// files is refused.
+fn rosbag2_file(dir: &Path) -> Result<Option<std::path::PathBuf>, DriveError> {
+    if !dir.join("metadata.yaml").is_file() || dir.join("wheels.csv").exists() {
+        return Ok(None);
+    }
+    let mut found: Vec<std::path::PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| DriveError::io(dir, e))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| is_mcap_path(p))
+        .collect();
+    found.sort();
+    match found.len() {
+        0 => Ok(None),
+        1 => Ok(found.pop()),
+        n => Err(DriveError::UnknownFormat {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "a rosbag2 folder split into {n} MCAP files; give one file (a drive is read from one)"
+            ),
+        }),
     }
 }
 
@@ -174,7 +275,7 @@ pub fn read_mcap_from_bytes(
     bytes: &[u8],
     options: ReadOptions,
 ) -> Result<LoadedDrive, DriveError> {
-    recording::read_mcap_bytes(path, bytes, options.skip_corrupt_chunks)
+    recording::read_mcap_bytes(path, bytes, &options)
 }
 
 /// [`read_vehicle`] on `vehicle.toml` text already in memory (the fuzz

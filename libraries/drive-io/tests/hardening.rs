@@ -172,6 +172,7 @@ fn a_changed_byte_in_a_chunk_is_an_error_naming_the_chunk() {
         &path,
         ReadOptions {
             skip_corrupt_chunks: true,
+            ..ReadOptions::default()
         },
     )
     .unwrap_or_else(|e| match e {
@@ -205,6 +206,7 @@ fn a_changed_byte_outside_the_chunks_fails_the_data_section_crc() {
         &path,
         ReadOptions {
             skip_corrupt_chunks: true,
+            ..ReadOptions::default()
         },
     );
     // With recovery the mismatch is a warning (the changed text itself may

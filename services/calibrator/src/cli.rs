@@ -44,8 +44,11 @@ pub enum OffsetArg {
 /// Arguments of `calibrator calibrate`.
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// Drive folder or MCAP recording.
+    /// Drive folder or MCAP recording (ours, compressed or not, or a ROS 2
+    /// bag with --vehicle).
     pub drive: PathBuf,
+    #[command(flatten)]
+    pub input: crate::drive_input::DriveInput,
     /// Write the calibration JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -190,10 +193,9 @@ impl Bar {
 
 /// Run `calibrator calibrate`.
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
-    let options = drive_io::ReadOptions {
-        skip_corrupt_chunks: args.skip_corrupt_chunks,
-    };
-    let loaded = drive_io::read_drive_with(&args.drive, options)
+    let loaded = args
+        .input
+        .read(&args.drive, args.skip_corrupt_chunks)?
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");

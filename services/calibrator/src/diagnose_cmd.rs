@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 /// Arguments of `calibrator diagnose`.
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// Drive folder or MCAP recording.
+    /// Drive folder or MCAP recording (ours, compressed or not, or a ROS 2
+    /// bag with --vehicle).
     pub drive: PathBuf,
+    #[command(flatten)]
+    pub input: crate::drive_input::DriveInput,
     /// Write the diagnosis JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -31,7 +34,9 @@ pub struct DiagnoseArgs {
 
 /// Run `calibrator diagnose`.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
-    let loaded = drive_io::read_drive(&args.drive)
+    let loaded = args
+        .input
+        .read(&args.drive, false)?
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");

@@ -12,6 +12,7 @@
 
 mod cli;
 mod diagnose_cmd;
+mod drive_input;
 mod serve;
 mod serve_cmd;
 

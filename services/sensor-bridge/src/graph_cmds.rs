@@ -4,9 +4,10 @@
 //! Both join the graph named by `WHEELCAL_IOX_PREFIX` / `WHEELCAL_IOX_ROOT`
 //! (unset: iceoryx2's defaults).
 
+use crate::drive_input::DriveInput;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use drive_io::{read_drive, read_vehicle, write_drive};
+use drive_io::{read_vehicle, write_drive};
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
@@ -17,8 +18,11 @@ use std::time::Duration;
 /// Arguments of `sensor-bridge replay`.
 #[derive(Args, Debug)]
 pub struct ReplayArgs {
-    /// A drive folder or an .mcap recording.
+    /// A drive folder or an .mcap recording (ours, compressed or not, or a
+    /// ROS 2 bag with --vehicle).
     pub drive: PathBuf,
+    #[command(flatten)]
+    pub input: DriveInput,
     /// Pace at FACTOR times real time.
     #[arg(
         long,
@@ -78,7 +82,7 @@ fn positive_seconds(name: &str, v: f64) -> Result<Duration> {
 
 /// `sensor-bridge replay`.
 pub fn run_replay(args: &ReplayArgs) -> Result<()> {
-    let loaded = match read_drive(&args.drive) {
+    let loaded = match args.input.read(&args.drive, false)? {
         Ok(l) => l,
         Err(e) => return Err(e).with_context(|| format!("reading {}", args.drive.display())),
     };

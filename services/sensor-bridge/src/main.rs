@@ -2,13 +2,15 @@
 //!
 //! Each subcommand is one variant of [`Command`] dispatching to one function.
 
+mod drive_input;
 mod graph_cmds;
 mod simulate_cmd;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
+use drive_input::DriveInput;
 use drive_io::plausibility::{self, Severity};
-use drive_io::{read_drive_with, write_drive, DriveError, DriveSummary, LoadedDrive, ReadOptions};
+use drive_io::{write_drive, DriveError, DriveSummary, LoadedDrive};
 use std::path::{Path, PathBuf};
 
 /// Drives in and out, the simulator, and the iceoryx2 bridge.
@@ -41,7 +43,8 @@ enum Command {
 
 #[derive(Args)]
 struct ConvertArgs {
-    /// Input drive: a drive folder or an .mcap file.
+    /// Input drive: a drive folder or an .mcap file (ours, compressed or
+    /// not, or a ROS 2 bag with --vehicle).
     input: PathBuf,
     /// Output: an .mcap file or a folder.
     output: PathBuf,
@@ -52,11 +55,14 @@ struct ConvertArgs {
     /// names each one) instead of refusing the recording.
     #[arg(long)]
     skip_corrupt_chunks: bool,
+    #[command(flatten)]
+    input_options: DriveInput,
 }
 
 #[derive(Args)]
 struct InfoArgs {
-    /// A drive folder or an .mcap file.
+    /// A drive folder or an .mcap file (ours, compressed or not, or a ROS 2
+    /// bag with --vehicle).
     drive: PathBuf,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -65,6 +71,8 @@ struct InfoArgs {
     /// names each one) instead of refusing the recording.
     #[arg(long)]
     skip_corrupt_chunks: bool,
+    #[command(flatten)]
+    input: DriveInput,
 }
 
 fn main() -> Result<()> {
@@ -92,10 +100,10 @@ fn convert(args: &ConvertArgs) -> Result<()> {
             args.input.display()
         );
     }
-    let options = ReadOptions {
-        skip_corrupt_chunks: args.skip_corrupt_chunks,
-    };
-    let loaded = match read_drive_with(&args.input, options) {
+    let read = args
+        .input_options
+        .read(&args.input, args.skip_corrupt_chunks)?;
+    let loaded = match read {
         Ok(l) => l,
         Err(DriveError::TruncatedMcap {
             partial: Some(partial),
@@ -138,10 +146,7 @@ fn print_summary(loaded: &LoadedDrive, path: &Path, json: bool) -> Result<()> {
 }
 
 fn info(args: &InfoArgs) -> Result<()> {
-    let options = ReadOptions {
-        skip_corrupt_chunks: args.skip_corrupt_chunks,
-    };
-    match read_drive_with(&args.drive, options) {
+    match args.input.read(&args.drive, args.skip_corrupt_chunks)? {
         Ok(loaded) => print_summary(&loaded, &args.drive, args.json),
         Err(DriveError::TruncatedMcap {
             partial: Some(partial),

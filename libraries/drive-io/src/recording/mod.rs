@@ -19,20 +19,25 @@
 //!   the earliest time of the drive non-negative (0 when no time is
 //!   negative). Readers use `t_s`; `log_time` only orders the playback.
 //! - chunks are uncompressed, so a truncated file can be read up to the
-//!   damage, chunk contents included.
+//!   damage, chunk contents included. The reader also takes `zstd` and
+//!   `lz4` chunks (the same recording compressed by another tool reads the
+//!   same), and ROS 2 bags ([`ros2`]).
 //!
 //! Jobs: [`messages`] (the JSON messages and schemas, from the stream
 //! descriptions of [`crate::streams`]), [`write`], [`scan`] (the record walk
-//! that survives truncation) and [`read`].
+//! that survives truncation and decompresses chunks), [`read`] and [`ros2`]
+//! (a rosbag2 MCAP read as a drive).
 
 mod crc;
 mod layout;
 mod messages;
 mod read;
+mod ros2;
 mod scan;
 mod write;
 
 pub(super) use read::read_mcap_bytes;
+pub use scan::MAX_CHUNK_RECORDS_BYTES;
 pub(super) use write::write_mcap;
 
 use interfaces::drive::{Wheel, WheelUnit, WheelUnits};

@@ -8,7 +8,7 @@ use super::{
 };
 use crate::folder::{parse_truth_toml, parse_vehicle_toml};
 use crate::streams::{wheel_column_names, Stream};
-use crate::{DriveError, LoadedDrive};
+use crate::{DriveError, LoadedDrive, ReadOptions};
 use interfaces::drive::{
     Drive, GnssSample, HeadingSample, ImuSample, TruthSample, Wheel, WheelSeries, WheelUnit,
 };
@@ -16,15 +16,17 @@ use serde::de::DeserializeSeed;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Read an MCAP drive recording from its bytes. Chunk and data section
-/// CRCs (when the file gives them) are checked; with `skip_corrupt_chunks`
-/// a chunk that fails its CRC is left out with a warning naming it, and a
-/// data section CRC mismatch is a warning, instead of an error.
+/// Read an MCAP drive recording (ours, or a ROS 2 bag) from its bytes.
+/// Chunk and data section CRCs (when the file gives them) are checked;
+/// with `skip_corrupt_chunks` a chunk that fails its CRC is left out with a
+/// warning naming it, and a data section CRC mismatch is a warning,
+/// instead of an error.
 pub(crate) fn read_mcap_bytes(
     path: &Path,
     bytes: &[u8],
-    skip_corrupt_chunks: bool,
+    options: &ReadOptions,
 ) -> Result<LoadedDrive, DriveError> {
+    let skip_corrupt_chunks = options.skip_corrupt_chunks;
     if !bytes.starts_with(mcap::MAGIC) {
         return Err(DriveError::UnknownFormat {
             path: path.to_path_buf(),
@@ -33,7 +35,7 @@ pub(crate) fn read_mcap_bytes(
     }
     let mut scan = Scan::default();
     scan.skip_corrupt_chunks = skip_corrupt_chunks;
-    scan.walk(path, bytes, mcap::MAGIC.len(), 0, false)?;
+    scan.walk_file(path, bytes, mcap::MAGIC.len())?;
     let file_len = bytes.len() as u64;
     let messages_read = scan.messages.len();
     let mut warnings = Vec::new();
@@ -71,7 +73,7 @@ pub(crate) fn read_mcap_bytes(
                 path.display(),
                 d.record
             ));
-            assemble(path, &scan, warnings)
+            assemble_any(path, &scan, options, warnings)
         }
         Some(d) => {
             warnings.push(format!(
@@ -79,7 +81,9 @@ pub(crate) fn read_mcap_bytes(
                 path.display(),
                 d.record
             ));
-            let partial = assemble(path, &scan, warnings).ok().map(Box::new);
+            let partial = assemble_any(path, &scan, options, warnings)
+                .ok()
+                .map(Box::new);
             Err(DriveError::TruncatedMcap {
                 path: path.to_path_buf(),
                 offset: d.offset,
@@ -89,8 +93,26 @@ pub(crate) fn read_mcap_bytes(
                 partial,
             })
         }
-        None => assemble(path, &scan, warnings),
+        None => assemble_any(path, &scan, options, warnings),
     }
+}
+
+/// Our recording (it has the drive metadata) or a ROS 2 bag; the vehicle
+/// of `options`, when given, replaces our recording's own.
+fn assemble_any(
+    path: &Path,
+    scan: &Scan<'_>,
+    options: &ReadOptions,
+    warnings: Vec<String>,
+) -> Result<LoadedDrive, DriveError> {
+    if !scan.metadata.contains_key(DRIVE_METADATA) && super::ros2::is_ros2(scan) {
+        return super::ros2::assemble(path, scan, options, warnings);
+    }
+    let mut loaded = assemble(path, scan, warnings)?;
+    if let Some(given) = &options.vehicle {
+        crate::replace_vehicle(path, &mut loaded, given);
+    }
+    Ok(loaded)
 }
 
 /// "file.mcap [metadata wheelcal.vehicle]" as a path for TOML errors.
@@ -302,8 +324,8 @@ fn decode<T>(
     let mut out = Vec::with_capacity(messages.len());
     let mut previous: Option<f64> = None;
     for (i, m) in messages.iter().enumerate() {
-        let location = || format!("channel {topic}, message {i} (record at byte {})", m.offset);
-        let (t, sample, finite) = parse(m.data).map_err(|e| DriveError::Mcap {
+        let location = || format!("channel {topic}, message {i} ({})", m.location());
+        let (t, sample, finite) = parse(&m.data).map_err(|e| DriveError::Mcap {
             path: path.to_path_buf(),
             location: location(),
             message: format!("bad JSON message: {e}"),
