@@ -5,7 +5,7 @@
 //! chunks, a ROS 2 bag (rosbag2's MCAP; [`ReadOptions::vehicle`] and
 //! [`ReadOptions::topics`] say what it lacks), and an NMEA 0183 log as the
 //! GNSS stream of a drive folder (`gnss.nmea` in place of `gnss.csv`).
-//! The crate README says how each maps onto a drive.
+//! `docs/drive-format.md` ("Recordings from other tools") says how each maps onto a drive.
 //!
 //! [`read_drive`] takes any of them (auto-detected); [`write_drive`] picks the
 //! format from the path (`*.mcap` is MCAP, anything else a folder). Both keep

@@ -13,7 +13,7 @@
 //! rr = "rear_right_wheel_joint"
 //! ```
 //!
-//! A role left out is chosen by message type (see the crate README).
+//! A role left out is chosen by message type (see docs/drive-format.md, "Recordings from other tools").
 
 use crate::csv::clip;
 use crate::files::{read_text_limited, MAX_TEXT_FILE_BYTES};
@@ -62,7 +62,7 @@ impl Role {
 }
 
 /// Topic per role, and the wheel joints of a `JointState` topic; what is
-/// left out is chosen from the bag (see the crate README).
+/// left out is chosen from the bag (see docs/drive-format.md, "Recordings from other tools").
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct TopicMap {
     /// Topic per role.
