@@ -389,6 +389,7 @@ mod tests {
             estimate: estimate(),
             current_error_m: 2.0,
             windows: 5,
+            diagnosis: None,
         };
         assert_eq!(gate(&cand, 0.005, 3), Verdict::Accept);
         cand.estimate.sigma_m.rr = 0.01;
