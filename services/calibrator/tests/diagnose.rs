@@ -17,6 +17,17 @@ fn drive_with(effect: Option<Effect>, seed: u64, vehicle: VehicleKind) -> interf
     simulate(&cfg).expect("simulate")
 }
 
+/// The relative track error the simulator put into `drive`.
+fn track_rel_truth(drive: &interfaces::drive::Drive) -> f64 {
+    drive
+        .truth_params
+        .as_ref()
+        .and_then(|t| t.effects.get("track_width"))
+        .and_then(|p| p.get("rel"))
+        .copied()
+        .expect("truth")
+}
+
 #[test]
 fn a_drive_with_nothing_left_out_gives_no_findings() {
     for (seed, vehicle) in [(1, VehicleKind::Saloon), (2, VehicleKind::Van)] {
@@ -34,13 +45,7 @@ fn a_drive_with_nothing_left_out_gives_no_findings() {
 #[test]
 fn a_concealed_track_width_is_found_named_and_sized_and_the_fit_improves() {
     let drive = drive_with(Some(Effect::TrackWidth), 3, VehicleKind::Compact);
-    let truth = drive
-        .truth_params
-        .as_ref()
-        .and_then(|t| t.effects.get("track_width"))
-        .and_then(|p| p.get("rel"))
-        .copied()
-        .expect("truth");
+    let truth = track_rel_truth(&drive);
     let d = diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose");
     let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
     assert_eq!(ids, vec![Effect::TrackWidth], "{d:#?}");
@@ -239,13 +244,7 @@ fn a_live_attempt_with_a_diagnosis_carries_the_accepted_terms() {
     use calibrator::live::attempt;
     use calibrator::CalibrationConfig;
     let drive = drive_with(Some(Effect::TrackWidth), 3, VehicleKind::Compact);
-    let truth = drive
-        .truth_params
-        .as_ref()
-        .and_then(|t| t.effects.get("track_width"))
-        .and_then(|p| p.get("rel"))
-        .copied()
-        .expect("truth");
+    let truth = track_rel_truth(&drive);
     let nominal = vehicle_model::two_wheel::TwoWheelParams {
         c_rl: drive.vehicle.nominal_circumference_m,
         c_rr: drive.vehicle.nominal_circumference_m,

@@ -781,6 +781,10 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
     untestable.dedup_by(|a, b| a.0 == b.0);
     let mut current = stats.cv_errors(&design.nuisance);
     let mut last_round: Vec<NotAccepted> = Vec::new();
+    // The last round's candidates and the model they were added to: how
+    // large each would have to be is worked out once, after the loop.
+    let mut last_tested: Vec<usize> = Vec::new();
+    let mut last_base: Vec<usize> = Vec::new();
     loop {
         let effects_left: std::collections::BTreeSet<Effect> = remaining
             .iter()
@@ -816,12 +820,14 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
                 holdout_gain: g.relative,
                 z: g.z,
                 z_threshold: z_crit,
-                detectable: detectable(stats, &base_cols, &design.candidates[*i], z_crit),
+                detectable: None,
             })
             .collect();
+        last_tested = best.values().map(|(i, _, _)| *i).collect();
+        last_base.clone_from(&base_cols);
         let mut passing: Vec<(Effect, usize, select::Gain, Vec<f64>)> = best
             .into_iter()
-            .filter(|(_, (_, g, _))| g.mean > 0.0 && g.z > z_crit)
+            .filter(|(_, (_, g, _))| g.passes(z_crit))
             .map(|(e, (i, g, errs))| (e, i, g, errs))
             .collect();
         if passing.is_empty() {
@@ -901,6 +907,9 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         thresholds.push(t_crit);
         current = errs;
         drop_effect(&mut remaining, effect);
+    }
+    for (n, &i) in last_round.iter_mut().zip(&last_tested) {
+        n.detectable = detectable(stats, &last_base, &design.candidates[i], n.z_threshold);
     }
     Selection {
         accepted,

@@ -224,6 +224,14 @@ pub struct Gain {
     pub z: f64,
 }
 
+impl Gain {
+    /// The held-out test of the selection: a positive mean gain and a
+    /// signed-rank z above `z_crit`.
+    pub fn passes(&self, z_crit: f64) -> bool {
+        self.mean > 0.0 && self.z > z_crit
+    }
+}
+
 /// Gains of `with` over `without` (per-block held-out errors).
 pub fn gain(without: &[f64], with: &[f64]) -> Gain {
     let d: Vec<f64> = without.iter().zip(with).map(|(a, b)| a - b).collect();
@@ -341,8 +349,7 @@ pub fn t_quantile(p: f64, dof: f64) -> f64 {
 pub fn passes(stats: &BlockStats, base: &[usize], cand: &[usize], z_crit: f64) -> bool {
     let mut cols = base.to_vec();
     cols.extend_from_slice(cand);
-    let g = gain(&stats.cv_errors(base), &stats.cv_errors(&cols));
-    g.mean > 0.0 && g.z > z_crit
+    gain(&stats.cv_errors(base), &stats.cv_errors(&cols)).passes(z_crit)
 }
 
 /// The smallest size of an effect this drive would show: the residual is
