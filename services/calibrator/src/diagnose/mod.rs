@@ -225,8 +225,9 @@ pub struct NotAccepted {
 }
 
 impl NotAccepted {
-    /// The smallest size this drive would show, in words
-    /// (`k_beta from 0.0113 rad/(m/s^2), typical 0.004`).
+    /// The smallest size this drive would show, in words, to follow "this
+    /// drive": `shows it from k_beta = 5.800e-3 rad/(m/s^2) (1.4x the
+    /// typical 4.000e-3)`.
     pub fn detectable_text(&self) -> String {
         match &self.detectable {
             Some(Detectable {
@@ -235,7 +236,7 @@ impl NotAccepted {
                 typical,
                 smallest: Some(v),
             }) => format!(
-                "shown from {parameter} = {v:.3e} {unit} ({:.1}x the typical {typical:.3e})",
+                "shows it from {parameter} = {v:.3e} {unit} ({:.1}x the typical {typical:.3e})",
                 v / typical
             ),
             Some(Detectable {
@@ -243,7 +244,9 @@ impl NotAccepted {
                 typical,
                 unit,
                 smallest: None,
-            }) => format!("not shown even at 64x the typical {parameter} = {typical:.3e} {unit}"),
+            }) => format!(
+                "does not show it even at 64x the typical {parameter} = {typical:.3e} {unit}"
+            ),
             None => String::new(),
         }
     }
