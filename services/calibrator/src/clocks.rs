@@ -182,11 +182,11 @@ pub fn windowed_rate(t: &[f64], inc: &[f64], h: f64) -> Vec<f32> {
     let (mut j0, mut j1) = (0usize, 0usize);
     let mut sum = 0.0;
     for k in 0..n {
-        while j1 + 1 < n && t[j1 + 1] - t[k] <= h {
+        while j1 + 1 < n && t[j1 + 1] - t[k] <= h + TIME_SLACK_S {
             j1 += 1;
             sum += inc[j1];
         }
-        while t[k] - t[j0] > h {
+        while t[k] - t[j0] > h + TIME_SLACK_S {
             j0 += 1;
             sum -= inc[j0];
         }
@@ -479,13 +479,27 @@ pub fn median_interval(t: &[f64]) -> Option<f64> {
     Some(d[d.len() / 2])
 }
 
+/// Times closer than this are the same instant (a double holds UNIX seconds
+/// to about 0.2 us): a sample exactly one window length away is in the
+/// window whatever the clock's epoch rounded it to.
+const TIME_SLACK_S: f64 = 1e-6;
+
+/// Where the bin boundaries sit, as a fraction of a bin after the first
+/// sample: between the instants of any regular rate up to 1 kHz (never on
+/// one, where a clock's rounding would flip samples between bins).
+const BIN_PHASE: f64 = 0.37;
+
 /// Averages of `(t, v)` (increasing finite `t`) over bins of `bin_s`: (mean
-/// time, mean value) per non-empty bin.
+/// time, mean value) per non-empty bin. The bins start at the first sample,
+/// so the result does not depend on the clock's epoch (a drive stamped from
+/// 0 s and the same drive in UNIX seconds bin alike).
 fn binned(samples: impl Iterator<Item = (f64, f64)>, bin_s: f64) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
     let mut cur: Option<(i64, f64, f64, f64)> = None; // bin, sum t, sum v, n
+    let mut first: Option<f64> = None;
     for (t, v) in samples {
-        let b = (t / bin_s).floor() as i64;
+        let t0 = *first.get_or_insert(t);
+        let b = ((t - t0) / bin_s + BIN_PHASE).floor() as i64;
         match cur.as_mut() {
             Some(c) if c.0 == b => {
                 c.1 += t;
@@ -617,6 +631,47 @@ mod tests {
         let far: Vec<(f64, f64)> = obs.iter().map(|&(t, _)| (t, weave(t - 3.6))).collect();
         let e = fit_lag(&far, &Sampled { t: &t, v: &v }, CLOCK_SEARCH_S, 0.0, true);
         assert!(!matches!(e, Ok(f) if (f.lag_s - 3.6).abs() < 0.05), "{e:?}");
+    }
+
+    #[test]
+    fn the_imu_offset_does_not_depend_on_the_clock_s_epoch() {
+        // Weaving at 5 m/s, the IMU 0.2 s late and noisy. The same drive
+        // stamped from 0 s and in UNIX seconds (as ROS 2 bags and NMEA logs
+        // are) must give the same offset and sigma.
+        let n = 20_000;
+        let (c, track) = (2.0, 1.5);
+        let yaw = |t: f64| 0.3 * (0.5 * t).sin() + 0.1 * (0.17 * t).sin();
+        let run = |t0: f64| {
+            let t: Vec<f64> = (0..n).map(|k| t0 + k as f64 * 0.01).collect();
+            let (mut rl, mut rr) = (Vec::with_capacity(n), Vec::with_capacity(n));
+            for k in 0..n {
+                let w = yaw(k as f64 * 0.01);
+                rl.push((5.0 - 0.5 * w * track) * 0.01 / c);
+                rr.push((5.0 + 0.5 * w * track) * 0.01 / c);
+            }
+            let imu: Vec<ImuRow> = (0..n)
+                .map(|k| {
+                    let tk = k as f64 * 0.01;
+                    // A gyro's noise, 0.02 rad/s (deterministic).
+                    let noise = 0.02 * (((k * 7919 + 13) % 101) as f64 / 50.0 - 1.0);
+                    (t0 + tk, yaw(tk - 0.2) + noise, None)
+                })
+                .collect();
+            let w = WheelTrack {
+                t: &t,
+                dn_rl: &rl,
+                dn_rr: &rr,
+                circumference_m: c,
+                track_m: track,
+            };
+            imu_offset(&w, &imu, CLOCK_SEARCH_S)
+        };
+        let (a, b) = (run(0.0), run(1_700_000_000.037));
+        let (la, lb) = (a.offset_s.unwrap(), b.offset_s.unwrap());
+        assert!((la - 0.2).abs() < 0.01, "{a:?}");
+        assert!((la - lb).abs() < 1e-4, "{a:?} vs {b:?}");
+        let (sa, sb) = (a.sigma_s.unwrap(), b.sigma_s.unwrap());
+        assert!((sa - sb).abs() < 0.1 * sa + 1e-6, "{a:?} vs {b:?}");
     }
 
     #[test]

@@ -361,7 +361,7 @@ fn imu_clock(
     // The wheels' yaw rate trails the gyro's physically too (tyre relaxation,
     // the rate taken over a window of wheel samples): tens of milliseconds
     // that no clock causes. Below IMU_PHYSICAL_LAG_S an offset is reported
-    // but not applied (on wid-trial02, -31 +- 5 ms: applying it moved the
+    // but not applied (on wid-trial02, -30 +- 5 ms: applying it moved the
     // fitted antenna by 0.1 m).
     match (o.significant(interval.max(IMU_PHYSICAL_LAG_S)), o.sigma_s) {
         (Some(off), Some(sigma)) => {
