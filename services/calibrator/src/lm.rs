@@ -19,9 +19,10 @@
 //! start) and lengthens them to the configured length, each stage starting
 //! from the last ([`stages`]).
 //!
-//! Uncertainty: a block jackknife over contiguous blocks of fixes
-//! (linearised leave-one-block-out solves), and the formal covariance scaled
-//! by the residual variance and its lag-1 autocorrelation; the larger wins.
+//! Uncertainty: a jackknife over contiguous blocks of fixes and one over
+//! whole segments (linearised leave-one-out solves; the larger of the two
+//! for the circumferences), and the formal covariance scaled by the residual
+//! variance and its lag-1 autocorrelation; the larger wins.
 
 use crate::error::CalibrationError;
 use crate::prep::Prepared;
@@ -714,7 +715,30 @@ fn covariance(
             }
         }
     }
-    let jackknife = jackknife_covariance(&estimates).filter(|c| c.iter().all(|v| v.is_finite()));
+    let blocks = jackknife_covariance(&estimates).filter(|c| c.iter().all(|v| v.is_finite()));
+    // Blocks of fixes are shorter than the GNSS error's correlation time
+    // (a Gauss-Markov error of tens of seconds moves neighbouring blocks
+    // together), so leaving one out underestimates the spread. Each segment
+    // has its own pose and spans minutes: leaving whole segments out sees
+    // the correlated error; the larger of the two (by the circumferences'
+    // variance) is kept.
+    let mut by_segment = Vec::new();
+    for si in 0..accs.len() {
+        let mut left = accs.clone();
+        left.remove(si);
+        if let Some((s, rhs)) = reduced(&left) {
+            if let Some(d) = s.lu().solve(&rhs) {
+                by_segment.push(d);
+            }
+        }
+    }
+    let segments = jackknife_covariance(&by_segment).filter(|c| c.iter().all(|v| v.is_finite()));
+    let scale_var = |c: &DMatrix<f64>| c[(0, 0)] + c[(1, 1)];
+    let jackknife = match (blocks, segments) {
+        (Some(b), Some(s)) if scale_var(&s) > scale_var(&b) => Some(s),
+        (Some(b), _) => Some(b),
+        (None, s) => s,
+    };
     Ok(Fit {
         g: g.to_vec(),
         formal,
