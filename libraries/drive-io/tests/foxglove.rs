@@ -449,3 +449,39 @@ fn real_drive_fixes_match_its_csv_within_a_millimetre() {
     assert!(back.warnings.is_empty(), "{:?}", back.warnings);
     assert!(back.drive == loaded.drive);
 }
+
+/// A drive whose times are UNIX seconds (ROS bags, NMEA with dates) is
+/// stamped at its real date; one on a clock from 0 stays near 1970.
+#[test]
+fn unix_times_give_absolute_time_stamps() {
+    let t0 = 1_700_000_000.25;
+    let mut drive = drive_around((10.0, 20.0), &[(10.0, 20.0), (10.001, 20.0)]);
+    for s in &mut drive.wheels.samples {
+        s.t_s += t0;
+    }
+    for s in drive.gnss.iter_mut().flatten() {
+        s.t_s += t0;
+    }
+    for s in drive.truth.iter_mut().flatten() {
+        s.t_s += t0;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("unix.mcap");
+    let channels = write_and_read(&drive, &path, &foxglove_options(&["w"]));
+    let first = &channels[FOXGLOVE_LOCATION_TOPIC][0].1;
+    let want = (t0 - 1.0) * 1e9;
+    let got = first["timestamp"]["sec"].as_f64().unwrap() * 1e9
+        + first["timestamp"]["nsec"].as_f64().unwrap();
+    assert!((got - want).abs() < 1e3, "{first}");
+    assert_eq!(channels[FOXGLOVE_LOG_TOPIC][0].0, first_log_time(&channels));
+    assert!(read_drive(&path).unwrap().drive == drive);
+}
+
+fn first_log_time(channels: &Messages) -> u64 {
+    channels
+        .values()
+        .flatten()
+        .map(|(t, _)| *t)
+        .min()
+        .unwrap()
+}
