@@ -194,8 +194,8 @@ fn quaternion_norm(q: &Value) -> f64 {
         .sqrt()
 }
 
-/// A drive whose GNSS fixes are known points up to `reach_deg` away from
-/// the origin (converted to ENU by our forward conversion), with truth.
+/// A drive whose GNSS fixes are the known `points` (converted to ENU about
+/// `origin` by our forward conversion), with a truth, some of it without yaw.
 fn drive_around(origin: (f64, f64), points: &[(f64, f64)]) -> Drive {
     let frame = LocalFrame::new(origin.0, origin.1, 0.0);
     let gnss = points
@@ -478,10 +478,5 @@ fn unix_times_give_absolute_time_stamps() {
 }
 
 fn first_log_time(channels: &Messages) -> u64 {
-    channels
-        .values()
-        .flatten()
-        .map(|(t, _)| *t)
-        .min()
-        .unwrap()
+    channels.values().flatten().map(|(t, _)| *t).min().unwrap()
 }
