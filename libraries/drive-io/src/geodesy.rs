@@ -26,6 +26,32 @@ pub fn geodetic_to_ecef(lat_deg: f64, lon_deg: f64, height_m: f64) -> [f64; 3] {
     ]
 }
 
+/// Geodetic (lat, lon in degrees, height in metres) of an ECEF position:
+/// the inverse of [`geodetic_to_ecef`]. Longitude from `atan2`, latitude
+/// by the fixed-point iteration tan(lat) = (z + e^2 N sin(lat)) / p, which
+/// contracts by about e^2 per step (converged to the last bit within ten
+/// steps anywhere near the surface), height from the closed form
+/// p cos(lat) + z sin(lat) - a^2 / N, which holds at the poles too.
+pub fn ecef_to_geodetic(ecef: [f64; 3]) -> (f64, f64, f64) {
+    let [x, y, z] = ecef;
+    let p = x.hypot(y);
+    let lon = y.atan2(x);
+    let mut lat = z.atan2(p * (1.0 - E2));
+    for _ in 0..20 {
+        let s = lat.sin();
+        let n = WGS84_A / (1.0 - E2 * s * s).sqrt();
+        let next = (z + E2 * n * s).atan2(p);
+        let done = (next - lat).abs() < 1e-15;
+        lat = next;
+        if done {
+            break;
+        }
+    }
+    let (s, c) = lat.sin_cos();
+    let height = p * c + z * s - WGS84_A * (1.0 - E2 * s * s).sqrt();
+    (lat.to_degrees(), lon.to_degrees(), height)
+}
+
 /// A local ENU frame fixed at an origin on the ellipsoid.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LocalFrame {
@@ -81,6 +107,44 @@ impl LocalFrame {
         [east, north, up]
     }
 
+    /// Geodetic (lat, lon in degrees, height in metres) of a point given in
+    /// this frame: the inverse of [`LocalFrame::to_enu`].
+    pub fn to_geodetic(&self, east: f64, north: f64, up: f64) -> (f64, f64, f64) {
+        // The transpose of the rotation in `to_enu`.
+        let (sl, cl, so, co) = (self.sin_lat, self.cos_lat, self.sin_lon, self.cos_lon);
+        let dx = -so * east - sl * co * north + cl * co * up;
+        let dy = co * east - sl * so * north + cl * so * up;
+        let dz = cl * north + sl * up;
+        ecef_to_geodetic([
+            self.origin_ecef[0] + dx,
+            self.origin_ecef[1] + dy,
+            self.origin_ecef[2] + dz,
+        ])
+    }
+
+    /// (lat, lon) in degrees of the point on the ellipsoid surface (height
+    /// 0) whose (east, north) in this frame are these: the inverse of
+    /// [`LocalFrame::to_en`]. The surface curves away from the origin's
+    /// tangent plane, so the up coordinate is solved for: Newton steps on
+    /// the point's height, whose derivative along up is the cosine of the
+    /// angle between the two verticals (about 1 for any drive).
+    pub fn from_en(&self, east: f64, north: f64) -> (f64, f64) {
+        let mut up = 0.0;
+        let (mut lat, mut lon, mut height) = self.to_geodetic(east, north, up);
+        for _ in 0..10 {
+            if height.abs() < 1e-10 {
+                break;
+            }
+            // Cosine of the angle between the origin's and the point's verticals.
+            let (sl, cl) = lat.to_radians().sin_cos();
+            let dlon = (lon - self.origin_lon_deg).to_radians();
+            let cos_angle = (sl * self.sin_lat + cl * self.cos_lat * dlon.cos()).max(0.1);
+            up -= height / cos_angle;
+            (lat, lon, height) = self.to_geodetic(east, north, up);
+        }
+        (lat, lon)
+    }
+
     /// (east, north) in metres of a point on the ellipsoid surface (height 0,
     /// like the origin: drive files carry no height).
     pub fn to_en(&self, lat_deg: f64, lon_deg: f64) -> (f64, f64) {
@@ -116,6 +180,60 @@ mod tests {
         assert!((e - 165.72).abs() < 0.01, "east {e}");
         assert!((n - 222.18).abs() < 0.01, "north {n}");
         assert!((u - 799.99).abs() < 0.01, "up {u}");
+    }
+
+    /// The published CartConvert example above read backwards: its printed
+    /// ENU (rounded to 0.01 m, about 1e-7 degrees) gives back 33.3, 44.4,
+    /// 6000 m.
+    #[test]
+    fn inverse_matches_the_published_example() {
+        let f = LocalFrame::new(33.0, 44.0, 20.0);
+        let (lat, lon, h) = f.to_geodetic(37288.97, 33374.29, 5783.64);
+        assert!((lat - 33.3).abs() < 2e-7, "lat {lat}");
+        assert!((lon - 44.4).abs() < 2e-7, "lon {lon}");
+        assert!((h - 6000.0).abs() < 0.02, "height {h}");
+    }
+
+    /// ECEF to geodetic and back, near the equator, at mid latitudes, near
+    /// the poles and at altitude.
+    #[test]
+    fn ecef_round_trips() {
+        for (lat, lon, h) in [
+            (0.0, 0.0, 0.0),
+            (45.0, -120.0, 350.0),
+            (-33.9, 151.2, -30.0),
+            (89.9999, 10.0, 2000.0),
+            (-89.99, -170.0, 0.0),
+            (32.7655346, 35.0136362, 0.0),
+        ] {
+            let (la, lo, hh) = ecef_to_geodetic(geodetic_to_ecef(lat, lon, h));
+            assert!((la - lat).abs() < 1e-11, "lat {lat}: {la}");
+            assert!(
+                (lo - lon).abs() < 1e-11 || lat.abs() > 89.99,
+                "lon {lon}: {lo}"
+            );
+            assert!((hh - h).abs() < 1e-6, "h {h}: {hh}");
+        }
+    }
+
+    /// Surface points far from the origin (100 km and more, where the
+    /// surface is 800 m below the tangent plane) come back to 1e-11 degrees
+    /// (about a micrometre).
+    #[test]
+    fn from_en_inverts_to_en_far_from_the_origin() {
+        let f = LocalFrame::new(48.1, 11.5, 0.0);
+        for (lat, lon) in [
+            (48.1, 11.5),
+            (48.1000001, 11.4999999),
+            (49.0, 12.5),
+            (47.2, 10.1),
+            (50.3, 15.0),
+        ] {
+            let (e, n) = f.to_en(lat, lon);
+            let (la, lo) = f.from_en(e, n);
+            assert!((la - lat).abs() < 1e-11, "lat {lat}: {la}");
+            assert!((lo - lon).abs() < 1e-11, "lon {lon}: {lo}");
+        }
     }
 
     /// Small steps follow the ellipsoid's radii of curvature: north = M dphi,

@@ -36,7 +36,9 @@ pub use files::{read_state_text, write_durably, MAX_TEXT_FILE_BYTES};
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
 pub use nmea::{parse_nmea, read_nmea, NmeaFix, NmeaLog, NMEA_FILE};
 pub use recording::{
-    FORMAT_MAGIC, FORMAT_VERSION, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, MAX_CHUNK_RECORDS_BYTES,
+    FORMAT_MAGIC, FORMAT_VERSION, FOXGLOVE_BODY_FRAME, FOXGLOVE_GNSS_FRAME,
+    FOXGLOVE_LOCATION_TOPIC, FOXGLOVE_LOG_TOPIC, FOXGLOVE_TF_TOPIC, FOXGLOVE_TRUTH_POSE_TOPIC,
+    FOXGLOVE_WORLD_FRAME, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, MAX_CHUNK_RECORDS_BYTES,
     TRUTH_TOPIC, WHEELS_TOPIC,
 };
 pub use topic_map::{Role, TopicMap};
@@ -246,9 +248,39 @@ pub fn read_vehicle(path: &Path) -> Result<LoadedVehicle, DriveError> {
 /// `ticks_per_rev` present for `_ticks` wheels; otherwise
 /// [`DriveError::InvalidDrive`] and nothing is written.
 pub fn write_drive(drive: &Drive, path: &Path) -> Result<(), DriveError> {
+    write_drive_with(drive, path, &WriteOptions::default())
+}
+
+/// What [`write_drive_with`] adds to an MCAP recording (a drive folder
+/// ignores these). The default adds nothing: [`write_drive`]'s recording.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WriteOptions {
+    /// Also write channels in Foxglove's well-known schemas, derived from
+    /// the drive's own, so that Foxglove's panels show the recording:
+    /// [`FOXGLOVE_LOCATION_TOPIC`] (`foxglove.LocationFix`, the GNSS fixes
+    /// in lat/lon; only when the drive has a geodetic origin, i.e. came
+    /// from lat/lon), [`FOXGLOVE_TRUTH_POSE_TOPIC`] (`foxglove.PoseInFrame`
+    /// in [`FOXGLOVE_WORLD_FRAME`]) and [`FOXGLOVE_TF_TOPIC`]
+    /// (`foxglove.FrameTransform` to [`FOXGLOVE_BODY_FRAME`]) from the
+    /// truth, and [`FOXGLOVE_LOG_TOPIC`] (`foxglove.Log`) from
+    /// [`WriteOptions::warnings`]. Their time stamps are the log times. The
+    /// reader ignores them: the drive reads back the same either way.
+    pub foxglove: bool,
+    /// Warnings to record as `foxglove.Log` messages (level WARNING, at the
+    /// drive's earliest time), e.g. those of loading the drive; only with
+    /// [`WriteOptions::foxglove`].
+    pub warnings: Vec<String>,
+}
+
+/// [`write_drive`] with [`WriteOptions`].
+pub fn write_drive_with(
+    drive: &Drive,
+    path: &Path,
+    options: &WriteOptions,
+) -> Result<(), DriveError> {
     validate(drive)?;
     if is_mcap_path(path) {
-        recording::write_mcap(drive, path)
+        recording::write_mcap(drive, path, options)
     } else {
         folder::write_folder(drive, path)
     }

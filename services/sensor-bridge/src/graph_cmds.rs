@@ -7,7 +7,7 @@
 use crate::drive_input::DriveInput;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use drive_io::{read_vehicle, write_drive};
+use drive_io::{read_vehicle, write_drive_with};
 use interfaces::bus::Bus;
 use interfaces::drive::VehicleParams;
 use sensor_bridge::record::{record, RecordOptions};
@@ -71,6 +71,8 @@ pub struct RecordArgs {
     /// Ctrl-C).
     #[arg(long)]
     pub until_end: bool,
+    #[command(flatten)]
+    pub foxglove: crate::FoxgloveArgs,
 }
 
 fn positive_seconds(name: &str, v: f64) -> Result<Duration> {
@@ -143,7 +145,10 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
     for w in &rec.warnings {
         tracing::warn!("{w}");
     }
-    write_drive(&rec.drive, &args.out)
+    let options = args
+        .foxglove
+        .write_options(&rec.drive, &args.out, rec.warnings.clone());
+    write_drive_with(&rec.drive, &args.out, &options)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let [w, g, i, h] = rec.received;
     tracing::info!(

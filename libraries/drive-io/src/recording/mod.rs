@@ -18,17 +18,22 @@
 //!   where the offset is the smallest whole number of nanoseconds that makes
 //!   the earliest time of the drive non-negative (0 when no time is
 //!   negative). Readers use `t_s`; `log_time` only orders the playback.
+//! - optionally ([`crate::WriteOptions::foxglove`]), channels in Foxglove's
+//!   well-known schemas derived from the above ([`foxglove`]): GNSS in
+//!   lat/lon, true poses and transforms, warnings. Readers ignore every
+//!   channel whose schema name starts with `foxglove.`.
 //! - chunks are uncompressed, so a truncated file can be read up to the
 //!   damage, chunk contents included. The reader also takes `zstd` and
 //!   `lz4` chunks (the same recording compressed by another tool reads the
 //!   same), and ROS 2 bags ([`ros2`]).
 //!
 //! Jobs: [`messages`] (the JSON messages and schemas, from the stream
-//! descriptions of [`crate::streams`]), [`write`], [`scan`] (the record walk
+//! descriptions of [`crate::streams`]), [`foxglove`] (Foxglove's schemas), [`write`], [`scan`] (the record walk
 //! that survives truncation and decompresses chunks), [`read`] and [`ros2`]
 //! (a rosbag2 MCAP read as a drive).
 
 mod crc;
+mod foxglove;
 mod layout;
 mod messages;
 mod read;
@@ -36,6 +41,12 @@ mod ros2;
 mod scan;
 mod write;
 
+pub use foxglove::{
+    BODY_FRAME as FOXGLOVE_BODY_FRAME, GNSS_FRAME as FOXGLOVE_GNSS_FRAME,
+    LOCATION_TOPIC as FOXGLOVE_LOCATION_TOPIC, LOG_TOPIC as FOXGLOVE_LOG_TOPIC,
+    TF_TOPIC as FOXGLOVE_TF_TOPIC, TRUTH_POSE_TOPIC as FOXGLOVE_TRUTH_POSE_TOPIC,
+    WORLD_FRAME as FOXGLOVE_WORLD_FRAME,
+};
 pub(super) use read::read_mcap_bytes;
 pub use scan::MAX_CHUNK_RECORDS_BYTES;
 pub(super) use write::write_mcap;
@@ -59,6 +70,8 @@ pub const FORMAT_MAGIC: &str = "wheelcal-drive";
 /// Value of the `format_version` key; readers refuse newer versions.
 pub const FORMAT_VERSION: u32 = 1;
 
+/// Schema names of Foxglove's well-known types, which readers ignore.
+const FOXGLOVE_SCHEMA_PREFIX: &str = "foxglove.";
 const DRIVE_METADATA: &str = "wheelcal.drive";
 const VEHICLE_METADATA: &str = "wheelcal.vehicle";
 const TRUTH_METADATA: &str = "wheelcal.truth";

@@ -1,10 +1,10 @@
 //! Reading an MCAP recording into a drive.
 
 use super::messages::{MsgIn, WheelMsgIn};
-use super::scan::{RawMessage, Scan};
+use super::scan::{ChannelInfo, RawMessage, Scan};
 use super::{
-    parse_wheel_units, DRIVE_METADATA, FORMAT_MAGIC, FORMAT_VERSION, TRUTH_KEY, TRUTH_METADATA,
-    VEHICLE_KEY, VEHICLE_METADATA, WHEELS_TOPIC, WHEEL_UNITS_KEY,
+    parse_wheel_units, DRIVE_METADATA, FORMAT_MAGIC, FORMAT_VERSION, FOXGLOVE_SCHEMA_PREFIX,
+    TRUTH_KEY, TRUTH_METADATA, VEHICLE_KEY, VEHICLE_METADATA, WHEELS_TOPIC, WHEEL_UNITS_KEY,
 };
 use crate::folder::{parse_truth_toml, parse_vehicle_toml};
 use crate::streams::{wheel_column_names, Stream};
@@ -212,6 +212,15 @@ fn assemble(
             }
         }
     }
+    // Channels in Foxglove's schemas are derived from the drive's own
+    // (written with `WriteOptions::foxglove`): left out without a word.
+    let derived = |c: &ChannelInfo| {
+        !known.contains(&c.topic.as_str())
+            && scan
+                .schemas
+                .get(&c.schema_id)
+                .is_some_and(|s| s.name.starts_with(FOXGLOVE_SCHEMA_PREFIX))
+    };
     let mut per_channel: BTreeMap<u16, Vec<&RawMessage<'_>>> = BTreeMap::new();
     let mut unknown_channel_messages = 0usize;
     for m in &scan.messages {
@@ -219,13 +228,14 @@ fn assemble(
             Some(c) if by_topic.get(c.topic.as_str()) == Some(&m.channel_id) => {
                 per_channel.entry(m.channel_id).or_default().push(m)
             }
-            Some(c) if known.contains(&c.topic.as_str()) => {}
+            Some(c) if known.contains(&c.topic.as_str()) || derived(c) => {}
             _ => unknown_channel_messages += 1,
         }
     }
     let others: Vec<&str> = scan
         .channels
         .values()
+        .filter(|c| !derived(c))
         .map(|c| c.topic.as_str())
         .filter(|t| !known.contains(t))
         .collect();

@@ -1,13 +1,15 @@
 //! Writing a drive as an MCAP recording.
 
+use super::foxglove;
 use super::messages::{stream_schema, wheels_schema, MsgOut, WheelMsgOut};
 use super::{
     wheel_units_text, DRIVE_METADATA, FORMAT_MAGIC, FORMAT_VERSION, TRUTH_KEY, TRUTH_METADATA,
     VEHICLE_KEY, VEHICLE_METADATA, WHEELS_TOPIC, WHEEL_UNITS_KEY,
 };
 use crate::folder::{truth_toml, vehicle_toml};
+use crate::geodesy::LocalFrame;
 use crate::streams::{wheel_column_names, Stream, WHEELS_NAME, WHEELS_SCHEMA_TITLE};
-use crate::DriveError;
+use crate::{DriveError, WriteOptions};
 use interfaces::drive::{
     Drive, GnssSample, HeadingSample, ImuSample, TruthSample, Wheel, WheelSample, WheelUnits,
 };
@@ -17,7 +19,7 @@ use std::io::BufWriter;
 use std::path::Path;
 
 /// One stream of the drive on its way into the recording.
-trait Outgoing {
+pub(super) trait Outgoing {
     /// Name in errors.
     fn name(&self) -> &'static str;
     /// Channel topic.
@@ -100,8 +102,54 @@ fn outgoing<S: Stream + 'static>(drive: &Drive) -> Option<Box<dyn Outgoing + '_>
     S::of(drive).map(|s| Box::new(StreamOut(s)) as Box<dyn Outgoing>)
 }
 
+/// The log time of drive time `t` (s): round(t · 1e9) + `offset_ns`, kept
+/// within the unsigned nanoseconds MCAP has.
+pub(super) fn log_time_ns(t: f64, offset_ns: u64) -> u64 {
+    let ns = (t * 1e9).round() as i64 as i128 + offset_ns as i128;
+    ns.clamp(0, u64::MAX as i128) as u64
+}
+
+/// Foxglove's channels of the drive (see [`super::foxglove`]): the GNSS
+/// fixes in lat/lon when the drive has a geodetic origin, the true poses and
+/// their transforms, and `warnings` as log messages at the earliest time.
+fn foxglove_streams<'a>(
+    drive: &'a Drive,
+    warnings: &'a [String],
+    earliest: Option<f64>,
+    offset_ns: u64,
+) -> Vec<Box<dyn Outgoing + 'a>> {
+    let mut out: Vec<Box<dyn Outgoing + 'a>> = Vec::new();
+    let origin = (
+        drive.vehicle.gnss.origin_lat_deg,
+        drive.vehicle.gnss.origin_lon_deg,
+    );
+    if let (Some(samples), (Some(lat), Some(lon))) = (&drive.gnss, origin) {
+        out.push(Box::new(foxglove::LocationOut {
+            samples,
+            frame: LocalFrame::new(lat, lon, 0.0),
+            offset_ns,
+        }));
+    }
+    if let Some(samples) = &drive.truth {
+        out.push(Box::new(foxglove::TruthPoseOut { samples, offset_ns }));
+        out.push(Box::new(foxglove::TruthTransformOut { samples, offset_ns }));
+    }
+    if !warnings.is_empty() {
+        out.push(Box::new(foxglove::LogOut {
+            messages: warnings,
+            t_s: earliest.unwrap_or(0.0),
+            offset_ns,
+        }));
+    }
+    out
+}
+
 /// Write a (validated) drive as an MCAP recording.
-pub(crate) fn write_mcap(drive: &Drive, path: &Path) -> Result<(), DriveError> {
+pub(crate) fn write_mcap(
+    drive: &Drive,
+    path: &Path,
+    options: &WriteOptions,
+) -> Result<(), DriveError> {
     let file = std::fs::File::create(path).map_err(|e| DriveError::io(path, e))?;
     let err = |what: &str| {
         let path = path.to_path_buf();
@@ -140,6 +188,14 @@ pub(crate) fn write_mcap(drive: &Drive, path: &Path) -> Result<(), DriveError> {
         Some(t) if t < 0.0 => (-t * 1e9).ceil() as u64,
         _ => 0,
     };
+    if options.foxglove {
+        streams.extend(foxglove_streams(
+            drive,
+            &options.warnings,
+            earliest,
+            offset_ns,
+        ));
+    }
     let mut drive_meta = BTreeMap::new();
     drive_meta.insert("format".to_string(), FORMAT_MAGIC.to_string());
     drive_meta.insert("format_version".to_string(), FORMAT_VERSION.to_string());
@@ -185,18 +241,17 @@ pub(crate) fn write_mcap(drive: &Drive, path: &Path) -> Result<(), DriveError> {
 
     // Every message in time order across channels, for playback.
     // (log time, stream, index within the stream)
-    let log_time = |t: f64| (t * 1e9).round() as i64 as i128 + offset_ns as i128;
-    let mut order: Vec<(i128, u8, u32)> = Vec::new();
+    let mut order: Vec<(u64, u8, u32)> = Vec::new();
     for (stream, s) in streams.iter().enumerate() {
         for (i, t) in s.times().enumerate() {
-            order.push((log_time(t), stream as u8, i as u32));
+            order.push((log_time_ns(t, offset_ns), stream as u8, i as u32));
         }
     }
     order.sort_unstable();
 
     let mut sequence = vec![0u32; streams.len()];
     let mut buf = Vec::with_capacity(256);
-    for (time, stream, index) in order {
+    for (log_time, stream, index) in order {
         let i = index as usize;
         buf.clear();
         let (Some(s), Some(&channel_id), Some(seq)) = (
@@ -214,7 +269,6 @@ pub(crate) fn write_mcap(drive: &Drive, path: &Path) -> Result<(), DriveError> {
             index: i,
             message: format!("cannot serialise as JSON: {e}"),
         })?;
-        let log_time = time.clamp(0, u64::MAX as i128) as u64;
         writer
             .write_to_known_channel(
                 &MessageHeader {
