@@ -19,7 +19,7 @@
 //! `t_s` are UNIX seconds therefore shows at its real date; a drive on a
 //! clock starting near 0 shows in January 1970.
 
-use super::write::{log_time_ns, Outgoing};
+use super::outgoing::{log_time_ns, Outgoing};
 use crate::geodesy::LocalFrame;
 use interfaces::drive::{GnssSample, TruthSample};
 use serde::Serialize;

@@ -36,6 +36,7 @@ mod crc;
 mod foxglove;
 mod layout;
 mod messages;
+mod outgoing;
 mod read;
 mod ros2;
 mod scan;

@@ -2,6 +2,7 @@
 
 use super::foxglove;
 use super::messages::{stream_schema, wheels_schema, MsgOut, WheelMsgOut};
+use super::outgoing::{log_time_ns, Outgoing};
 use super::{
     wheel_units_text, DRIVE_METADATA, FORMAT_MAGIC, FORMAT_VERSION, TRUTH_KEY, TRUTH_METADATA,
     VEHICLE_KEY, VEHICLE_METADATA, WHEELS_TOPIC, WHEEL_UNITS_KEY,
@@ -17,24 +18,6 @@ use mcap::records::{MessageHeader, Metadata};
 use std::collections::BTreeMap;
 use std::io::BufWriter;
 use std::path::Path;
-
-/// One stream of the drive on its way into the recording.
-pub(super) trait Outgoing {
-    /// Name in errors.
-    fn name(&self) -> &'static str;
-    /// Channel topic.
-    fn topic(&self) -> &'static str;
-    /// Schema name.
-    fn schema_name(&self) -> &'static str;
-    /// Schema (JSON schema text).
-    fn schema(&self) -> Vec<u8>;
-    /// Channel metadata.
-    fn metadata(&self) -> BTreeMap<String, String>;
-    /// The sample times, in order.
-    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_>;
-    /// JSON of sample `i` into `buf`; `None` when there is no sample `i`.
-    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>>;
-}
 
 /// A stream with fixed columns.
 struct StreamOut<'a, S>(&'a [S]);
@@ -100,13 +83,6 @@ impl Outgoing for WheelsOut<'_> {
 /// Stream `S` of the drive, when it has it.
 fn outgoing<S: Stream + 'static>(drive: &Drive) -> Option<Box<dyn Outgoing + '_>> {
     S::of(drive).map(|s| Box::new(StreamOut(s)) as Box<dyn Outgoing>)
-}
-
-/// The log time of drive time `t` (s): round(t · 1e9) + `offset_ns`, kept
-/// within the unsigned nanoseconds MCAP has.
-pub(super) fn log_time_ns(t: f64, offset_ns: u64) -> u64 {
-    let ns = (t * 1e9).round() as i64 as i128 + offset_ns as i128;
-    ns.clamp(0, u64::MAX as i128) as u64
 }
 
 /// Foxglove's channels of the drive (see [`super::foxglove`]): the GNSS
