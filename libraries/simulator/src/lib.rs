@@ -27,6 +27,7 @@
 
 mod effects;
 mod engine;
+pub mod faults;
 mod route;
 mod scenarios;
 mod sensors;

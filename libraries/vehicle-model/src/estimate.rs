@@ -127,6 +127,44 @@ pub struct Estimate {
     /// The effect terms a diagnosis found (`effects` in the JSON, effect
     /// model extensions on the wire); all zero: the plain 2W model.
     pub effects: WheelEffects,
+    /// The sensor clock offsets the calibration found and applied
+    /// (`clock_offsets` in the JSON; not on the wire): the odometry puts the
+    /// drive's streams on the GNSS clock with them.
+    pub clocks: StreamClocks,
+}
+
+/// The clock offsets of a drive's streams against its wheels, as the
+/// calibrator applied them: a stream's stamp is `t_wheels + offset` for the
+/// same instant. Zero: the stream is on the wheels' clock.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StreamClocks {
+    /// GNSS stamps late against the wheels', s.
+    pub gnss_late_s: f64,
+    /// IMU stamps late against the wheels', s.
+    pub imu_late_s: f64,
+}
+
+impl StreamClocks {
+    /// True when every offset is zero.
+    pub fn is_zero(&self) -> bool {
+        self.gnss_late_s == 0.0 && self.imu_late_s == 0.0
+    }
+
+    /// Put every stream of `drive` on the GNSS clock (the clock of
+    /// `truth.csv` and of the world): the wheels move by `gnss_late_s`, the
+    /// IMU by `gnss_late_s - imu_late_s`; GNSS, heading and truth stay.
+    pub fn align(&self, drive: &mut interfaces::drive::Drive) {
+        if self.is_zero() {
+            return;
+        }
+        for w in &mut drive.wheels.samples {
+            w.t_s += self.gnss_late_s;
+        }
+        let imu_shift = self.gnss_late_s - self.imu_late_s;
+        for i in drive.imu.iter_mut().flatten() {
+            i.t_s += imu_shift;
+        }
+    }
 }
 
 /// An antenna position whose 1-sigma is larger than this in either axis is
@@ -199,6 +237,35 @@ struct EstimateJson {
     sigma_gnss_antenna_m: Option<[f64; 2]>,
     #[serde(default)]
     effects: Option<EffectTerms>,
+    #[serde(default)]
+    clock_offsets: Option<ClockOffsetsJson>,
+}
+
+/// The calibrator's `clock_offsets` object: one entry per stream.
+#[derive(Debug, Deserialize)]
+struct ClockOffsetsJson {
+    #[serde(default)]
+    gnss_s: Option<StreamOffsetJson>,
+    #[serde(default)]
+    imu_s: Option<StreamOffsetJson>,
+}
+
+/// One stream's offset; only an offset the calibration applied is used.
+#[derive(Debug, Deserialize)]
+struct StreamOffsetJson {
+    #[serde(default)]
+    offset_s: Option<f64>,
+    #[serde(default)]
+    applied: bool,
+}
+
+impl StreamOffsetJson {
+    fn applied_offset(o: Option<&StreamOffsetJson>) -> f64 {
+        o.filter(|o| o.applied)
+            .and_then(|o| o.offset_s)
+            .filter(|v| v.is_finite())
+            .unwrap_or(0.0)
+    }
 }
 
 /// The part of the calibrator's `gyro` object the odometry uses.
@@ -245,6 +312,13 @@ impl Estimate {
             antenna_m: antenna_m.map(|a| validate_antenna(a, source)).transpose()?,
             antenna_sigma_m,
             effects: parsed.effects.unwrap_or_default().into(),
+            clocks: parsed
+                .clock_offsets
+                .map(|c| StreamClocks {
+                    gnss_late_s: StreamOffsetJson::applied_offset(c.gnss_s.as_ref()),
+                    imu_late_s: StreamOffsetJson::applied_offset(c.imu_s.as_ref()),
+                })
+                .unwrap_or_default(),
         })
     }
 
@@ -278,6 +352,7 @@ impl Estimate {
             antenna_m,
             antenna_sigma_m,
             effects: EffectTerms::from_extensions(&wire.extensions[..used]).into(),
+            clocks: StreamClocks::default(),
         })
     }
 

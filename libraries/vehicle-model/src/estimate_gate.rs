@@ -529,6 +529,7 @@ mod tests {
             antenna_m: None,
             antenna_sigma_m: None,
             effects: WheelEffects::default(),
+            clocks: Default::default(),
         }
     }
 
@@ -687,6 +688,7 @@ mod tests {
                             track_rel: tr,
                             ..WheelEffects::default()
                         },
+                        clocks: Default::default(),
                     }
                 },
             )

@@ -75,6 +75,17 @@ pub struct CalibrationConfig {
     /// Estimate the GNSS antenna position (body frame) in the batch fit,
     /// starting from `vehicle.toml`'s `[gnss]` values (or the axle centre).
     pub estimate_lever_arm: bool,
+    /// Refuse the estimate when the calibrated model fits the GNSS worse
+    /// than this many times the GNSS noise (`Calibration::fit_quality`): the
+    /// drive then holds physics or faults the model does not explain, and
+    /// its circumferences absorb them. Infinity: never refuse (the
+    /// diagnosis, which looks for that physics, calibrates so).
+    #[serde(default = "default_max_fit_ratio")]
+    pub max_fit_ratio: f64,
+}
+
+fn default_max_fit_ratio() -> f64 {
+    10.0
 }
 
 impl Default for CalibrationConfig {
@@ -97,6 +108,7 @@ impl Default for CalibrationConfig {
             segment_length_s: 120.0,
             use_imu_acceleration: true,
             estimate_lever_arm: false,
+            max_fit_ratio: default_max_fit_ratio(),
         }
     }
 }
@@ -107,6 +119,15 @@ impl CalibrationConfig {
         let bad = |field: &'static str, reason: String| {
             Err(CalibrationError::InvalidConfig { field, reason })
         };
+        if self.max_fit_ratio.is_nan() || self.max_fit_ratio < 1.0 {
+            return bad(
+                "max_fit_ratio",
+                format!(
+                    "{} must be at least 1 (infinity: never refuse)",
+                    self.max_fit_ratio
+                ),
+            );
+        }
         if self.iterations == 0 || self.iterations > 1000 {
             return bad(
                 "iterations",

@@ -102,6 +102,22 @@ pub enum CalibrationError {
         /// What.
         detail: String,
     },
+    /// The calibrated model explains the drive far worse than the GNSS noise.
+    #[error(
+        "the calibrated model fits the GNSS to {residual_rms_m:.3} m RMS, {ratio:.1} times the GNSS noise of {noise_m:.3} m ({noise_source}), beyond the limit of {limit:.0}: the drive holds physics or faults the model does not explain (see the warnings), so its circumferences would absorb them; not published"
+    )]
+    PoorFit {
+        /// The fit's residual RMS, m.
+        residual_rms_m: f64,
+        /// The GNSS noise it is compared with, m.
+        noise_m: f64,
+        /// Where that noise came from.
+        noise_source: &'static str,
+        /// Their ratio.
+        ratio: f64,
+        /// The configured limit.
+        limit: f64,
+    },
     /// The estimate left the physically plausible range.
     #[error("{method} estimate is implausible: {detail}")]
     Implausible {

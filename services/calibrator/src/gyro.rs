@@ -261,11 +261,14 @@ pub fn estimate(
         // "determines" an antenna offset of decimetres that is other physics
         // absorbed (side slip: the catalogue's confusion), and the odometry,
         // which fuses a determined antenna, would carry it. A coordinate
-        // measured in vehicle.toml keeps its own sigma.
+        // measured in vehicle.toml keeps its own sigma, never more than the
+        // measurement's (its prior): the jackknife's leave-out solves do not
+        // carry the prior, and a drive that cannot tell leaves the
+        // measured value as it was.
         sigma_antenna_m: [0, 1].map(|i| {
             let s = sigma(ANTENNA + i);
             if p.lever_arm_given[i] {
-                s
+                s.min(ANTENNA_MEASURED_SIGMA_M)
             } else {
                 s.max(r.gnss_sigma_m)
             }

@@ -62,6 +62,7 @@ pub mod config;
 pub mod diagnose;
 pub mod ekf;
 pub mod error;
+pub mod gnss_jumps;
 pub mod gyro;
 pub mod holdout;
 pub mod live;

@@ -113,11 +113,61 @@ pub fn calibrate_with_progress(
         batch_result,
         warnings,
     )?;
+    if let Some(q) = cal.fit_quality.as_ref().filter(|q| q.ratio > q.limit) {
+        return Err(CalibrationError::PoorFit {
+            residual_rms_m: q.residual_rms_m,
+            noise_m: q.gnss_noise_m,
+            noise_source: if q.gnss_noise_source.starts_with("measured") {
+                "measured on this drive"
+            } else if q.gnss_noise_source.starts_with("the receiver") {
+                "the receiver's sigma_m"
+            } else {
+                "as configured"
+            },
+            ratio: q.ratio,
+            limit: q.limit,
+        });
+    }
     progress(Progress {
         stage: Stage::Done,
         fraction: 1.0,
     });
     Ok(cal)
+}
+
+/// The fit quality of the model the estimate came from: the wheel + gyro
+/// model where its scale was taken, else the batch (2W) fit.
+fn fit_quality(
+    two_wheel_rms: Option<f64>,
+    gyro: Option<&crate::gyro::GyroEstimate>,
+    r: &crate::reference::Reference,
+    config: &CalibrationConfig,
+) -> Option<crate::result::FitQuality> {
+    let (rms, model) = match gyro {
+        Some(g) if crate::gyro::prefer_distance_factor(g, two_wheel_rms) => {
+            (g.residual_rms_m, "wheel + gyro")
+        }
+        _ => (two_wheel_rms?, "2W"),
+    };
+    let noise = r.gnss_sigma_m;
+    if !(rms.is_finite() && noise > 0.0) {
+        return None;
+    }
+    let source = if config.gnss_sigma_m.is_some() {
+        "the configuration (gnss_sigma_m)"
+    } else if r.gnss_sigma_estimated {
+        "measured on the drive (the fixes' scatter, at least 0.3 m)"
+    } else {
+        "the receiver's sigma_m (median)"
+    };
+    Some(crate::result::FitQuality {
+        residual_rms_m: rms,
+        model: model.to_string(),
+        gnss_noise_m: noise,
+        gnss_noise_source: source.to_string(),
+        ratio: rms / noise,
+        limit: config.max_fit_ratio,
+    })
 }
 
 fn summary(m: &MethodResult) -> MethodSummary {
@@ -298,6 +348,7 @@ fn assemble(
             total_turn_deg: r.total_turn_rad.to_degrees(),
             gnss_fixes: r.fixes.len(),
             gnss_outliers: r.outliers,
+            gnss_jumps: r.jumps.clone(),
             gnss_outages: r.outages,
             gnss_sigma_m: r.gnss_sigma_m,
             gnss_sigma_estimated: r.gnss_sigma_estimated,
@@ -309,6 +360,7 @@ fn assemble(
             segments: primary.segments,
             wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
         },
+        fit_quality: fit_quality(primary.residual_rms_m, gyro.as_ref(), r, config),
         clock_offsets: crate::clocks::ClockOffsets {
             gnss_s: r.gnss_clock.clone(),
             imu_s: p.imu_clock.clone(),

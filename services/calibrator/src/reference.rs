@@ -26,6 +26,7 @@
 use crate::clocks::{self, StreamOffset, CLOCK_SEARCH_S};
 use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
+use crate::gnss_jumps::{self, JumpSearch};
 use crate::prep::{Fix, Prepared};
 use crate::warnings::{Warning, WarningCode};
 use interfaces::drive::{Drive, ImuSample};
@@ -92,6 +93,8 @@ pub struct Reference {
     pub gnss_sigma_estimated: bool,
     /// Fixes rejected by the gate.
     pub outliers: usize,
+    /// GNSS jumps found against the wheels and set aside.
+    pub jumps: Vec<gnss_jumps::Jump>,
     /// The wheel/GNSS time offset, when checked and determinable.
     pub time_offset: Option<TimeOffset>,
     /// The GNSS clock offset against the wheels, determined or not (and why).
@@ -174,6 +177,7 @@ fn smooth_positions(
     q: f64,
     gate: f64,
     inputs: Option<&[Input]>,
+    set_aside: Option<&[bool]>,
 ) -> Result<PosTrack, CalibrationError> {
     let n = fixes.len();
     let mut xf: Vec<[f64; 4]> = Vec::with_capacity(n);
@@ -212,6 +216,14 @@ fn smooth_positions(
             vv: c.vv + q * tt,
         };
         pp.push(pred);
+        if set_aside.is_some_and(|a| a[j]) {
+            // Inside a jump (`crate::gnss_jumps`): not a measurement, and
+            // not a rejection that could restart the filter on the jump.
+            xf.push(xp);
+            pf.push(pred);
+            accepted.push(false);
+            continue;
+        }
         let nu = [z[j][0] - xp[0], z[j][1] - xp[1]];
         let s = pred.pp + r;
         let d2 = (nu[0] * nu[0] + nu[1] * nu[1]) / s;
@@ -377,7 +389,11 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
     let inc: Vec<f64> = (0..n)
         .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c)
         .collect();
-    let speed = clocks::windowed_rate(&p.t, &inc, h);
+    // Unsigned, as the GNSS speed is (a drive may reverse).
+    let speed: Vec<f32> = clocks::windowed_rate(&p.t, &inc, h)
+        .into_iter()
+        .map(f32::abs)
+        .collect();
     let inc: Vec<f64> = (0..n)
         .map(|k| (p.dn_rr[k] - p.dn_rl[k]) * p.nominal_c / p.track)
         .collect();
@@ -610,6 +626,130 @@ impl HeadingTrack {
     }
 }
 
+/// The GNSS course measurements (with the speed) from the smoothed track
+/// and the heading filter run on them (plus any absolute heading).
+#[allow(clippy::type_complexity)]
+fn course_and_heading(
+    p: &Prepared,
+    pass1: &PosTrack,
+) -> Result<(Vec<(HeadingMeas, f64)>, HeadingTrack), CalibrationError> {
+    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
+    let [lx, ly] = p.lever_arm;
+    let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
+    for j in 0..pass1.t.len() {
+        if !pass1.accepted[j] {
+            continue;
+        }
+        let s = pass1.s[j];
+        let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
+        if v < COURSE_MIN_SPEED {
+            continue;
+        }
+        let var_c = pass1.cov[j].vv / (v * v);
+        if var_c > 0.04 || reversing(p, pass1.t[j]) {
+            // Reversing, the course points backwards: not a heading.
+            continue;
+        }
+        let w = omega_at(pass1.t[j]).unwrap_or(0.0);
+        let lever = (w * lx).atan2(v - w * ly);
+        let ay = v * w;
+        let sig_beta = 0.002 + 0.004 * ay.abs();
+        course_meas.push((
+            HeadingMeas {
+                t: pass1.t[j],
+                z: s[3].atan2(s[2]) - lever,
+                var: var_c + sig_beta * sig_beta,
+            },
+            v,
+        ));
+    }
+    let mut meas: Vec<HeadingMeas> = course_meas.iter().map(|m| m.0).collect();
+    for h in &p.headings {
+        let s = h.sigma_rad.unwrap_or(0.05);
+        meas.push(HeadingMeas {
+            t: h.t_s,
+            z: h.yaw_rad,
+            var: s * s,
+        });
+    }
+    meas.sort_by(|a, b| a.t.total_cmp(&b.t));
+    meas.dedup_by(|b, a| b.t <= a.t);
+    if meas.len() < 2 {
+        return Err(CalibrationError::TooShort {
+            distance_m: 0.0,
+            needed_m: 50.0,
+        });
+    }
+    let bias0 = standstill_gyro_bias(p).map_or(0.0, |b| b.0);
+    let heading = heading_filter(&meas, p, bias0)?;
+    Ok((course_meas, heading))
+}
+
+/// True when the wheels turn backwards around `t` (+-0.1 s).
+fn reversing(p: &Prepared, t: f64) -> bool {
+    let (a, b) = (
+        p.t.partition_point(|&s| s < t - 0.1),
+        p.t.partition_point(|&s| s <= t + 0.1),
+    );
+    let sum: f64 = (a..b.min(p.len()))
+        .filter(|&k| !p.is_piece_start(k))
+        .map(|k| p.dn_rl[k] + p.dn_rr[k])
+        .sum();
+    sum < 0.0
+}
+
+/// [`gnss_jumps::find`] on the fixes against the wheels' dead-reckoning
+/// (nominal circumference, the reference heading, the lever arm).
+fn find_jumps(p: &Prepared, fixes: &[RefFix], heading: &HeadingTrack) -> JumpSearch {
+    let n = p.len();
+    if n < 2 {
+        return JumpSearch::default();
+    }
+    let mut cursor = 0usize;
+    let yaw: Vec<f64> = (0..n)
+        .map(|k| {
+            let g = p.gyro.as_ref().map_or(f64::NAN, |g| g[k]);
+            heading.at(p.t[k], g, &mut cursor)
+        })
+        .collect();
+    let [lx, ly] = p.lever_arm;
+    let mut piece = vec![0usize; n];
+    let mut ant = vec![[0.0; 2]; n];
+    let mut pos = [0.0f64; 2];
+    for k in 0..n {
+        if k > 0 {
+            piece[k] = piece[k - 1] + usize::from(p.is_piece_start(k));
+            if !p.is_piece_start(k) {
+                let ds = 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c;
+                let th = 0.5 * (yaw[k - 1] + yaw[k]);
+                pos[0] += ds * th.cos();
+                pos[1] += ds * th.sin();
+            }
+        }
+        let (s, c) = yaw[k].sin_cos();
+        ant[k] = [pos[0] + c * lx - s * ly, pos[1] + s * lx + c * ly];
+    }
+    let dr_at = |t: f64| -> Option<(usize, [f64; 2])> {
+        if !(t >= p.t[0] && t <= p.t[n - 1]) {
+            return None;
+        }
+        let i = p.t.partition_point(|&s| s <= t).clamp(1, n - 1);
+        if piece[i] != piece[i - 1] {
+            return None;
+        }
+        let h = p.t[i] - p.t[i - 1];
+        let w = if h > 0.0 { (t - p.t[i - 1]) / h } else { 0.0 };
+        let (a, b) = (ant[i - 1], ant[i]);
+        Some((
+            piece[i],
+            [a[0] + w * (b[0] - a[0]), a[1] + w * (b[1] - a[1])],
+        ))
+    };
+    let t: Vec<f64> = fixes.iter().map(|f| f.t).collect();
+    let xy: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
+    gnss_jumps::find(&t, &xy, &dr_at)
+}
+
 /// Build the reference for the prepared drive (`drive` is read only for
 /// the IMU accelerations, which are not copied).
 pub fn build(
@@ -655,7 +795,7 @@ pub fn build(
     let antenna: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
 
     // Pass 1: GNSS alone, for the course and the time offset.
-    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
+    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
     let mut time_offset = None;
     let mut clock = StreamOffset::not_checked("time offset check switched off");
     if config.time_offset != TimeOffsetMode::Off {
@@ -684,7 +824,7 @@ pub fn build(
                 for f in &mut fixes {
                     f.t -= tau;
                 }
-                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None)?;
+                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
             }
             clock.applied = compensate;
             time_offset = Some(TimeOffset {
@@ -702,7 +842,48 @@ pub fn build(
             ));
         }
     }
-    let outliers = pass1.accepted.iter().filter(|a| !**a).count();
+    // Heading: gyro + GNSS course (+ absolute heading).
+    let gyro = p.gyro.as_ref();
+    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
+    let [lx, ly] = p.lever_arm;
+    let (mut course_meas, mut heading) = course_and_heading(p, &pass1)?;
+
+    // GNSS jumps, against the wheels' dead-reckoning on that heading: set
+    // aside, then the course and the heading again without them.
+    let mut jumps = find_jumps(p, &fixes, &heading);
+    // A jump of one fix is an outlier (counted with the gate's).
+    let single_fix = jumps.jumps.iter().filter(|j| j.fixes == 1).count();
+    jumps.jumps.retain(|j| j.fixes > 1);
+    if jumps.set_aside.iter().any(|a| *a) {
+        pass1 = smooth_positions(
+            &fixes,
+            &antenna,
+            Q_ACCEL_FREE,
+            gate,
+            None,
+            Some(&jumps.set_aside),
+        )?;
+        (course_meas, heading) = course_and_heading(p, &pass1)?;
+    }
+    if !jumps.jumps.is_empty() {
+        let total: usize = jumps.jumps.iter().map(|j| j.fixes).sum();
+        let largest = jumps.jumps.iter().map(|j| j.size_m).fold(0.0, f64::max);
+        let first = jumps.jumps[0];
+        warnings.push(Warning::new(
+            WarningCode::GnssJumps,
+            format!(
+                "gnss: {} jump(s) set aside ({total} fixes; largest {largest:.2} m; first from t = {:.1} to {:.1} s): the fixes stepped off the wheels' track by more than {:.0} sigma ({:.3} m measured on this drive) and back",
+                jumps.jumps.len(),
+                first.t_start,
+                first.t_end,
+                crate::gnss_jumps::EDGE_SIGMAS,
+                jumps.sigma_e_m.unwrap_or(f64::NAN),
+            ),
+        ));
+    }
+
+    let set_aside_count = jumps.set_aside.iter().filter(|a| **a).count() - single_fix;
+    let outliers = pass1.accepted.iter().filter(|a| !**a).count() - set_aside_count;
     for (f, a) in fixes.iter_mut().zip(&pass1.accepted) {
         f.accepted = *a;
     }
@@ -711,7 +892,9 @@ pub fn build(
         return Err(CalibrationError::TooFewGnss {
             usable,
             total: p.fixes.len(),
-            detail: format!(", {outliers} rejected as outliers"),
+            detail: format!(
+                ", {outliers} rejected as outliers, {set_aside_count} set aside in jumps"
+            ),
             needed: 10,
         });
     }
@@ -720,62 +903,11 @@ pub fn build(
         warnings.push(Warning::new(
             WarningCode::GnssOutliers,
             format!(
-                "gnss: {outliers} of {} fixes rejected as outliers (innovation beyond {gate:.1} sigma; first at t = {first:.2} s)",
+                "gnss: {outliers} of {} fixes rejected as outliers (innovation beyond {gate:.1} sigma, or alone off the wheels' track; first at t = {first:.2} s)",
                 fixes.len()
             ),
         ));
     }
-
-    // Heading: gyro + GNSS course (+ absolute heading).
-    let gyro = p.gyro.as_ref();
-    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
-    let [lx, ly] = p.lever_arm;
-    let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
-    for j in 0..pass1.t.len() {
-        if !pass1.accepted[j] {
-            continue;
-        }
-        let s = pass1.s[j];
-        let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
-        if v < COURSE_MIN_SPEED {
-            continue;
-        }
-        let var_c = pass1.cov[j].vv / (v * v);
-        if var_c > 0.04 {
-            continue;
-        }
-        let w = omega_at(pass1.t[j]).unwrap_or(0.0);
-        let lever = (w * lx).atan2(v - w * ly);
-        let ay = v * w;
-        let sig_beta = 0.002 + 0.004 * ay.abs();
-        course_meas.push((
-            HeadingMeas {
-                t: pass1.t[j],
-                z: s[3].atan2(s[2]) - lever,
-                var: var_c + sig_beta * sig_beta,
-            },
-            v,
-        ));
-    }
-    let mut meas: Vec<HeadingMeas> = course_meas.iter().map(|m| m.0).collect();
-    for h in &p.headings {
-        let s = h.sigma_rad.unwrap_or(0.05);
-        meas.push(HeadingMeas {
-            t: h.t_s,
-            z: h.yaw_rad,
-            var: s * s,
-        });
-    }
-    meas.sort_by(|a, b| a.t.total_cmp(&b.t));
-    meas.dedup_by(|b, a| b.t <= a.t);
-    if meas.len() < 2 {
-        return Err(CalibrationError::TooShort {
-            distance_m: 0.0,
-            needed_m: 50.0,
-        });
-    }
-    let bias0 = standstill_gyro_bias(p).map_or(0.0, |b| b.0);
-    let heading = heading_filter(&meas, p, bias0)?;
 
     // Side-slip at the course epochs: course - heading, Markov-filtered.
     let mut slip_t = Vec::new();
@@ -831,6 +963,11 @@ pub fn build(
         if use_accel { Q_ACCEL_IMU } else { Q_ACCEL_FREE },
         gate,
         inputs.as_deref(),
+        jumps
+            .set_aside
+            .iter()
+            .any(|a| *a)
+            .then_some(jumps.set_aside.as_slice()),
     )?;
 
     // Everything at the wheel times.
@@ -908,6 +1045,7 @@ pub fn build(
         gnss_sigma_m,
         gnss_sigma_estimated: estimated,
         outliers,
+        jumps: jumps.jumps,
         time_offset,
         gnss_clock: clock,
         side_slip_gain,
@@ -1165,7 +1303,7 @@ mod tests {
             });
             z.push(p);
         }
-        let tr = smooth_positions(&fixes, &z, 4.0, 5.0, None).expect("smoother");
+        let tr = smooth_positions(&fixes, &z, 4.0, 5.0, None, None).expect("smoother");
         assert!(!tr.accepted[100]);
         assert_eq!(tr.accepted.iter().filter(|a| !**a).count(), 1);
         let mid = tr.at(100, 10.0);

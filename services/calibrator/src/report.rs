@@ -54,9 +54,11 @@ pub fn render_text(c: &Calibration) -> String {
     );
     let _ = writeln!(
         s,
-        "gnss: {} fixes, {} outliers rejected, {} outages bridged, sigma {:.3} m ({}), antenna at ({:.2}, {:.2}) m",
+        "gnss: {} fixes, {} outliers rejected, {} jumps set aside ({} fixes), {} outages bridged, sigma {:.3} m ({}), antenna at ({:.2}, {:.2}) m",
         d.gnss_fixes,
         d.gnss_outliers,
+        d.gnss_jumps.len(),
+        d.gnss_jumps.iter().map(|j| j.fixes).sum::<usize>(),
         d.gnss_outages,
         d.gnss_sigma_m,
         if d.gnss_sigma_estimated { "estimated" } else { "given" },
@@ -166,6 +168,13 @@ pub fn render_text(c: &Calibration) -> String {
             s,
             "  GNSS residual RMS of the fit: {rms:.3} m over {} segments",
             d.segments
+        );
+    }
+    if let Some(q) = &c.fit_quality {
+        let _ = writeln!(
+            s,
+            "  fit quality: the {} model fits the GNSS to {:.3} m RMS, {:.1} x the GNSS noise of {:.3} m ({}); refused beyond {:.0} x",
+            q.model, q.residual_rms_m, q.ratio, q.gnss_noise_m, q.gnss_noise_source, q.limit
         );
     }
     if !c.comparison.is_empty() {

@@ -120,6 +120,25 @@ pub struct MethodSummary {
     pub dr_error_max_m: f64,
 }
 
+/// How well the calibrated model explains the drive: its GNSS residual
+/// against the GNSS noise of this drive.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FitQuality {
+    /// RMS of the GNSS residuals of the model the estimate came from, m.
+    pub residual_rms_m: f64,
+    /// That model: `2W` or `wheel + gyro`.
+    pub model: String,
+    /// The GNSS 1-sigma noise compared with, m.
+    pub gnss_noise_m: f64,
+    /// Where it came from: the receiver's `sigma_m`, the configuration, or
+    /// measured on the drive (the fixes' scatter).
+    pub gnss_noise_source: String,
+    /// `residual_rms_m / gnss_noise_m`.
+    pub ratio: f64,
+    /// The ratio beyond which the estimate is refused.
+    pub limit: f64,
+}
+
 /// Facts about the drive and the reference.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Diagnostics {
@@ -133,6 +152,10 @@ pub struct Diagnostics {
     pub gnss_fixes: usize,
     /// Fixes rejected as outliers.
     pub gnss_outliers: usize,
+    /// GNSS jumps found against the wheels and set aside (their fixes are
+    /// not used).
+    #[serde(default)]
+    pub gnss_jumps: Vec<crate::gnss_jumps::Jump>,
     /// GNSS outages bridged.
     pub gnss_outages: usize,
     /// GNSS 1-sigma used, m.
@@ -223,6 +246,10 @@ pub struct Calibration {
     /// not, and why), and whether it was applied.
     #[serde(default)]
     pub clock_offsets: ClockOffsets,
+    /// How well the calibrated model explains the drive (`None`: no fit
+    /// residual, e.g. the paper method alone).
+    #[serde(default)]
+    pub fit_quality: Option<FitQuality>,
     /// Every method run, side by side (when comparing).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub comparison: Vec<MethodSummary>,

@@ -18,6 +18,8 @@ pub enum WarningCode {
     NoImu,
     /// GNSS fixes rejected as outliers.
     GnssOutliers,
+    /// GNSS jumps found against the wheels and set aside.
+    GnssJumps,
     /// GNSS outages (bridged).
     GnssOutage,
     /// The wheel/GNSS time offset.

@@ -409,6 +409,7 @@ mod tests {
                 antenna_m: None,
                 antenna_sigma_m: None,
                 effects: vehicle_model::effects::WheelEffects::default(),
+                clocks: Default::default(),
             },
         };
         seq.push(estimate);

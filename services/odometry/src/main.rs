@@ -98,7 +98,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         .vehicle
         .check_plausible()
         .map_err(|e| anyhow::anyhow!("{}: vehicle.toml: {e}", args.drive.display()))?;
-    let (params, source, antenna, antenna_sigma, estimate_effects) = match &args.estimate {
+    let (params, source, antenna, antenna_sigma, estimate_effects, clocks) = match &args.estimate {
         Some(path) => {
             let estimate = drive_io::read_estimate(path).context("cannot use the estimate")?;
             vehicle_model::estimate_gate::EstimateGate::new(&drive.vehicle)
@@ -116,6 +116,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
                 estimate.antenna_m,
                 estimate.antenna_sigma_m,
                 estimate.effects.into(),
+                estimate.clocks,
             )
         }
         None => (
@@ -124,6 +125,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             None,
             None,
             vehicle_model::effects::EffectTerms::default(),
+            vehicle_model::estimate::StreamClocks::default(),
         ),
     };
     let truth_point =
@@ -138,6 +140,7 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             Some(path) => read_effect_terms(path)?,
             None => estimate_effects,
         },
+        clocks,
         ..EvaluateConfig::default()
     };
     let report = evaluate(&drive, &params, &config)

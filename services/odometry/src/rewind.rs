@@ -556,6 +556,7 @@ mod tests {
                 antenna_m: None,
                 antenna_sigma_m: None,
                 effects: vehicle_model::effects::WheelEffects::default(),
+                clocks: Default::default(),
             },
         };
         // The estimate arrives right after the wheel sample of 3.0 s; the fix

@@ -1274,6 +1274,7 @@ mod tests {
             antenna_m: Some([0.5, -0.3]),
             antenna_sigma_m: None,
             effects: vehicle_model::effects::WheelEffects::default(),
+            clocks: Default::default(),
         };
         assert_eq!(gnss_lever_arm(&vehicle, None), ([0.0, 0.0], false));
         assert_eq!(

@@ -262,6 +262,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 antenna_m: None,
                 antenna_sigma_m: None,
                 effects: vehicle_model::effects::WheelEffects::default(),
+                clocks: Default::default(),
             };
             estimates
                 .publish(new.to_wire(Header::from_seconds(t, 0), 1))
@@ -692,6 +693,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
                 antenna_m: Some(arm),
                 antenna_sigma_m: Some([0.02, 0.02]),
                 effects: vehicle_model::effects::WheelEffects::default(),
+                clocks: Default::default(),
             };
             estimates
                 .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))
@@ -891,6 +893,7 @@ fn estimates_no_calibration_can_give_are_refused() {
         antenna_m: None,
         antenna_sigma_m: None,
         effects: vehicle_model::effects::WheelEffects::default(),
+        clocks: Default::default(),
     };
     let with_c = |c: f64| {
         let mut e = good;

@@ -396,6 +396,8 @@ pub fn diagnose_with_progress(
         time_offset: TimeOffsetMode::Off,
         estimate_lever_arm: false,
         side_slip: false,
+        // A drive the plain model fits badly is what the diagnosis is for.
+        max_fit_ratio: f64::INFINITY,
         ..CalibrationConfig::default()
     };
     let cal = calibrate(drive, &plain)?;

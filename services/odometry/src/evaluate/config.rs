@@ -32,6 +32,10 @@ pub struct EvaluateConfig {
     /// Effect terms of the extended 2W model to dead-reckon with (the
     /// diagnosis's `terms`); all zero: the plain model.
     pub effects: vehicle_model::effects::EffectTerms,
+    /// The sensor clock offsets the calibration applied (the estimate's
+    /// `clocks`): the drive's streams are put on the GNSS clock, the clock
+    /// of `truth.csv`, before dead-reckoning. Zero: as recorded.
+    pub clocks: vehicle_model::estimate::StreamClocks,
 }
 
 impl Default for EvaluateConfig {
@@ -48,6 +52,7 @@ impl Default for EvaluateConfig {
             truth_point: TruthPoint::AXLE,
             keep_tracks: false,
             effects: vehicle_model::effects::EffectTerms::default(),
+            clocks: vehicle_model::estimate::StreamClocks::default(),
         }
     }
 }

@@ -42,6 +42,16 @@ pub fn evaluate(
     {
         return Err(EvaluateError::NoImu);
     }
+    // The streams on the GNSS clock (truth.csv's), as the calibration found them.
+    let aligned;
+    let drive = if config.clocks.is_zero() {
+        drive
+    } else {
+        let mut d = drive.clone();
+        config.clocks.align(&mut d);
+        aligned = d;
+        &aligned
+    };
     let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
     let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);

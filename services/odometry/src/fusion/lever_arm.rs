@@ -135,6 +135,7 @@ mod tests {
                 antenna_m: Some(arm),
                 antenna_sigma_m: None,
                 effects: vehicle_model::effects::WheelEffects::default(),
+                clocks: Default::default(),
             },
         };
         let mut fusion = Fusion::new(params(), 0, config(HeadingMode::Gyro));
