@@ -6,6 +6,8 @@
 //!   the pictures;
 //! - [`diagnose_cmd`]: `diagnose`, read a drive, print the findings, write
 //!   the JSON, the pictures and their index page;
+//! - [`info_cmd`]: `info`, the drive summary with the clock offsets, the
+//!   GNSS jumps and the fit quality the calibration finds;
 //! - [`serve_cmd`]: the arguments of `serve`, turned into a
 //!   [`serve::ServeConfig`];
 //! - [`serve`]: the live loop over the bus, with its state file.
@@ -13,6 +15,7 @@
 mod cli;
 mod diagnose_cmd;
 mod drive_input;
+mod info_cmd;
 mod serve;
 mod serve_cmd;
 
@@ -36,6 +39,11 @@ enum Command {
     /// and the drive part ways, which catalogue effects explain it (tested on
     /// held-out blocks), the extended model and the fit before and after.
     Diagnose(diagnose_cmd::DiagnoseArgs),
+    /// What a recording holds, and what the calibration finds about its
+    /// sensors: every stream's clock offset against the wheels, the GNSS
+    /// jumps set aside, the fit quality, and whether a calibration would be
+    /// refused.
+    Info(info_cmd::InfoArgs),
     /// Live calibration in the process graph: collect the sensor topics,
     /// calibrate on a worker thread, publish estimates that pass the quality gate.
     Serve(serve_cmd::ServeArgs),
@@ -47,6 +55,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Calibrate(args) => cli::run_calibrate(&args),
         Command::Diagnose(args) => diagnose_cmd::run_diagnose(&args),
+        Command::Info(args) => info_cmd::run_info(&args),
         Command::Serve(args) => serve_cmd::run_serve(&args),
     }
 }
