@@ -20,7 +20,9 @@ use anyhow::{Context, Result};
 use calibrator::{calibrate, Calibration, CalibrationConfig, StreamOffset};
 use interfaces::drive::Drive;
 use interfaces::effects::Effect;
-use odometry::evaluate::{choose_truth_point, evaluate, EvaluateConfig, TruthPointChoice};
+use odometry::evaluate::{
+    choose_truth_point, evaluate, EvaluateConfig, TruthPoint, TruthPointChoice,
+};
 use simulator::faults::{apply, Fault, Stream};
 use simulator::{simulate, Scenario, SimConfig};
 use std::time::Instant;
@@ -70,9 +72,11 @@ fn as_estimate(cal: &Calibration, name: &str) -> Result<Estimate> {
     Ok(Estimate::from_json_str(&text, name)?)
 }
 
-/// Median outage error (m) over outages starting at or after `from_s`.
-fn outage_median(drive: &Drive, est: &Estimate, from_s: f64) -> Result<f64> {
-    let point = choose_truth_point(drive, TruthPointChoice::Auto, est.antenna_m)?;
+/// Median outage error (m) over outages starting at or after `from_s`,
+/// scored at `point` (chosen once on the clean drive with its estimate, so
+/// that every fault is scored at the same body point: a fault in the GNSS
+/// must not change where truth.csv is taken to be).
+fn outage_median(drive: &Drive, est: &Estimate, point: TruthPoint, from_s: f64) -> Result<f64> {
     let config = EvaluateConfig {
         truth_point: point,
         clocks: est.clocks,
@@ -108,7 +112,8 @@ fn run_drive(name: &str, drive: &Drive, only: Option<&str>, rows: &mut Vec<Row>)
     let clean = calibrate(drive, &config).with_context(|| format!("{name}: clean"))?;
     let clean_est = as_estimate(&clean, name)?;
     let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
-    let clean_outage = outage_median(drive, &clean_est, t0)?;
+    let point = choose_truth_point(drive, TruthPointChoice::Auto, clean_est.antenna_m)?;
+    let clean_outage = outage_median(drive, &clean_est, point, t0)?;
     println!();
     println!(
         "### {name}: clean c_RL {:.5} m, c_RR {:.5} m (sigma {:.2} / {:.2} mm), median outage error {clean_outage:.3} m",
@@ -164,7 +169,7 @@ fn run_drive(name: &str, drive: &Drive, only: Option<&str>, rows: &mut Vec<Row>)
             clean.circumference_m.rr,
             cal.sigma_m.rr,
         );
-        let outage = outage_median(&faulted, &est, t0);
+        let outage = outage_median(&faulted, &est, point, t0);
         let (outage_text, ratio_text, ok_outage) = match outage {
             Ok(m) => (
                 format!("{m:.3}"),
@@ -192,6 +197,7 @@ fn run_drive(name: &str, drive: &Drive, only: Option<&str>, rows: &mut Vec<Row>)
             notes.join(", ")
         );
         if std::env::var_os("FAULT_SUITE_VERBOSE").is_some() {
+            println!("    params: {} (clean: {})", est.params, clean_est.params);
             for w in &cal.warnings {
                 println!("    {:?}: {}", w.code, w.message);
             }

@@ -471,7 +471,8 @@ fn sample_times(start: f64, duration: f64, dt: f64) -> Vec<f64> {
 }
 
 /// Put `profile` before the drive: the car moves along its start heading
-/// and is at rest at its start pose when the recording's first sample comes.
+/// and is at its start pose when the wheels' first sample comes (samples of
+/// other streams before it are dropped).
 fn prepend(
     d: &mut Drive,
     rng: &mut ChaCha8Rng,
@@ -509,15 +510,21 @@ fn prepend(
     } else {
         profile
     };
-    let t_start = [
-        d.wheels.samples.first().map(|w| w.t_s),
-        d.gnss.as_ref().and_then(|g| g.first()).map(|g| g.t_s),
-        d.imu.as_ref().and_then(|g| g.first()).map(|g| g.t_s),
-        d.heading.as_ref().and_then(|g| g.first()).map(|g| g.t_s),
-    ]
-    .into_iter()
-    .flatten()
-    .fold(f64::INFINITY, f64::min);
+    // The other streams from the wheels' first sample on, so that every
+    // stream's prepended samples end at the same pose at the same time.
+    let t_start = d.wheels.samples[0].t_s;
+    if let Some(g) = d.gnss.as_mut() {
+        g.retain(|f| f.t_s >= t_start);
+    }
+    if let Some(i) = d.imu.as_mut() {
+        i.retain(|f| f.t_s >= t_start);
+    }
+    if let Some(h) = d.heading.as_mut() {
+        h.retain(|f| f.t_s >= t_start);
+    }
+    if let Some(tr) = d.truth.as_mut() {
+        tr.retain(|f| f.t_s >= t_start);
+    }
     let t_begin = t_start - profile.duration_s;
     let at = |t: f64| profile.at(t - t_begin);
     // Start heading: the truth's yaw, else the direction to the first point

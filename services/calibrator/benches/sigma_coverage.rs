@@ -1,14 +1,20 @@
 //! Do the calibration's sigmas mean what they say (issue 26)? Over simulated
-//! drives with no unmodelled physics (so the simulator's circumferences are
-//! the truth the 2W model can reach), the share of estimates whose true
+//! drives with no catalogue effects (the vehicle's own physics stay: the
+//! driven axle's slip and the tyres' load make the effective circumference,
+//! truth path over wheel turns, differ from the static one; both are
+//! compared), the share of estimates whose true
 //! error lies within 1, 2 and 3 of their own sigma, per parameter and per
 //! GNSS noise level. A sigma that is honest covers about 68 / 95 / 99.7 %.
 //!
 //! `cargo bench -p calibrator --bench sigma_coverage [-- --seeds N]`
 
+#[path = "common/mod.rs"]
+mod common;
+
 use calibrator::{calibrate, CalibrationConfig};
 use simulator::{simulate, EffectSettings, Scenario, SimConfig, VehicleKind};
 use std::collections::BTreeMap;
+use vehicle_model::two_wheel::TwoWheelParams;
 
 /// A GNSS of the kind a drive may have: white and Gauss-Markov sigma (m)
 /// and the Gauss-Markov time constant (s).
@@ -67,7 +73,27 @@ fn main() {
                 let tc = &truth.circumference_m;
                 let c = &cal.circumference_m;
                 let s = &cal.sigma_m;
+                // The effective circumferences: what the wheels roll per
+                // turn on this drive (the driven axle's slip and the tyres'
+                // deflection make it differ from the static truth), the
+                // quantity the data defines and the odometry needs.
+                let eff = common::effective_scale(
+                    &drive,
+                    &TwoWheelParams {
+                        c_rl: tc.rl,
+                        c_rr: tc.rr,
+                        track_width: truth.track_width_m,
+                    },
+                )
+                .unwrap_or(f64::NAN);
                 let mut rows: Vec<(&str, f64, Option<f64>)> = vec![
+                    ("c_rl vs effective", c.rl - eff * tc.rl, s.rl),
+                    ("c_rr vs effective", c.rr - eff * tc.rr, s.rr),
+                    (
+                        "(c_rl + c_rr) / 2 vs effective",
+                        0.5 * (c.rl + c.rr - eff * (tc.rl + tc.rr)),
+                        s.mean,
+                    ),
                     ("c_rl", c.rl - tc.rl, s.rl),
                     ("c_rr", c.rr - tc.rr, s.rr),
                     ("c_rr - c_rl", (c.rr - c.rl) - (tc.rr - tc.rl), s.difference),

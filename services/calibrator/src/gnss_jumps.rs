@@ -25,8 +25,10 @@
 /// across the travel) off the dead-reckoning's (a Rayleigh tail of exp(-18): about one false edge in
 /// 10^8 differences of Gaussian noise).
 pub const EDGE_SIGMAS: f64 = 6.0;
-/// Longest jump looked for, s: a longer offset is a datum shift, not a jump.
-pub const MAX_JUMP_S: f64 = 120.0;
+/// Longest jump looked for, s: a longer offset is a datum shift or the
+/// wheels' own drift, which the dead-reckoning cannot tell apart from a
+/// jump over that long.
+pub const MAX_JUMP_S: f64 = 30.0;
 /// Edges looked at for the end of one jump (noise edges and smaller jumps
 /// may lie inside a long one).
 const MAX_EDGES_INSIDE: usize = 50;

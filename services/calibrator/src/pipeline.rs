@@ -113,6 +113,19 @@ pub fn calibrate_with_progress(
         batch_result,
         warnings,
     )?;
+    let mut cal = cal;
+    if let Some(q) = cal
+        .fit_quality
+        .as_ref()
+        .filter(|q| q.ratio > crate::result::FIT_WARN_RATIO && q.ratio <= q.limit)
+    {
+        let text = format!(
+            "the {} model fits the GNSS to {:.3} m RMS, {:.0} times the GNSS noise of {:.3} m ({}): physics or faults the model leaves out; `calibrator diagnose` looks for them (refused beyond {:.0} times)",
+            q.model, q.residual_rms_m, q.ratio, q.gnss_noise_m, q.gnss_noise_source, q.limit
+        );
+        cal.warnings
+            .push(Warning::new(WarningCode::FitWorseThanNoise, text));
+    }
     if let Some(q) = cal.fit_quality.as_ref().filter(|q| q.ratio > q.limit) {
         return Err(CalibrationError::PoorFit {
             residual_rms_m: q.residual_rms_m,

@@ -180,6 +180,17 @@ fn smooth_positions(
     set_aside: Option<&[bool]>,
 ) -> Result<PosTrack, CalibrationError> {
     let n = fixes.len();
+    // The kinematic input of the interval ending at fix j: none next to a
+    // fix set aside, where a run of predictions would integrate the
+    // accelerometer's bias for as long as the jump lasts (the filter
+    // bridges it at constant velocity, as it bridges an outage).
+    let input_of = |j: usize| -> Input {
+        let aside = |k: usize| set_aside.is_some_and(|a| a[k]);
+        if aside(j) || (j > 0 && aside(j - 1)) {
+            return [0.0; 4];
+        }
+        inputs.map_or([0.0; 4], |i| i[j])
+    };
     let mut xf: Vec<[f64; 4]> = Vec::with_capacity(n);
     let mut pf: Vec<Cov2> = Vec::with_capacity(n);
     let mut pp: Vec<Cov2> = Vec::with_capacity(n);
@@ -202,7 +213,7 @@ fn smooth_positions(
         }
         let tt = fixes[j].t - fixes[j - 1].t;
         let a = xf[j - 1];
-        let u = inputs.map_or([0.0; 4], |i| i[j]);
+        let u = input_of(j);
         let xp = [
             a[0] + a[2] * tt + u[0],
             a[1] + a[3] * tt + u[1],
@@ -307,7 +318,7 @@ fn smooth_positions(
             ],
         ];
         let a = xs[j];
-        let u = inputs.map_or([0.0; 4], |i| i[j + 1]);
+        let u = input_of(j + 1);
         let xp = [
             a[0] + a[2] * tt + u[0],
             a[1] + a[3] * tt + u[1],
@@ -1032,7 +1043,26 @@ pub fn build(
             ),
         ));
     }
-    let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &valid);
+    // A jump set aside is bridged by fixes on both sides (the fits' segments
+    // run through it): its motion counts as observed, unlike an outage's.
+    let bridged: Vec<bool> = if jumps.jumps.is_empty() {
+        valid.clone()
+    } else {
+        let mut j = 0usize;
+        p.t.iter()
+            .zip(&valid)
+            .map(|(&t, &v)| {
+                while j < jumps.jumps.len() && jumps.jumps[j].t_end < t {
+                    j += 1;
+                }
+                v || jumps
+                    .jumps
+                    .get(j)
+                    .is_some_and(|jp| t >= jp.t_start && t <= jp.t_end)
+            })
+            .collect()
+    };
+    let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &bridged);
     let heading_filter_gyro_bias =
         gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
     Ok(Reference {

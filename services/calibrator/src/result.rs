@@ -120,6 +120,10 @@ pub struct MethodSummary {
     pub dr_error_max_m: f64,
 }
 
+/// A fit worse than this many times the GNSS noise is a warning
+/// ([`crate::WarningCode::FitWorseThanNoise`]).
+pub const FIT_WARN_RATIO: f64 = 10.0;
+
 /// How well the calibrated model explains the drive: its GNSS residual
 /// against the GNSS noise of this drive.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

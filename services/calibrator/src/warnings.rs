@@ -20,6 +20,8 @@ pub enum WarningCode {
     GnssOutliers,
     /// GNSS jumps found against the wheels and set aside.
     GnssJumps,
+    /// The calibrated model fits the GNSS far worse than its noise.
+    FitWorseThanNoise,
     /// GNSS outages (bridged).
     GnssOutage,
     /// The wheel/GNSS time offset.

@@ -65,13 +65,13 @@ fn gnss_jumps_are_set_aside_and_the_estimate_matches_the_clean_drive() {
 #[test]
 fn a_drive_the_model_cannot_explain_is_refused_with_the_reason() {
     let mut drive = rtk_drive(5);
-    // The receiver claims 2 cm but wanders by metres over a minute (a
+    // The receiver claims 1 cm but wanders by metres over a minute (a
     // multipath canyon it does not know about).
     for f in drive.gnss.as_mut().expect("gnss") {
         let w = 2.0 * std::f64::consts::PI * f.t_s / 60.0;
-        f.x_m += 4.0 * w.sin();
-        f.y_m += 3.0 * (0.7 * w).cos();
-        f.sigma_m = Some(0.02);
+        f.x_m += 8.0 * w.sin();
+        f.y_m += 6.0 * (0.7 * w).cos();
+        f.sigma_m = Some(0.01);
     }
     match calibrate(&drive, &CalibrationConfig::default()) {
         Err(e @ CalibrationError::PoorFit { ratio, limit, .. }) => {
