@@ -31,7 +31,7 @@ mod topic_map;
 
 pub use csv::MAX_CSV_LINE_BYTES;
 pub use error::DriveError;
-pub use estimate_file::read_estimate;
+pub use estimate_file::{read_estimate, read_estimate_with_vehicle};
 pub use files::{read_state_text, write_durably, MAX_TEXT_FILE_BYTES};
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
 pub use nmea::{parse_nmea, read_nmea, NmeaFix, NmeaLog, NMEA_FILE};

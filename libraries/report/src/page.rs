@@ -202,6 +202,15 @@ impl Page {
     }
 }
 
+/// Writing to a page appends trusted HTML to its body, as [`Page::html`]
+/// does (for pages with fragments of their own, e.g. lists with `<code>`).
+impl std::fmt::Write for Page {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.body.push_str(s);
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -245,6 +245,7 @@ pub fn run(
         segments: fit.segments,
         track_before: before.track,
         track_after: after.track,
+        model_track: Some(fit.model_track),
         notes,
     })
 }

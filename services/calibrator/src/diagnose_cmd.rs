@@ -7,7 +7,7 @@ use calibrator::diagnose::{
 };
 use clap::Args;
 use std::fmt::Write as _;
-use std::io::Write as _;
+use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `calibrator diagnose`.
@@ -49,7 +49,10 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     if let Some(b) = args.block {
         anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
     }
-    let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
+    // A carriage-return progress line only on a terminal.
+    let show = !args.no_progress
+        && drive.wheel_duration_s() > 300.0
+        && std::io::stderr().is_terminal();
     let mut shown = false;
     let result = diagnose_with_progress(&drive, &cfg, &mut |stage, fraction| {
         if show {

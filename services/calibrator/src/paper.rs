@@ -152,6 +152,7 @@ fn run_once(
         segments: 0,
         track_before: dev0.track,
         track_after,
+        model_track: None,
         notes: Vec::new(),
     })
 }

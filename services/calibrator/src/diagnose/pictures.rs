@@ -1,5 +1,6 @@
-//! Pictures of a diagnosis, written by hand as SVG (no dependency), and one
-//! self-contained HTML page that shows them with the findings.
+//! Pictures of a diagnosis, written as SVG here, and one self-contained
+//! HTML page that shows them with the findings, built with the `report`
+//! library's page (the calibration and evaluation pages use the same).
 //!
 //! - [`residual_svg`]: for one finding, its channel's residual against the
 //!   signal that reveals the effect, before and after its term entered;
@@ -12,6 +13,7 @@
 //! carries its caption in its `<desc>`, which [`index_html`] shows under it.
 
 use super::{Diagnosis, FitMetrics, ResidualPlot, TrackPlot};
+use report::{Cell, Page};
 use std::fmt::Write as _;
 
 /// "Before" (the plain model, or the residual without the term): vermillion.
@@ -935,18 +937,6 @@ pub fn block_errors_svg(t: &TrackPlot) -> String {
 
 // ---------------------------------------------------------------- page
 
-const CSS: &str = "\
-body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;margin:2em auto;max-width:1150px;\
-padding:0 1em;color:#222;line-height:1.4}\
-h1{font-size:1.6em;margin-bottom:.2em}h2{margin-top:1.8em;border-bottom:1px solid #ccc;padding-bottom:.2em}\
-.headline{font-size:1.2em;background:#f3f6fa;border-left:4px solid #0072B2;padding:.6em 1em}\
-.nothing{border-left-color:#009E73}\
-table{border-collapse:collapse;margin:.6em 0;font-size:.95em}\
-th,td{border:1px solid #d5d5d5;padding:.3em .6em;text-align:left;vertical-align:top}\
-th{background:#f2f2f2}td.n{text-align:right;font-variant-numeric:tabular-nums;white-space:nowrap}\
-.muted{color:#666}figure{margin:1.5em 0;padding:.8em;border:1px solid #ddd;border-radius:4px}\
-figure svg{max-width:100%;height:auto;display:block}figcaption{color:#444;font-size:.92em;margin-top:.5em}\
-code{background:#f4f4f4;padding:0 .2em}";
 
 /// An SVG's caption: the text of its `<desc>` (already escaped).
 fn caption_of(svg: &str) -> Option<&str> {
@@ -972,29 +962,36 @@ fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
-fn table(s: &mut String, head: &[&str], rows: &[Vec<(bool, String)>]) {
-    s.push_str("<table>\n<tr>");
-    for h in head {
-        let _ = write!(s, "<th>{}</th>", escape(h));
-    }
-    s.push_str("</tr>\n");
-    for r in rows {
-        s.push_str("<tr>");
-        for (numeric, cell) in r {
-            // Cells are already escaped HTML.
-            if *numeric {
-                let _ = write!(s, "<td class=\"n\">{cell}</td>");
-            } else {
-                let _ = write!(s, "<td>{cell}</td>");
-            }
-        }
-        s.push_str("</tr>\n");
-    }
-    s.push_str("</table>\n");
+fn table(s: &mut Page, head: &[&str], rows: &[Vec<(bool, String)>]) {
+    // Cells are already escaped HTML.
+    let rows: Vec<Vec<Cell>> = rows
+        .iter()
+        .map(|r| {
+            r.iter()
+                .map(|(numeric, cell)| {
+                    if *numeric {
+                        Cell::HtmlNumber(cell.clone())
+                    } else {
+                        Cell::Html(cell.clone())
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    s.table(head, &rows);
 }
 
-fn none_para(s: &mut String, text: &str) {
-    let _ = writeln!(s, "<p class=\"muted\">{}</p>", escape(text));
+fn none_para(s: &mut Page, text: &str) {
+    s.note(text);
+}
+
+/// The text of escaped HTML (a `<desc>` caption) back.
+fn unescape(s: &str) -> String {
+    s.replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&quot;", "\"")
+        .replace("&#39;", "'")
+        .replace("&amp;", "&")
 }
 
 fn fit_rows(before: &FitMetrics, after: &FitMetrics) -> Vec<Vec<(bool, String)>> {
@@ -1055,12 +1052,7 @@ fn fit_rows(before: &FitMetrics, after: &FitMetrics) -> Vec<Vec<(bool, String)>>
 /// from, and then every picture of `pictures` (name, SVG text) under its
 /// name, captioned with the SVG's `<desc>`.
 pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
-    let mut s = String::new();
-    s.push_str("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n");
-    s.push_str("<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n");
-    s.push_str("<title>Diagnosis of the 2W odometry model</title>\n");
-    let _ = writeln!(s, "<style>{CSS}</style>\n</head>\n<body>");
-    s.push_str("<h1>Diagnosis: the physics the 2W model leaves out</h1>\n");
+    let mut s = Page::new("Diagnosis: the physics the 2W model leaves out");
     let b = &d.base_model;
     let _ = writeln!(
         s,
@@ -1088,7 +1080,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     if d.findings.is_empty() && d.ambiguous.is_empty() && d.unexplained.is_empty() {
         let _ = writeln!(
             s,
-            "<p class=\"headline nothing\">{}: no effect beyond the noise: the plain 2W model \
+            "<p class=\"headline good\">{}: no effect beyond the noise: the plain 2W model \
              explains this drive (held-out position RMSE {} m).</p>",
             escape(&counts),
             num(fb)
@@ -1115,7 +1107,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     }
 
     // Findings.
-    s.push_str("<h2>Findings</h2>\n");
+    s.heading("Findings");
     if d.findings.is_empty() {
         none_para(
             &mut s,
@@ -1178,7 +1170,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     }
 
     // Ambiguous.
-    s.push_str("<h2>Ambiguous: effects this drive cannot tell apart</h2>\n");
+    s.heading("Ambiguous: effects this drive cannot tell apart");
     if d.ambiguous.is_empty() {
         none_para(&mut s, "None.");
     } else {
@@ -1210,7 +1202,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     }
 
     // Unexplained.
-    s.push_str("<h2>Unexplained: structure no catalogue effect explains</h2>\n");
+    s.heading("Unexplained: structure no catalogue effect explains");
     if d.unexplained.is_empty() {
         none_para(&mut s, "None.");
     } else {
@@ -1241,7 +1233,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     }
 
     // Mismatch segments.
-    s.push_str("<h2>Where the plain model leaves the recording</h2>\n");
+    s.heading("Where the plain model leaves the recording");
     if d.mismatch_segments.is_empty() {
         none_para(
             &mut s,
@@ -1273,7 +1265,7 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     }
 
     // Fit.
-    s.push_str("<h2>Fit on held-out blocks</h2>\n");
+    s.heading("Fit on held-out blocks");
     none_para(
         &mut s,
         "Each block is predicted with coefficients fitted on the other blocks.",
@@ -1285,11 +1277,11 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     );
 
     // Rejected and untestable.
-    s.push_str("<h2>Rejected</h2>\n");
+    s.heading("Rejected");
     if d.rejected.is_empty() {
         none_para(&mut s, "None.");
     } else {
-        s.push_str("<ul>\n");
+        s.html("<ul>\n");
         for r in &d.rejected {
             let _ = writeln!(
                 s,
@@ -1298,13 +1290,13 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
                 escape(&r.reason)
             );
         }
-        s.push_str("</ul>\n");
+        s.html("</ul>\n");
     }
-    s.push_str("<h2>Tested, not accepted (the last round of the selection)</h2>\n");
+    s.heading("Tested, not accepted (the last round of the selection)");
     if d.not_accepted.is_empty() {
         none_para(&mut s, "None.");
     } else {
-        s.push_str("<ul>\n");
+        s.html("<ul>\n");
         for n in &d.not_accepted {
             let _ = writeln!(
                 s,
@@ -1316,13 +1308,13 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
                 escape(&n.detectable_text())
             );
         }
-        s.push_str("</ul>\n");
+        s.html("</ul>\n");
     }
-    s.push_str("<h2>Not testable on this drive</h2>\n");
+    s.heading("Not testable on this drive");
     if d.untestable.is_empty() {
         none_para(&mut s, "None: every catalogue effect was tested.");
     } else {
-        s.push_str("<ul>\n");
+        s.html("<ul>\n");
         for u in &d.untestable {
             let _ = writeln!(
                 s,
@@ -1331,11 +1323,11 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
                 escape(&u.needs)
             );
         }
-        s.push_str("</ul>\n");
+        s.html("</ul>\n");
     }
 
     // Noise.
-    s.push_str("<h2>Noise levels (the thresholds come from these)</h2>\n");
+    s.heading("Noise levels (the thresholds come from these)");
     let n = &d.noise;
     let mut rows = vec![
         vec![
@@ -1370,23 +1362,15 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
     table(&mut s, &["", "value"], &rows);
 
     // Pictures.
-    s.push_str("<h2>Pictures</h2>\n");
+    s.heading("Pictures");
     if pictures.is_empty() {
         none_para(&mut s, "No pictures.");
     }
     for (name, svg) in pictures {
-        let svg = match svg.trim_start().strip_prefix("<?xml") {
-            Some(rest) => rest.split_once("?>").map_or("", |r| r.1),
-            None => svg.as_str(),
-        };
-        let _ = writeln!(s, "<figure>\n<h3>{}</h3>", escape(name));
-        s.push_str(svg.trim());
-        s.push('\n');
-        let caption = caption_of(svg).map_or_else(|| escape(name), str::to_string);
-        let _ = writeln!(s, "<figcaption>{caption}</figcaption>\n</figure>");
+        let caption = caption_of(svg).map_or_else(|| name.clone(), unescape);
+        s.figure(name, svg, &caption);
     }
-    s.push_str("</body>\n</html>\n");
-    s
+    s.render()
 }
 
 #[cfg(test)]
