@@ -15,6 +15,8 @@
 //! [`read_estimate`] reads the calibrator's estimate file; [`dev_data`] locates the real drives beside the repository for tests and
 //! benchmarks.
 
+#[cfg(feature = "cli")]
+pub mod cli;
 mod csv;
 pub mod dev_data;
 mod error;

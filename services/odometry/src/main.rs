@@ -43,8 +43,11 @@ enum Command {
 
 #[derive(Debug, clap::Args)]
 struct EvaluateArgs {
-    /// Drive folder or MCAP recording (needs truth.csv).
+    /// Drive folder or MCAP recording (needs truth.csv), or a ROS 2 bag
+    /// with --vehicle.
     drive: PathBuf,
+    #[command(flatten)]
+    input: drive_io::cli::DriveInput,
     /// Estimate written by `calibrator calibrate --json`; without it, the
     /// nominal values of vehicle.toml.
     #[arg(long)]
@@ -94,7 +97,10 @@ fn main() -> Result<()> {
 }
 
 fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
-    let loaded = drive_io::read_drive(&args.drive)
+    let loaded = args
+        .input
+        .read(&args.drive, false)
+        .context("reading --vehicle / --topics")?
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");

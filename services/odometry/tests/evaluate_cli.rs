@@ -94,7 +94,7 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
     let drive = simulate(&sim).expect("simulate");
     let drive_dir = dir.path().join("drive");
     drive_io::write_drive(&drive, &drive_dir).expect("write drive");
-    let run = |estimate: &str| -> (String, serde_json::Value) {
+    let run = |estimate: &str, extra: &[&std::ffi::OsStr]| -> (String, serde_json::Value) {
         let est = dir.path().join("est.json");
         std::fs::write(&est, estimate).expect("write estimate");
         let json = dir.path().join("eval.json");
@@ -105,6 +105,7 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
             .arg(&est)
             .arg("--json")
             .arg(&json)
+            .args(extra)
             .output()
             .expect("run odometry");
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -112,17 +113,31 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
         (String::from_utf8_lossy(&out.stderr).to_string(), v)
     };
     // Made for this vehicle: nothing to say.
-    let (stderr, v) = run(&estimate_for(&drive.vehicle));
+    let (stderr, v) = run(&estimate_for(&drive.vehicle), &[]);
     assert!(!stderr.contains("another vehicle"), "{stderr}");
     assert!(!v["warnings"].to_string().contains("another vehicle"));
     // Made for a van: said on stderr and in the report's warnings.
     let mut van = drive.vehicle.clone();
     van.name = Some("delivery van".to_string());
     van.track_width_m += 0.2;
-    let (stderr, v) = run(&estimate_for(&van));
+    let (stderr, v) = run(&estimate_for(&van), &[]);
     let w = v["warnings"][0].as_str().expect("a warning");
     assert!(w.contains("another vehicle") && w.contains("rear track"), "{w}");
     assert!(stderr.contains("another vehicle"), "{stderr}");
     // A pipe, not a terminal: the log carries no colour codes.
     assert!(!stderr.contains('\u{1b}'), "ANSI escape in {stderr:?}");
+    // --vehicle, as `calibrate` takes it: the van's parameters replace the
+    // drive's own, and the van's estimate fits them (without --vehicle the
+    // same estimate was warned about above).
+    let mut van_drive = drive.clone();
+    van_drive.vehicle = van.clone();
+    let van_dir = dir.path().join("van");
+    drive_io::write_drive(&van_drive, &van_dir).expect("write van drive");
+    let vehicle_arg = std::ffi::OsString::from("--vehicle");
+    let (stderr, v) = run(
+        &estimate_for(&van),
+        &[vehicle_arg.as_os_str(), van_dir.join("vehicle.toml").as_os_str()],
+    );
+    assert!(!stderr.contains("another vehicle"), "{stderr}");
+    assert!(!v["warnings"].to_string().contains("another vehicle"));
 }
