@@ -237,9 +237,25 @@ fn python_subscriber_ends_when_the_pose_stream_ends() {
     let mut out = String::new();
     let mut err = String::new();
     use std::io::Read;
-    child.0.stdout.take().expect("stdout").read_to_string(&mut out).expect("stdout");
-    child.0.stderr.take().expect("stderr").read_to_string(&mut err).expect("stderr");
-    assert_eq!(out.lines().count(), COUNT as usize, "every pose before the end: {out}");
+    child
+        .0
+        .stdout
+        .take()
+        .expect("stdout")
+        .read_to_string(&mut out)
+        .expect("stdout");
+    child
+        .0
+        .stderr
+        .take()
+        .expect("stderr")
+        .read_to_string(&mut err)
+        .expect("stderr");
+    assert_eq!(
+        out.lines().count(),
+        COUNT as usize,
+        "every pose before the end: {out}"
+    );
     assert!(
         err.contains(&format!("pose stream ended after {COUNT} poses")),
         "{err}"

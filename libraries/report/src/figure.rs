@@ -339,7 +339,11 @@ impl Figure {
 
     /// The plot area's size, px.
     fn plot_px(&self) -> (f64, f64) {
-        let w = self.size.0.saturating_sub(2 * MARGIN + Y_LABEL_AREA).max(10);
+        let w = self
+            .size
+            .0
+            .saturating_sub(2 * MARGIN + Y_LABEL_AREA)
+            .max(10);
         let h = self
             .size
             .1
@@ -391,12 +395,8 @@ impl Figure {
             let style = TextStyle::from((FONT, 18).into_font())
                 .color(&RGBColor(0x66, 0x66, 0x66))
                 .pos(Pos::new(HPos::Center, VPos::Center));
-            root.draw_text(
-                "no data",
-                &style,
-                ((w / 2) as i32, (h / 2) as i32),
-            )
-            .map_err(err)?;
+            root.draw_text("no data", &style, ((w / 2) as i32, (h / 2) as i32))
+                .map_err(err)?;
             return Ok(());
         }
         let ok = |p: &[f64; 2]| {
@@ -410,10 +410,7 @@ impl Figure {
             let colour = b.colour.rgb().mix(0.18);
             let lower = b.points.iter().map(|p| (p[0], p[1]));
             let upper = b.points.iter().rev().map(|p| (p[0], p[2]));
-            let outline: Vec<(f64, f64)> = lower
-                .chain(upper)
-                .filter(|p| ok(&[p.0, p.1]))
-                .collect();
+            let outline: Vec<(f64, f64)> = lower.chain(upper).filter(|p| ok(&[p.0, p.1])).collect();
             if outline.len() < 3 {
                 continue;
             }
@@ -436,8 +433,11 @@ impl Figure {
             };
             let mut first = true;
             for part in &s.parts {
-                let pts: Vec<(f64, f64)> =
-                    part.iter().filter(|p| ok(p)).map(|p| (p[0], p[1])).collect();
+                let pts: Vec<(f64, f64)> = part
+                    .iter()
+                    .filter(|p| ok(p))
+                    .map(|p| (p[0], p[1]))
+                    .collect();
                 if pts.is_empty() {
                     continue;
                 }
@@ -482,7 +482,7 @@ impl Figure {
             chart
                 .configure_series_labels()
                 .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.85))
+                .background_style(WHITE.mix(0.6))
                 .border_style(RGBColor(0x99, 0x99, 0x99))
                 .label_font((FONT, 16))
                 .draw()
@@ -497,7 +497,11 @@ impl Figure {
 fn pad(lo: f64, hi: f64, log: bool) -> (f64, f64) {
     if log {
         let (a, b) = (lo.ln(), hi.ln());
-        let (a, b) = if b - a < 1e-9 { (a - 0.5, b + 0.5) } else { (a, b) };
+        let (a, b) = if b - a < 1e-9 {
+            (a - 0.5, b + 0.5)
+        } else {
+            (a, b)
+        };
         let m = 0.04 * (b - a);
         return ((a - m).exp(), (b + m).exp());
     }
@@ -537,7 +541,8 @@ fn formatter(lo: f64, hi: f64, log: bool) -> impl Fn(&f64) -> String {
     };
     move |v: &f64| {
         let v = *v;
-        if v == 0.0 {
+        // A tick at zero computed as 1e-16 is zero.
+        if v == 0.0 || (!log && v.abs() < 1e-9 * span) {
             return "0".to_string();
         }
         let a = v.abs();
@@ -608,9 +613,19 @@ mod tests {
 
     #[test]
     fn a_log_axis_draws_only_positive_values_and_labels_decades() {
-        let pts = vec![[0.0, 1000.0], [1.0, 10.0], [2.0, 0.1], [3.0, 0.0], [4.0, -1.0]];
-        let fig = Figure::new("log", Axis::linear("iteration", ""), Axis::log("error", "m"))
-            .with(Series::line("e", pts, Colour::BLUE));
+        let pts = vec![
+            [0.0, 1000.0],
+            [1.0, 10.0],
+            [2.0, 0.1],
+            [3.0, 0.0],
+            [4.0, -1.0],
+        ];
+        let fig = Figure::new(
+            "log",
+            Axis::linear("iteration", ""),
+            Axis::log("error", "m"),
+        )
+        .with(Series::line("e", pts, Colour::BLUE));
         let (_, ys) = fig.drawable();
         assert_eq!(ys, vec![1000.0, 10.0, 0.1]);
         let svg = fig.svg().expect("drawn");
@@ -670,6 +685,8 @@ mod tests {
         assert_eq!(f(&3.155), "3.155");
         let f = formatter(0.0, 1000.0, false);
         assert_eq!(f(&200.0), "200");
+        let f = formatter(-0.6, 0.8, false);
+        assert_eq!(f(&-1.1e-16), "0");
         let f = formatter(1e-3, 1e3, true);
         assert_eq!(f(&0.01), "0.01");
         assert_eq!(f(&1e-5), "1e-5");

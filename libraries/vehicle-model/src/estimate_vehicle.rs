@@ -76,19 +76,18 @@ impl EstimateVehicle {
         }
     }
 
-    /// Every way `drive`'s vehicle differs from this one, in plain words
-    /// (empty: the same vehicle as far as the files tell). A value only one
-    /// side gives is not a difference.
+    /// Every way `drive`'s vehicle differs from this one in what the
+    /// odometry uses (nominal circumference, track, wheelbase, encoder), in
+    /// plain words; empty: the same vehicle as far as the files tell. A
+    /// value only one side gives is not a difference, nor is the name
+    /// alone (free text: it often names the drive, not the car).
     pub fn differences(&self, drive: &VehicleParams) -> Vec<String> {
         let mut out = Vec::new();
-        if let (Some(a), Some(b)) = (&self.name, &drive.name) {
-            if a.trim() != b.trim() {
-                out.push(format!("the vehicle is named \"{a}\" in the estimate, \"{b}\" in the drive's vehicle.toml"));
-            }
-        }
         let mut metres = |what: &str, a: f64, b: f64| {
             if (a - b).abs() > SAME_M {
-                out.push(format!("{what} {a} m in the estimate, {b} m in the drive's vehicle.toml"));
+                out.push(format!(
+                    "{what} {a} m in the estimate, {b} m in the drive's vehicle.toml"
+                ));
             }
         };
         metres(
@@ -119,14 +118,23 @@ pub fn other_vehicle_warning(
     estimate_name: &str,
     drive_name: &str,
 ) -> Option<String> {
-    let d = made_for.differences(drive);
-    (!d.is_empty()).then(|| {
-        format!(
-            "the estimate {estimate_name} was made for another vehicle than the one of {drive_name}: {}; \
-             its circumferences may not fit this car",
-            d.join("; ")
-        )
-    })
+    let mut d = made_for.differences(drive);
+    if d.is_empty() {
+        return None;
+    }
+    if let (Some(a), Some(b)) = (&made_for.name, &drive.name) {
+        if a.trim() != b.trim() {
+            d.insert(
+                0,
+                format!("it names the vehicle \"{a}\", the drive \"{b}\""),
+            );
+        }
+    }
+    Some(format!(
+        "the estimate {estimate_name} was made for another vehicle than the one of {drive_name}: {}; \
+         its circumferences may not fit this car",
+        d.join("; ")
+    ))
 }
 
 #[cfg(test)]
@@ -155,23 +163,43 @@ mod tests {
         let made = EstimateVehicle::of(&vehicle(Some("saloon"), 1.95, 1.55));
         let other = vehicle(Some("van"), 2.10, 1.70);
         let d = made.differences(&other);
-        assert_eq!(d.len(), 3, "{d:?}");
-        assert!(d[0].contains("\"saloon\"") && d[0].contains("\"van\""));
-        assert!(d[1].contains("1.95 m in the estimate, 2.1 m"));
+        assert_eq!(d.len(), 2, "{d:?}");
+        assert!(d[0].contains("1.95 m in the estimate, 2.1 m"));
         let w = other_vehicle_warning(&made, &other, "est.json", "drive").expect("warned");
-        assert!(w.contains("est.json") && w.contains("another vehicle"), "{w}");
+        assert!(
+            w.contains("est.json") && w.contains("another vehicle"),
+            "{w}"
+        );
+        assert!(w.contains("\"saloon\"") && w.contains("\"van\""), "{w}");
+    }
+
+    #[test]
+    fn a_name_alone_is_no_other_vehicle() {
+        // The WID drives name the trial in vehicle.toml; the car is the same.
+        let made = EstimateVehicle::of(&vehicle(Some("Roomster (trial02)"), 1.85, 1.45));
+        let drive = vehicle(Some("Roomster (trial04)"), 1.85, 1.45);
+        assert_eq!(other_vehicle_warning(&made, &drive, "e", "d"), None);
     }
 
     #[test]
     fn the_json_carries_the_vehicle_or_at_least_the_nominal_values() {
         let with = r#"{"vehicle": {"name": "saloon", "track_width_m": 1.55, "nominal_circumference_m": 1.95}, "nominal": {"circumference_m": 1.95, "track_width_m": 1.55}}"#;
-        let v = EstimateVehicle::from_json_str(with, "a").expect("parsed").expect("some");
+        let v = EstimateVehicle::from_json_str(with, "a")
+            .expect("parsed")
+            .expect("some");
         assert_eq!(v.name.as_deref(), Some("saloon"));
         let old = r#"{"nominal": {"circumference_m": 2.0, "track_width_m": 1.5}}"#;
-        let v = EstimateVehicle::from_json_str(old, "b").expect("parsed").expect("some");
+        let v = EstimateVehicle::from_json_str(old, "b")
+            .expect("parsed")
+            .expect("some");
         assert_eq!((v.nominal_circumference_m, v.name), (2.0, None));
-        assert_eq!(EstimateVehicle::from_json_str("{}", "c").expect("parsed"), None);
-        let bad = EstimateVehicle::from_json_str("{", "d.json").unwrap_err().to_string();
+        assert_eq!(
+            EstimateVehicle::from_json_str("{}", "c").expect("parsed"),
+            None
+        );
+        let bad = EstimateVehicle::from_json_str("{", "d.json")
+            .unwrap_err()
+            .to_string();
         assert!(bad.contains("d.json"), "{bad}");
     }
 }

@@ -3,8 +3,8 @@
 
 use anyhow::{Context, Result};
 use calibrator::{
-    calibrate_with_progress, export, page, plots, report, CalibrationConfig, Method, Progress, TimeOffsetMode,
-    TrackWidthMode,
+    calibrate_with_progress, export, page, plots, report, CalibrationConfig, Method, Progress,
+    TimeOffsetMode, TrackWidthMode,
 };
 use clap::{Args, ValueEnum};
 use std::io::{IsTerminal as _, Write as _};
@@ -217,9 +217,8 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         last: -1,
     };
     // A carriage-return bar only on a terminal: a log file or a pipe gets none.
-    let show = !args.no_progress
-        && drive.wheel_duration_s() > 300.0
-        && std::io::stderr().is_terminal();
+    let show =
+        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
     let result = calibrate_with_progress(&drive, &config, &mut |p| {
         if show {
             bar.update(p)
@@ -303,10 +302,10 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         }
     }
     if let Some(dir) = &args.plots {
-        let name = args
-            .drive
-            .file_name()
-            .map_or_else(|| args.drive.display().to_string(), |n| n.to_string_lossy().to_string());
+        let name = args.drive.file_name().map_or_else(
+            || args.drive.display().to_string(),
+            |n| n.to_string_lossy().to_string(),
+        );
         let reading: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
         write_plots(dir, &cal, &name, &reading)?;
     }

@@ -50,9 +50,8 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
         anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
     }
     // A carriage-return progress line only on a terminal.
-    let show = !args.no_progress
-        && drive.wheel_duration_s() > 300.0
-        && std::io::stderr().is_terminal();
+    let show =
+        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
     let mut shown = false;
     let result = diagnose_with_progress(&drive, &cfg, &mut |stage, fraction| {
         if show {

@@ -113,7 +113,10 @@ pub fn two_wheel_toml(c: &Calibration, p: &Provenance) -> String {
         ("difference_m", c.sigma_m.difference),
         ("mean_m", c.sigma_m.mean),
         ("track_width_m", c.sigma_track_width_m),
-        ("gyro_bias_rad_s", c.gyro.as_ref().map(|g| g.sigma_bias_rad_s)),
+        (
+            "gyro_bias_rad_s",
+            c.gyro.as_ref().map(|g| g.sigma_bias_rad_s),
+        ),
         ("gyro_scale", c.gyro.as_ref().and_then(|g| g.sigma_scale)),
     ]
     .iter()

@@ -385,8 +385,7 @@ fn eval_segment(
                 }
             }
         }
-        if s.record_every > 0 && ((k - seg.k0).is_multiple_of(s.record_every) || k + 1 == seg.k1)
-        {
+        if s.record_every > 0 && ((k - seg.k0).is_multiple_of(s.record_every) || k + 1 == seg.k1) {
             track.push([pose.x, pose.y]);
         }
         prev = (pose, dx, dy, dth);

@@ -8,7 +8,9 @@ use crate::result::Calibration;
 use report::{Cell, Page};
 
 fn mm(v: Option<f64>) -> String {
-    v.map_or("not determined".to_string(), |v| format!("{:.2} mm", 1000.0 * v))
+    v.map_or("not determined".to_string(), |v| {
+        format!("{:.2} mm", 1000.0 * v)
+    })
 }
 
 /// The page of calibration `c` of the drive named `drive`, with `figures`
@@ -41,12 +43,7 @@ pub fn calibration_html(
     page.note(&format!(
         "Drive: {:.1} s, {:.0} m with a GNSS reference, turning {:.0} degrees in total, \
          {:.0} s standing still; {} GNSS fixes, {} rejected as outliers.",
-        d.duration_s,
-        d.distance_m,
-        d.total_turn_deg,
-        d.standstill_s,
-        d.gnss_fixes,
-        d.gnss_outliers
+        d.duration_s, d.distance_m, d.total_turn_deg, d.standstill_s, d.gnss_fixes, d.gnss_outliers
     ));
 
     page.heading("Warnings");
@@ -111,7 +108,10 @@ pub fn calibration_html(
         ));
     }
     if let Some(k) = c.side_slip_gain_rad_per_m_s2 {
-        rows.push(("side-slip gain k, rad per m/s²".to_string(), format!("{k:.5}")));
+        rows.push((
+            "side-slip gain k, rad per m/s²".to_string(),
+            format!("{k:.5}"),
+        ));
     }
     if let (Some(l), Some(s)) = (c.gnss_antenna_m, c.sigma_gnss_antenna_m) {
         rows.push((

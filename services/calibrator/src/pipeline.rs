@@ -142,7 +142,7 @@ fn summary(m: &MethodResult) -> MethodSummary {
     }
 }
 
-fn thin(v: impl Iterator<Item = [f64; 2]>, n: usize, keep: usize) -> Vec<[f64; 2]> {
+fn thin<T>(v: impl Iterator<Item = T>, n: usize, keep: usize) -> Vec<T> {
     let stride = n.div_ceil(keep.max(1)).max(1);
     v.step_by(stride).collect()
 }

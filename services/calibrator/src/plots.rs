@@ -56,18 +56,23 @@ pub fn residuals(c: &Calibration) -> Result<NamedFigure, FigureError> {
     let east: Vec<[f64; 2]> = r.iter().map(|v| [v[0] - t0, v[1]]).collect();
     let north: Vec<[f64; 2]> = r.iter().map(|v| [v[0] - t0, v[2]]).collect();
     let sigma = c.diagnostics.gnss_sigma_m;
-    let (a, b) = r.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-        (a.min(v[0] - t0), b.max(v[0] - t0))
-    });
+    let (a, b) = r
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v[0] - t0), b.max(v[0] - t0))
+        });
     let mut fig = Figure::new(
         &format!("GNSS residuals of {}", model_name(c)),
-        Axis::linear("time since the drive's start", "s"),
+        Axis::linear("time since the start of the drive", "s"),
         Axis::linear("GNSS fix minus model (antenna)", "m"),
     );
     if a < b {
         fig = fig.with_band(Band {
             label: format!("±2 sigma of a fix ({:.2} m)", 2.0 * sigma),
-            points: vec![[a, -2.0 * sigma, 2.0 * sigma], [b, -2.0 * sigma, 2.0 * sigma]],
+            points: vec![
+                [a, -2.0 * sigma, 2.0 * sigma],
+                [b, -2.0 * sigma, 2.0 * sigma],
+            ],
             colour: Colour::GREY,
         });
     }
@@ -111,7 +116,11 @@ pub fn track(c: &Calibration) -> Result<NamedFigure, FigureError> {
             .with_mark(Mark::Dots { radius: 1 })
             .with_opacity(0.5),
     )
-    .with(Series::line("reference (GNSS/IMU fusion)", t.reference.clone(), Colour::BLACK))
+    .with(Series::line(
+        "reference (GNSS/IMU fusion)",
+        t.reference.clone(),
+        Colour::BLACK,
+    ))
     .with(
         Series::lines(model_name(c), t.model.parts.clone(), Colour::BLUE)
             .with_mark(Mark::Line { width: 1 }),
@@ -135,54 +144,71 @@ pub fn track(c: &Calibration) -> Result<NamedFigure, FigureError> {
 }
 
 /// The wheel-speed ratio against the turn rate per metre, with the
-/// nominal and the estimated circumferences, and the 2W model's curve.
+/// nominal and the estimated circumferences, against the 2W model's ratio.
 pub fn wheel_ratio(c: &Calibration) -> Result<NamedFigure, FigureError> {
     let (rl, rr) = (c.circumference_m.rl, c.circumference_m.rr);
     let nominal = c.nominal.circumference_m;
     let b = c.track_width_m;
+    // The 2W model's ratio v_RR / v_RL at curvature k (turn rate / speed).
+    let model = |k: f64| (1.0 + 0.5 * k * b) / (1.0 - 0.5 * k * b);
     let points = |c_rl: f64, c_rr: f64| -> Vec<[f64; 2]> {
         c.tracks
             .wheel_windows
             .iter()
             .map(|w| {
                 let (dl, dr) = (c_rl * w[1], c_rr * w[2]);
-                [w[0] / (0.5 * (dl + dr)), dr / dl]
+                let k = w[0] / (0.5 * (dl + dr));
+                [k, 100.0 * (dr / dl / model(k) - 1.0)]
             })
             .collect()
     };
     let est = points(rl, rr);
     let nom = points(nominal, nominal);
-    let (lo, hi) = est.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), p| {
-        (a.min(p[0]), z.max(p[0]))
-    });
-    let curve: Vec<[f64; 2]> = if lo < hi {
-        (0..=100)
-            .map(|i| {
-                let k = lo + (hi - lo) * f64::from(i) / 100.0;
-                [k, (1.0 + 0.5 * k * b) / (1.0 - 0.5 * k * b)]
-            })
-            .collect()
+    let median = |v: &[[f64; 2]]| -> f64 {
+        let mut y: Vec<f64> = v.iter().map(|p| p[1]).filter(|y| y.is_finite()).collect();
+        y.sort_by(f64::total_cmp);
+        y.get(y.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    let (lo, hi) = est
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), p| {
+            (a.min(p[0]), z.max(p[0]))
+        });
+    let zero = if lo < hi {
+        vec![[lo, 0.0], [hi, 0.0]]
     } else {
         Vec::new()
     };
     let svg = Figure::new(
         "Wheel-speed ratio against turn rate per metre driven",
-        Axis::linear("yaw rate / speed (reference heading change per metre)", "1/m"),
-        Axis::linear("wheel-speed ratio v_RR / v_RL", ""),
+        Axis::linear(
+            "yaw rate / speed (reference heading change per metre)",
+            "1/m",
+        ),
+        Axis::linear(
+            "wheel-speed ratio v_RR/v_RL over the 2W model ratio, minus 1",
+            "%",
+        ),
     )
     .with(
-        Series::dots("nominal circumferences", nom, Colour::VERMILLION)
-            .with_mark(Mark::Dots { radius: 1 })
-            .with_opacity(0.4),
+        Series::dots(
+            &format!("nominal circumferences (median {:+.3} %)", median(&nom)),
+            nom,
+            Colour::VERMILLION,
+        )
+        .with_opacity(0.5),
     )
     .with(
-        Series::dots("estimated circumferences", est, Colour::BLUE)
-            .with_mark(Mark::Dots { radius: 1 })
-            .with_opacity(0.5),
+        Series::dots(
+            &format!("estimated circumferences (median {:+.3} %)", median(&est)),
+            est,
+            Colour::BLUE,
+        )
+        .with_opacity(0.6),
     )
     .with(Series::line(
         &format!("2W model, track {b:.3} m"),
-        curve,
+        zero,
         Colour::BLACK,
     ))
     .svg()?;
@@ -191,12 +217,13 @@ pub fn wheel_ratio(c: &Calibration) -> Result<NamedFigure, FigureError> {
         name: "Wheel-speed ratio against turn rate".to_string(),
         svg,
         caption: format!(
-            "{} windows of about 1 s above 2 m/s: the rear wheels' speed ratio (revolutions \
-             times circumference) against the reference's heading change per metre. The 2W \
-             model puts every window on the black curve (1 + kb/2)/(1 - kb/2) with the track \
-             width b; the estimated circumferences (blue) should centre on it, the nominal \
-             ones (vermillion) sit off it by the ratio of the circumferences. Spread about the \
-             curve is wheel quantisation, slip and reference noise.",
+            "{} windows of about 1 s above 2 m/s: the rear wheels' speed ratio v_RR/v_RL \
+             (revolutions times circumference) over the ratio the 2W model gives at the \
+             reference's heading change per metre, (1 + kb/2)/(1 - kb/2) with the track width \
+             b, in percent. The estimated circumferences (blue) should centre on zero at every \
+             turn rate; the nominal ones (vermillion) sit off it by the ratio of the true \
+             circumferences. A slope shows a wrong track width, spread is wheel quantisation, \
+             slip and reference noise.",
             c.tracks.wheel_windows.len()
         ),
     })
@@ -222,9 +249,7 @@ pub fn iteration_errors(c: &Calibration) -> Result<NamedFigure, FigureError> {
         Axis::linear("iteration (0 = nominal values)", ""),
         Axis::log("deviation from the reference", "m"),
     )
-    .with(
-        Series::line("mean", pts(&|i| i.dr_error_mean_m), Colour::GREEN).with_mark(marks),
-    )
+    .with(Series::line("mean", pts(&|i| i.dr_error_mean_m), Colour::GREEN).with_mark(marks))
     .with(Series::line("max", pts(&|i| i.dr_error_max_m), Colour::ORANGE).with_mark(marks))
     .with(Series::dots("kept", kept, Colour::BLACK).with_mark(Mark::Dots { radius: 7 }))
     .svg()?;

@@ -54,11 +54,12 @@ fn calibrate_prints_the_report_and_writes_json_and_plots() {
     assert_eq!(html.matches("<figure").count(), 5, "five figures inline");
     assert_eq!(html.matches("<svg").count(), 5);
     for axis in [
-        "time since the drive's start, s",
+        "time since the start of the drive, s",
         "GNSS fix minus model (antenna), m",
         "east, m",
         "north, m",
         "yaw rate / speed (reference heading change per metre), 1/m",
+        "wheel-speed ratio v_RR/v_RL over the 2W model ratio, minus 1, %",
         "deviation from the reference, m",
         "mm",
     ] {
@@ -80,11 +81,17 @@ fn calibrate_prints_the_report_and_writes_json_and_plots() {
     let rms_row = format!("GNSS residual RMS of the fit, m ({segments} segments)");
     assert!((cell(&rms_row) - rms).abs() <= 0.5e-3);
     // The residual figure's caption states the same RMS: its residuals are the fit's.
-    assert!(html.contains(&format!("RMS {rms:.3} m")), "residual RMS not {rms:.3}");
+    assert!(
+        html.contains(&format!("RMS {rms:.3} m")),
+        "residual RMS not {rms:.3}"
+    );
     // Every warning of the JSON is on the page, in its words.
     for w in v["warnings"].as_array().unwrap() {
         let text = w["message"].as_str().unwrap();
-        assert!(html.contains(&report::escape(text)), "warning missing: {text}");
+        assert!(
+            html.contains(&report::escape(text)),
+            "warning missing: {text}"
+        );
     }
 }
 
@@ -135,7 +142,11 @@ fn calibrate_exports_an_autoware_parameter_file_and_the_2w_toml() {
         .arg(&toml_path)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let rl = v["circumference_m"]["rl"].as_f64().unwrap();
@@ -144,7 +155,10 @@ fn calibrate_exports_an_autoware_parameter_file_and_the_2w_toml() {
 
     // The YAML: a ROS 2 parameter file whose factor is the mean over the nominal.
     let text = std::fs::read_to_string(&yaml).unwrap();
-    assert!(text.contains(&format!("of the drive {}", drive_dir.display())), "{text}");
+    assert!(
+        text.contains(&format!("of the drive {}", drive_dir.display())),
+        "{text}"
+    );
     assert!(text.contains(&format!("wheelcal {}", env!("CARGO_PKG_VERSION"))));
     assert!(text.contains("/**:\n  ros__parameters:\n"), "{text}");
     let value = |key: &str| -> f64 {
@@ -155,7 +169,10 @@ fn calibrate_exports_an_autoware_parameter_file_and_the_2w_toml() {
         line.split(':').nth(1).unwrap().trim().parse().unwrap()
     };
     let factor = value("speed_scale_factor");
-    assert!((factor - 0.5 * (rl + rr) / nominal).abs() < 1e-6, "{factor}");
+    assert!(
+        (factor - 0.5 * (rl + rr) / nominal).abs() < 1e-6,
+        "{factor}"
+    );
     if let Some(bias) = v["gyro_bias_rad_s"].as_f64() {
         assert!((value("angular_velocity_offset_z") - bias).abs() < 1e-8);
     } else {
@@ -163,7 +180,10 @@ fn calibrate_exports_an_autoware_parameter_file_and_the_2w_toml() {
     }
 
     // The TOML parses and holds the JSON's values.
-    let t: toml::Value = std::fs::read_to_string(&toml_path).unwrap().parse().unwrap();
+    let t: toml::Value = std::fs::read_to_string(&toml_path)
+        .unwrap()
+        .parse()
+        .unwrap();
     let tw = &t["two_wheel"];
     assert!((tw["c_rl_m"].as_float().unwrap() - rl).abs() < 1e-6);
     assert!((tw["c_rr_m"].as_float().unwrap() - rr).abs() < 1e-6);

@@ -49,7 +49,9 @@ fn at(curve: &[[f64; 2]], t: f64) -> Option<f64> {
     let i = curve.partition_point(|p| p[0] < t);
     match (i.checked_sub(1).and_then(|j| curve.get(j)), curve.get(i)) {
         (_, Some(b)) if b[0] == t => Some(b[1]),
-        (Some(a), Some(b)) if b[0] > a[0] => Some(a[1] + (t - a[0]) / (b[0] - a[0]) * (b[1] - a[1])),
+        (Some(a), Some(b)) if b[0] > a[0] => {
+            Some(a[1] + (t - a[0]) / (b[0] - a[0]) * (b[1] - a[1]))
+        }
         _ => None,
     }
 }
@@ -80,7 +82,7 @@ pub fn figures(
     }
     let mut errors = Figure::new(
         "Position error through each outage",
-        Axis::linear("time since the outage's start", "s"),
+        Axis::linear("time since the outage start", "s"),
         Axis::linear("position error", "m"),
     )
     .with_band(Band {
@@ -94,7 +96,11 @@ pub fn figures(
             .with_opacity(0.35),
     );
     let errors = errors
-        .with(Series::line("median over the outages", median, Colour::BLACK))
+        .with(Series::line(
+            "median over the outages",
+            median,
+            Colour::BLACK,
+        ))
         .svg()?;
     let t0 = r.outages.first().map_or(0.0, |o| o.t_start_s);
     let ends: Vec<[f64; 2]> = r
@@ -131,9 +137,13 @@ pub fn figures(
     )
     .with(Series::line("truth", truth.to_vec(), Colour::BLACK))
     .with(
-        Series::lines("dead-reckoned through an outage", tracks, Colour::VERMILLION)
-            .with_mark(Mark::Line { width: 1 })
-            .with_opacity(0.7),
+        Series::lines(
+            "dead-reckoned through an outage",
+            tracks,
+            Colour::VERMILLION,
+        )
+        .with_mark(Mark::Line { width: 1 })
+        .with_opacity(0.7),
     )
     .map((900, 800))
     .svg()?;
@@ -188,8 +198,9 @@ pub fn evaluation_html(
              {:.3} m{}, over {} outages.",
             r.median_error_m,
             r.p90_error_m,
-            r.median_error_pct
-                .map_or(String::new(), |p| format!("; median {p:.2} % of the distance")),
+            r.median_error_pct.map_or(String::new(), |p| format!(
+                "; median {p:.2} % of the distance"
+            )),
             r.outages.len()
         ),
         None,
@@ -207,8 +218,14 @@ pub fn evaluation_html(
     page.heading("Numbers");
     let p = &r.params;
     page.numbers(&[
-        ("median position error, m".to_string(), format!("{:.3}", r.median_error_m)),
-        ("90th percentile, m".to_string(), format!("{:.3}", r.p90_error_m)),
+        (
+            "median position error, m".to_string(),
+            format!("{:.3}", r.median_error_m),
+        ),
+        (
+            "90th percentile, m".to_string(),
+            format!("{:.3}", r.p90_error_m),
+        ),
         (
             "median error, % of the distance".to_string(),
             r.median_error_pct
@@ -218,12 +235,18 @@ pub fn evaluation_html(
         ("outage length, s".to_string(), format!("{length:.1}")),
         ("c_RL, m".to_string(), format!("{:.5}", p.c_rl_m)),
         ("c_RR, m".to_string(), format!("{:.5}", p.c_rr_m)),
-        ("track width, m".to_string(), format!("{:.4}", p.track_width_m)),
+        (
+            "track width, m".to_string(),
+            format!("{:.4}", p.track_width_m),
+        ),
         (
             "gyro bias, deg/h".to_string(),
             format!("{:+.1}", p.gyro_bias_rad_s.to_degrees() * 3600.0),
         ),
-        ("gyro scale error".to_string(), format!("{:+.5}", p.gyro_scale)),
+        (
+            "gyro scale error".to_string(),
+            format!("{:+.5}", p.gyro_scale),
+        ),
         (
             "scored point (x forward, y left of the rear-axle centre), m".to_string(),
             format!(

@@ -11,11 +11,11 @@ mod serve_in_process;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
-use odometry::evaluation_page;
 use odometry::evaluate::{
     choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
     TruthPointSource,
 };
+use odometry::evaluation_page;
 use std::path::PathBuf;
 use vehicle_model::estimate::{OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
 
@@ -201,16 +201,17 @@ fn write_page(
         .flatten()
         .map(|t| [t.x_m, t.y_m])
         .collect();
-    let figures = evaluation_page::figures(report, &truth)
-        .context("cannot draw the evaluation's figures")?;
+    let figures =
+        evaluation_page::figures(report, &truth).context("cannot draw the evaluation's figures")?;
     for f in &figures {
         let file = dir.join(f.file);
         std::fs::write(&file, &f.svg)
             .with_context(|| format!("cannot write {}", file.display()))?;
     }
-    let name = path
-        .file_name()
-        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().to_string());
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().to_string(),
+    );
     let page = dir.join("index.html");
     std::fs::write(
         &page,

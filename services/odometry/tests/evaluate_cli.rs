@@ -42,7 +42,7 @@ fn evaluate_with_plots_writes_a_page_whose_numbers_are_the_jsons() {
     }
     assert_eq!(html.matches("<svg").count(), 3, "three figures inline");
     for axis in [
-        "time since the outage's start, s",
+        "time since the outage start, s",
         "position error, m",
         "position error at the outage end, m",
         "east, m",
@@ -108,7 +108,11 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
             .args(extra)
             .output()
             .expect("run odometry");
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let v = serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("JSON");
         (String::from_utf8_lossy(&out.stderr).to_string(), v)
     };
@@ -122,7 +126,10 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
     van.track_width_m += 0.2;
     let (stderr, v) = run(&estimate_for(&van), &[]);
     let w = v["warnings"][0].as_str().expect("a warning");
-    assert!(w.contains("another vehicle") && w.contains("rear track"), "{w}");
+    assert!(
+        w.contains("another vehicle") && w.contains("rear track"),
+        "{w}"
+    );
     assert!(stderr.contains("another vehicle"), "{stderr}");
     // A pipe, not a terminal: the log carries no colour codes.
     assert!(!stderr.contains('\u{1b}'), "ANSI escape in {stderr:?}");
@@ -136,7 +143,10 @@ fn an_estimate_made_for_another_vehicle_is_said_plainly() {
     let vehicle_arg = std::ffi::OsString::from("--vehicle");
     let (stderr, v) = run(
         &estimate_for(&van),
-        &[vehicle_arg.as_os_str(), van_dir.join("vehicle.toml").as_os_str()],
+        &[
+            vehicle_arg.as_os_str(),
+            van_dir.join("vehicle.toml").as_os_str(),
+        ],
     );
     assert!(!stderr.contains("another vehicle"), "{stderr}");
     assert!(!v["warnings"].to_string().contains("another vehicle"));

@@ -937,7 +937,6 @@ pub fn block_errors_svg(t: &TrackPlot) -> String {
 
 // ---------------------------------------------------------------- page
 
-
 /// An SVG's caption: the text of its `<desc>` (already escaped).
 fn caption_of(svg: &str) -> Option<&str> {
     let a = svg.find("<desc>")? + "<desc>".len();
