@@ -215,6 +215,10 @@ pub struct Figure {
     pub equal_scale: bool,
     /// Size, px.
     pub size: (u32, u32),
+    /// What the figure shows, in words: its SVG `<desc>` (with the title as
+    /// `<title>`), read by screen readers and taken as the caption by pages
+    /// that have no other; empty: none.
+    pub description: String,
 }
 
 impl Figure {
@@ -228,7 +232,20 @@ impl Figure {
             bands: Vec::new(),
             equal_scale: false,
             size: (900, 520),
+            description: String::new(),
         }
+    }
+
+    /// The same figure at `size` px.
+    pub fn sized(mut self, size: (u32, u32)) -> Figure {
+        self.size = size;
+        self
+    }
+
+    /// The same figure with its description (the SVG's `<desc>`).
+    pub fn describe(mut self, description: &str) -> Figure {
+        self.description = description.to_string();
+        self
     }
 
     /// Add a series.
@@ -261,21 +278,32 @@ impl Figure {
                 detail,
             })?;
         }
+        if !self.description.is_empty() {
+            if let Some(end) = out.find('>') {
+                let meta = format!(
+                    "\n<title>{}</title>\n<desc>{}</desc>",
+                    crate::page::escape(&self.title),
+                    crate::page::escape(&self.description)
+                );
+                out.insert_str(end + 1, &meta);
+            }
+        }
         Ok(out)
     }
 
     fn draw_on(&self, root: &DrawingArea<SVGBackend, Shift>) -> Result<(), String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let (xr, yr, empty) = self.ranges();
+        let view = Some((xr, yr)).filter(|_| !empty);
         match (self.x.log, self.y.log) {
-            (false, false) => self.draw(root, xr.0..xr.1, yr.0..yr.1, empty),
-            (false, true) => self.draw(root, xr.0..xr.1, (yr.0..yr.1).log_scale(), empty),
-            (true, false) => self.draw(root, (xr.0..xr.1).log_scale(), yr.0..yr.1, empty),
+            (false, false) => self.draw(root, xr.0..xr.1, yr.0..yr.1, view),
+            (false, true) => self.draw(root, xr.0..xr.1, (yr.0..yr.1).log_scale(), view),
+            (true, false) => self.draw(root, (xr.0..xr.1).log_scale(), yr.0..yr.1, view),
             (true, true) => self.draw(
                 root,
                 (xr.0..xr.1).log_scale(),
                 (yr.0..yr.1).log_scale(),
-                empty,
+                view,
             ),
         }?;
         root.present().map_err(|e| e.to_string())
@@ -357,7 +385,7 @@ impl Figure {
         root: &DrawingArea<SVGBackend, Shift>,
         x: X,
         y: Y,
-        empty: bool,
+        view: Option<((f64, f64), (f64, f64))>,
     ) -> Result<(), String>
     where
         X: AsRangedCoord<Value = f64>,
@@ -390,7 +418,7 @@ impl Figure {
             .bold_line_style(RGBColor(0xd8, 0xd8, 0xd8))
             .draw()
             .map_err(err)?;
-        if empty {
+        let Some((vx, vy)) = view else {
             let (w, h) = root.dim_in_pixel();
             let style = TextStyle::from((FONT, 18).into_font())
                 .color(&RGBColor(0x66, 0x66, 0x66))
@@ -398,12 +426,31 @@ impl Figure {
             root.draw_text("no data", &style, ((w / 2) as i32, (h / 2) as i32))
                 .map_err(err)?;
             return Ok(());
-        }
+        };
+        // Drawn: finite points inside the view (a fixed range clips: a line
+        // is broken where it leaves it).
+        let within = |v: f64, r: (f64, f64)| v >= r.0.min(r.1) && v <= r.0.max(r.1);
         let ok = |p: &[f64; 2]| {
             p[0].is_finite()
                 && p[1].is_finite()
                 && (!self.x.log || p[0] > 0.0)
                 && (!self.y.log || p[1] > 0.0)
+                && within(p[0], vx)
+                && within(p[1], vy)
+        };
+        // The pixel a point lands on: points on the same pixel draw nothing new.
+        let (px_range, py_range) = chart.plotting_area().get_pixel_range();
+        let (xlog, ylog) = (self.x.log, self.y.log);
+        let axis_px = move |v: f64, r: (f64, f64), log: bool, a: i32, b: i32| -> i32 {
+            let f = |v: f64| if log { v.ln() } else { v };
+            let u = (f(v) - f(r.0)) / (f(r.1) - f(r.0));
+            (f64::from(a) + u * f64::from(b - a)).round() as i32
+        };
+        let pixel = move |p: (f64, f64)| {
+            (
+                axis_px(p.0, vx, xlog, px_range.start, px_range.end),
+                axis_px(p.1, vy, ylog, py_range.end, py_range.start),
+            )
         };
         let mut labelled = false;
         for b in &self.bands {
@@ -432,15 +479,21 @@ impl Figure {
                 Mark::LineAndDots { width, radius } => (Some(width), Some(radius)),
             };
             let mut first = true;
+            let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
             for part in &s.parts {
-                let pts: Vec<(f64, f64)> = part
-                    .iter()
-                    .filter(|p| ok(p))
-                    .map(|p| (p[0], p[1]))
-                    .collect();
-                if pts.is_empty() {
-                    continue;
+                let mut run = Vec::new();
+                for p in part {
+                    if ok(p) {
+                        run.push((p[0], p[1]));
+                    } else if !run.is_empty() {
+                        runs.push(std::mem::take(&mut run));
+                    }
                 }
+                if !run.is_empty() {
+                    runs.push(run);
+                }
+            }
+            for pts in runs {
                 let label_here = first && !s.label.is_empty();
                 let legend_w = width.unwrap_or(0);
                 let dot = radius.unwrap_or(0).max(3);
@@ -456,7 +509,7 @@ impl Figure {
                     }
                 };
                 if let Some(w) = width {
-                    let line = thin(&pts, MAX_LINE_POINTS);
+                    let line = thin(&one_per_pixel(pts.clone(), &pixel, true), MAX_LINE_POINTS);
                     let anno = chart
                         .draw_series(LineSeries::new(line, colour.stroke_width(w)))
                         .map_err(err)?;
@@ -466,7 +519,7 @@ impl Figure {
                     }
                 }
                 if let Some(r) = radius {
-                    let dots = thin(&pts, MAX_DOTS);
+                    let dots = thin(&one_per_pixel(pts.clone(), &pixel, false), MAX_DOTS);
                     let anno = chart
                         .draw_series(dots.into_iter().map(|p| Circle::new(p, r, colour.filled())))
                         .map_err(err)?;
@@ -513,6 +566,33 @@ fn pad(lo: f64, hi: f64, log: bool) -> (f64, f64) {
     };
     let m = 0.04 * (hi - lo);
     (lo - m, hi + m)
+}
+
+/// `pts` without the points that land on the pixel of one drawn before:
+/// with `consecutive`, only the previous point counts (a line keeps its
+/// path), else every one drawn so far (dots).
+fn one_per_pixel(
+    pts: Vec<(f64, f64)>,
+    pixel: &dyn Fn((f64, f64)) -> (i32, i32),
+    consecutive: bool,
+) -> Vec<(f64, f64)> {
+    let mut seen = std::collections::HashSet::new();
+    let mut last = None;
+    let mut out = Vec::with_capacity(pts.len());
+    let n = pts.len();
+    for (i, p) in pts.into_iter().enumerate() {
+        let px = pixel(p);
+        let new = if consecutive {
+            last != Some(px) || i + 1 == n
+        } else {
+            seen.insert(px)
+        };
+        if new {
+            out.push(p);
+        }
+        last = Some(px);
+    }
+    out
 }
 
 /// Every `n / max`-th point, the last one kept.
@@ -677,6 +757,36 @@ mod tests {
         let line = svg.rfind("<polyline").expect("a line");
         assert!(poly < line, "the band is drawn over the line");
         assert!(svg.contains("1 sigma"));
+    }
+
+    #[test]
+    fn a_fixed_range_clips_and_breaks_the_line_and_the_description_is_its_desc() {
+        let mut y = Axis::linear("y", "m");
+        y.range = Some((-1.0, 1.0));
+        let pts = vec![[0.0, 0.0], [1.0, 0.5], [2.0, 5.0], [3.0, 0.5], [4.0, 0.0]];
+        let svg = Figure::new("clip & cut", Axis::linear("x", "s"), y)
+            .with(Series::line("", pts, Colour::BLUE))
+            .describe("a <line> cut in two")
+            .svg()
+            .expect("drawn");
+        assert!(svg.contains("<title>clip &amp; cut</title>"));
+        assert!(svg.contains("<desc>a &lt;line&gt; cut in two</desc>"));
+        let lines = svg
+            .split("<polyline")
+            .filter(|p| p.contains("stroke=\"#0072B2\""))
+            .count();
+        assert_eq!(lines, 2, "the line is broken where it leaves the range");
+    }
+
+    #[test]
+    fn dots_on_one_pixel_are_drawn_once() {
+        let mut pts = vec![[0.0, 0.0], [10.0, 10.0]];
+        pts.extend((0..5000).map(|i| [5.0 + 1e-6 * f64::from(i), 5.0]));
+        let svg = Figure::new("dense", Axis::linear("x", "s"), Axis::linear("y", "m"))
+            .with(Series::dots("", pts, Colour::BLUE))
+            .svg()
+            .expect("drawn");
+        assert_eq!(svg.matches("<circle").count(), 3);
     }
 
     #[test]

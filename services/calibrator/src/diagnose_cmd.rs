@@ -87,17 +87,21 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
 
 fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let draw = "cannot draw the diagnosis's pictures";
     let mut pictures: Vec<(String, String)> = vec![
-        ("tracks.svg".to_string(), pictures::tracks_svg(&d.tracks)),
+        (
+            "tracks.svg".to_string(),
+            pictures::tracks_svg(&d.tracks).context(draw)?,
+        ),
         (
             "block_errors.svg".to_string(),
-            pictures::block_errors_svg(&d.tracks),
+            pictures::block_errors_svg(&d.tracks).context(draw)?,
         ),
     ];
     for p in &d.residual_plots {
         pictures.push((
             format!("residual_{}.svg", p.effect),
-            pictures::residual_svg(p),
+            pictures::residual_svg(p).context(draw)?,
         ));
     }
     for (name, svg) in &pictures {
