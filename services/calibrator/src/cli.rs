@@ -64,6 +64,11 @@ pub struct CalibrateArgs {
     /// Write the 2W model's parameters as TOML here.
     #[arg(long, value_name = "FILE")]
     pub export_toml: Option<PathBuf>,
+    /// Start from the circumferences of an earlier estimate (the JSON of
+    /// `calibrate --json`) instead of vehicle.toml's nominal value; an
+    /// estimate made for another vehicle is said so.
+    #[arg(long, value_name = "EST.json")]
+    pub initial: Option<PathBuf>,
     /// Estimator.
     #[arg(long, value_enum)]
     pub method: Option<MethodArg>,
@@ -210,7 +215,25 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
-    let config = args.config();
+    let mut config = args.config();
+    let mut reading: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    if let Some(path) = &args.initial {
+        let (estimate, made_for) = drive_io::read_estimate_with_vehicle(path)
+            .with_context(|| format!("--initial {}", path.display()))?;
+        if let Some(w) = made_for.and_then(|v| {
+            vehicle_model::estimate_vehicle::other_vehicle_warning(
+                &v,
+                &drive.vehicle,
+                &path.display().to_string(),
+                &args.drive.display().to_string(),
+            )
+        }) {
+            tracing::warn!("{w}");
+            reading.push(w);
+        }
+        let tw = estimate.params.two_wheel;
+        config.initial_circumference_m = Some([tw.c_rl, tw.c_rr]);
+    }
     // A bar only where it helps: drives longer than five minutes.
     let mut bar = Bar {
         shown: false,
@@ -229,9 +252,9 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
     }
     let cal = result.with_context(|| format!("cannot calibrate {}", args.drive.display()))?;
     print!("{}", report::render_text(&cal));
-    if !loaded.warnings.is_empty() {
+    if !reading.is_empty() {
         println!("reading the drive:");
-        for w in &loaded.warnings {
+        for w in &reading {
             println!("  - {w}");
         }
     }
@@ -306,7 +329,6 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
             || args.drive.display().to_string(),
             |n| n.to_string_lossy().to_string(),
         );
-        let reading: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
         write_plots(dir, &cal, &name, &reading)?;
     }
     Ok(())

@@ -75,6 +75,11 @@ pub struct CalibrationConfig {
     /// Estimate the GNSS antenna position (body frame) in the batch fit,
     /// starting from `vehicle.toml`'s `[gnss]` values (or the axle centre).
     pub estimate_lever_arm: bool,
+    /// Start from these rear circumferences `[c_RL, c_RR]`, m (an earlier
+    /// estimate), instead of `vehicle.toml`'s nominal one; the plausibility
+    /// checks still measure against the nominal value.
+    #[serde(default)]
+    pub initial_circumference_m: Option<[f64; 2]>,
 }
 
 impl Default for CalibrationConfig {
@@ -97,6 +102,7 @@ impl Default for CalibrationConfig {
             segment_length_s: 120.0,
             use_imu_acceleration: true,
             estimate_lever_arm: false,
+            initial_circumference_m: None,
         }
     }
 }
@@ -147,6 +153,14 @@ impl CalibrationConfig {
                 "max_gnss_gap_s",
                 format!("{} must be positive", self.max_gnss_gap_s),
             );
+        }
+        if let Some(c) = self.initial_circumference_m {
+            if !c.iter().all(|v| v.is_finite() && *v > 0.1 && *v < 10.0) {
+                return bad(
+                    "initial_circumference_m",
+                    format!("{c:?} is not a pair of circumferences of 0.1-10 m"),
+                );
+            }
         }
         if !(self.segment_length_s.is_finite() && self.segment_length_s >= 5.0) {
             return bad(

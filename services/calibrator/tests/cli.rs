@@ -195,3 +195,55 @@ fn calibrate_exports_an_autoware_parameter_file_and_the_2w_toml() {
     // The JSON carries the vehicle it was made for.
     assert!(v["vehicle"]["nominal_circumference_m"].as_f64().is_some());
 }
+
+#[test]
+fn calibrate_starts_from_an_earlier_estimate_and_says_when_it_is_another_cars() {
+    let dir = tempfile::tempdir().unwrap();
+    let drive_dir = dir.path().join("drive");
+    drive_io::write_drive(&common::Synth::default().drive(), &drive_dir).unwrap();
+    let run = |extra: &[&std::path::Path], json: &std::path::Path| -> (String, serde_json::Value) {
+        let mut cmd = bin();
+        cmd.arg("calibrate").arg(&drive_dir).arg("--json").arg(json);
+        if let Some(initial) = extra.first() {
+            cmd.arg("--initial").arg(initial);
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+        (String::from_utf8_lossy(&out.stdout).to_string(), v)
+    };
+    let first = dir.path().join("first.json");
+    let (_, a) = run(&[], &first);
+    let (stdout, b) = run(&[&first], &dir.path().join("second.json"));
+    assert!(!stdout.contains("another vehicle"), "{stdout}");
+    // It started from the earlier estimate ...
+    let start = &b["iterations"][0]["circumference_m"];
+    for w in ["rl", "rr"] {
+        assert_eq!(start[w], a["circumference_m"][w], "{w}");
+        // ... and ends where the nominal start ended, well within a sigma.
+        let (x, y) = (
+            a["circumference_m"][w].as_f64().unwrap(),
+            b["circumference_m"][w].as_f64().unwrap(),
+        );
+        let sigma = a["sigma_m"][w].as_f64().unwrap();
+        assert!(
+            (x - y).abs() < 0.1 * sigma,
+            "{w}: {x} vs {y} (sigma {sigma})"
+        );
+    }
+    // An estimate of another car: used, and said so.
+    let mut other = a.clone();
+    let track = other["vehicle"]["track_width_m"].as_f64().unwrap();
+    other["vehicle"]["track_width_m"] = serde_json::json!(track + 0.3);
+    let other_path = dir.path().join("other.json");
+    std::fs::write(&other_path, other.to_string()).unwrap();
+    let (stdout, _) = run(&[&other_path], &dir.path().join("third.json"));
+    assert!(
+        stdout.contains("was made for another vehicle") && stdout.contains("the rear track is"),
+        "{stdout}"
+    );
+}
