@@ -8,10 +8,13 @@ iceoryx2 connects this subscriber to the Rust publisher.
     python3 -m venv /tmp/venv && /tmp/venv/bin/pip install iceoryx2==0.10.0
     /tmp/venv/bin/python examples/python/pose_subscriber.py [--count N] [--json]
 
+It ends by itself when the odometry signals the end of the pose stream (the
+end-of-stream event on the pose topic, sent when the odometry's wheel stream
+ends and when it stops), after --count poses, or on Ctrl-C.
+
 The graph is chosen like every wheelcal process does: WHEELCAL_IOX_PREFIX and
 WHEELCAL_IOX_ROOT (unset: iceoryx2's defaults). The service settings must be
 those of `interfaces::bus` (whoever creates the service first decides them).
-Ctrl-C stops it.
 """
 
 import argparse
@@ -160,8 +163,9 @@ def main() -> int:
                 return 0
         if result in (iox.WaitSetRunResult.Interrupt, iox.WaitSetRunResult.TerminationRequest):
             return 0
-        if ended and not args.count:
-            print("pose stream ended", file=sys.stderr)
+        if ended:
+            # The odometry says so when its wheel stream ends, and when it stops.
+            print(f"pose stream ended after {received} poses", file=sys.stderr)
             return 0
 
 

@@ -338,6 +338,7 @@ fn the_algorithm_libraries_touch_no_files_threads_clock_or_cli() {
     let libs = [
         "libraries/vehicle-model/src/lib.rs",
         "libraries/simulator/src/lib.rs",
+        "libraries/report/src/lib.rs",
         "services/calibrator/src/lib.rs",
         "services/odometry/src/lib.rs",
     ];

@@ -497,3 +497,38 @@ fn bridge_dies_and_the_odometry_withholds_its_pose() {
         "the odometry waits for inputs to come back"
     );
 }
+
+#[test]
+fn the_pose_stream_ends_with_the_wheel_stream() {
+    let mut g = Graph::new("posend");
+    let mut sim = SimConfig::new(Scenario::Paper, 5);
+    sim.duration_s = Some(30.0);
+    let drive = simulate(&sim).expect("drive");
+    let folder = write(&g, &drive, "drive");
+    let bus = g.bus("test");
+    let sub = bus.subscriber::<Pose>().expect("pose subscriber");
+    let odo = odometry(&mut g, "odometry", &folder, &["--no-bus-estimate"]);
+    let replay = replay_max(&mut g, &folder, "1");
+    let mut poses = Vec::new();
+    let mut ended = false;
+    let take = |poses: &mut Vec<Pose>, ended: &mut bool| {
+        // The events first: every pose published before the end is queued.
+        *ended |= sub.take_events().expect("pose events").end_of_stream;
+        while let Some(p) = sub.receive().expect("receive") {
+            poses.push(p);
+        }
+    };
+    let status = g.wait_exit_with(replay, || take(&mut poses, &mut ended));
+    assert!(status.success(), "replay failed:\n{}", g.log(replay));
+    wait_until("the odometry's end of the pose stream", || {
+        take(&mut poses, &mut ended);
+        ended
+    });
+    assert_eq!(
+        poses.len(),
+        drive.wheels.samples.len(),
+        "a pose per wheel sample before the end"
+    );
+    g.terminate(odo);
+    assert!(g.wait_exit(odo).success(), "{}", g.log(odo));
+}

@@ -182,6 +182,86 @@ fn python_subscriber_reads_poses_published_from_rust() {
     assert!(status.success(), "python exited with {status}");
 }
 
+#[test]
+fn python_subscriber_ends_when_the_pose_stream_ends() {
+    let python = match python_with_iceoryx2() {
+        Ok(p) => p,
+        Err(why) => {
+            eprintln!("SKIPPED: no Python with the iceoryx2 package ({why})");
+            return;
+        }
+    };
+    let g = Graph::new("pyend");
+    let script =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/pose_subscriber.py");
+    let bus: Bus = g.bus("rust-publisher");
+    let mut publisher = bus.publisher::<Pose>().expect("pose publisher");
+    // No --count: only the end of the stream stops it.
+    let mut cmd = Command::new(&python);
+    cmd.arg(&script)
+        .arg("--json")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    for (k, v) in g.settings.env() {
+        cmd.env(k, v);
+    }
+    let child = cmd.spawn().expect("start python");
+    struct Reap(std::process::Child);
+    impl Drop for Reap {
+        fn drop(&mut self) {
+            let _ = self.0.kill();
+            let _ = self.0.wait();
+        }
+    }
+    let mut child = Reap(child);
+    wait_until("the Python subscriber", || publisher.subscriber_count() > 0);
+    publisher.announce().expect("announce");
+    std::thread::sleep(Duration::from_millis(300));
+    for i in 0..COUNT {
+        publisher.publish(pose(i)).expect("publish");
+    }
+    publisher.end_of_stream().expect("end of stream");
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.0.try_wait().expect("poll python") {
+            break s;
+        }
+        if start.elapsed() > WATCHDOG {
+            let _ = child.0.kill();
+            let out = child.0.wait_with_output_lossy();
+            panic!("the subscriber did not end with the stream; stderr: {out}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "python exited with {status}");
+    let mut out = String::new();
+    let mut err = String::new();
+    use std::io::Read;
+    child
+        .0
+        .stdout
+        .take()
+        .expect("stdout")
+        .read_to_string(&mut out)
+        .expect("stdout");
+    child
+        .0
+        .stderr
+        .take()
+        .expect("stderr")
+        .read_to_string(&mut err)
+        .expect("stderr");
+    assert_eq!(
+        out.lines().count(),
+        COUNT as usize,
+        "every pose before the end: {out}"
+    );
+    assert!(
+        err.contains(&format!("pose stream ended after {COUNT} poses")),
+        "{err}"
+    );
+}
+
 trait WaitLossy {
     fn wait_with_output_lossy(&mut self) -> String;
 }

@@ -1,6 +1,8 @@
 //! The small CSV dialect of drive folders: first non-comment line is the
 //! header, comma separated, `#` starts a comment line, an empty cell is a
-//! missing value, blank lines are skipped. Cells are trimmed.
+//! missing value, blank lines are skipped. Cells are trimmed. What
+//! spreadsheets add is taken too: a UTF-8 byte-order mark before the header,
+//! and header names or cells in double quotes (`"t_s"`; no comma inside).
 
 use super::files::open_regular;
 use super::DriveError;
@@ -48,6 +50,13 @@ pub(super) struct CsvFile {
     pub header_line: usize,
     /// Which columns some caller asked for.
     claimed: Vec<bool>,
+}
+
+/// `s` without the double quotes around it, if it has them.
+fn unquote(s: &str) -> &str {
+    s.strip_prefix('"')
+        .and_then(|t| t.strip_suffix('"'))
+        .map_or(s, str::trim)
 }
 
 fn is_skipped(line: &str) -> bool {
@@ -105,7 +114,11 @@ impl CsvFile {
         let mut header = None;
         while next_line(reader.as_mut(), &mut buf, path, line_no + 1)? {
             line_no += 1;
-            let line = as_text(&buf, path, line_no)?;
+            let mut line = as_text(&buf, path, line_no)?;
+            if line_no == 1 {
+                // A spreadsheet's UTF-8 byte-order mark.
+                line = line.strip_prefix('\u{feff}').unwrap_or(line);
+            }
             if !is_skipped(line) {
                 header = Some(line.to_string());
                 break;
@@ -118,7 +131,10 @@ impl CsvFile {
                 message: "no header line (the file is empty)".to_string(),
             });
         };
-        let columns: Vec<String> = header.split(',').map(|c| c.trim().to_string()).collect();
+        let columns: Vec<String> = header
+            .split(',')
+            .map(|c| unquote(c.trim()).to_string())
+            .collect();
         for (i, c) in columns.iter().enumerate() {
             if c.is_empty() {
                 return Err(DriveError::BadHeader {
@@ -207,7 +223,7 @@ impl CsvFile {
                 continue;
             }
             let mut cells: Vec<&str> = Vec::with_capacity(self.columns.len());
-            cells.extend(line.split(',').map(str::trim));
+            cells.extend(line.split(',').map(|c| unquote(c.trim())));
             if cells.len() != self.columns.len() {
                 return Err(DriveError::CellCount {
                     path: self.path.clone(),
@@ -329,5 +345,41 @@ impl CsvWriter {
     /// The text.
     pub fn finish(self) -> String {
         self.out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str) -> (Vec<String>, Vec<Vec<Option<f64>>>) {
+        let reader = Box::new(std::io::Cursor::new(text.as_bytes().to_vec()));
+        let mut f = CsvFile::from_reader(Path::new("wheels.csv"), reader).expect("header");
+        let n = f.columns.len();
+        let mut rows = Vec::new();
+        f.for_each_row(|r| {
+            rows.push((0..n).map(|i| r.get(i)).collect::<Result<Vec<_>, _>>()?);
+            Ok(())
+        })
+        .expect("rows");
+        (f.columns.clone(), rows)
+    }
+
+    #[test]
+    fn a_byte_order_mark_and_quoted_names_read_like_the_plain_file() {
+        let plain = read("t_s,rl_rev\n0.0,1.5\n0.1,1.6\n");
+        let spreadsheet = read("\u{feff}\"t_s\",\"rl_rev\"\r\n\"0.0\",1.5\r\n0.1,\"1.6\"\r\n");
+        assert_eq!(plain.0, vec!["t_s", "rl_rev"]);
+        assert_eq!(spreadsheet, plain);
+    }
+
+    #[test]
+    fn a_byte_order_mark_later_in_the_file_is_not_taken_away() {
+        let reader = Box::new(std::io::Cursor::new(
+            "t_s,rl_rev\n\u{feff}0.0,1.5\n".as_bytes().to_vec(),
+        ));
+        let mut f = CsvFile::from_reader(Path::new("wheels.csv"), reader).expect("header");
+        let err = f.for_each_row(|r| r.get(0).map(|_| ())).unwrap_err();
+        assert!(err.to_string().contains("wheels.csv"), "{err}");
     }
 }

@@ -7,6 +7,7 @@ use crate::DriveError;
 use std::io::{Error, ErrorKind};
 use std::path::Path;
 use vehicle_model::estimate::{Estimate, ParamsError};
+use vehicle_model::estimate_vehicle::EstimateVehicle;
 
 /// Read and parse an estimate file written by `calibrator calibrate --json`.
 ///
@@ -15,6 +16,25 @@ use vehicle_model::estimate::{Estimate, ParamsError};
 /// larger file without reading it (both [`ParamsError::Io`], whose message
 /// says what the path is or the size and the limit).
 pub fn read_estimate(path: &Path) -> Result<Estimate, ParamsError> {
+    let text = read_text(path)?;
+    Estimate::from_json_str(&text, &path.display().to_string())
+}
+
+/// Read an estimate file and the vehicle it was made for (`None` when the
+/// file does not say), to compare with the drive it is applied to
+/// ([`EstimateVehicle::differences`]).
+pub fn read_estimate_with_vehicle(
+    path: &Path,
+) -> Result<(Estimate, Option<EstimateVehicle>), ParamsError> {
+    let text = read_text(path)?;
+    let source = path.display().to_string();
+    Ok((
+        Estimate::from_json_str(&text, &source)?,
+        EstimateVehicle::from_json_str(&text, &source)?,
+    ))
+}
+
+fn read_text(path: &Path) -> Result<String, ParamsError> {
     let io = |source: Error| ParamsError::Io {
         path: path.to_path_buf(),
         source,
@@ -31,7 +51,7 @@ pub fn read_estimate(path: &Path) -> Result<Estimate, ParamsError> {
         )),
         other => io(Error::other(other.to_string())),
     })?;
-    Estimate::from_json_str(&text, &path.display().to_string())
+    Ok(text)
 }
 
 #[cfg(test)]

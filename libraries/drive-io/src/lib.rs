@@ -15,6 +15,8 @@
 //! [`read_estimate`] reads the calibrator's estimate file; [`dev_data`] locates the real drives beside the repository for tests and
 //! benchmarks.
 
+#[cfg(feature = "cli")]
+pub mod cli;
 mod csv;
 pub mod dev_data;
 mod error;
@@ -31,15 +33,17 @@ mod topic_map;
 
 pub use csv::MAX_CSV_LINE_BYTES;
 pub use error::DriveError;
-pub use estimate_file::read_estimate;
+pub use estimate_file::{read_estimate, read_estimate_with_vehicle};
 pub use files::{read_state_text, write_durably, MAX_TEXT_FILE_BYTES};
 pub use info::{summarize, DriveSummary, GapSummary, StreamSummary, GAP_FACTOR, GNSS_OUTAGE_MIN_S};
 pub use nmea::{parse_nmea, read_nmea, NmeaFix, NmeaLog, NMEA_FILE};
 pub use recording::{
-    FORMAT_MAGIC, FORMAT_VERSION, FOXGLOVE_BODY_FRAME, FOXGLOVE_GNSS_FRAME,
-    FOXGLOVE_LOCATION_TOPIC, FOXGLOVE_LOG_TOPIC, FOXGLOVE_TF_TOPIC, FOXGLOVE_TRUTH_POSE_TOPIC,
-    FOXGLOVE_WORLD_FRAME, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC, MAX_CHUNK_RECORDS_BYTES,
-    TRUTH_TOPIC, WHEELS_TOPIC,
+    ServedEstimate, ServedPose, ESTIMATE_SCHEMA, ESTIMATE_TOPIC, FORMAT_MAGIC, FORMAT_VERSION,
+    FOXGLOVE_BODY_FRAME, FOXGLOVE_GNSS_FRAME, FOXGLOVE_LOCATION_TOPIC, FOXGLOVE_LOG_TOPIC,
+    FOXGLOVE_SERVED_LOCATION_TOPIC, FOXGLOVE_SERVED_POSE_TOPIC, FOXGLOVE_TF_TOPIC,
+    FOXGLOVE_TRUTH_POSE_TOPIC, FOXGLOVE_WORLD_FRAME, GNSS_TOPIC, HEADING_TOPIC, IMU_TOPIC,
+    MAX_CHUNK_RECORDS_BYTES, POSE_SCHEMA, POSE_TOPIC, SERVED_SCHEMA_PREFIX, TRUTH_TOPIC,
+    WHEELS_TOPIC,
 };
 pub use topic_map::{Role, TopicMap};
 
@@ -270,6 +274,15 @@ pub struct WriteOptions {
     /// drive's earliest time), e.g. those of loading the drive; only with
     /// [`WriteOptions::foxglove`].
     pub warnings: Vec<String>,
+    /// Poses the odometry served while the drive was recorded, written on
+    /// [`POSE_TOPIC`] (and, with [`WriteOptions::foxglove`], as
+    /// `foxglove.PoseInFrame` on [`FOXGLOVE_SERVED_POSE_TOPIC`] and, where
+    /// the drive has a geodetic origin, `foxglove.LocationFix` on
+    /// [`FOXGLOVE_SERVED_LOCATION_TOPIC`]). The reader leaves them out.
+    pub poses: Vec<ServedPose>,
+    /// Estimates the calibrator served, written on [`ESTIMATE_TOPIC`]. The
+    /// reader leaves them out.
+    pub estimates: Vec<ServedEstimate>,
 }
 
 /// [`write_drive`] with [`WriteOptions`].

@@ -256,6 +256,7 @@ fn foxglove_options(warnings: &[&str]) -> WriteOptions {
     WriteOptions {
         foxglove: true,
         warnings: warnings.iter().map(|w| w.to_string()).collect(),
+        ..WriteOptions::default()
     }
 }
 

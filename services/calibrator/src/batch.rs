@@ -133,7 +133,10 @@ pub fn run(
     let lengths = stages(config.segment_length_s);
     let (model, g0, fit) = loop {
         let model = TwoWheelModel::new(p, (!estimate_track).then_some(p.track), slip_gain, lever);
-        let mut g0 = vec![p.nominal_c, p.nominal_c];
+        let start = config
+            .initial_circumference_m
+            .unwrap_or([p.nominal_c, p.nominal_c]);
+        let mut g0 = start.to_vec();
         if estimate_track {
             g0.push(p.track);
         }
@@ -245,6 +248,7 @@ pub fn run(
         segments: fit.segments,
         track_before: before.track,
         track_after: after.track,
+        model_track: Some(fit.model_track),
         notes,
     })
 }

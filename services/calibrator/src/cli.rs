@@ -3,11 +3,11 @@
 
 use anyhow::{Context, Result};
 use calibrator::{
-    calibrate_with_progress, plots, report, CalibrationConfig, Method, Progress, TimeOffsetMode,
-    TrackWidthMode,
+    calibrate_with_progress, export, page, plots, report, CalibrationConfig, Method, Progress,
+    TimeOffsetMode, TrackWidthMode,
 };
 use clap::{Args, ValueEnum};
-use std::io::Write as _;
+use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
 
 /// `--method`.
@@ -52,9 +52,23 @@ pub struct CalibrateArgs {
     /// Write the calibration JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Write SVG pictures (track.svg, iterations.svg) into this folder.
+    /// Write the calibration's report into this folder: index.html (one
+    /// self-contained page: result, warnings, numbers, figures) and each
+    /// figure as an SVG file.
     #[arg(long)]
     pub plots: Option<PathBuf>,
+    /// Write the result as an Autoware-style ROS 2 parameter file here
+    /// (speed_scale_factor, angular_velocity_offset_z).
+    #[arg(long, value_name = "FILE")]
+    pub export_autoware: Option<PathBuf>,
+    /// Write the 2W model's parameters as TOML here.
+    #[arg(long, value_name = "FILE")]
+    pub export_toml: Option<PathBuf>,
+    /// Start from the circumferences of an earlier estimate (the JSON of
+    /// `calibrate --json`) instead of vehicle.toml's nominal value; an
+    /// estimate made for another vehicle is said so.
+    #[arg(long, value_name = "EST.json")]
+    pub initial: Option<PathBuf>,
     /// Estimator.
     #[arg(long, value_enum)]
     pub method: Option<MethodArg>,
@@ -201,13 +215,33 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         tracing::warn!("{w}");
     }
     let drive = loaded.drive;
-    let config = args.config();
+    let mut config = args.config();
+    let mut reading: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    if let Some(path) = &args.initial {
+        let (estimate, made_for) = drive_io::read_estimate_with_vehicle(path)
+            .with_context(|| format!("--initial {}", path.display()))?;
+        if let Some(w) = made_for.and_then(|v| {
+            vehicle_model::estimate_vehicle::other_vehicle_warning(
+                &v,
+                &drive.vehicle,
+                &path.display().to_string(),
+                &args.drive.display().to_string(),
+            )
+        }) {
+            tracing::warn!("{w}");
+            reading.push(w);
+        }
+        let tw = estimate.params.two_wheel;
+        config.initial_circumference_m = Some([tw.c_rl, tw.c_rr]);
+    }
     // A bar only where it helps: drives longer than five minutes.
     let mut bar = Bar {
         shown: false,
         last: -1,
     };
-    let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
+    // A carriage-return bar only on a terminal: a log file or a pipe gets none.
+    let show =
+        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
     let result = calibrate_with_progress(&drive, &config, &mut |p| {
         if show {
             bar.update(p)
@@ -218,9 +252,9 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
     }
     let cal = result.with_context(|| format!("cannot calibrate {}", args.drive.display()))?;
     print!("{}", report::render_text(&cal));
-    if !loaded.warnings.is_empty() {
+    if !reading.is_empty() {
         println!("reading the drive:");
-        for w in &loaded.warnings {
+        for w in &reading {
             println!("  - {w}");
         }
     }
@@ -266,21 +300,56 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {}", path.display());
     }
+    let provenance = export::Provenance {
+        drive: args.drive.display().to_string(),
+        version: env!("CARGO_PKG_VERSION").to_string(),
+    };
+    for (path, text) in [
+        (
+            &args.export_autoware,
+            args.export_autoware
+                .as_ref()
+                .map(|_| export::autoware_yaml(&cal, &provenance)),
+        ),
+        (
+            &args.export_toml,
+            args.export_toml
+                .as_ref()
+                .map(|_| export::two_wheel_toml(&cal, &provenance)),
+        ),
+    ] {
+        if let (Some(path), Some(text)) = (path, text) {
+            std::fs::write(path, text)
+                .with_context(|| format!("cannot write {}", path.display()))?;
+            println!("wrote {}", path.display());
+        }
+    }
     if let Some(dir) = &args.plots {
-        write_plots(dir, &cal)?;
+        let name = args.drive.file_name().map_or_else(
+            || args.drive.display().to_string(),
+            |n| n.to_string_lossy().to_string(),
+        );
+        write_plots(dir, &cal, &name, &reading)?;
     }
     Ok(())
 }
 
-fn write_plots(dir: &Path, cal: &calibrator::Calibration) -> Result<()> {
+fn write_plots(
+    dir: &Path,
+    cal: &calibrator::Calibration,
+    drive: &str,
+    reading: &[String],
+) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    for (name, svg) in [
-        ("track.svg", plots::track_svg(cal)),
-        ("iterations.svg", plots::iterations_svg(cal)),
-    ] {
-        let path = dir.join(name);
-        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {}", path.display());
+    let figures = plots::figures(cal).context("cannot draw the calibration's figures")?;
+    for f in &figures {
+        let path = dir.join(f.file);
+        std::fs::write(&path, &f.svg)
+            .with_context(|| format!("cannot write {}", path.display()))?;
     }
+    let path = dir.join("index.html");
+    std::fs::write(&path, page::calibration_html(cal, drive, &figures, reading))
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    println!("wrote {} and {} figures", path.display(), figures.len());
     Ok(())
 }

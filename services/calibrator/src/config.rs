@@ -83,10 +83,16 @@ pub struct CalibrationConfig {
     /// thousand times what the noise explains. (An RTK drive of the
     /// simulator's vehicle, whose side-slip and load transfer the 2W model
     /// leaves out, fits to about 80x its 3.6 cm and still calibrates within
-    /// a millimetre: the ratio alone is no verdict on the circumferences.) Infinity: never refuse (the
-    /// diagnosis, which looks for that physics, calibrates so).
+    /// a millimetre: the ratio alone is no verdict on the circumferences.)
+    /// Infinity: never refuse (the diagnosis, which looks for that
+    /// physics, calibrates so).
     #[serde(default = "default_max_fit_ratio")]
     pub max_fit_ratio: f64,
+    /// Start from these rear circumferences `[c_RL, c_RR]`, m (an earlier
+    /// estimate), instead of `vehicle.toml`'s nominal one; the plausibility
+    /// checks still measure against the nominal value.
+    #[serde(default)]
+    pub initial_circumference_m: Option<[f64; 2]>,
 }
 
 fn default_max_fit_ratio() -> f64 {
@@ -114,6 +120,7 @@ impl Default for CalibrationConfig {
             use_imu_acceleration: true,
             estimate_lever_arm: false,
             max_fit_ratio: default_max_fit_ratio(),
+            initial_circumference_m: None,
         }
     }
 }
@@ -173,6 +180,14 @@ impl CalibrationConfig {
                 "max_gnss_gap_s",
                 format!("{} must be positive", self.max_gnss_gap_s),
             );
+        }
+        if let Some(c) = self.initial_circumference_m {
+            if !c.iter().all(|v| v.is_finite() && *v > 0.1 && *v < 10.0) {
+                return bad(
+                    "initial_circumference_m",
+                    format!("{c:?} is not a pair of circumferences of 0.1-10 m"),
+                );
+            }
         }
         if !(self.segment_length_s.is_finite() && self.segment_length_s >= 5.0) {
             return bad(

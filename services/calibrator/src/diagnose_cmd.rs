@@ -7,7 +7,7 @@ use calibrator::diagnose::{
 };
 use clap::Args;
 use std::fmt::Write as _;
-use std::io::Write as _;
+use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `calibrator diagnose`.
@@ -49,7 +49,9 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     if let Some(b) = args.block {
         anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
     }
-    let show = !args.no_progress && drive.wheel_duration_s() > 300.0;
+    // A carriage-return progress line only on a terminal.
+    let show =
+        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
     let mut shown = false;
     let result = diagnose_with_progress(&drive, &cfg, &mut |stage, fraction| {
         if show {
@@ -85,17 +87,21 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
 
 fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let draw = "cannot draw the diagnosis's pictures";
     let mut pictures: Vec<(String, String)> = vec![
-        ("tracks.svg".to_string(), pictures::tracks_svg(&d.tracks)),
+        (
+            "tracks.svg".to_string(),
+            pictures::tracks_svg(&d.tracks).context(draw)?,
+        ),
         (
             "block_errors.svg".to_string(),
-            pictures::block_errors_svg(&d.tracks),
+            pictures::block_errors_svg(&d.tracks).context(draw)?,
         ),
     ];
     for p in &d.residual_plots {
         pictures.push((
             format!("residual_{}.svg", p.effect),
-            pictures::residual_svg(p),
+            pictures::residual_svg(p).context(draw)?,
         ));
     }
     for (name, svg) in &pictures {

@@ -41,7 +41,12 @@
 //! - [`pipeline`]: [`calibrate`], the stages in order, and putting the
 //!   result together;
 //! - [`report`]: the readable text report;
-//! - [`plots`]: SVG pictures (returned as text);
+//! - [`plots`]: the figures of a calibration (SVG text, drawn by the
+//!   `report` library);
+//! - [`export`]: the calibration in other stacks' forms (an Autoware-style
+//!   parameter file, the 2W parameters as TOML);
+//! - [`page`]: the calibration's HTML page (the figures, the warnings, the
+//!   numbers);
 //! - [`holdout`]: dead-reckoning errors of parameter sets on held-out data;
 //! - [`live`]: when a drive collected so far supports publishing an estimate
 //!   (coverage, attempt on all but a held-out tail, quality gate);
@@ -62,12 +67,14 @@ pub mod config;
 pub mod diagnose;
 pub mod ekf;
 pub mod error;
+pub mod export;
 pub mod gnss_jumps;
 pub mod gyro;
 pub mod holdout;
 pub mod live;
 pub mod lm;
 pub mod method;
+pub mod page;
 pub mod paper;
 pub mod pipeline;
 pub mod plots;

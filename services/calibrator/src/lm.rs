@@ -34,6 +34,9 @@ use vehicle_model::two_wheel::Pose2;
 /// Drive time (s) the early, short-segment stages look at.
 const EARLY_STAGE_S: f64 = 600.0;
 
+/// Points kept of a fitted model's track for the report.
+pub const REPORT_POINTS: usize = 3000;
+
 /// Largest number of global parameters of any model.
 pub const MAX_GLOBAL: usize = 6;
 
@@ -177,6 +180,10 @@ struct SegEval {
     residuals: Vec<[f64; 2]>,
     /// Sum of squared residuals in metres.
     sum_sq_m: f64,
+    /// With `record_every`: the model's rear-axle track, thinned.
+    track: Vec<[f64; 2]>,
+    /// With `record_every`: every fix's time and residual (east, north), m.
+    residuals_m: Vec<[f64; 3]>,
 }
 
 /// Settings of one evaluation.
@@ -187,6 +194,9 @@ struct EvalSettings {
     jacobian: bool,
     /// Fixes per jackknife block (0: no blocks).
     block_fixes: usize,
+    /// Keep every this many samples of the model's track and the residuals
+    /// in metres (0: keep nothing).
+    record_every: usize,
 }
 
 const HUBER_K: f64 = 3.0;
@@ -234,6 +244,8 @@ fn eval_segment(
     let mut cost = 0.0;
     let mut residuals = Vec::with_capacity(seg.fixes.len());
     let mut sum_sq_m = 0.0;
+    let mut track = Vec::new();
+    let mut residuals_m = Vec::new();
     let mut pose = Pose2 {
         x: pose0[0],
         y: pose0[1],
@@ -319,6 +331,9 @@ fn eval_segment(
             cost += c;
             residuals.push(r);
             sum_sq_m += (f.x - ax).powi(2) + (f.y - ay_).powi(2);
+            if s.record_every > 0 {
+                residuals_m.push([f.t, f.x - ax, f.y - ay_]);
+            }
             if let Some(a) = acc.as_mut() {
                 // d(antenna)/d(yaw)
                 let rx = -st * lx - ct * ly;
@@ -370,6 +385,9 @@ fn eval_segment(
                 }
             }
         }
+        if s.record_every > 0 && ((k - seg.k0).is_multiple_of(s.record_every) || k + 1 == seg.k1) {
+            track.push([pose.x, pose.y]);
+        }
         prev = (pose, dx, dy, dth);
     }
     if let Some(b) = block {
@@ -383,6 +401,8 @@ fn eval_segment(
         blocks,
         residuals,
         sum_sq_m,
+        track,
+        residuals_m,
     }
 }
 
@@ -458,6 +478,73 @@ pub struct Fit {
     pub dropped_segments: usize,
     /// The parameters at the end of each stage, with its segment length (s).
     pub steps: Vec<(f64, Vec<f64>)>,
+    /// The fitted model's track and residuals (the last stage's segments).
+    pub model_track: ModelTrack,
+}
+
+/// A model's track over the segments of a fit, each from its own initial
+/// pose, and its residuals against the accepted GNSS fixes: what the
+/// report draws as "the model the estimate came from".
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ModelTrack {
+    /// The rear-axle centre per segment (east, north), m, thinned.
+    pub parts: Vec<Vec<[f64; 2]>>,
+    /// Every accepted fix in a segment: time (s), and fix minus the model's
+    /// antenna position (east, north), m.
+    pub residuals: Vec<[f64; 3]>,
+}
+
+impl ModelTrack {
+    fn from_evals(evals: &mut [SegEval]) -> ModelTrack {
+        let mut out = ModelTrack::default();
+        for e in evals {
+            out.parts.push(std::mem::take(&mut e.track));
+            out.residuals.append(&mut e.residuals_m);
+        }
+        out
+    }
+
+    /// RMS of the residuals' length, m (`None` without residuals).
+    pub fn residual_rms_m(&self) -> Option<f64> {
+        (!self.residuals.is_empty()).then(|| {
+            let ss: f64 = self
+                .residuals
+                .iter()
+                .map(|r| r[1] * r[1] + r[2] * r[2])
+                .sum();
+            (ss / self.residuals.len() as f64).sqrt()
+        })
+    }
+}
+
+/// `model` with the parameters `g` dead-reckoned over segments of about
+/// `length_s`, each started from the reference pose at its start (no
+/// fitting): the track of a model that was not fitted segment-wise (the
+/// paper's method), on the same footing as the batch fit's.
+pub fn anchored_track(
+    model: &dyn StepModel,
+    g: &[f64],
+    p: &Prepared,
+    r: &Reference,
+    length_s: f64,
+) -> ModelTrack {
+    let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
+    let (segs, _) = make_segments(p, &fixes, length_s, &|_| false);
+    let settings = EvalSettings {
+        lever: p.lever_arm,
+        scale: 1.0,
+        jacobian: false,
+        block_fixes: 0,
+        record_every: p.len().div_ceil(REPORT_POINTS).max(1),
+    };
+    let mut evals: Vec<SegEval> = segs
+        .iter()
+        .map(|s| {
+            let pose = [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]];
+            eval_segment(model, g, s, pose, &fixes, &settings, p)
+        })
+        .collect();
+    ModelTrack::from_evals(&mut evals)
 }
 
 /// The end of a fit stage: segments, their poses, segments dropped, robust scale.
@@ -504,6 +591,7 @@ pub fn fit(
             scale: 1.0,
             jacobian: false,
             block_fixes: 0,
+            record_every: 0,
         };
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
@@ -633,8 +721,9 @@ fn covariance(
         scale,
         jacobian: true,
         block_fixes,
+        record_every: p.len().div_ceil(REPORT_POINTS).max(1),
     };
-    let evals: Vec<SegEval> = segs
+    let mut evals: Vec<SegEval> = segs
         .iter()
         .zip(poses)
         .map(|(s, pose)| eval_segment(model, g, s, *pose, fixes, &settings, p))
@@ -739,7 +828,9 @@ fn covariance(
         (Some(b), _) => Some(b),
         (None, s) => s,
     };
+    let model_track = ModelTrack::from_evals(&mut evals);
     Ok(Fit {
+        model_track,
         g: g.to_vec(),
         formal,
         jackknife,

@@ -66,7 +66,9 @@ fn run_once(
         Slip::None
     };
     let side_slip = matches!(slip, Slip::Series(_));
-    let mut c = [p.nominal_c, p.nominal_c];
+    let mut c = config
+        .initial_circumference_m
+        .unwrap_or([p.nominal_c, p.nominal_c]);
     let params = |c: [f64; 2], track: f64| TwoWheelParams {
         c_rl: c[0],
         c_rr: c[1],
@@ -152,6 +154,7 @@ fn run_once(
         segments: 0,
         track_before: dev0.track,
         track_after,
+        model_track: None,
         notes: Vec::new(),
     })
 }

@@ -13,7 +13,7 @@ use crate::result::{
 };
 use crate::uncertainty::observability;
 use crate::warnings::{Warning, WarningCode};
-use crate::{batch, paper, prep, reference};
+use crate::{batch, lm, paper, prep, reference};
 use interfaces::drive::Drive;
 use serde::{Deserialize, Serialize};
 
@@ -105,7 +105,7 @@ pub fn calibrate_with_progress(
         stage: Stage::Gyro,
         fraction: 0.9,
     });
-    let cal = assemble(
+    let mut cal = assemble(
         &prepared,
         &reference,
         config,
@@ -113,7 +113,7 @@ pub fn calibrate_with_progress(
         batch_result,
         warnings,
     )?;
-    let mut cal = cal;
+    cal.vehicle = Some(drive.vehicle.clone());
     if let Some(q) = cal
         .fit_quality
         .as_ref()
@@ -204,9 +204,41 @@ fn summary(m: &MethodResult) -> MethodSummary {
     }
 }
 
-fn thin(v: impl Iterator<Item = [f64; 2]>, n: usize, keep: usize) -> Vec<[f64; 2]> {
+fn thin<T>(v: impl Iterator<Item = T>, n: usize, keep: usize) -> Vec<T> {
     let stride = n.div_ceil(keep.max(1)).max(1);
     v.step_by(stride).collect()
+}
+
+/// Windows of about 1 s above 2 m/s (nominal circumference) inside one
+/// piece of wheel data with a valid reference at both ends: the heading
+/// change of the reference and the revolutions of each rear wheel, for the
+/// report's wheel-speed ratio against turn rate (at most
+/// [`TRACK_POINTS`] of them, spread over the drive).
+fn wheel_windows(p: &Prepared, r: &Reference) -> Vec<[f64; 3]> {
+    let mut out = Vec::new();
+    let Some(&t_first) = p.t.first() else {
+        return out;
+    };
+    let (mut k0, mut t0) = (0usize, t_first);
+    let (mut a, mut b) = (0.0, 0.0);
+    for k in 1..p.len() {
+        if p.is_piece_start(k) || !r.valid[k] || !r.valid[k0] {
+            (k0, t0, a, b) = (k, p.t[k], 0.0, 0.0);
+            continue;
+        }
+        a += p.dn_rl[k];
+        b += p.dn_rr[k];
+        let dt = p.t[k] - t0;
+        if dt >= 1.0 {
+            let dist = 0.5 * (a + b) * p.nominal_c;
+            if a > 0.0 && b > 0.0 && dist > 2.0 * dt {
+                out.push([r.yaw[k] - r.yaw[k0], a, b]);
+            }
+            (k0, t0, a, b) = (k, p.t[k], 0.0, 0.0);
+        }
+    }
+    let n = out.len();
+    thin(out.into_iter(), n, TRACK_POINTS)
 }
 
 /// Put the result together: primary method, gyro, warnings, diagnostics.
@@ -214,8 +246,8 @@ fn assemble(
     p: &Prepared,
     r: &Reference,
     config: &CalibrationConfig,
-    paper: Option<MethodResult>,
-    batch: Option<MethodResult>,
+    mut paper: Option<MethodResult>,
+    mut batch: Option<MethodResult>,
     mut warnings: Vec<Warning>,
 ) -> Result<Calibration, CalibrationError> {
     let comparison: Vec<MethodSummary> = if config.compare {
@@ -241,9 +273,9 @@ fn assemble(
             }
         }
     }
-    let primary = match config.method {
-        Method::Paper => paper,
-        Method::Batch => batch,
+    let mut primary = match config.method {
+        Method::Paper => paper.take(),
+        Method::Batch => batch.take(),
     }
     .ok_or(CalibrationError::InvalidConfig {
         field: "method",
@@ -320,6 +352,22 @@ fn assemble(
             ));
         }
     }
+    // The model the estimate came from, for the report: the batch fit's
+    // own segments, or the paper's estimate on segments of the same length
+    // started from the reference.
+    let (model, model_fitted) = match primary.model_track.take() {
+        Some(m) => (m, true),
+        None => (
+            lm::anchored_track(
+                &batch::TwoWheelModel::new(p, Some(primary.track), false, false),
+                &primary.c,
+                p,
+                r,
+                config.segment_length_s,
+            ),
+            false,
+        ),
+    };
     let n = p.len();
     let reference = thin((0..n).map(|k| [r.x[k], r.y[k]]), n, TRACK_POINTS);
     let gnss: Vec<[f64; 2]> = r
@@ -355,6 +403,7 @@ fn assemble(
             circumference_m: p.nominal_c,
             track_width_m: p.track,
         },
+        vehicle: None,
         diagnostics: Diagnostics {
             duration_s: p.t.last().copied().unwrap_or(0.0) - p.t.first().copied().unwrap_or(0.0),
             distance_m: r.distance_m,
@@ -384,6 +433,10 @@ fn assemble(
             before: primary.track_before,
             after: primary.track_after,
             gnss,
+            start_s: p.t.first().copied().unwrap_or(0.0),
+            model,
+            model_fitted,
+            wheel_windows: wheel_windows(p, r),
         },
     })
 }

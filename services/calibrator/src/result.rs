@@ -7,6 +7,7 @@
 
 use crate::clocks::ClockOffsets;
 use crate::gyro::GyroEstimate;
+use crate::lm::ModelTrack;
 use crate::method::Method;
 use crate::reference::TimeOffset;
 use crate::uncertainty::Sigmas;
@@ -97,6 +98,8 @@ pub struct MethodResult {
     pub track_before: Vec<[f64; 2]>,
     /// Dead-reckoned track with the estimate (thinned).
     pub track_after: Vec<[f64; 2]>,
+    /// The fitted model's segment-wise track and GNSS residuals (batch).
+    pub model_track: Option<ModelTrack>,
     /// Method-specific warnings.
     pub notes: Vec<Warning>,
 }
@@ -203,6 +206,20 @@ pub struct Tracks {
     pub after: Vec<[f64; 2]>,
     /// Accepted GNSS fixes (antenna).
     pub gnss: Vec<[f64; 2]>,
+    /// Time of the first wheel sample, s (the report's time axis starts there).
+    pub start_s: f64,
+    /// The model the estimate came from, per segment, with its GNSS
+    /// residuals: the batch fit's segments from their fitted initial poses,
+    /// or (the paper's method) the 2W model with the estimate from the
+    /// reference pose at each segment's start.
+    pub model: ModelTrack,
+    /// Whether `model`'s segment poses were fitted (batch) or taken from
+    /// the reference (paper).
+    pub model_fitted: bool,
+    /// Windows of about 1 s driven above 2 m/s with a valid reference:
+    /// [heading change of the reference (rad), rear-left revolutions,
+    /// rear-right revolutions].
+    pub wheel_windows: Vec<[f64; 3]>,
 }
 
 /// The calibration result.
@@ -244,6 +261,10 @@ pub struct Calibration {
     pub warnings: Vec<Warning>,
     /// Starting values.
     pub nominal: Nominal,
+    /// The vehicle the drive was made with (its `vehicle.toml`): the
+    /// estimate's identity, compared by whoever applies it to another drive.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vehicle: Option<interfaces::drive::VehicleParams>,
     /// Facts about the drive.
     pub diagnostics: Diagnostics,
     /// The clock offset of every stream against the wheels (determined or

@@ -6,6 +6,7 @@
 //! - [`dead_reckoning`]: the sample-by-sample dead-reckoner (wheel or gyro heading).
 //! - [`inputs`]: the odometry's inputs in processing order.
 //! - [`evaluate`]: simulated GNSS outages scored against the truth.
+//! - [`evaluation_page`]: an evaluation's figures and HTML page.
 //! - [`fusion`]: the EKF and its modes (Fused, DeadReckoning, NoFix).
 //! - [`fused_outages`]: GNSS outages through the filter (the served pose).
 //! - [`rewind`]: samples that arrive late, taken in order by going back.
@@ -18,6 +19,7 @@
 pub mod cadence;
 pub mod dead_reckoning;
 pub mod evaluate;
+pub mod evaluation_page;
 pub mod fused_outages;
 pub mod fusion;
 pub mod inputs;

@@ -15,6 +15,7 @@ use odometry::evaluate::{
     choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
     TruthPointSource,
 };
+use odometry::evaluation_page;
 use std::path::PathBuf;
 use vehicle_model::estimate::{OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
 
@@ -42,8 +43,11 @@ enum Command {
 
 #[derive(Debug, clap::Args)]
 struct EvaluateArgs {
-    /// Drive folder or MCAP recording (needs truth.csv).
+    /// Drive folder or MCAP recording (needs truth.csv), or a ROS 2 bag
+    /// with --vehicle.
     drive: PathBuf,
+    #[command(flatten)]
+    input: drive_io::cli::DriveInput,
     /// Estimate written by `calibrator calibrate --json`; without it, the
     /// nominal values of vehicle.toml.
     #[arg(long)]
@@ -62,6 +66,11 @@ struct EvaluateArgs {
     /// Write the result as JSON here.
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Write the evaluation's report into this folder: index.html (one
+    /// self-contained page: score, warnings, numbers, figures) and each
+    /// figure as an SVG file.
+    #[arg(long)]
+    plots: Option<PathBuf>,
     /// Dead-reckoning settings.
     #[command(flatten)]
     odometer: serve::OdometerArgs,
@@ -88,7 +97,10 @@ fn main() -> Result<()> {
 }
 
 fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
-    let loaded = drive_io::read_drive(&args.drive)
+    let loaded = args
+        .input
+        .read(&args.drive, false)
+        .context("reading --vehicle / --topics")?
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");
@@ -98,9 +110,19 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         .vehicle
         .check_plausible()
         .map_err(|e| anyhow::anyhow!("{}: vehicle.toml: {e}", args.drive.display()))?;
+    let mut other_vehicle = None;
     let (params, source, antenna, antenna_sigma, estimate_effects, clocks) = match &args.estimate {
         Some(path) => {
-            let estimate = drive_io::read_estimate(path).context("cannot use the estimate")?;
+            let (estimate, made_for) =
+                drive_io::read_estimate_with_vehicle(path).context("cannot use the estimate")?;
+            other_vehicle = made_for.and_then(|v| {
+                vehicle_model::estimate_vehicle::other_vehicle_warning(
+                    &v,
+                    &drive.vehicle,
+                    &path.display().to_string(),
+                    &args.drive.display().to_string(),
+                )
+            });
             vehicle_model::estimate_gate::EstimateGate::new(&drive.vehicle)
                 .check(0, None, &estimate)
                 .map_err(|e| {
@@ -141,10 +163,15 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
             None => estimate_effects,
         },
         clocks,
+        keep_tracks: args.plots.is_some(),
         ..EvaluateConfig::default()
     };
-    let report = evaluate(&drive, &params, &config)
+    let mut report = evaluate(&drive, &params, &config)
         .with_context(|| format!("cannot evaluate {}", args.drive.display()))?;
+    if let Some(w) = other_vehicle {
+        tracing::warn!("{w}");
+        report.warnings.insert(0, w);
+    }
     print_report(
         &report,
         &source,
@@ -156,6 +183,45 @@ fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
         std::fs::write(path, text + "\n")
             .with_context(|| format!("cannot write {}", path.display()))?;
     }
+    if let Some(dir) = &args.plots {
+        write_page(dir, &report, &drive, &args.drive, &source)?;
+    }
+    Ok(())
+}
+
+/// The evaluation's page and figures into `dir`.
+fn write_page(
+    dir: &std::path::Path,
+    report: &EvaluationReport,
+    drive: &interfaces::drive::Drive,
+    path: &std::path::Path,
+    source: &str,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let truth: Vec<[f64; 2]> = drive
+        .truth
+        .iter()
+        .flatten()
+        .map(|t| [t.x_m, t.y_m])
+        .collect();
+    let figures =
+        evaluation_page::figures(report, &truth).context("cannot draw the evaluation's figures")?;
+    for f in &figures {
+        let file = dir.join(f.file);
+        std::fs::write(&file, &f.svg)
+            .with_context(|| format!("cannot write {}", file.display()))?;
+    }
+    let name = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().to_string(),
+    );
+    let page = dir.join("index.html");
+    std::fs::write(
+        &page,
+        evaluation_page::evaluation_html(report, &name, source, &figures),
+    )
+    .with_context(|| format!("cannot write {}", page.display()))?;
+    println!("wrote {} and {} figures", page.display(), figures.len());
     Ok(())
 }
 

@@ -221,11 +221,23 @@ impl ServeConfig {
     /// The settings of `args`, reading the vehicle and estimate files.
     pub fn from_args(args: &ServeArgs) -> Result<ServeConfig, ServeError> {
         let vehicle = load_vehicle(&args.vehicle)?;
-        let initial = args
-            .estimate
-            .as_deref()
-            .map(drive_io::read_estimate)
-            .transpose()?;
+        let initial = match args.estimate.as_deref() {
+            Some(path) => {
+                let (estimate, made_for) = drive_io::read_estimate_with_vehicle(path)?;
+                if let Some(w) = made_for.and_then(|v| {
+                    vehicle_model::estimate_vehicle::other_vehicle_warning(
+                        &v,
+                        &vehicle,
+                        &path.display().to_string(),
+                        &format!("the vehicle file {}", args.vehicle.display()),
+                    )
+                }) {
+                    tracing::warn!("{w}");
+                }
+                Some(estimate)
+            }
+            None => None,
+        };
         let positive = |name: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
                 Ok(v)
@@ -822,6 +834,7 @@ pub fn serve(
     }
     let inputs = Inputs::open(bus, gate)?;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
+    let mut pose_stream_ended = false;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
     // handed to the publisher), all ns: only with --latency-trace.
     let mut trace: Vec<(i64, i128, i128)> = Vec::new();
@@ -1051,6 +1064,14 @@ pub fn serve(
         }
         wheel_stream.after_wakeup(got_wheels, end_taken, waiting);
         let wheels_ended = wheel_stream.ended();
+        // No wheel sample, no pose: the pose stream ends with the wheels'
+        // (once per run of the wheel stream; a new run starts it again).
+        if wheels_ended && !pose_stream_ended {
+            poses.end_of_stream()?;
+            pose_stream_ended = true;
+        } else if !wheels_ended {
+            pose_stream_ended = false;
+        }
 
         // Stale inputs: the wheels stopped coming.
         if let (Some(seen), false) = (last_wheel_wall, stale) {
@@ -1092,6 +1113,11 @@ pub fn serve(
             tracing::info!("odometry: the wheel stream ended");
             break;
         }
+    }
+    if !pose_stream_ended {
+        // Stopping: no pose follows. Subscribers learn it without waiting
+        // for the publisher to be found gone.
+        poses.end_of_stream()?;
     }
     summary.lost = inputs.lost();
     summary.estimate_version = filter.fusion().estimate_version();

@@ -145,9 +145,27 @@ pub fn run_record(args: &RecordArgs) -> Result<()> {
     for w in &rec.warnings {
         tracing::warn!("{w}");
     }
-    let options = args
+    let mut options = args
         .foxglove
         .write_options(&rec.drive, &args.out, rec.warnings.clone());
+    if !(rec.poses.is_empty() && rec.estimates.is_empty()) {
+        if drive_io::is_mcap_path(&args.out) {
+            tracing::info!(
+                "record: {} served poses and {} estimates go beside the drive",
+                rec.poses.len(),
+                rec.estimates.len()
+            );
+        } else {
+            tracing::warn!(
+                "record: {} served poses and {} estimates are not kept: a drive folder has no \
+                 place for them (record into a .mcap file to keep them)",
+                rec.poses.len(),
+                rec.estimates.len()
+            );
+        }
+    }
+    options.poses = rec.poses.clone();
+    options.estimates = rec.estimates.clone();
     write_drive_with(&rec.drive, &args.out, &options)
         .with_context(|| format!("writing {}", args.out.display()))?;
     let [w, g, i, h] = rec.received;

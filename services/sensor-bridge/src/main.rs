@@ -92,7 +92,11 @@ impl FoxgloveArgs {
                 out.display()
             );
         }
-        WriteOptions { foxglove, warnings }
+        WriteOptions {
+            foxglove,
+            warnings,
+            ..WriteOptions::default()
+        }
     }
 }
 

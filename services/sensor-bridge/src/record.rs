@@ -6,14 +6,22 @@
 //! [`RecordOptions::until_end_of_stream`], until the publisher announces the
 //! end of its stream.
 //!
+//! It also records what the services serve meanwhile, when they run: the
+//! odometry's poses and the calibrator's estimates
+//! ([`Recording::poses`], [`Recording::estimates`]; written beside the
+//! drive, see `drive_io::WriteOptions::poses`).
+//!
 //! The wire carries no vehicle parameters: they come from the caller
 //! (`--vehicle`). Wheels are recorded as cumulative revolutions (`_rev`).
 
+use drive_io::{ServedEstimate, ServedPose};
 use iceoryx2::prelude::CallbackProgression;
+use interfaces::bus::TopicSubscriber;
 use interfaces::bus::{self, Bus, BusError};
 use interfaces::collect::{DriveBuilder, NAMES};
 use interfaces::drive::{Drive, VehicleParams};
 use interfaces::sensors::SensorSubscribers;
+use interfaces::wire::{CircumferenceEstimate, Pose};
 use std::time::{Duration, Instant};
 
 /// Options of [`record`].
@@ -56,12 +64,68 @@ pub struct Recording {
     pub lost: [u64; 4],
     /// Samples received: wheels, gnss, imu, heading.
     pub received: [u64; 4],
+    /// The poses the odometry served meanwhile, in the order received.
+    pub poses: Vec<ServedPose>,
+    /// The estimates the calibrator served meanwhile.
+    pub estimates: Vec<ServedEstimate>,
+}
+
+/// The served topics, drained beside the sensors.
+struct Served {
+    poses: TopicSubscriber<Pose>,
+    estimates: TopicSubscriber<CircumferenceEstimate>,
+    pose_samples: Vec<ServedPose>,
+    estimate_samples: Vec<ServedEstimate>,
+}
+
+impl Served {
+    fn open(bus: &Bus) -> Result<Served, BusError> {
+        Ok(Served {
+            poses: bus.subscriber()?,
+            estimates: bus.subscriber()?,
+            pose_samples: Vec::new(),
+            estimate_samples: Vec::new(),
+        })
+    }
+
+    fn drain(&mut self) -> Result<(), BusError> {
+        // Connect new publishers (and take the estimate's history).
+        self.poses.take_events()?;
+        self.estimates.take_events()?;
+        while let Some(p) = self.poses.receive()? {
+            self.pose_samples.push(ServedPose {
+                t_s: p.header.t_s(),
+                x_m: p.x_m,
+                y_m: p.y_m,
+                yaw_rad: p.yaw_rad,
+                covariance: p.covariance,
+                mode: p.mode,
+                estimate_version: p.estimate_version,
+            });
+        }
+        while let Some(e) = self.estimates.receive()? {
+            self.estimate_samples.push(ServedEstimate {
+                t_s: e.header.t_s(),
+                version: e.version,
+                c_rl_m: e.c_rl_m,
+                c_rr_m: e.c_rr_m,
+                sigma_rl_m: e.sigma_rl_m,
+                sigma_rr_m: e.sigma_rr_m,
+                track_width_m: e.track_width_m,
+                gyro_bias_rad_s: e.gyro_bias_rad_s,
+                gyro_scale: e.gyro_scale,
+                quality_m: e.quality_m,
+            });
+        }
+        Ok(())
+    }
 }
 
 /// Subscribe to every sensor topic and record until Ctrl-C/SIGTERM (or the
 /// end of the stream, see [`RecordOptions`]).
 pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError> {
     let subs = SensorSubscribers::open(bus)?;
+    let mut served = Served::open(bus)?;
     let waitset = bus.waitset()?;
     let _guards = subs.wake_on_all(&waitset)?;
     // A tick, so that a signal taken by another thread is noticed.
@@ -75,6 +139,7 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
     loop {
         let result = bus::wait_once(&waitset, None, |_| CallbackProgression::Continue)?;
         let outcome = subs.drain_into(&mut builder)?;
+        served.drain()?;
         if !opts.progress_every.is_zero() && last_progress.elapsed() >= opts.progress_every {
             last_progress = Instant::now();
             tracing::info!(
@@ -120,6 +185,7 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
             }
             // One more drain for anything that raced with the event.
             subs.drain_into(&mut builder)?;
+            served.drain()?;
             break;
         }
     }
@@ -141,5 +207,7 @@ pub fn record(bus: &Bus, opts: &RecordOptions) -> Result<Recording, RecordError>
         warnings,
         lost,
         received: subs.received(),
+        poses: served.pose_samples,
+        estimates: served.estimate_samples,
     })
 }

@@ -20,6 +20,7 @@
 //! clock starting near 0 shows in January 1970.
 
 use super::outgoing::{log_time_ns, Outgoing};
+use super::served::ServedPose;
 use crate::geodesy::LocalFrame;
 use interfaces::drive::{GnssSample, TruthSample};
 use serde::Serialize;
@@ -33,6 +34,11 @@ pub const TRUTH_POSE_TOPIC: &str = "/truth/pose";
 /// Channel of the `foxglove.FrameTransform`s placing the vehicle frame
 /// ([`BODY_FRAME`]) in the local ENU frame ([`WORLD_FRAME`]), one per true pose.
 pub const TF_TOPIC: &str = "/tf";
+/// Channel of the odometry's served poses as `foxglove.PoseInFrame` (3D panel).
+pub const SERVED_POSE_TOPIC: &str = "/odometry/pose";
+/// Channel of the odometry's served poses as `foxglove.LocationFix` (Map
+/// panel; only where the drive has a geodetic origin).
+pub const SERVED_LOCATION_TOPIC: &str = "/odometry/location";
 /// Channel of the drive's warnings as `foxglove.Log` (Log panel).
 pub const LOG_TOPIC: &str = "/log";
 /// Frame id of the drive's local ENU frame (x east, y north; origin at the
@@ -474,6 +480,102 @@ impl Outgoing for LogOut<'_> {
             name: "wheelcal",
             file: "",
             line: 0,
+        };
+        Some(serde_json::to_writer(buf, &msg))
+    }
+}
+
+/// The odometry's served poses as `foxglove.PoseInFrame` in [`WORLD_FRAME`].
+pub(super) struct ServedPoseOut<'a> {
+    /// The poses.
+    pub samples: &'a [ServedPose],
+    /// The recording's log-time offset, ns.
+    pub offset_ns: u64,
+}
+
+impl Outgoing for ServedPoseOut<'_> {
+    fn name(&self) -> &'static str {
+        "served poses (foxglove.PoseInFrame)"
+    }
+    fn topic(&self) -> &'static str {
+        SERVED_POSE_TOPIC
+    }
+    fn schema_name(&self) -> &'static str {
+        POSE_IN_FRAME
+    }
+    fn schema(&self) -> Vec<u8> {
+        pose_in_frame_schema()
+    }
+    fn metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::new()
+    }
+    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
+        Box::new(self.samples.iter().map(|s| s.t_s))
+    }
+    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>> {
+        let s = self.samples.get(i)?;
+        let msg = PoseInFrame {
+            timestamp: Time::from_ns(log_time_ns(s.t_s, self.offset_ns)),
+            frame_id: WORLD_FRAME,
+            pose: Pose {
+                position: Vector3 {
+                    x: s.x_m,
+                    y: s.y_m,
+                    z: 0.0,
+                },
+                orientation: Quaternion::yaw(Some(s.yaw_rad)),
+            },
+        };
+        Some(serde_json::to_writer(buf, &msg))
+    }
+}
+
+/// The odometry's served poses in latitude and longitude, from the local
+/// ENU positions and the drive's geodetic origin; the position covariance
+/// from the pose's (east, north; up unknown).
+pub(super) struct ServedLocationOut<'a> {
+    /// The poses.
+    pub samples: &'a [ServedPose],
+    /// The drive's ENU frame.
+    pub frame: LocalFrame,
+    /// The recording's log-time offset, ns.
+    pub offset_ns: u64,
+}
+
+/// `position_covariance_type` with the full covariance (KNOWN).
+const COVARIANCE_KNOWN: u8 = 3;
+
+impl Outgoing for ServedLocationOut<'_> {
+    fn name(&self) -> &'static str {
+        "served poses (foxglove.LocationFix)"
+    }
+    fn topic(&self) -> &'static str {
+        SERVED_LOCATION_TOPIC
+    }
+    fn schema_name(&self) -> &'static str {
+        LOCATION_FIX
+    }
+    fn schema(&self) -> Vec<u8> {
+        location_fix_schema()
+    }
+    fn metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::new()
+    }
+    fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
+        Box::new(self.samples.iter().map(|s| s.t_s))
+    }
+    fn encode(&self, i: usize, buf: &mut Vec<u8>) -> Option<serde_json::Result<()>> {
+        let s = self.samples.get(i)?;
+        let (latitude, longitude) = self.frame.from_en(s.x_m, s.y_m);
+        let c = &s.covariance;
+        let msg = LocationFix {
+            timestamp: Time::from_ns(log_time_ns(s.t_s, self.offset_ns)),
+            frame_id: BODY_FRAME,
+            latitude,
+            longitude,
+            altitude: 0.0,
+            position_covariance: [c[0], c[1], 0.0, c[3], c[4], 0.0, 0.0, 0.0, 0.0],
+            position_covariance_type: COVARIANCE_KNOWN,
         };
         Some(serde_json::to_writer(buf, &msg))
     }

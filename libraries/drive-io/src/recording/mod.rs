@@ -40,16 +40,22 @@ mod outgoing;
 mod read;
 mod ros2;
 mod scan;
+mod served;
 mod write;
 
 pub use foxglove::{
     BODY_FRAME as FOXGLOVE_BODY_FRAME, GNSS_FRAME as FOXGLOVE_GNSS_FRAME,
     LOCATION_TOPIC as FOXGLOVE_LOCATION_TOPIC, LOG_TOPIC as FOXGLOVE_LOG_TOPIC,
-    TF_TOPIC as FOXGLOVE_TF_TOPIC, TRUTH_POSE_TOPIC as FOXGLOVE_TRUTH_POSE_TOPIC,
-    WORLD_FRAME as FOXGLOVE_WORLD_FRAME,
+    SERVED_LOCATION_TOPIC as FOXGLOVE_SERVED_LOCATION_TOPIC,
+    SERVED_POSE_TOPIC as FOXGLOVE_SERVED_POSE_TOPIC, TF_TOPIC as FOXGLOVE_TF_TOPIC,
+    TRUTH_POSE_TOPIC as FOXGLOVE_TRUTH_POSE_TOPIC, WORLD_FRAME as FOXGLOVE_WORLD_FRAME,
 };
 pub(super) use read::read_mcap_bytes;
 pub use scan::MAX_CHUNK_RECORDS_BYTES;
+pub use served::{
+    ServedEstimate, ServedPose, ESTIMATE_SCHEMA, ESTIMATE_TOPIC, POSE_SCHEMA, POSE_TOPIC,
+    SERVED_SCHEMA_PREFIX,
+};
 pub(super) use write::write_mcap;
 
 use interfaces::drive::{Wheel, WheelUnit, WheelUnits};

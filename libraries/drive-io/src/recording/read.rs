@@ -213,13 +213,15 @@ fn assemble(
         }
     }
     // Channels in Foxglove's schemas are derived from the drive's own
-    // (written with `WriteOptions::foxglove`): left out without a word.
+    // (written with `WriteOptions::foxglove`), and the served ones are not
+    // the drive's (`WriteOptions::poses`, `estimates`): left out without a
+    // word.
     let derived = |c: &ChannelInfo| {
         !known.contains(&c.topic.as_str())
-            && scan
-                .schemas
-                .get(&c.schema_id)
-                .is_some_and(|s| s.name.starts_with(FOXGLOVE_SCHEMA_PREFIX))
+            && scan.schemas.get(&c.schema_id).is_some_and(|s| {
+                s.name.starts_with(FOXGLOVE_SCHEMA_PREFIX)
+                    || s.name.starts_with(super::served::SERVED_SCHEMA_PREFIX)
+            })
     };
     let mut per_channel: BTreeMap<u16, Vec<&RawMessage<'_>>> = BTreeMap::new();
     let mut unknown_channel_messages = 0usize;

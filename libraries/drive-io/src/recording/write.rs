@@ -172,6 +172,30 @@ pub(crate) fn write_mcap(
             offset_ns,
         ));
     }
+    // What the services served while the drive was recorded.
+    if !options.poses.is_empty() {
+        streams.push(Box::new(super::served::PoseOut(&options.poses)));
+        if options.foxglove {
+            streams.push(Box::new(foxglove::ServedPoseOut {
+                samples: &options.poses,
+                offset_ns,
+            }));
+            let origin = (
+                drive.vehicle.gnss.origin_lat_deg,
+                drive.vehicle.gnss.origin_lon_deg,
+            );
+            if let (Some(lat), Some(lon)) = origin {
+                streams.push(Box::new(foxglove::ServedLocationOut {
+                    samples: &options.poses,
+                    frame: LocalFrame::new(lat, lon, 0.0),
+                    offset_ns,
+                }));
+            }
+        }
+    }
+    if !options.estimates.is_empty() {
+        streams.push(Box::new(super::served::EstimateOut(&options.estimates)));
+    }
     let mut drive_meta = BTreeMap::new();
     drive_meta.insert("format".to_string(), FORMAT_MAGIC.to_string());
     drive_meta.insert("format_version".to_string(), FORMAT_VERSION.to_string());
