@@ -14,7 +14,7 @@ use gateway::header::{encode, Kind};
 use integration_tests::graph::{
     drain, free_tcp_endpoint, seeded_calibrator_state, wait_until, Bin, Graph, ProcId,
 };
-use interfaces::bus::{Bus, TopicSubscriber};
+use interfaces::bus::TopicSubscriber;
 use interfaces::drive::Drive;
 use interfaces::wire::{Header, Imu, Pose, PoseMode, WheelRotations, WHEELS_SERVICE};
 use simulator::{simulate, Scenario, SimConfig};

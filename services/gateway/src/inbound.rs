@@ -27,7 +27,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 use zenoh::pubsub::Subscriber;
-use zenoh::sample::{Sample, SampleKind};
+use zenoh::sample::{Locality, Sample, SampleKind};
 use zenoh::{Session, Wait};
 
 /// Frames waiting between Zenoh and the local publishers.
@@ -75,6 +75,8 @@ pub fn start(
         let tx = tx.clone();
         let s = session
             .declare_subscriber(&key)
+            // Never this session's own puts (the frame's gateway id is checked too).
+            .allowed_origin(Locality::Remote)
             .callback(move |sample: Sample| {
                 let bytes = sample.payload().to_bytes().into_owned();
                 // Waits while the channel is full (backpressure); fails
@@ -216,7 +218,12 @@ struct InTopic {
     seq: SeqTracker,
     /// The payload published last (latest-value topics).
     last: Option<Vec<u8>>,
+    /// The distinct refusals logged so far.
+    refusals: Vec<String>,
 }
+
+/// Distinct refusals logged per topic (each the first time it occurs).
+const MAX_REFUSAL_KINDS: usize = 16;
 
 fn run(
     session: &Session,
@@ -238,6 +245,7 @@ fn run(
             port,
             seq: SeqTracker::default(),
             last: None,
+            refusals: Vec::new(),
         });
     }
     let mut summary = InSummary::default();
@@ -306,9 +314,15 @@ fn handle_frame(t: &mut InTopic, id: u64, bytes: &[u8], summary: &mut InSummary)
         Err(e) => {
             let n = summary.rejected.entry(t.topic).or_default();
             *n += 1;
-            // The first, then every thousandth: a wrong sender must not flood the log.
-            if *n == 1 || n.is_multiple_of(1000) {
-                tracing::error!("gateway: rejected a frame: {e} ({n} rejected on this topic)");
+            // Each kind of wrong frame once, then every thousandth frame
+            // refused: a wrong sender must not flood the log.
+            let text = e.to_string();
+            let new_kind = t.refusals.len() < MAX_REFUSAL_KINDS && !t.refusals.contains(&text);
+            if new_kind || n.is_multiple_of(1000) {
+                tracing::error!("gateway: rejected a frame: {text} ({n} rejected on this topic)");
+                if new_kind {
+                    t.refusals.push(text);
+                }
             }
             return Ok(());
         }

@@ -29,6 +29,7 @@ use std::time::Duration;
 use zenoh::pubsub::Publisher;
 use zenoh::qos::CongestionControl;
 use zenoh::query::Queryable;
+use zenoh::sample::Locality;
 use zenoh::{Session, Wait};
 
 /// The last frame sent per latest-value topic.
@@ -203,6 +204,8 @@ pub fn run(
         let publisher = session
             .declare_publisher(key.clone())
             .congestion_control(CongestionControl::Block)
+            // Only to other hosts: never to this session's own subscribers.
+            .allowed_destination(Locality::Remote)
             .express(settings.express)
             .wait()
             .map_err(|e| anyhow!("cannot declare the Zenoh publisher {key}: {e}"))?;
