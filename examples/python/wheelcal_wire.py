@@ -131,7 +131,7 @@ def pose_line(d: dict) -> str:
 # The gateway's frame header (services/gateway/src/header.rs).
 FRAME_MAGIC = b"WCGW"
 FRAME_HEADER_VERSION = 1
-FRAME_HEADER_LEN = 72
+FRAME_HEADER_LEN = 80
 KIND_SAMPLE, KIND_END_OF_STREAM = 0, 1
 NATIVE_ORDER = 1 if sys.byteorder == "little" else 2
 
@@ -148,12 +148,12 @@ def decode_frame(key: str, data: bytes, wire_type):
     """
     if len(data) < FRAME_HEADER_LEN:
         raise FrameError(f"{key}: frame of {len(data)} bytes is truncated")
-    magic, version, order, kind, _r, size, _r2, _gateway = struct.unpack_from("<4sBBBBIIQ", data, 0)
+    magic, version, order, kind, _r, size, _r2, _gateway, _origin = struct.unpack_from("<4sBBBBIIQQ", data, 0)
     if magic != FRAME_MAGIC:
         raise FrameError(f"{key}: not a wheelcal gateway frame (magic {magic!r})")
     if version != FRAME_HEADER_VERSION:
         raise FrameError(f"{key}: gateway header version {version}, this reads {FRAME_HEADER_VERSION}")
-    type_name = data[24:72].split(b"\0", 1)[0].decode("utf-8")
+    type_name = data[32:80].split(b"\0", 1)[0].decode("utf-8")
     payload = data[FRAME_HEADER_LEN:]
     if len(payload) != size:
         raise FrameError(f"{key}: frame states {size} payload bytes, has {len(payload)}")

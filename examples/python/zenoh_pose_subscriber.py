@@ -2,7 +2,7 @@
 """Print the odometry's poses and the calibrator's estimates, read over Zenoh.
 
 The wheelcal `gateway` carries topics between hosts over Zenoh: each sample
-is the `#[repr(C)]` wire type's bytes behind a 72-byte frame header (type
+is the `#[repr(C)]` wire type's bytes behind an 80-byte frame header (type
 name, size, byte order). This script connects to a gateway that sends
 `pose` and/or `estimate` (`gateway --out pose,estimate --listen tcp/0.0.0.0:7447`),
 checks each frame's header and decodes the sample with the same types as

@@ -1,4 +1,4 @@
-//! The frame every gateway message travels in: a fixed 72-byte header, then
+//! The frame every gateway message travels in: a fixed 80-byte header, then
 //! the sample's bytes exactly as they lie in shared memory.
 //!
 //! | offset | size | field |
@@ -11,8 +11,9 @@
 //! | 8 | 4 | payload size, bytes (u32 little-endian) |
 //! | 12 | 4 | reserved, 0 |
 //! | 16 | 8 | id of the gateway that sent it (u64 little-endian) |
-//! | 24 | 48 | type name, UTF-8, zero-padded: the versioned `#[type_name]` (`wheelcal/Pose/v1`; the `/vN` is the layout version) |
-//! | 72 | size | the payload |
+//! | 24 | 8 | id of the publisher in the sending graph (u64 little-endian; 0 for an end of stream) |
+//! | 32 | 48 | type name, UTF-8, zero-padded: the versioned `#[type_name]` (`wheelcal/Pose/v1`; the `/vN` is the layout version) |
+//! | 80 | size | the payload |
 //!
 //! The header's own fields are little-endian whatever the host; the byte
 //! order field says how the payload's numbers are laid out. A receiver takes
@@ -24,7 +25,7 @@ pub const MAGIC: [u8; 4] = *b"WCGW";
 /// The version of this header layout.
 pub const HEADER_VERSION: u8 = 1;
 /// Bytes before the payload.
-pub const HEADER_LEN: usize = 72;
+pub const HEADER_LEN: usize = 80;
 /// Longest type name the header holds, bytes.
 pub const TYPE_NAME_MAX: usize = 48;
 
@@ -69,6 +70,9 @@ pub struct Frame<'a> {
     pub byte_order: u8,
     /// The sending gateway.
     pub gateway: u64,
+    /// The publisher of the sample in the sending graph (its sequence
+    /// numbers are in the samples' headers).
+    pub origin: u64,
     /// The type name as sent.
     pub type_name: &'a str,
     /// The payload (empty for [`Kind::EndOfStream`]).
@@ -160,7 +164,7 @@ fn order_name(code: u8) -> &'static str {
 pub fn encode(
     out: &mut Vec<u8>,
     kind: Kind,
-    gateway: u64,
+    (gateway, origin): (u64, u64),
     type_name: &str,
     payload: &[u8],
 ) -> Result<(), String> {
@@ -181,6 +185,7 @@ pub fn encode(
     out.extend_from_slice(&size.to_le_bytes());
     out.extend_from_slice(&0u32.to_le_bytes());
     out.extend_from_slice(&gateway.to_le_bytes());
+    out.extend_from_slice(&origin.to_le_bytes());
     out.extend_from_slice(name);
     out.resize(HEADER_LEN, 0);
     out.extend_from_slice(payload);
@@ -232,10 +237,14 @@ pub fn decode<'a>(topic: &str, bytes: &'a [u8]) -> Result<Frame<'a>, FrameError>
     };
     let u32_at = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let size = u32_at(8) as usize;
-    let mut id = [0u8; 8];
-    id.copy_from_slice(&bytes[16..24]);
-    let gateway = u64::from_le_bytes(id);
-    let name_field = &bytes[24..24 + TYPE_NAME_MAX];
+    let u64_at = |at: usize| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&bytes[at..at + 8]);
+        u64::from_le_bytes(b)
+    };
+    let gateway = u64_at(16);
+    let origin = u64_at(24);
+    let name_field = &bytes[32..32 + TYPE_NAME_MAX];
     let name_len = name_field
         .iter()
         .position(|&b| b == 0)
@@ -256,6 +265,7 @@ pub fn decode<'a>(topic: &str, bytes: &'a [u8]) -> Result<Frame<'a>, FrameError>
         kind,
         byte_order,
         gateway,
+        origin,
         type_name,
         payload: &bytes[HEADER_LEN..],
     })
@@ -295,17 +305,17 @@ mod tests {
     #[test]
     fn a_frame_round_trips() {
         let mut buf = Vec::new();
-        encode(&mut buf, Kind::Sample, 0x0102_0304_0506_0708, "wheelcal/Imu/v1", &[9; 72])
+        encode(&mut buf, Kind::Sample, (0x0102_0304_0506_0708, 5), "wheelcal/Imu/v1", &[9; 72])
             .expect("encode");
         assert_eq!(buf.len(), HEADER_LEN + 72);
         assert_eq!(&buf[..4], b"WCGW");
         let f = decode("k", &buf).expect("decode");
         assert_eq!(f.kind, Kind::Sample);
-        assert_eq!(f.gateway, 0x0102_0304_0506_0708);
+        assert_eq!((f.gateway, f.origin), (0x0102_0304_0506_0708, 5));
         assert_eq!(f.type_name, "wheelcal/Imu/v1");
         assert_eq!(f.payload, &[9; 72][..]);
         f.check("k", "wheelcal/Imu/v1", 72).expect("matches");
-        encode(&mut buf, Kind::EndOfStream, 7, "wheelcal/Imu/v1", &[]).expect("encode");
+        encode(&mut buf, Kind::EndOfStream, (7, 0), "wheelcal/Imu/v1", &[]).expect("encode");
         let f = decode("k", &buf).expect("decode");
         assert_eq!((f.kind, f.payload.len()), (Kind::EndOfStream, 0));
         f.check("k", "wheelcal/Imu/v1", 72).expect("an end of stream has no payload");
@@ -314,7 +324,7 @@ mod tests {
     #[test]
     fn a_mismatch_is_an_error_naming_the_topic() {
         let mut buf = Vec::new();
-        encode(&mut buf, Kind::Sample, 1, "wheelcal/Imu/v2", &[0; 80]).expect("encode");
+        encode(&mut buf, Kind::Sample, (1, 2), "wheelcal/Imu/v2", &[0; 80]).expect("encode");
         let f = decode("wheelcal/sensors/imu", &buf).expect("decode");
         let e = f
             .check("wheelcal/sensors/imu", "wheelcal/Imu/v1", 72)
@@ -324,14 +334,14 @@ mod tests {
         assert!(e.contains("\"wheelcal/Imu/v2\" (80 bytes)"), "{e}");
         assert!(e.contains("\"wheelcal/Imu/v1\" (72 bytes)"), "{e}");
         // Same name, other size: also a mismatch.
-        encode(&mut buf, Kind::Sample, 1, "wheelcal/Imu/v1", &[0; 64]).expect("encode");
+        encode(&mut buf, Kind::Sample, (1, 2), "wheelcal/Imu/v1", &[0; 64]).expect("encode");
         let f = decode("t", &buf).expect("decode");
         assert!(matches!(
             f.check("t", "wheelcal/Imu/v1", 72),
             Err(FrameError::TypeMismatch { found_size: 64, .. })
         ));
         // The other byte order.
-        encode(&mut buf, Kind::Sample, 1, "wheelcal/Imu/v1", &[0; 72]).expect("encode");
+        encode(&mut buf, Kind::Sample, (1, 2), "wheelcal/Imu/v1", &[0; 72]).expect("encode");
         buf[5] = if native_byte_order() == LITTLE_ENDIAN { BIG_ENDIAN } else { LITTLE_ENDIAN };
         let e = decode("t", &buf)
             .expect("decode")
@@ -343,7 +353,7 @@ mod tests {
     #[test]
     fn broken_frames_are_refused() {
         let mut buf = Vec::new();
-        encode(&mut buf, Kind::Sample, 1, "wheelcal/Imu/v1", &[0; 72]).expect("encode");
+        encode(&mut buf, Kind::Sample, (1, 2), "wheelcal/Imu/v1", &[0; 72]).expect("encode");
         assert!(matches!(
             decode("t", &buf[..40]),
             Err(FrameError::Truncated { len: 40, .. })
@@ -361,6 +371,6 @@ mod tests {
         let mut bad = buf.clone();
         bad[6] = 5;
         assert!(matches!(decode("t", &bad), Err(FrameError::Malformed { .. })));
-        assert!(encode(&mut buf, Kind::Sample, 1, &"x".repeat(49), &[]).is_err());
+        assert!(encode(&mut buf, Kind::Sample, (1, 2), &"x".repeat(49), &[]).is_err());
     }
 }

@@ -214,7 +214,7 @@ struct InTopic {
     topic: TopicId,
     key: String,
     port: Box<dyn InPort>,
-    /// The sender's sequence numbers, per sending gateway.
+    /// The sequence numbers of the publishers in the sending graphs.
     seq: SeqTracker,
     /// The payload published last (latest-value topics).
     last: Option<Vec<u8>>,
@@ -346,13 +346,13 @@ fn handle_frame(t: &mut InTopic, id: u64, bytes: &[u8], summary: &mut InSummary)
             *summary.published.entry(t.topic).or_default() += 1;
             if !t.topic.is_latest() {
                 let before = t.seq.lost();
-                t.seq.observe(u128::from(frame.gateway), seq);
+                t.seq.observe(u128::from(frame.origin), seq);
                 let gap = t.seq.lost() - before;
                 if gap > 0 {
                     *summary.missing.entry(t.topic).or_default() += gap;
                     tracing::warn!(
                         "gateway: {}: {gap} sample(s) of the sender's sequence never arrived \
-                         (the link was down or a gateway restarted)",
+                         (the link was down or the sending gateway restarted)",
                         t.topic.short()
                     );
                 }

@@ -113,12 +113,15 @@ impl<T: Topic> OutPort for Port<T> {
         self.sub.take_events()
     }
     fn drain(&self, id: u64, frames: &mut Vec<Vec<u8>>) -> Result<()> {
-        while let Some(sample) = self.sub.receive()? {
+        while let Some((sample, publisher)) = self.sub.receive_with_publisher()? {
             let mut frame = Vec::new();
+            // The publisher's 128-bit id folded to 64 bits: enough to tell
+            // a topic's (at most two) publishers apart.
+            let origin = (publisher as u64) ^ ((publisher >> 64) as u64);
             encode(
                 &mut frame,
                 Kind::Sample,
-                id,
+                (id, origin),
                 T::TYPE_NAME,
                 bytemuck::bytes_of(&sample),
             )
@@ -247,7 +250,7 @@ pub fn run(
             }
             *summary.sent.entry(topic).or_default() += n;
             if events[i].end_of_stream {
-                encode(&mut eos, Kind::EndOfStream, id, topic.type_name(), &[])
+                encode(&mut eos, Kind::EndOfStream, (id, 0), topic.type_name(), &[])
                     .map_err(|e| anyhow!("{}: {e}", topic.service()))?;
                 publishers[i]
                     .put(eos.clone())

@@ -29,8 +29,11 @@ pub fn open(settings: &GatewaySettings) -> Result<Session> {
         set(&mut config, "connect/endpoints", &json_list(&settings.connect))?;
         // A peer that went away is looked for again every 0.2 s at first,
         // then every second (Zenoh's defaults: 1 s, then 4 s).
-        set(&mut config, "connect/retry/period_init_ms", "200")?;
-        set(&mut config, "connect/retry/period_max_ms", "1000")?;
+        set(
+            &mut config,
+            "connect/retry",
+            "{ period_init_ms: 200, period_max_ms: 1000, period_increase_factor: 2 }",
+        )?;
     }
     let scouting = if settings.scouting { "true" } else { "false" };
     set(&mut config, "scouting/multicast/enabled", scouting)?;
