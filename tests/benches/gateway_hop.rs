@@ -44,12 +44,14 @@ fn number_after(log: &str, before: &str, after: &str) -> Option<f64> {
     rest[..j].split_whitespace().last()?.parse().ok()
 }
 
-/// Receive `n` wheel samples in the graph of `settings`; the latency of
-/// each (receive wall clock - the `t_ns` stamped at publish), µs.
+/// Receive wheel samples in the graph of `settings` until `n` came or
+/// `stop` is set; the latency of each (receive wall clock - the `t_ns`
+/// stamped at publish), µs.
 fn receiver(
     settings: BusSettings,
     n: usize,
     ready: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
 ) -> std::thread::JoinHandle<Vec<f64>> {
     std::thread::spawn(move || {
         let bus = Bus::open(&settings, "bench-receiver").expect("bus");
@@ -59,8 +61,7 @@ fn receiver(
         let _t = bus::tick_every(&waitset, Duration::from_millis(100)).expect("tick");
         ready.store(true, Ordering::SeqCst);
         let mut out = Vec::with_capacity(n);
-        let deadline = Instant::now() + Duration::from_secs(600);
-        while out.len() < n && Instant::now() < deadline {
+        while out.len() < n && !stop.load(Ordering::SeqCst) {
             bus::wait_once(&waitset, None, |_| CallbackProgression::Continue).expect("wait");
             let _ = sub.take_notifications();
             while let Some(s) = sub.receive().expect("receive") {
@@ -76,7 +77,8 @@ fn receiver(
 /// the graph of `at`; returns the latencies after the warm-up, sorted.
 fn latency_run(a: &Graph, at: &BusSettings, n: usize) -> Vec<f64> {
     let ready = Arc::new(AtomicBool::new(false));
-    let rx = receiver(at.clone(), n, ready.clone());
+    let stop = Arc::new(AtomicBool::new(false));
+    let rx = receiver(at.clone(), n, ready.clone(), stop.clone());
     wait_until("the receiver", || ready.load(Ordering::SeqCst));
     let bus = a.bus("bench-publisher");
     let mut publisher = bus.publisher::<WheelRotations>().expect("publisher");
@@ -102,6 +104,9 @@ fn latency_run(a: &Graph, at: &BusSettings, n: usize) -> Vec<f64> {
         };
         publisher.publish(sample).expect("publish");
     }
+    // Time for the last ones to arrive; then the receiver stops waiting.
+    std::thread::sleep(Duration::from_secs(3));
+    stop.store(true, Ordering::SeqCst);
     let mut lat = rx.join().expect("receiver thread");
     assert_eq!(lat.len(), n, "every stamped sample arrived");
     let mut lat = lat.split_off(WARMUP.min(n));
@@ -157,7 +162,15 @@ fn throughput_run(
     let replay = graphs[rep].spawn(
         "replay",
         Bin::SensorBridge,
-        &["replay", folder, "--max", "--wait-subscribers", "1", "--progress", "600"],
+        &[
+            "replay",
+            folder,
+            "--max",
+            "--wait-subscribers",
+            "1",
+            "--progress",
+            "600",
+        ],
     );
     let mut poses: Vec<Pose> = Vec::new();
     let mut count = 0usize;
@@ -183,7 +196,8 @@ fn throughput_run(
     let end_to_end = first_pose.map_or(f64::NAN, |f| f.elapsed().as_secs_f64());
     let odo_log = stop(&mut graphs[odo], odometry);
     let replay_log = graphs[rep].log(replay);
-    let published = number_after(&replay_log, "bridge: published", "samples in").unwrap_or(f64::NAN);
+    let published =
+        number_after(&replay_log, "bridge: published", "samples in").unwrap_or(f64::NAN);
     let wall = number_after(&replay_log, "samples in", " s (").unwrap_or(f64::NAN);
     let odo_lost = number_after(&odo_log, "estimate switch(es),", "samples lost on the bus");
     println!("  {what}:");
@@ -227,7 +241,9 @@ fn main() {
         .unwrap_or(3600.0);
 
     // 1. Latency.
-    println!("gateway hop latency: wheel samples at {RATE_HZ:.0} Hz, publish -> receive (wall clock)");
+    println!(
+        "gateway hop latency: wheel samples at {RATE_HZ:.0} Hz, publish -> receive (wall clock)"
+    );
     let a = Graph::new("hoplata");
     let direct = latency_run(&a, &a.settings, samples);
     print_latency("one host (iceoryx2)", &direct);
@@ -282,7 +298,13 @@ fn main() {
         let (ga, gb) = gateways(&mut a, &mut b, SENSORS, &[]);
         b.wait_log(gb, "peer gateway");
         let mut graphs = [a, b];
-        throughput_run("two hosts (gateways, Zenoh TCP)", &mut graphs, (0, 1), &folder, figures);
+        throughput_run(
+            "two hosts (gateways, Zenoh TCP)",
+            &mut graphs,
+            (0, 1),
+            &folder,
+            figures,
+        );
         let [mut a, mut b] = graphs;
         let log_a = stop(&mut a, ga);
         let log_b = stop(&mut b, gb);

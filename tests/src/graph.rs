@@ -77,7 +77,12 @@ fn build_all_once() {
         cmd.args(["build", "-q", "--manifest-path"]).arg(manifest);
         // The binaries of the same profile as this executable.
         cmd.args(["--profile", &profile_name()]);
-        for b in [Bin::SensorBridge, Bin::Calibrator, Bin::Odometry, Bin::Gateway] {
+        for b in [
+            Bin::SensorBridge,
+            Bin::Calibrator,
+            Bin::Odometry,
+            Bin::Gateway,
+        ] {
             cmd.args(["--bin", b.name()]);
         }
         // The same target directory as the test executable.

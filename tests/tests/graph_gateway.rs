@@ -167,7 +167,12 @@ fn split_graph_gives_the_single_host_poses_bit_for_bit() {
         let folder = write(&g, &drive, "drive");
         let state = g.path("state.json");
         seeded_calibrator_state(&state, 7);
-        let cal = calibrator(&mut g, "calibrator", &folder, state.to_str().expect("utf-8"));
+        let cal = calibrator(
+            &mut g,
+            "calibrator",
+            &folder,
+            state.to_str().expect("utf-8"),
+        );
         g.wait_log(cal, "starting from the persisted estimate v7");
         let bus = g.bus("test");
         let sub = bus.subscriber::<Pose>().expect("pose subscriber");
@@ -186,10 +191,17 @@ fn split_graph_gives_the_single_host_poses_bit_for_bit() {
     let folder_b = write(&b, &drive, "drive");
     let state = a.path("state.json");
     seeded_calibrator_state(&state, 7);
-    let cal = calibrator(&mut a, "calibrator", &folder_a, state.to_str().expect("utf-8"));
+    let cal = calibrator(
+        &mut a,
+        "calibrator",
+        &folder_a,
+        state.to_str().expect("utf-8"),
+    );
     a.wait_log(cal, "starting from the persisted estimate v7");
     let bus_a = a.bus("test");
-    let sub = bus_a.subscriber::<Pose>().expect("pose subscriber on host A");
+    let sub = bus_a
+        .subscriber::<Pose>()
+        .expect("pose subscriber on host A");
     let odo = odometry(&mut b, &folder_b, &[]);
     let gw_a = gateway_a(&mut a, "gateway-a", &endpoint);
     let gw_b = gateway_b(&mut b, "gateway-b", &endpoint);
@@ -205,13 +217,25 @@ fn split_graph_gives_the_single_host_poses_bit_for_bit() {
     let split = replay_and_collect(&mut a, &folder_a, "2", &sub, last);
     assert_eq!(sub.lost(), 0, "poses lost across the gateways");
 
-    assert_eq!(single.len(), drive.wheels.samples.len(), "a pose per wheel sample");
+    assert_eq!(
+        single.len(),
+        drive.wheels.samples.len(),
+        "a pose per wheel sample"
+    );
     assert!(single.iter().any(|p| p.mode == PoseMode::Fused as u8));
     assert!(single.iter().all(|p| p.estimate_version == 7));
-    assert_eq!(split.len(), single.len(), "as many poses across the gateways");
+    assert_eq!(
+        split.len(),
+        single.len(),
+        "as many poses across the gateways"
+    );
     for (i, (s, x)) in single.iter().zip(&split).enumerate() {
         assert_eq!(s.header.seq, x.header.seq, "pose {i}");
-        assert_eq!(bits(s), bits(x), "pose {i}: one host {s:?}, two hosts {x:?}");
+        assert_eq!(
+            bits(s),
+            bits(x),
+            "pose {i}: one host {s:?}, two hosts {x:?}"
+        );
     }
     // Nothing went missing on the way, as the gateways count it.
     a.terminate(gw_a);
@@ -249,7 +273,9 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
     let state = a.path("state.json");
     let state_s = state.to_str().expect("utf-8").to_string();
     let bus_b = b.bus("test");
-    let sub = bus_b.subscriber::<Pose>().expect("pose subscriber on host B");
+    let sub = bus_b
+        .subscriber::<Pose>()
+        .expect("pose subscriber on host B");
     let odo = odometry(&mut b, &folder_b, &["--stale-after", "0.3"]);
     let mut gw_a = gateway_a(&mut a, "gateway-a", &endpoint);
     let gw_b = gateway_b(&mut b, "gateway-b", &endpoint);
@@ -273,7 +299,11 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
     let mut poses = Vec::new();
     wait_until("fused poses on host B", || {
         drain(&sub, &mut poses);
-        poses.iter().filter(|p| p.mode == PoseMode::Fused as u8).count() > 100
+        poses
+            .iter()
+            .filter(|p| p.mode == PoseMode::Fused as u8)
+            .count()
+            > 100
     });
 
     // 1. Gateway B dies; the odometry says its inputs are stale.
@@ -281,7 +311,13 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
     wait_log_draining(&b, odo, "inputs stale", &sub, &mut poses);
     seeded_calibrator_state(&state, 7);
     let cal = calibrator(&mut a, "calibrator", &folder_a, &state_s);
-    wait_log_draining(&a, cal, "starting from the persisted estimate v7", &sub, &mut poses);
+    wait_log_draining(
+        &a,
+        cal,
+        "starting from the persisted estimate v7",
+        &sub,
+        &mut poses,
+    );
     let published = Instant::now();
     wait_until("a moment after the publication", || {
         drain(&sub, &mut poses);
@@ -318,7 +354,13 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
     assert!(status.success(), "{}", a.log(cal));
     seeded_calibrator_state(&state, 8);
     let cal2 = calibrator(&mut a, "calibrator-2", &folder_a, &state_s);
-    wait_log_draining(&a, cal2, "starting from the persisted estimate v8", &sub, &mut poses);
+    wait_log_draining(
+        &a,
+        cal2,
+        "starting from the persisted estimate v8",
+        &sub,
+        &mut poses,
+    );
     gw_a = gateway_a(&mut a, "gateway-a-2", &endpoint);
     wait_log_draining(&b, odo, "switching estimate v7 -> v8", &sub, &mut poses);
     wait_log_draining(&a, gw_a, "forwarding", &sub, &mut poses);
@@ -338,7 +380,11 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
     assert_eq!(sub.lost(), 0, "no pose lost on host B");
     let odo_log = b.log(odo);
     assert_eq!(odo_log.matches("inputs stale").count(), 2, "{odo_log}");
-    assert_eq!(odo_log.matches("wheel samples again").count(), 2, "{odo_log}");
+    assert_eq!(
+        odo_log.matches("wheel samples again").count(),
+        2,
+        "{odo_log}"
+    );
     // The stale markers and nothing between them and the resumption.
     let markers = poses
         .iter()
@@ -346,14 +392,19 @@ fn gateways_killed_mid_drive_lose_no_estimate_and_the_gap_is_reported() {
         .count();
     assert!(markers >= 2, "NoFix poses: {markers}");
     let last_pose = poses.last().expect("poses");
-    assert_eq!(last_pose.estimate_version, 8, "the newest estimate in use at the end");
+    assert_eq!(
+        last_pose.estimate_version, 8,
+        "the newest estimate in use at the end"
+    );
     assert_ne!(
         last_pose.mode,
         PoseMode::NoFix as u8,
         "a pose with a position again at the end"
     );
     // Time never went back on host B: the gateways carried a forward stream.
-    assert!(poses.windows(2).all(|w| w[0].header.t_ns <= w[1].header.t_ns));
+    assert!(poses
+        .windows(2)
+        .all(|w| w[0].header.t_ns <= w[1].header.t_ns));
 }
 
 /// A frame whose header names another type (or another layout of the same
@@ -382,7 +433,9 @@ fn a_mismatched_type_is_rejected_with_an_error_naming_the_topic() {
     config
         .insert_json5("scouting/multicast/enabled", "false")
         .expect("scouting");
-    config.insert_json5("listen/endpoints", "[]").expect("listen");
+    config
+        .insert_json5("listen/endpoints", "[]")
+        .expect("listen");
     let session = zenoh::open(config).wait().expect("zenoh session");
     let publisher = session
         .declare_publisher(WHEELS_SERVICE)
@@ -404,14 +457,33 @@ fn a_mismatched_type_is_rejected_with_an_error_naming_the_topic() {
     // Until the gateway's subscription has reached this peer: bad, bad, good.
     while received.is_empty() {
         assert!(start.elapsed() < Duration::from_secs(60), "watchdog");
-        encode(&mut frame, Kind::Sample, (1, 1), "wheelcal/Imu/v1", bytemuck::bytes_of(&imu))
-            .expect("frame");
+        encode(
+            &mut frame,
+            Kind::Sample,
+            (1, 1),
+            "wheelcal/Imu/v1",
+            bytemuck::bytes_of(&imu),
+        )
+        .expect("frame");
         publisher.put(frame.clone()).wait().expect("put");
         let v2 = [bytemuck::bytes_of(&good), &[0u8; 8][..]].concat();
-        encode(&mut frame, Kind::Sample, (1, 1), "wheelcal/WheelRotations/v2", &v2).expect("frame");
+        encode(
+            &mut frame,
+            Kind::Sample,
+            (1, 1),
+            "wheelcal/WheelRotations/v2",
+            &v2,
+        )
+        .expect("frame");
         publisher.put(frame.clone()).wait().expect("put");
-        encode(&mut frame, Kind::Sample, (1, 1), "wheelcal/WheelRotations/v1", bytemuck::bytes_of(&good))
-            .expect("frame");
+        encode(
+            &mut frame,
+            Kind::Sample,
+            (1, 1),
+            "wheelcal/WheelRotations/v1",
+            bytemuck::bytes_of(&good),
+        )
+        .expect("frame");
         publisher.put(frame.clone()).wait().expect("put");
         std::thread::sleep(Duration::from_millis(100));
         drain(&sub, &mut received);
@@ -433,7 +505,10 @@ fn a_mismatched_type_is_rejected_with_an_error_naming_the_topic() {
     );
     // Only the good frames came through, value for value.
     for r in &received {
-        assert_eq!((r.rl_rev, r.rr_rev, r.header.t_ns), (good.rl_rev, good.rr_rev, good.header.t_ns));
+        assert_eq!(
+            (r.rl_rev, r.rr_rev, r.header.t_ns),
+            (good.rl_rev, good.rr_rev, good.header.t_ns)
+        );
     }
     drop(publisher);
     session.close().wait().expect("close");
@@ -444,5 +519,8 @@ fn a_mismatched_type_is_rejected_with_an_error_naming_the_topic() {
         .lines()
         .find(|l| l.contains("gateway: stopped"))
         .expect("summary");
-    assert!(line.contains(&format!("wheels {}", received.len())), "{line}");
+    assert!(
+        line.contains(&format!("wheels {}", received.len())),
+        "{line}"
+    );
 }

@@ -106,7 +106,13 @@ fn python_subscriber_reads_poses_and_the_latest_estimate_over_zenoh() {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/python/zenoh_pose_subscriber.py");
     let mut child = Command::new(&python)
         .arg(&script)
-        .args(["--connect", &endpoint, "--json", "--count", &COUNT.to_string()])
+        .args([
+            "--connect",
+            &endpoint,
+            "--json",
+            "--count",
+            &COUNT.to_string(),
+        ])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -145,7 +151,12 @@ fn python_subscriber_reads_poses_and_the_latest_estimate_over_zenoh() {
     let mut lines = Vec::new();
     let mut stderr_lines = Vec::new();
     let start = Instant::now();
-    while lines.iter().filter(|l: &&String| l.contains("\"pose\"")).count() < COUNT {
+    while lines
+        .iter()
+        .filter(|l: &&String| l.contains("\"pose\""))
+        .count()
+        < COUNT
+    {
         assert!(
             start.elapsed() < WATCHDOG,
             "watchdog: {} lines: {lines:?}; stderr: {stderr_lines:?}",
@@ -163,14 +174,13 @@ fn python_subscriber_reads_poses_and_the_latest_estimate_over_zenoh() {
             poses.publish(pose(i % 1000)).expect("publish pose");
             i += 1;
         }
-        assert!(
-            g.is_running(gw),
-            "the gateway stopped:\n{}",
-            g.log(gw)
-        );
+        assert!(g.is_running(gw), "the gateway stopped:\n{}", g.log(gw));
     }
     let status = child.0.wait().expect("wait python");
-    assert!(status.success(), "python exited with {status}; stderr: {stderr_lines:?}");
+    assert!(
+        status.success(),
+        "python exited with {status}; stderr: {stderr_lines:?}"
+    );
     assert!(
         !stderr_lines.iter().any(|l| l.starts_with("rejected")),
         "{stderr_lines:?}"
@@ -212,7 +222,11 @@ fn python_subscriber_reads_poses_and_the_latest_estimate_over_zenoh() {
                     .collect();
                 assert_eq!(cov, p.covariance.to_vec());
                 assert_eq!(v["estimate_version"], 2);
-                let mode = if k.is_multiple_of(2) { "fused" } else { "dead_reckoning" };
+                let mode = if k.is_multiple_of(2) {
+                    "fused"
+                } else {
+                    "dead_reckoning"
+                };
                 assert_eq!(v["mode"], mode);
                 seen_poses += 1;
             }

@@ -101,7 +101,9 @@ pub enum FrameError {
         found: [u8; 4],
     },
     /// A header version this gateway does not know.
-    #[error("{topic}: gateway header version {found}, this gateway reads version {HEADER_VERSION}")]
+    #[error(
+        "{topic}: gateway header version {found}, this gateway reads version {HEADER_VERSION}"
+    )]
     Version {
         /// The topic.
         topic: String,
@@ -235,7 +237,8 @@ pub fn decode<'a>(topic: &str, bytes: &'a [u8]) -> Result<Frame<'a>, FrameError>
             })
         }
     };
-    let u32_at = |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
+    let u32_at =
+        |at: usize| u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]);
     let size = u32_at(8) as usize;
     let u64_at = |at: usize| {
         let mut b = [0u8; 8];
@@ -305,8 +308,14 @@ mod tests {
     #[test]
     fn a_frame_round_trips() {
         let mut buf = Vec::new();
-        encode(&mut buf, Kind::Sample, (0x0102_0304_0506_0708, 5), "wheelcal/Imu/v1", &[9; 72])
-            .expect("encode");
+        encode(
+            &mut buf,
+            Kind::Sample,
+            (0x0102_0304_0506_0708, 5),
+            "wheelcal/Imu/v1",
+            &[9; 72],
+        )
+        .expect("encode");
         assert_eq!(buf.len(), HEADER_LEN + 72);
         assert_eq!(&buf[..4], b"WCGW");
         let f = decode("k", &buf).expect("decode");
@@ -318,7 +327,8 @@ mod tests {
         encode(&mut buf, Kind::EndOfStream, (7, 0), "wheelcal/Imu/v1", &[]).expect("encode");
         let f = decode("k", &buf).expect("decode");
         assert_eq!((f.kind, f.payload.len()), (Kind::EndOfStream, 0));
-        f.check("k", "wheelcal/Imu/v1", 72).expect("an end of stream has no payload");
+        f.check("k", "wheelcal/Imu/v1", 72)
+            .expect("an end of stream has no payload");
     }
 
     #[test]
@@ -342,7 +352,11 @@ mod tests {
         ));
         // The other byte order.
         encode(&mut buf, Kind::Sample, (1, 2), "wheelcal/Imu/v1", &[0; 72]).expect("encode");
-        buf[5] = if native_byte_order() == LITTLE_ENDIAN { BIG_ENDIAN } else { LITTLE_ENDIAN };
+        buf[5] = if native_byte_order() == LITTLE_ENDIAN {
+            BIG_ENDIAN
+        } else {
+            LITTLE_ENDIAN
+        };
         let e = decode("t", &buf)
             .expect("decode")
             .check("t", "wheelcal/Imu/v1", 72)
@@ -367,10 +381,16 @@ mod tests {
         assert!(matches!(decode("t", &bad), Err(FrameError::Magic { .. })));
         let mut bad = buf.clone();
         bad[4] = 9;
-        assert!(matches!(decode("t", &bad), Err(FrameError::Version { found: 9, .. })));
+        assert!(matches!(
+            decode("t", &bad),
+            Err(FrameError::Version { found: 9, .. })
+        ));
         let mut bad = buf.clone();
         bad[6] = 5;
-        assert!(matches!(decode("t", &bad), Err(FrameError::Malformed { .. })));
+        assert!(matches!(
+            decode("t", &bad),
+            Err(FrameError::Malformed { .. })
+        ));
         assert!(encode(&mut buf, Kind::Sample, (1, 2), &"x".repeat(49), &[]).is_err());
     }
 }

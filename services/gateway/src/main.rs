@@ -203,14 +203,7 @@ fn main() -> Result<()> {
     let inbound = inbound::start(&session, &settings, id, peers.clone(), NODE_IN)?;
     let _token = session::declare_token(&session, &settings.routes, id)?;
 
-    let result = outbound::run(
-        &bus,
-        &session,
-        &settings,
-        id,
-        &peers,
-        &latest,
-    );
+    let result = outbound::run(&bus, &session, &settings, id, &peers, &latest);
     bus::request_shutdown();
     let in_result = inbound.join();
     drop(_token);

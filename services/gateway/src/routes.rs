@@ -118,9 +118,7 @@ pub fn parse_list(list: &str) -> Result<Vec<TopicId>, RouteError> {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum RouteError {
     /// A name that is no topic.
-    #[error(
-        "unknown topic {0:?} (topics: wheels, gnss, imu, heading, estimate, pose)"
-    )]
+    #[error("unknown topic {0:?} (topics: wheels, gnss, imu, heading, estimate, pose)")]
     UnknownTopic(String),
     /// A topic listed both ways.
     #[error(
@@ -158,7 +156,11 @@ pub struct Routes {
 impl Routes {
     /// Check and build: duplicates are merged, a topic may not go both ways,
     /// and at least one topic must go somewhere.
-    pub fn new(out: &[TopicId], inbound: &[TopicId], namespace: &str) -> Result<Routes, RouteError> {
+    pub fn new(
+        out: &[TopicId],
+        inbound: &[TopicId],
+        namespace: &str,
+    ) -> Result<Routes, RouteError> {
         let mut out = out.to_vec();
         let mut inbound = inbound.to_vec();
         out.sort();
@@ -277,10 +279,13 @@ mod tests {
             .expect_err("both ways");
         assert_eq!(e, RouteError::BothWays("pose"));
         assert_eq!(Routes::new(&[], &[], ""), Err(RouteError::Nothing));
-        let r = Routes::new(&[TopicId::Imu, TopicId::Imu], &[TopicId::Pose], "car7")
-            .expect("routes");
+        let r =
+            Routes::new(&[TopicId::Imu, TopicId::Imu], &[TopicId::Pose], "car7").expect("routes");
         assert_eq!(r.out, vec![TopicId::Imu]);
-        assert_eq!(r.gateway_token(255), "car7/wheelcal/_gateways/00000000000000ff");
+        assert_eq!(
+            r.gateway_token(255),
+            "car7/wheelcal/_gateways/00000000000000ff"
+        );
         assert!(Routes::new(&[TopicId::Imu], &[], "car/*").is_err());
     }
 

@@ -23,10 +23,18 @@ pub fn open(settings: &GatewaySettings) -> Result<Session> {
     };
     set(&mut config, "mode", "\"peer\"")?;
     if !settings.listen.is_empty() {
-        set(&mut config, "listen/endpoints", &json_list(&settings.listen))?;
+        set(
+            &mut config,
+            "listen/endpoints",
+            &json_list(&settings.listen),
+        )?;
     }
     if !settings.connect.is_empty() {
-        set(&mut config, "connect/endpoints", &json_list(&settings.connect))?;
+        set(
+            &mut config,
+            "connect/endpoints",
+            &json_list(&settings.connect),
+        )?;
         // A peer that went away is looked for again every 0.2 s at first,
         // then every second (Zenoh's defaults: 1 s, then 4 s).
         set(
