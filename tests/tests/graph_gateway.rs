@@ -595,3 +595,47 @@ fn a_mismatched_type_is_rejected_with_an_error_naming_the_topic() {
         "{line}"
     );
 }
+
+/// What would let a sample come back is refused at start, with the reason:
+/// a topic both ways, and a second gateway in a graph that has one.
+#[test]
+fn a_topic_both_ways_and_a_second_gateway_are_refused() {
+    let mut g = Graph::new("gwrefuse");
+    let both = g.spawn(
+        "gateway-both-ways",
+        Bin::Gateway,
+        &[
+            "--out",
+            "wheels,pose",
+            "--in",
+            "pose",
+            "--listen",
+            &free_tcp_endpoint(),
+        ],
+    );
+    assert!(!g.wait_exit(both).success(), "{}", g.log(both));
+    assert!(
+        g.log(both)
+            .contains("topic \"pose\" is both sent (out) and received (in)"),
+        "{}",
+        g.log(both)
+    );
+    let first = g.spawn(
+        "gateway",
+        Bin::Gateway,
+        &["--in", "wheels", "--listen", &free_tcp_endpoint()],
+    );
+    g.wait_log(first, "out [], in [wheels]");
+    let second = g.spawn(
+        "gateway-2",
+        Bin::Gateway,
+        &["--out", "wheels", "--listen", &free_tcp_endpoint()],
+    );
+    assert!(!g.wait_exit(second).success(), "{}", g.log(second));
+    assert!(
+        g.log(second).contains("another gateway runs in this graph"),
+        "{}",
+        g.log(second)
+    );
+    assert!(g.is_running(first), "the first gateway runs on");
+}

@@ -18,7 +18,7 @@ use clap::Parser;
 use gateway::routes::{parse_list, FileSettings, Routes, TopicId};
 use interfaces::bus::{self, Bus, BusSettings};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::AtomicUsize;
 use std::sync::Arc;
 
 /// Command line of the gateway.
@@ -215,6 +215,5 @@ fn main() -> Result<()> {
         out_summary,
         in_summary
     );
-    let _ = peers.load(Ordering::Relaxed);
     Ok(())
 }
