@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Print the odometry's poses, read from the wheelcal process graph over iceoryx2.
 
-The wire types hold across languages: `Pose` below is the `#[repr(C)]`
-`interfaces::wire::Pose` (128 bytes) with the same versioned type name, so
-iceoryx2 connects this subscriber to the Rust publisher.
+The wire types hold across languages: `Pose` (in wheelcal_wire.py, beside
+this file) is the `#[repr(C)]` `interfaces::wire::Pose` (128 bytes) with the
+same versioned type name, so iceoryx2 connects this subscriber to the Rust
+publisher. zenoh_pose_subscriber.py reads the same poses over Zenoh.
 
     python3 -m venv /tmp/venv && /tmp/venv/bin/pip install iceoryx2==0.10.0
     /tmp/venv/bin/python examples/python/pose_subscriber.py [--count N] [--json]
@@ -18,14 +19,15 @@ those of `interfaces::bus` (whoever creates the service first decides them).
 """
 
 import argparse
-import ctypes
 import json
 import os
 import sys
 
 import iceoryx2 as iox
 
-POSE_SERVICE = "wheelcal/odometry/pose"
+# The wire types and their decoding, shared with zenoh_pose_subscriber.py.
+from wheelcal_wire import POSE_SERVICE, Pose, pose_dict, pose_line
+
 # interfaces::bus: lossless stream settings and event ids.
 STREAM_BUFFER = 1024
 MAX_SUBSCRIBERS = 8
@@ -34,39 +36,6 @@ MAX_NODES = 32
 EVENT_END_OF_STREAM = 2
 EVENT_PUBLISHER_DROPPED = 3
 EVENT_PUBLISHER_DEAD = 4
-MODES = {0: "no_fix", 1: "fused", 2: "dead_reckoning"}
-
-
-class Header(ctypes.Structure):
-    """interfaces::wire::Header: vehicle-clock time and sequence number."""
-
-    _fields_ = [("t_ns", ctypes.c_int64), ("seq", ctypes.c_uint64)]
-
-    @staticmethod
-    def type_name() -> str:
-        return "wheelcal/Header/v1"
-
-
-class Pose(ctypes.Structure):
-    """interfaces::wire::Pose: the rear-axle centre in local ENU."""
-
-    _fields_ = [
-        ("header", Header),
-        ("x_m", ctypes.c_double),
-        ("y_m", ctypes.c_double),
-        ("yaw_rad", ctypes.c_double),
-        ("covariance", ctypes.c_double * 9),
-        ("estimate_version", ctypes.c_uint64),
-        ("mode", ctypes.c_uint8),
-        ("_pad", ctypes.c_uint8 * 7),
-    ]
-
-    @staticmethod
-    def type_name() -> str:
-        return "wheelcal/Pose/v1"
-
-
-assert ctypes.sizeof(Pose) == 128 and ctypes.alignment(Pose) == 8
 
 
 def make_config():
@@ -83,19 +52,6 @@ def make_config():
 def event_id(activation) -> int:
     value = activation.id.as_value
     return value() if callable(value) else value
-
-
-def pose_dict(p: Pose) -> dict:
-    return {
-        "t_ns": p.header.t_ns,
-        "seq": p.header.seq,
-        "x_m": p.x_m,
-        "y_m": p.y_m,
-        "yaw_rad": p.yaw_rad,
-        "covariance": list(p.covariance),
-        "estimate_version": p.estimate_version,
-        "mode": MODES.get(p.mode, f"unknown({p.mode})"),
-    }
 
 
 def main() -> int:
@@ -154,11 +110,7 @@ def main() -> int:
             if args.json:
                 print(json.dumps(d), flush=True)
             else:
-                print(
-                    f"t = {d['t_ns'] * 1e-9:10.2f} s  x = {d['x_m']:9.2f} m  y = {d['y_m']:9.2f} m  "
-                    f"yaw = {d['yaw_rad']:+.3f} rad  {d['mode']:<14}  estimate v{d['estimate_version']}",
-                    flush=True,
-                )
+                print(pose_line(d), flush=True)
             if args.count and received >= args.count:
                 return 0
         if result in (iox.WaitSetRunResult.Interrupt, iox.WaitSetRunResult.TerminationRequest):

@@ -138,9 +138,12 @@ pub enum Delivery {
 }
 
 /// A wire type with its service and delivery.
-pub trait Topic: ZeroCopySend + Copy + Debug + Default + 'static {
+pub trait Topic: ZeroCopySend + bytemuck::Pod + Copy + Debug + Default + 'static {
     /// The service name.
     const SERVICE: &'static str;
+    /// The versioned type name iceoryx2 matches publishers and subscribers
+    /// by (the type's `#[type_name]`; the `/vN` is its layout version).
+    const TYPE_NAME: &'static str;
     /// How samples are delivered.
     const DELIVERY: Delivery;
     /// The common header.
@@ -150,9 +153,10 @@ pub trait Topic: ZeroCopySend + Copy + Debug + Default + 'static {
 }
 
 macro_rules! topic {
-    ($ty:ty, $service:expr, $delivery:expr) => {
+    ($ty:ty, $service:expr, $type_name:expr, $delivery:expr) => {
         impl Topic for $ty {
             const SERVICE: &'static str = $service;
+            const TYPE_NAME: &'static str = $type_name;
             const DELIVERY: Delivery = $delivery;
             fn header(&self) -> &Header {
                 &self.header
@@ -167,14 +171,20 @@ macro_rules! topic {
 const STREAM: Delivery = Delivery::Lossless {
     buffer: STREAM_BUFFER,
 };
-topic!(WheelRotations, WHEELS_SERVICE, STREAM);
-topic!(GnssFix, GNSS_SERVICE, STREAM);
-topic!(Imu, IMU_SERVICE, STREAM);
-topic!(Heading, HEADING_SERVICE, STREAM);
-topic!(Pose, POSE_SERVICE, STREAM);
+topic!(
+    WheelRotations,
+    WHEELS_SERVICE,
+    "wheelcal/WheelRotations/v1",
+    STREAM
+);
+topic!(GnssFix, GNSS_SERVICE, "wheelcal/GnssFix/v1", STREAM);
+topic!(Imu, IMU_SERVICE, "wheelcal/Imu/v1", STREAM);
+topic!(Heading, HEADING_SERVICE, "wheelcal/Heading/v1", STREAM);
+topic!(Pose, POSE_SERVICE, "wheelcal/Pose/v1", STREAM);
 topic!(
     CircumferenceEstimate,
     ESTIMATE_SERVICE,
+    "wheelcal/CircumferenceEstimate/v1",
     Delivery::Latest {
         buffer: LATEST_BUFFER,
         history: 1
@@ -1328,6 +1338,23 @@ mod tests {
         assert!(e.contains("belongs to uid 54321"), "{e}");
         other.remove_leftovers();
         let _ = std::fs::remove_file(&planted);
+    }
+
+    /// `Topic::TYPE_NAME` is the `#[type_name]` iceoryx2 matches by.
+    #[test]
+    #[allow(unsafe_code)] // iceoryx2's accessor of the type name is an `unsafe fn`
+    fn topic_type_names_are_the_iceoryx2_type_names() {
+        fn check<T: Topic>() {
+            // SAFETY: only reads the name the derive macro put in.
+            let iox = unsafe { <T as ZeroCopySend>::type_name() };
+            assert_eq!(T::TYPE_NAME, iox, "{}", T::SERVICE);
+        }
+        check::<WheelRotations>();
+        check::<GnssFix>();
+        check::<Imu>();
+        check::<Heading>();
+        check::<Pose>();
+        check::<CircumferenceEstimate>();
     }
 
     #[test]

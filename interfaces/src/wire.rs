@@ -5,6 +5,10 @@
 //! matches) and starts with a [`Header`]. Padding is spelled out so that the
 //! layout is the same for every compiler; sizes are checked at compile time.
 //!
+//! Every type is also `bytemuck::Pod`: its bytes are the sample as it lies
+//! in shared memory (the derive refuses a type with hidden padding), which is
+//! what the gateway carries between hosts.
+//!
 //! Optional fields are flagged in a `valid` bit mask rather than encoded as NaN,
 //! so that a NaN on the wire is always a fault, never a convention.
 //!
@@ -13,6 +17,7 @@
 //! sample, so that subscribers block in a WaitSet instead of polling
 //! (event ids and details in [`crate::bus`]).
 
+use bytemuck::{Pod, Zeroable};
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Service carrying [`WheelRotations`].
@@ -32,7 +37,7 @@ pub const POSE_SERVICE: &str = "wheelcal/odometry/pose";
 pub const SENSOR_SERVICES: [&str; 4] = [WHEELS_SERVICE, GNSS_SERVICE, IMU_SERVICE, HEADING_SERVICE];
 
 /// Common header of every sample.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/Header/v1")]
 pub struct Header {
@@ -66,7 +71,7 @@ pub fn seconds_to_ns(t_s: f64) -> i64 {
 ///
 /// Revolutions (not ticks) keep the type independent of the encoder: a
 /// `f64` holds a million revolutions to better than 1e-9 rev.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/WheelRotations/v1")]
 pub struct WheelRotations {
@@ -92,7 +97,7 @@ impl WheelRotations {
 }
 
 /// GNSS fix in local ENU metres.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/GnssFix/v1")]
 pub struct GnssFix {
@@ -111,7 +116,7 @@ pub struct GnssFix {
 }
 
 /// IMU sample in the body frame (x forward, y left, z up).
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/Imu/v1")]
 pub struct Imu {
@@ -143,7 +148,7 @@ impl Imu {
 }
 
 /// Absolute heading (magnetometer or other source).
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/Heading/v1")]
 pub struct Heading {
@@ -161,7 +166,7 @@ pub const MAX_EXTENSIONS: usize = 8;
 pub const MAX_EXTENSION_PARAMS: usize = 4;
 
 /// One extension of the 2W model found by the diagnosis.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/ModelExtension/v1")]
 pub struct ModelExtension {
@@ -174,7 +179,7 @@ pub struct ModelExtension {
 }
 
 /// A calibration of the rear wheels, published when it passes the quality gate.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/CircumferenceEstimate/v1")]
 pub struct CircumferenceEstimate {
@@ -234,7 +239,7 @@ impl PoseMode {
 }
 
 /// The odometry's pose of the rear-axle centre.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
 #[repr(C)]
 #[type_name("wheelcal/Pose/v1")]
 pub struct Pose {

@@ -31,6 +31,8 @@ pub enum Bin {
     Calibrator,
     /// `odometry`.
     Odometry,
+    /// `gateway` (Zenoh between hosts).
+    Gateway,
 }
 
 impl Bin {
@@ -40,6 +42,7 @@ impl Bin {
             Bin::SensorBridge => "sensor-bridge",
             Bin::Calibrator => "calibrator",
             Bin::Odometry => "odometry",
+            Bin::Gateway => "gateway",
         }
     }
 }
@@ -74,7 +77,12 @@ fn build_all_once() {
         cmd.args(["build", "-q", "--manifest-path"]).arg(manifest);
         // The binaries of the same profile as this executable.
         cmd.args(["--profile", &profile_name()]);
-        for b in [Bin::SensorBridge, Bin::Calibrator, Bin::Odometry] {
+        for b in [
+            Bin::SensorBridge,
+            Bin::Calibrator,
+            Bin::Odometry,
+            Bin::Gateway,
+        ] {
             cmd.args(["--bin", b.name()]);
         }
         // The same target directory as the test executable.
@@ -321,6 +329,32 @@ pub fn wait_until(what: &str, mut cond: impl FnMut() -> bool) {
         );
         std::thread::sleep(Duration::from_millis(10));
     }
+}
+
+/// A Zenoh TCP endpoint on loopback with a port free right now (the OS
+/// picks it), for a gateway to listen on.
+pub fn free_tcp_endpoint() -> String {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind a loopback port");
+    let port = l.local_addr().expect("local address").port();
+    format!("tcp/127.0.0.1:{port}")
+}
+
+/// Write a `calibrator serve` state file holding estimate `version`, as the
+/// service writes it (pretty JSON, the antenna fields left out when absent).
+pub fn seeded_calibrator_state(path: &Path, version: u64) {
+    let state = serde_json::json!({
+        "version": version,
+        "t_s": 100.0,
+        "circumference_m": { "rl": 2.0437, "rr": 2.0412 },
+        "sigma_m": { "rl": 0.001, "rr": 0.001 },
+        "track_width_m": 1.58,
+        "gyro_bias_rad_s": 0.0,
+        "gyro_scale": 0.0,
+        "side_slip_gain_rad_per_m_s2": null,
+        "quality_m": 1.0
+    });
+    let text = serde_json::to_string_pretty(&state).expect("state json");
+    std::fs::write(path, text + "\n").expect("state file");
 }
 
 /// Receive everything waiting on `sub` into `out`; returns how many.

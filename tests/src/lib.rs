@@ -1,9 +1,11 @@
 //! Integration tests of the workspace: [`graph`] starts the real binaries as a
 //! process graph over iceoryx2 for the `graph_*` tests; [`latency`] has what
 //! the latency benchmarks share; [`faults`] is the fault suite (services
-//! killed at random moments). The main job (`wheelcal-demo`) lives in
+//! killed at random moments); [`python`] finds a Python for the example
+//! subscribers' tests. The main job (`wheelcal-demo`) lives in
 //! `examples/demo`.
 
 pub mod faults;
 pub mod graph;
 pub mod latency;
+pub mod python;

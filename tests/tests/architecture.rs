@@ -15,7 +15,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-const SERVICES: [&str; 3] = ["sensor-bridge", "calibrator", "odometry"];
+const SERVICES: [&str; 4] = ["sensor-bridge", "calibrator", "odometry", "gateway"];
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -96,22 +96,8 @@ fn outage_errors(drive: &Drive, poses: &[Pose], outage: (f64, f64)) -> (f64, f64
     )
 }
 
-/// Write a `calibrator serve` state file holding estimate `version`, as the
-/// service writes it (pretty JSON, the antenna fields left out when absent).
 fn seeded_state(path: &Path, version: u64) {
-    let state = serde_json::json!({
-        "version": version,
-        "t_s": 100.0,
-        "circumference_m": { "rl": 2.0437, "rr": 2.0412 },
-        "sigma_m": { "rl": 0.001, "rr": 0.001 },
-        "track_width_m": 1.58,
-        "gyro_bias_rad_s": 0.0,
-        "gyro_scale": 0.0,
-        "side_slip_gain_rad_per_m_s2": null,
-        "quality_m": 1.0
-    });
-    let text = serde_json::to_string_pretty(&state).expect("state json");
-    std::fs::write(path, text + "\n").expect("state file");
+    integration_tests::graph::seeded_calibrator_state(path, version);
 }
 
 /// An estimate is published by the calibrator and taken by the odometry; with

@@ -2,14 +2,12 @@
 //! the `iceoryx2` package from PyPI) reads poses published from Rust: the
 //! wire types hold across languages.
 //!
-//! Python is looked for in `WHEELCAL_PYTHON`, then
-//! `target/python-venv/bin/python`, then `python3`. When none of them can
-//! `import iceoryx2` but `python3` exists, the test makes the venv
-//! `target/python-venv` and installs `iceoryx2==0.10.0` from PyPI into it (once;
-//! set `WHEELCAL_PYTHON_NO_INSTALL=1` to forbid that). Without Python, or when
-//! the install fails, the test skips with the reason printed.
+//! Python is found (or `iceoryx2==0.10.0` installed into
+//! `target/python-venv`) by [`python_with`]. Without Python, or when the
+//! install fails, the test skips with the reason printed.
 
 use integration_tests::graph::{wait_until, Graph, WATCHDOG};
+use integration_tests::python::python_with;
 use interfaces::bus::Bus;
 use interfaces::wire::{Header, Pose, PoseMode};
 use std::io::{BufRead, BufReader};
@@ -20,48 +18,7 @@ use std::time::{Duration, Instant};
 const COUNT: u64 = 5;
 
 fn python_with_iceoryx2() -> Result<PathBuf, String> {
-    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let mut candidates: Vec<PathBuf> = Vec::new();
-    if let Ok(p) = std::env::var("WHEELCAL_PYTHON") {
-        candidates.push(PathBuf::from(p));
-    }
-    candidates.push(workspace.join("target/python-venv/bin/python"));
-    candidates.push(PathBuf::from("python3"));
-    let mut reasons = Vec::new();
-    for c in candidates {
-        match Command::new(&c)
-            .args(["-c", "import iceoryx2"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .status()
-        {
-            Ok(s) if s.success() => return Ok(c),
-            Ok(_) => reasons.push(format!("{}: cannot import iceoryx2", c.display())),
-            Err(e) => reasons.push(format!("{}: {e}", c.display())),
-        }
-    }
-    if std::env::var_os("WHEELCAL_PYTHON_NO_INSTALL").is_some() {
-        return Err(reasons.join("; "));
-    }
-    // Make the venv and install the package (PyPI), then try again.
-    let venv = workspace.join("target/python-venv");
-    let made = Command::new("python3")
-        .args(["-m", "venv"])
-        .arg(&venv)
-        .status()
-        .map_err(|e| format!("{}; python3 -m venv: {e}", reasons.join("; ")))?;
-    if !made.success() {
-        return Err(format!("{}; python3 -m venv failed", reasons.join("; ")));
-    }
-    let python = venv.join("bin/python");
-    let installed = Command::new(&python)
-        .args(["-m", "pip", "install", "-q", "iceoryx2==0.10.0"])
-        .status()
-        .map_err(|e| format!("pip install iceoryx2: {e}"))?;
-    if !installed.success() {
-        return Err("pip install iceoryx2==0.10.0 failed (no network?)".to_string());
-    }
-    Ok(python)
+    python_with("iceoryx2", "iceoryx2==0.10.0")
 }
 
 fn pose(i: u64) -> Pose {
