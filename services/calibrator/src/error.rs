@@ -111,8 +111,8 @@ pub enum CalibrationError {
         residual_rms_m: f64,
         /// The GNSS noise it is compared with, m.
         noise_m: f64,
-        /// Where that noise came from.
-        noise_source: &'static str,
+        /// Where that noise came from (`FitQuality::gnss_noise_source`).
+        noise_source: String,
         /// Their ratio.
         ratio: f64,
         /// The configured limit.

@@ -25,6 +25,8 @@
 /// across the travel) off the dead-reckoning's (a Rayleigh tail of exp(-18): about one false edge in
 /// 10^8 differences of Gaussian noise).
 pub const EDGE_SIGMAS: f64 = 6.0;
+use crate::prep::median;
+
 /// Longest jump looked for, s: a longer offset is a datum shift or the
 /// wheels' own drift, which the dead-reckoning cannot tell apart from a
 /// jump over that long.
@@ -237,14 +239,6 @@ pub fn find(
         }
     }
     out
-}
-
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
 }
 
 #[cfg(test)]

@@ -130,13 +130,7 @@ pub fn calibrate_with_progress(
         return Err(CalibrationError::PoorFit {
             residual_rms_m: q.residual_rms_m,
             noise_m: q.gnss_noise_m,
-            noise_source: if q.gnss_noise_source.starts_with("measured") {
-                "measured on this drive"
-            } else if q.gnss_noise_source.starts_with("the receiver") {
-                "the receiver's sigma_m"
-            } else {
-                "as configured"
-            },
+            noise_source: q.gnss_noise_source.clone(),
             ratio: q.ratio,
             limit: q.limit,
         });

@@ -147,7 +147,8 @@ impl Prepared {
     }
 }
 
-fn median(values: &mut [f64]) -> Option<f64> {
+/// The middle value (the upper one of an even count), sorting `values`.
+pub(crate) fn median(values: &mut [f64]) -> Option<f64> {
     if values.is_empty() {
         return None;
     }
