@@ -25,7 +25,6 @@ use crate::reference::Reference;
 use crate::result::{IterationRecord, MethodResult, RearPair, TRACK_POINTS};
 use crate::track_width::{decide_track, implausible_track};
 use crate::warnings::{Warning, WarningCode};
-use nalgebra::DMatrix;
 use vehicle_model::two_wheel::TwoWheelParams;
 
 /// The 2W model with `c_RL`, `c_RR` and optionally the track width, the
@@ -163,13 +162,10 @@ pub fn run(
     let slip_index = 2 + usize::from(estimate_track);
     let slip_value = slip_gain.then(|| fit.g[slip_index]);
     let lever_value = model.lever_index().map(|i| {
-        let cov = |m: &DMatrix<f64>| [m[(i, i)].max(0.0).sqrt(), m[(i + 1, i + 1)].max(0.0).sqrt()];
-        let f = cov(&fit.formal);
-        let s = fit.jackknife.as_ref().map_or(f, |j| {
-            let j = cov(j);
-            [f[0].max(j[0]), f[1].max(j[1])]
-        });
-        ([fit.g[i], fit.g[i + 1]], s)
+        (
+            [fit.g[i], fit.g[i + 1]],
+            [fit.variance(i).sqrt(), fit.variance(i + 1).sqrt()],
+        )
     });
     let c = [fit.g[0], fit.g[1]];
     for (name, v) in [("c_RL", c[0]), ("c_RR", c[1])] {
@@ -242,6 +238,7 @@ pub fn run(
         side_slip: slip_gain,
         lever_arm: lever_value,
         sigmas: fit.sigmas(),
+        sigma_basis: Some(fit.sigma_basis()),
         selected_iteration: iterations.len() - 1,
         iterations,
         residual_rms_m: Some(fit.residual_rms_m),

@@ -28,7 +28,6 @@ use crate::error::CalibrationError;
 use crate::lm::{fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::prep::Prepared;
 use crate::reference::{standstill_gyro_bias, Reference};
-use crate::uncertainty::Sigmas;
 use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
 
@@ -232,17 +231,8 @@ pub fn estimate(
         }
     };
     // Sigmas of (bias, scale): reuse the generic sigma helper on a 2x2 block.
-    let sig = Sigmas::from_covariance(&f.formal);
-    let jk = f.jackknife.as_ref().map(Sigmas::from_covariance);
-    let (sb, ss) = match jk {
-        Some(j) => (sig.rl.max(j.rl), sig.rr.max(j.rr)),
-        None => (sig.rl, sig.rr),
-    };
-    let sigma = |i: usize| {
-        let formal = f.formal[(i, i)].max(0.0);
-        let jack = f.jackknife.as_ref().map_or(0.0, |j| j[(i, i)].max(0.0));
-        formal.max(jack).sqrt()
-    };
+    let sigma = |i: usize| f.variance(i).sqrt();
+    let (sb, ss) = (sigma(0), sigma(1));
     let estimate = GyroEstimate {
         bias_rad_s: f.g[0],
         sigma_bias_rad_s: sb,

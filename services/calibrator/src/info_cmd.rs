@@ -32,6 +32,8 @@ struct InfoJson<'a> {
     clock_offsets: Option<&'a ClockOffsets>,
     gnss_jumps: Option<&'a [calibrator::gnss_jumps::Jump]>,
     fit_quality: Option<&'a FitQuality>,
+    /// What the sigmas rest on (the GNSS error model fitted to the drive).
+    sigma_basis: Option<&'a calibrator::uncertainty::SigmaBasis>,
     /// Why a calibration would be refused (`None`: it would be published).
     refused: Option<String>,
 }
@@ -96,6 +98,7 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
             clock_offsets: ok.map(|c| &c.clock_offsets),
             gnss_jumps: ok.map(|c| c.diagnostics.gnss_jumps.as_slice()),
             fit_quality: quality.as_ref(),
+            sigma_basis: ok.and_then(|c| c.diagnostics.sigma_basis.as_ref()),
             refused,
         };
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -127,6 +130,9 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
                     q.model, q.residual_rms_m, q.ratio, q.gnss_noise_m, q.gnss_noise_source
                 ),
                 None => println!("fit quality: no fit residual"),
+            }
+            if let Some(b) = &c.diagnostics.sigma_basis {
+                println!("sigmas from: {}", b.describe());
             }
         }
         None => println!("clock offsets and fit: not available (the calibration was refused)"),

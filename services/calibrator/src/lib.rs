@@ -67,6 +67,7 @@ pub mod config;
 pub mod diagnose;
 pub mod ekf;
 pub mod error;
+pub mod error_model;
 pub mod export;
 pub mod gnss_jumps;
 pub mod gyro;

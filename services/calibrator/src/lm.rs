@@ -19,15 +19,20 @@
 //! start) and lengthens them to the configured length, each stage starting
 //! from the last ([`stages`]).
 //!
-//! Uncertainty: a jackknife over contiguous blocks of fixes and one over
-//! whole segments (linearised leave-one-out solves; the larger of the two
-//! for the circumferences), and the formal covariance scaled by the residual
-//! variance and its lag-1 autocorrelation; the larger wins.
+//! Uncertainty: an error model of the residuals ([`crate::error_model`]:
+//! white + Gauss-Markov per axis, fitted through the linearised fit, the
+//! exact covariance over every pair of fixes), with the formal covariance
+//! (residual variance and its lag-1 autocorrelation) as a floor. Where the
+//! error model cannot be fitted (too few lags), a jackknife over contiguous
+//! blocks of fixes and over whole segments takes its place.
 
 use crate::error::CalibrationError;
+use crate::error_model::{
+    conservative_covariance, fit_error_model, ErrorModel, FixLin, Linearisation, SegmentLin,
+};
 use crate::prep::Prepared;
 use crate::reference::{RefFix, Reference};
-use crate::uncertainty::{jackknife_covariance, Sigmas};
+use crate::uncertainty::{jackknife_covariance, SigmaBasis, Sigmas};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use vehicle_model::two_wheel::Pose2;
 
@@ -38,7 +43,7 @@ const EARLY_STAGE_S: f64 = 600.0;
 pub const REPORT_POINTS: usize = 3000;
 
 /// Largest number of global parameters of any model.
-pub const MAX_GLOBAL: usize = 6;
+pub const MAX_GLOBAL: usize = crate::error_model::MAX_PARAMS;
 
 /// One step of a dead-reckoning model with its parameter derivatives.
 pub trait StepModel {
@@ -184,6 +189,8 @@ struct SegEval {
     track: Vec<[f64; 2]>,
     /// With `record_every`: every fix's time and residual (east, north), m.
     residuals_m: Vec<[f64; 3]>,
+    /// With `record_rows`: every fix's linearisation (segment index 0).
+    rows: Vec<FixLin>,
 }
 
 /// Settings of one evaluation.
@@ -197,6 +204,8 @@ struct EvalSettings {
     /// Keep every this many samples of the model's track and the residuals
     /// in metres (0: keep nothing).
     record_every: usize,
+    /// Keep every fix's linearisation ([`FixLin`]).
+    record_rows: bool,
 }
 
 const HUBER_K: f64 = 3.0;
@@ -246,6 +255,7 @@ fn eval_segment(
     let mut sum_sq_m = 0.0;
     let mut track = Vec::new();
     let mut residuals_m = Vec::new();
+    let mut rows = Vec::new();
     let mut pose = Pose2 {
         x: pose0[0],
         y: pose0[1],
@@ -375,6 +385,18 @@ fn eval_segment(
                     }
                 };
                 add(a);
+                if s.record_rows {
+                    let narrow = |v: f64| v as f32;
+                    rows.push(FixLin {
+                        t: f.t,
+                        residual_m: [f.x - ax, f.y - ay_],
+                        a: jg.map(|r| r.map(narrow)),
+                        b: jl.map(|r| r.map(narrow)),
+                        w: w as f32,
+                        sigma: sigma as f32,
+                        segment: 0,
+                    });
+                }
                 if let Some(b) = block.as_mut() {
                     add(b);
                     in_block += 1;
@@ -403,6 +425,7 @@ fn eval_segment(
         sum_sq_m,
         track,
         residuals_m,
+        rows,
     }
 }
 
@@ -470,6 +493,11 @@ pub struct Fit {
     pub formal: DMatrix<f64>,
     /// Block-jackknife covariance, when there were enough blocks.
     pub jackknife: Option<DMatrix<f64>>,
+    /// Covariance from the error model fitted to the residuals
+    /// ([`crate::uncertainty::correlated_covariance`]), when it could be fitted.
+    pub correlated: Option<DMatrix<f64>>,
+    /// The error model (east, north) fitted to the residuals.
+    pub error_model: Option<[ErrorModel; 2]>,
     /// RMS of the 2-D position residuals, m.
     pub residual_rms_m: f64,
     /// Segments used.
@@ -536,6 +564,7 @@ pub fn anchored_track(
         jacobian: false,
         block_fixes: 0,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
+        record_rows: false,
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -592,6 +621,7 @@ pub fn fit(
             jacobian: false,
             block_fixes: 0,
             record_every: 0,
+            record_rows: false,
         };
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
@@ -722,6 +752,7 @@ fn covariance(
         jacobian: true,
         block_fixes,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
+        record_rows: true,
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -784,6 +815,10 @@ fn covariance(
         });
     };
     let formal = &info_inv * (chi2.max(1e-12) * inflation);
+    let (correlated, error_model) = match error_model_covariance(&mut evals, &accs, &info_inv, ng) {
+        Some((c, m)) => (Some(c), Some(m)),
+        None => (None, None),
+    };
     // Linearised block jackknife: leave each block of fixes out.
     let mut estimates = Vec::new();
     for (si, e) in evals.iter().enumerate() {
@@ -834,6 +869,8 @@ fn covariance(
         g: g.to_vec(),
         formal,
         jackknife,
+        correlated,
+        error_model,
         residual_rms_m: (sum_sq_m / n_res.max(1) as f64).sqrt(),
         segments: segs.len(),
         dropped_segments: dropped,
@@ -841,13 +878,76 @@ fn covariance(
     })
 }
 
+/// The covariance of the global parameters from an error model of the
+/// residuals ([`crate::error_model`]): the fit linearised at its solution,
+/// the model fitted through it, the covariance under the least favourable
+/// plausible model. Takes the evaluations' recorded rows.
+fn error_model_covariance(
+    evals: &mut [SegEval],
+    accs: &[Acc],
+    info_inv: &DMatrix<f64>,
+    ng: usize,
+) -> Option<(DMatrix<f64>, [ErrorModel; 2])> {
+    let mut lin = Linearisation {
+        ng,
+        fixes: Vec::new(),
+        segments: Vec::with_capacity(accs.len()),
+        info_inv: info_inv.clone(),
+    };
+    for (si, (e, a)) in evals.iter_mut().zip(accs).enumerate() {
+        let pose_inv = a.hll.try_inverse()?;
+        // Hll^-1 Hgl^T: how the segment's pose follows the parameters.
+        let m = DMatrix::from_iterator(3, 3, pose_inv.iter().copied()) * a.hgl.transpose();
+        let mut follow = [[0.0; MAX_GLOBAL]; 3];
+        for (l, row) in follow.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate().take(ng) {
+                *v = m[(l, j)];
+            }
+        }
+        lin.segments.push(SegmentLin { pose_inv, follow });
+        lin.fixes
+            .extend(std::mem::take(&mut e.rows).into_iter().map(|mut f| {
+                f.segment = si as u32;
+                f
+            }));
+    }
+    let plausible = fit_error_model(&lin)?;
+    conservative_covariance(&lin, &plausible)
+}
+
 impl Fit {
-    /// Sigmas: the larger of the formal and the jackknife value, entry by entry.
+    /// The covariances the sigmas come from: the formal one (a floor), and
+    /// the error model's where it could be fitted, else the jackknife's.
+    fn sigma_sources(&self) -> [Option<&DMatrix<f64>>; 2] {
+        [
+            Some(&self.formal),
+            self.correlated.as_ref().or(self.jackknife.as_ref()),
+        ]
+    }
+
+    /// Sigmas: the larger of the sources' values, entry by entry.
     pub fn sigmas(&self) -> Sigmas {
         let formal = Sigmas::from_covariance(&self.formal);
-        match &self.jackknife {
-            Some(jk) => formal.max(Sigmas::from_covariance(jk)),
+        match self.sigma_sources()[1] {
+            Some(c) => formal.max(Sigmas::from_covariance(c)),
             None => formal,
+        }
+    }
+
+    /// The variance of parameter `i`: the larger of the sources'.
+    pub fn variance(&self, i: usize) -> f64 {
+        self.sigma_sources()
+            .iter()
+            .flatten()
+            .map(|c| c[(i, i)].max(0.0))
+            .fold(0.0, f64::max)
+    }
+
+    /// What the sigmas rest on, for the result.
+    pub fn sigma_basis(&self) -> SigmaBasis {
+        match (&self.correlated, &self.error_model) {
+            (Some(_), Some(m)) => SigmaBasis::error_model(m),
+            _ => SigmaBasis::jackknife(self.jackknife.is_some()),
         }
     }
 }

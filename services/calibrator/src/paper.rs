@@ -152,6 +152,10 @@ fn run_once(
         selected_iteration: selected,
         residual_rms_m: None,
         segments: 0,
+        sigma_basis: Some(crate::uncertainty::SigmaBasis {
+            method: "block jackknife over time blocks of the paper's least squares".to_string(),
+            error_model: None,
+        }),
         track_before: dev0.track,
         track_after,
         model_track: None,

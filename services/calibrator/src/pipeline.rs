@@ -415,6 +415,7 @@ fn assemble(
             residual_rms_m: primary.residual_rms_m,
             segments: primary.segments,
             wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
+            sigma_basis: primary.sigma_basis.clone(),
         },
         fit_quality: fit_quality(primary.residual_rms_m, gyro.as_ref(), r, config),
         clock_offsets: crate::clocks::ClockOffsets {

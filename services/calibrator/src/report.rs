@@ -170,6 +170,9 @@ pub fn render_text(c: &Calibration) -> String {
             d.segments
         );
     }
+    if let Some(b) = &d.sigma_basis {
+        let _ = writeln!(s, "  sigmas from: {}", b.describe());
+    }
     if let Some(q) = &c.fit_quality {
         let _ = writeln!(
             s,

@@ -94,6 +94,8 @@ pub struct MethodResult {
     pub residual_rms_m: Option<f64>,
     /// Segments (batch).
     pub segments: usize,
+    /// What the sigmas rest on.
+    pub sigma_basis: Option<crate::uncertainty::SigmaBasis>,
     /// Dead-reckoned track with the nominal values (thinned).
     pub track_before: Vec<[f64; 2]>,
     /// Dead-reckoned track with the estimate (thinned).
@@ -184,6 +186,10 @@ pub struct Diagnostics {
     /// Offsets subtracted from rate-type wheel channels (rl, rr, in the
     /// channel's unit), measured at standstill.
     pub wheel_rate_offsets: Option<[f64; 2]>,
+    /// What the sigmas rest on: the GNSS error model fitted to this drive's
+    /// residuals (white and correlated part per axis), or a jackknife.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma_basis: Option<crate::uncertainty::SigmaBasis>,
 }
 
 /// The nominal values the calibration started from.

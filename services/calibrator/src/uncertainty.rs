@@ -1,13 +1,12 @@
 //! Sigmas of the estimate and the observability warnings.
 //!
 //! GNSS errors are correlated in time, so a formal least-squares covariance
-//! over thousands of samples is far too optimistic. Both methods therefore
-//! use a *block jackknife*: the drive is cut into contiguous blocks (time
-//! blocks for the paper's least squares, the segments for the batch fit), the
-//! estimate is recomputed without each block, and the spread of those
-//! estimates gives the covariance. The batch method also computes the formal
-//! covariance (residual variance, inflated for the residuals' lag-1
-//! autocorrelation) and reports the larger of the two.
+//! over thousands of samples is far too optimistic. The batch fit (and the
+//! gyro fit) take their sigmas from an error model of the drive's own
+//! residuals ([`crate::error_model`], described in the result by
+//! [`SigmaBasis`]). The paper's least squares uses a *block jackknife*: the
+//! drive is cut into contiguous time blocks, the estimate is recomputed
+//! without each, and the spread of those estimates gives the covariance.
 
 use crate::ekf::{EkfPass, NormalBlock};
 use crate::reference::Reference;
@@ -69,6 +68,83 @@ impl Sigmas {
             mean: self.mean.max(other.mean),
             track: m(self.track, other.track),
             corr_difference_track: self.corr_difference_track.or(other.corr_difference_track),
+        }
+    }
+}
+
+/// One axis of the GNSS error model the sigmas came from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct AxisNoise {
+    /// White part, 1-sigma, m.
+    pub white_sigma_m: f64,
+    /// Correlated (Gauss-Markov) part, 1-sigma, m.
+    pub correlated_sigma_m: f64,
+    /// Its correlation time, s.
+    pub correlation_time_s: f64,
+    /// Whether the drive resolved that time (it is within the lags the
+    /// residuals showed); if not, the least favourable plausible value was
+    /// taken.
+    pub resolved: bool,
+}
+
+/// What the calibration's sigmas rest on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SigmaBasis {
+    /// In words.
+    pub method: String,
+    /// The error model of the east and north residuals, when one was fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error_model: Option<[AxisNoise; 2]>,
+}
+
+impl SigmaBasis {
+    /// Sigmas from the error model `m` (east, north).
+    pub fn error_model(m: &[crate::error_model::ErrorModel; 2]) -> SigmaBasis {
+        SigmaBasis {
+            method: "GNSS error model of the fit residuals (white + correlated, per axis)"
+                .to_string(),
+            error_model: Some(m.map(|a| AxisNoise {
+                white_sigma_m: a.white_var_m2.sqrt(),
+                correlated_sigma_m: a.gm_var_m2.sqrt(),
+                correlation_time_s: a.tau_s,
+                resolved: a.tau_s <= a.max_lag_s,
+            })),
+        }
+    }
+
+    /// Sigmas from a jackknife (`true`) or the formal covariance alone.
+    pub fn jackknife(jackknife: bool) -> SigmaBasis {
+        SigmaBasis {
+            method: if jackknife {
+                "block jackknife (the residuals showed too few lags for an error model)"
+            } else {
+                "formal covariance only (too few fixes for an error model or a jackknife)"
+            }
+            .to_string(),
+            error_model: None,
+        }
+    }
+
+    /// One line for a text report.
+    pub fn describe(&self) -> String {
+        match &self.error_model {
+            Some([e, n]) => {
+                let axis = |a: &AxisNoise| {
+                    format!(
+                        "{:.3} m white + {:.3} m over {:.0} s{}",
+                        a.white_sigma_m,
+                        a.correlated_sigma_m,
+                        a.correlation_time_s,
+                        if a.resolved {
+                            ""
+                        } else {
+                            " (not resolved: least favourable)"
+                        }
+                    )
+                };
+                format!("{}: east {}, north {}", self.method, axis(e), axis(n))
+            }
+            None => self.method.clone(),
         }
     }
 }
