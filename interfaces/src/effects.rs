@@ -90,6 +90,16 @@ impl Effect {
     }
 }
 
+/// Wire code of the GNSS clock model extension (not a physics-catalogue
+/// effect: codes from 101 on are sensor clocks, outside the catalogue's
+/// 1..=12, so [`Effect::from_code`] knows none of them). Parameters: the
+/// GNSS stamps' offset against the wheels' (late, s), its drift (ppm) and
+/// the wheel time the offset holds at (s); `param_count` 3.
+pub const GNSS_CLOCK_EXTENSION: u32 = 101;
+/// Wire code of the IMU clock model extension: as
+/// [`GNSS_CLOCK_EXTENSION`], for the IMU's stamps.
+pub const IMU_CLOCK_EXTENSION: u32 = 102;
+
 impl std::fmt::Display for Effect {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.id())
@@ -111,6 +121,9 @@ mod tests {
             );
         }
         assert_eq!(Effect::from_code(0), None);
+        for code in [GNSS_CLOCK_EXTENSION, IMU_CLOCK_EXTENSION] {
+            assert_eq!(Effect::from_code(code), None, "a clock is not an effect");
+        }
         assert_eq!(Effect::from_id("flux_capacitor"), None);
     }
 }

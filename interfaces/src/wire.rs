@@ -210,7 +210,10 @@ pub struct CircumferenceEstimate {
     /// Model extensions found by the diagnosis or fitted by the calibration
     /// (the first `extension_count`): `side_slip` (k_beta), and
     /// `gnss_lever_arm` (the antenna's x, y from the rear-axle centre, m, and
-    /// with `param_count` 4 their 1-sigma).
+    /// with `param_count` 4 their 1-sigma), and the sensor clocks
+    /// ([`crate::effects::GNSS_CLOCK_EXTENSION`],
+    /// [`crate::effects::IMU_CLOCK_EXTENSION`]: offset s, drift ppm,
+    /// reference wheel time s).
     pub extensions: [ModelExtension; MAX_EXTENSIONS],
 }
 

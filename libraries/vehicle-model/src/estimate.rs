@@ -10,7 +10,8 @@
 //!   other field is ignored;
 //! - the wire type [`CircumferenceEstimate`] ([`Estimate::from_wire`],
 //!   [`Estimate::to_wire`]); the calibrated GNSS antenna position travels in
-//!   it as a `gnss_lever_arm` model extension (x, y).
+//!   it as a `gnss_lever_arm` model extension (x, y), the sensor clocks as
+//!   clock extensions (offset, drift, reference time; [`StreamClocks`]).
 //!
 //! Gyro convention (the same as the wire type): the gyro measures
 //! `gz = (1 + gyro_scale) * w + gyro_bias_rad_s`, so the corrected yaw rate is
@@ -19,7 +20,7 @@
 use crate::effects::{EffectTerms, WheelEffects};
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, GNSS_CLOCK_EXTENSION, IMU_CLOCK_EXTENSION};
 use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension};
 use serde::Deserialize;
 use std::path::PathBuf;
@@ -127,43 +128,167 @@ pub struct Estimate {
     /// The effect terms a diagnosis found (`effects` in the JSON, effect
     /// model extensions on the wire); all zero: the plain 2W model.
     pub effects: WheelEffects,
-    /// The sensor clock offsets the calibration found and applied
-    /// (`clock_offsets` in the JSON; not on the wire): the odometry puts the
-    /// drive's streams on the GNSS clock with them.
+    /// The sensor clock offsets and drifts the calibration found and applied
+    /// (`clock_offsets` in the JSON; on the wire the clock model extensions,
+    /// [`StreamClocks::to_extensions`]): the odometry puts the drive's
+    /// streams on the GNSS clock with them.
     pub clocks: StreamClocks,
 }
 
 /// The clock offsets of a drive's streams against its wheels, as the
 /// calibrator applied them: a stream's stamp is `t_wheels + offset` for the
-/// same instant. Zero: the stream is on the wheels' clock.
+/// same instant, and where a drift is applied the offset changes along the
+/// drive: `offset(t) = late_s + drift_ppm 1e-6 (t - ref_t_s)` (exactly: the
+/// stream's stamp is `ref + (1 + drift) (t_wheels + late - ref)`, the
+/// calibrator's restamping inverted). Zero: the stream is on the wheels'
+/// clock.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StreamClocks {
-    /// GNSS stamps late against the wheels', s.
+    /// GNSS stamps late against the wheels' (at `gnss_ref_t_s`), s.
     pub gnss_late_s: f64,
-    /// IMU stamps late against the wheels', s.
+    /// IMU stamps late against the wheels' (at `imu_ref_t_s`), s.
     pub imu_late_s: f64,
+    /// The GNSS clock's drift against the wheels', ppm (0: none applied).
+    pub gnss_drift_ppm: f64,
+    /// The IMU clock's drift against the wheels', ppm (0: none applied).
+    pub imu_drift_ppm: f64,
+    /// Wheel time the GNSS offset holds at, s (only used with a drift).
+    pub gnss_ref_t_s: f64,
+    /// Wheel time the IMU offset holds at, s (only used with a drift).
+    pub imu_ref_t_s: f64,
 }
 
 impl StreamClocks {
-    /// True when every offset is zero.
+    /// True when every offset and drift is zero.
     pub fn is_zero(&self) -> bool {
-        self.gnss_late_s == 0.0 && self.imu_late_s == 0.0
+        self.gnss_late_s == 0.0
+            && self.imu_late_s == 0.0
+            && self.gnss_drift_ppm == 0.0
+            && self.imu_drift_ppm == 0.0
+    }
+
+    /// The largest amount, s, by which putting a sample on the GNSS clock
+    /// moves it later than the stamps of the other streams' samples of the
+    /// same instant, over wheel times `t0..=t1`: how late the other streams'
+    /// samples come for a wheel sample on the GNSS clock (0 when the
+    /// wheels move earlier).
+    pub fn max_lateness_s(&self, t0: f64, t1: f64) -> f64 {
+        [t0, t1]
+            .iter()
+            .flat_map(|&t| {
+                let g = self.wheel_time_on_gnss_clock(t) - t;
+                // An IMU sample stamped `t` moves by this.
+                let i = self.imu_time_on_gnss_clock(t) - t;
+                [g, g - i]
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// A wheel stamp on the GNSS clock.
+    pub fn wheel_time_on_gnss_clock(&self, t_wheels: f64) -> f64 {
+        let d = self.gnss_drift_ppm * 1e-6;
+        if d == 0.0 {
+            return t_wheels + self.gnss_late_s;
+        }
+        let r = self.gnss_ref_t_s;
+        r + (1.0 + d) * (t_wheels + self.gnss_late_s - r)
+    }
+
+    /// An IMU stamp on the wheels' clock.
+    pub fn imu_time_on_wheel_clock(&self, t_imu: f64) -> f64 {
+        let d = self.imu_drift_ppm * 1e-6;
+        if d == 0.0 {
+            return t_imu - self.imu_late_s;
+        }
+        let r = self.imu_ref_t_s;
+        r + (t_imu - r) / (1.0 + d) - self.imu_late_s
+    }
+
+    /// An IMU stamp on the GNSS clock.
+    pub fn imu_time_on_gnss_clock(&self, t_imu: f64) -> f64 {
+        self.wheel_time_on_gnss_clock(self.imu_time_on_wheel_clock(t_imu))
     }
 
     /// Put every stream of `drive` on the GNSS clock (the clock of
-    /// `truth.csv` and of the world): the wheels move by `gnss_late_s`, the
-    /// IMU by `gnss_late_s - imu_late_s`; GNSS, heading and truth stay.
+    /// `truth.csv` and of the world): the wheels by
+    /// [`StreamClocks::wheel_time_on_gnss_clock`], the IMU by
+    /// [`StreamClocks::imu_time_on_gnss_clock`]; GNSS, heading and truth
+    /// stay.
     pub fn align(&self, drive: &mut interfaces::drive::Drive) {
         if self.is_zero() {
             return;
         }
         for w in &mut drive.wheels.samples {
-            w.t_s += self.gnss_late_s;
+            w.t_s = self.wheel_time_on_gnss_clock(w.t_s);
         }
-        let imu_shift = self.gnss_late_s - self.imu_late_s;
         for i in drive.imu.iter_mut().flatten() {
-            i.t_s += imu_shift;
+            i.t_s = self.imu_time_on_gnss_clock(i.t_s);
         }
+    }
+
+    /// The clocks as wire model extensions (one per stream with a non-zero
+    /// offset or drift): [`GNSS_CLOCK_EXTENSION`], [`IMU_CLOCK_EXTENSION`]
+    /// with (offset s, drift ppm, reference wheel time s).
+    pub fn to_extensions(&self) -> Vec<ModelExtension> {
+        let one = |code: u32, late: f64, ppm: f64, r: f64| ModelExtension {
+            effect_code: code,
+            param_count: 3,
+            params: [late, ppm, r, 0.0],
+        };
+        let mut out = Vec::new();
+        if self.gnss_late_s != 0.0 || self.gnss_drift_ppm != 0.0 {
+            out.push(one(
+                GNSS_CLOCK_EXTENSION,
+                self.gnss_late_s,
+                self.gnss_drift_ppm,
+                self.gnss_ref_t_s,
+            ));
+        }
+        if self.imu_late_s != 0.0 || self.imu_drift_ppm != 0.0 {
+            out.push(one(
+                IMU_CLOCK_EXTENSION,
+                self.imu_late_s,
+                self.imu_drift_ppm,
+                self.imu_ref_t_s,
+            ));
+        }
+        out
+    }
+
+    /// The clocks of wire model extensions (others are ignored; a clock
+    /// extension with fewer than 3 or non-finite parameters is refused).
+    pub fn from_extensions(
+        xs: &[ModelExtension],
+        source: &str,
+    ) -> Result<StreamClocks, ParamsError> {
+        let mut c = StreamClocks::default();
+        for x in xs {
+            if x.effect_code != GNSS_CLOCK_EXTENSION && x.effect_code != IMU_CLOCK_EXTENSION {
+                continue;
+            }
+            let n = (x.param_count as usize).min(x.params.len());
+            let bad = x.params[..n].iter().find(|v| !v.is_finite()).copied();
+            // A clock more than a minute off, or drifting by more than 1 %,
+            // is no sensor clock the calibrator finds.
+            let implausible =
+                n < 3 || bad.is_some() || x.params[0].abs() > 60.0 || x.params[1].abs() > 10_000.0;
+            if implausible {
+                return Err(ParamsError::Invalid {
+                    source_name: source.to_string(),
+                    field: "clock extension",
+                    value: bad.unwrap_or(if n < 3 { n as f64 } else { x.params[0] }),
+                    reason:
+                        "must have 3 finite parameters: offset within 60 s, drift within 10000 ppm",
+                });
+            }
+            let [late, ppm, r, _] = x.params;
+            if x.effect_code == GNSS_CLOCK_EXTENSION {
+                (c.gnss_late_s, c.gnss_drift_ppm, c.gnss_ref_t_s) = (late, ppm, r);
+            } else {
+                (c.imu_late_s, c.imu_drift_ppm, c.imu_ref_t_s) = (late, ppm, r);
+            }
+        }
+        Ok(c)
     }
 }
 
@@ -257,6 +382,19 @@ struct StreamOffsetJson {
     offset_s: Option<f64>,
     #[serde(default)]
     applied: bool,
+    #[serde(default)]
+    drift: Option<DriftJson>,
+}
+
+/// One stream's drift; only a drift the calibration applied is used.
+#[derive(Debug, Deserialize)]
+struct DriftJson {
+    #[serde(default)]
+    drift_ppm: Option<f64>,
+    #[serde(default)]
+    ref_t_s: Option<f64>,
+    #[serde(default)]
+    applied: bool,
 }
 
 impl StreamOffsetJson {
@@ -265,6 +403,29 @@ impl StreamOffsetJson {
             .and_then(|o| o.offset_s)
             .filter(|v| v.is_finite())
             .unwrap_or(0.0)
+    }
+
+    /// The applied drift (ppm) and its reference time, else zeros.
+    fn applied_drift(o: Option<&StreamOffsetJson>) -> (f64, f64) {
+        o.and_then(|o| o.drift.as_ref())
+            .filter(|d| d.applied)
+            .and_then(|d| Some((d.drift_ppm?, d.ref_t_s?)))
+            .filter(|(p, r)| p.is_finite() && r.is_finite())
+            .unwrap_or((0.0, 0.0))
+    }
+
+    fn clocks(c: &ClockOffsetsJson) -> StreamClocks {
+        let (g, i) = (c.gnss_s.as_ref(), c.imu_s.as_ref());
+        let ((gnss_drift_ppm, gnss_ref_t_s), (imu_drift_ppm, imu_ref_t_s)) =
+            (Self::applied_drift(g), Self::applied_drift(i));
+        StreamClocks {
+            gnss_late_s: Self::applied_offset(g),
+            imu_late_s: Self::applied_offset(i),
+            gnss_drift_ppm,
+            imu_drift_ppm,
+            gnss_ref_t_s,
+            imu_ref_t_s,
+        }
     }
 }
 
@@ -314,10 +475,8 @@ impl Estimate {
             effects: parsed.effects.unwrap_or_default().into(),
             clocks: parsed
                 .clock_offsets
-                .map(|c| StreamClocks {
-                    gnss_late_s: StreamOffsetJson::applied_offset(c.gnss_s.as_ref()),
-                    imu_late_s: StreamOffsetJson::applied_offset(c.imu_s.as_ref()),
-                })
+                .as_ref()
+                .map(StreamOffsetJson::clocks)
                 .unwrap_or_default(),
         })
     }
@@ -352,14 +511,16 @@ impl Estimate {
             antenna_m,
             antenna_sigma_m,
             effects: EffectTerms::from_extensions(&wire.extensions[..used]).into(),
-            clocks: StreamClocks::default(),
+            clocks: StreamClocks::from_extensions(&wire.extensions[..used], &source)?,
         })
     }
 
     /// The estimate as the wire type: the GNSS antenna (`gnss_lever_arm`),
-    /// when known, and the effect terms (one extension per wheel-side effect,
-    /// [`EffectTerms::to_extensions`]). Unknown sigmas and quality are
-    /// sent as 0 (the wire type has no validity flag for them).
+    /// when known, the sensor clocks ([`StreamClocks::to_extensions`]) and
+    /// the effect terms (one extension per wheel-side effect,
+    /// [`EffectTerms::to_extensions`]), in that order as far as the
+    /// [`interfaces::wire::MAX_EXTENSIONS`] slots go. Unknown sigmas and
+    /// quality are sent as 0 (the wire type has no validity flag for them).
     pub fn to_wire(&self, header: Header, version: u64) -> CircumferenceEstimate {
         let (sigma_rl_m, sigma_rr_m) = self.sigma_m.unwrap_or((0.0, 0.0));
         let mut wire = CircumferenceEstimate {
@@ -380,7 +541,11 @@ impl Estimate {
             wire.extensions[0] = antenna_extension(a, self.antenna_sigma_m);
             n = 1;
         }
-        for x in EffectTerms::from(self.effects).to_extensions() {
+        let clocks = self.clocks.to_extensions();
+        for x in clocks
+            .into_iter()
+            .chain(EffectTerms::from(self.effects).to_extensions())
+        {
             if n < wire.extensions.len() {
                 wire.extensions[n] = x;
                 n += 1;
@@ -518,6 +683,66 @@ mod tests {
         // Without `effects`: the plain model.
         let plain = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
         assert_eq!(plain.effects, WheelEffects::default());
+    }
+
+    #[test]
+    fn clock_offsets_and_drifts_travel_in_the_json_and_on_the_wire() {
+        let text = r#"{"circumference_m": {"rl": 2.0, "rr": 2.0}, "track_width_m": 1.5,
+            "clock_offsets": {
+              "gnss_s": {"offset_s": -0.18, "applied": true,
+                         "drift": {"drift_ppm": -200.0, "ref_t_s": 900.0, "applied": true}},
+              "imu_s": {"offset_s": 0.3, "applied": true,
+                        "drift": {"drift_ppm": 50.0, "ref_t_s": 900.0, "applied": false}}}}"#;
+        let e = Estimate::from_json_str(text, "est.json").unwrap();
+        let c = e.clocks;
+        assert_eq!(
+            (c.gnss_late_s, c.gnss_drift_ppm, c.gnss_ref_t_s),
+            (-0.18, -200.0, 900.0)
+        );
+        // A drift not applied is not used.
+        assert_eq!((c.imu_late_s, c.imu_drift_ppm), (0.3, 0.0));
+        let wire = e.to_wire(Header::from_seconds(1.0, 0), 4);
+        assert_eq!(wire.extension_count, 2);
+        assert_eq!(wire.extensions[0].effect_code, GNSS_CLOCK_EXTENSION);
+        assert_eq!(Estimate::from_wire(&wire).unwrap().clocks, e.clocks);
+        // The old layout still reads: no clock extension, no clocks.
+        let plain = Estimate::from_json_str(CALIBRATOR_JSON, "est.json").unwrap();
+        let back = Estimate::from_wire(&plain.to_wire(Header::from_seconds(1.0, 0), 1)).unwrap();
+        assert!(back.clocks.is_zero());
+        // A clock no sensor has is refused, naming it.
+        let mut bad = wire;
+        bad.extensions[0].params[1] = f64::NAN;
+        let msg = Estimate::from_wire(&bad).unwrap_err().to_string();
+        assert!(msg.contains("clock extension"), "{msg}");
+    }
+
+    #[test]
+    fn align_inverts_the_calibrator_s_restamping() {
+        // Wheels 200 ppm fast from 0 s, then 0.5 s late; the IMU on the GNSS clock.
+        let c = StreamClocks {
+            gnss_late_s: -(0.5 + 900.0 * 200e-6),
+            imu_late_s: -(0.5 + 900.0 * 200e-6),
+            gnss_drift_ppm: -200.0 / (1.0 + 200e-6),
+            imu_drift_ppm: -200.0 / (1.0 + 200e-6),
+            gnss_ref_t_s: 900.0,
+            imu_ref_t_s: 900.0,
+        };
+        for t in [0.0, 450.0, 1800.0] {
+            let t_wheels = t * (1.0 + 200e-6) + 0.5;
+            assert!(
+                (c.wheel_time_on_gnss_clock(t_wheels) - t).abs() < 1e-6,
+                "{t}"
+            );
+            assert!((c.imu_time_on_gnss_clock(t) - t).abs() < 1e-6, "{t}");
+        }
+        // The wheels move earlier (by 0.5-0.86 s): nothing comes late for them.
+        assert_eq!(c.max_lateness_s(0.0, 1800.0), 0.0);
+        let early = StreamClocks {
+            gnss_late_s: 0.7,
+            imu_late_s: 0.7,
+            ..StreamClocks::default()
+        };
+        assert!((early.max_lateness_s(0.0, 10.0) - 0.7).abs() < 1e-12);
     }
 
     #[test]

@@ -74,6 +74,114 @@ pub struct StreamOffset {
     pub applied: bool,
     /// Why not determined / not checked.
     pub reason: Option<String>,
+    /// The slow drift of the stream's clock against the wheels'
+    /// (`crate::clock_drift`). When it is applied, `offset_s` is the offset
+    /// at [`ClockDrift::ref_t_s`].
+    #[serde(default)]
+    pub drift: ClockDrift,
+}
+
+/// One window's offset, for the drift's line fit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct WindowOffset {
+    /// Middle of the window on the wheels' clock, s.
+    pub t_s: f64,
+    /// The offset found in the window, s.
+    pub offset_s: f64,
+    /// Its 1-sigma, s.
+    pub sigma_s: f64,
+}
+
+/// The slow drift of a stream's clock against the wheels': the offset at
+/// wheel time `t` is `offset_s + drift_ppm * 1e-6 * (t - ref_t_s)`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClockDrift {
+    /// Determined (a line through the window offsets) or not, and why.
+    pub status: OffsetStatus,
+    /// The drift, parts per million (the stream's clock gains this many
+    /// microseconds per second against the wheels').
+    pub drift_ppm: Option<f64>,
+    /// Its 1-sigma (inflated by the line fit's chi-square per degree of
+    /// freedom where that exceeds 1), ppm.
+    pub sigma_ppm: Option<f64>,
+    /// The smallest drift this drive can show: 3 sigma, ppm (from the
+    /// measured window sigmas, or from the whole drive's offset sigma when
+    /// the windows do not determine it).
+    pub detectable_ppm: Option<f64>,
+    /// Wheel time the line is taken about (the middle of the wheels' span), s.
+    pub ref_t_s: Option<f64>,
+    /// Chi-square per degree of freedom of the line fit.
+    pub chi2_dof: Option<f64>,
+    /// The window offsets the line went through.
+    pub windows: Vec<WindowOffset>,
+    /// Whether the stream's time stamps were corrected for it (only a
+    /// significant drift is: beyond 3 sigma, and moving the offset across
+    /// the drive by more than 3 sigma of the offset).
+    pub applied: bool,
+    /// Why not determined, not significant or not checked.
+    pub reason: Option<String>,
+}
+
+impl ClockDrift {
+    /// Not looked for, because `reason`.
+    pub fn not_checked(reason: &str) -> ClockDrift {
+        ClockDrift {
+            status: OffsetStatus::NotChecked,
+            drift_ppm: None,
+            sigma_ppm: None,
+            detectable_ppm: None,
+            ref_t_s: None,
+            chi2_dof: None,
+            windows: Vec::new(),
+            applied: false,
+            reason: Some(reason.to_string()),
+        }
+    }
+
+    /// The drift as a rate (ppm * 1e-6) when it was applied.
+    pub fn applied_rate(&self) -> Option<f64> {
+        self.drift_ppm
+            .filter(|_| self.applied && self.status == OffsetStatus::Determined)
+            .map(|p| p * 1e-6)
+    }
+}
+
+impl std::fmt::Display for ClockDrift {
+    /// One line: the drift with its sigma and whether it was applied, or
+    /// why it was not determined / not significant / not checked.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match (self.status, self.drift_ppm, self.sigma_ppm) {
+            (OffsetStatus::Determined, Some(p), Some(s)) if self.reason.is_none() => write!(
+                f,
+                "{p:+.0} ppm +- {s:.0} ppm from {} windows{}",
+                self.windows.len(),
+                if self.applied {
+                    ", applied"
+                } else {
+                    ", not applied"
+                }
+            ),
+            (OffsetStatus::Determined, ..) => {
+                write!(f, "{}", self.reason.as_deref().unwrap_or("not significant"))
+            }
+            (OffsetStatus::NotChecked, ..) => write!(
+                f,
+                "not checked: {}",
+                self.reason.as_deref().unwrap_or("no reason given")
+            ),
+            _ => write!(
+                f,
+                "not determined: {}",
+                self.reason.as_deref().unwrap_or("no reason given")
+            ),
+        }
+    }
+}
+
+impl Default for ClockDrift {
+    fn default() -> Self {
+        ClockDrift::not_checked("not checked")
+    }
 }
 
 impl StreamOffset {
@@ -86,6 +194,7 @@ impl StreamOffset {
             from: None,
             applied: false,
             reason: Some(reason.to_string()),
+            drift: ClockDrift::default(),
         }
     }
 
@@ -98,6 +207,7 @@ impl StreamOffset {
             from: None,
             applied: false,
             reason: Some(reason),
+            drift: ClockDrift::default(),
         }
     }
 
@@ -110,6 +220,7 @@ impl StreamOffset {
             from: Some(from.to_string()),
             applied: false,
             reason: None,
+            drift: ClockDrift::default(),
         }
     }
 
@@ -429,7 +540,7 @@ pub fn fit_lag(
 }
 
 /// Whether a fit determines the offset, else why not.
-fn judge(fit: Result<LagFit, LagFailure>, search_s: f64) -> Result<LagFit, String> {
+pub(crate) fn judge(fit: Result<LagFit, LagFailure>, search_s: f64) -> Result<LagFit, String> {
     match fit {
         Ok(f) if f.sigma_s <= MAX_OFFSET_SIGMA_S && f.explained >= MIN_EXPLAINED => Ok(f),
         Ok(f) => Err(format!(

@@ -1,8 +1,9 @@
 //! `calibrator info`: what a recording holds (the drive summary
 //! `sensor-bridge info` prints) and what the calibration finds about its
 //! sensors: every stream's clock offset against the wheels with its sigma
-//! (or why it is not determined and which manoeuvre would determine it),
-//! the GNSS jumps set aside, and the fit quality, with whether a
+//! and its slow drift in ppm with its sigma (or why it is not determined
+//! and which manoeuvre would determine it, or which drift the drive is too
+//! short to show), the GNSS jumps set aside, and the fit quality, with whether a
 //! calibration would be refused for it.
 
 use anyhow::{Context, Result};
@@ -39,6 +40,10 @@ struct InfoJson<'a> {
 }
 
 fn offset_line(name: &str, o: &StreamOffset) -> String {
+    format!("{}\n        drift {}", offset_only(name, o), o.drift)
+}
+
+fn offset_only(name: &str, o: &StreamOffset) -> String {
     match (o.status, o.offset_s, o.sigma_s) {
         (OffsetStatus::Determined, Some(v), Some(s)) => format!(
             "{name:<5} {:+.3} s +- {:.3} s against the wheels (from the {}){}",

@@ -26,6 +26,8 @@
 //! - [`warnings`]: the warning codes and messages;
 //! - [`clocks`]: the clock offsets of the streams against the wheels
 //!   (pure functions on arrays);
+//! - [`clock_drift`]: their slow drift, from offsets in windows along the
+//!   drive (pure; [`pipeline`] applies it);
 //! - [`prep`]: checking the drive and converting it to the arrays the layers
 //!   use;
 //! - [`reference`](mod@reference), [`ekf`]: layers 1 and 2 (above);
@@ -62,6 +64,7 @@
 //! ```
 
 pub mod batch;
+pub mod clock_drift;
 pub mod clocks;
 pub mod config;
 pub mod diagnose;

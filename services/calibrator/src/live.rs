@@ -123,6 +123,78 @@ pub struct LiveEstimate {
     /// all zero: the plain 2W model. On the wire one model extension per term.
     #[serde(default, skip_serializing_if = "WheelEffects::is_plain")]
     pub effects: WheelEffects,
+    /// The sensor clock offsets and drifts the calibration applied (the
+    /// `clock_offsets` of `calibrate --json`, the fields the odometry
+    /// reads). On the wire the clock model extensions. Absent in state
+    /// files written before it existed: no offsets.
+    #[serde(default)]
+    pub clock_offsets: LiveClocks,
+}
+
+/// The applied clock offsets of a [`LiveEstimate`], in the JSON form of
+/// `calibrate --json`'s `clock_offsets` (what the odometry reads).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct LiveClocks {
+    /// GNSS against the wheels.
+    pub gnss_s: LiveClock,
+    /// IMU against the wheels.
+    pub imu_s: LiveClock,
+}
+
+/// One stream's applied offset and drift.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct LiveClock {
+    /// The offset, s (late against the wheels), when determined.
+    pub offset_s: Option<f64>,
+    /// Whether the calibration applied it.
+    pub applied: bool,
+    /// The drift.
+    pub drift: LiveDrift,
+}
+
+/// One stream's drift.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct LiveDrift {
+    /// The drift, ppm, when determined.
+    pub drift_ppm: Option<f64>,
+    /// Wheel time the offset holds at, s.
+    pub ref_t_s: Option<f64>,
+    /// Whether the calibration applied it.
+    pub applied: bool,
+}
+
+impl From<&crate::clocks::StreamOffset> for LiveClock {
+    fn from(o: &crate::clocks::StreamOffset) -> LiveClock {
+        LiveClock {
+            offset_s: o.offset_s,
+            applied: o.applied,
+            drift: LiveDrift {
+                drift_ppm: o.drift.drift_ppm,
+                ref_t_s: o.drift.ref_t_s,
+                applied: o.drift.applied,
+            },
+        }
+    }
+}
+
+impl LiveClocks {
+    /// What the odometry applies: the applied offsets and drifts.
+    pub fn stream_clocks(&self) -> vehicle_model::estimate::StreamClocks {
+        let offset = |c: &LiveClock| c.offset_s.filter(|_| c.applied).unwrap_or(0.0);
+        let drift = |c: &LiveClock| match (c.drift.applied, c.drift.drift_ppm, c.drift.ref_t_s) {
+            (true, Some(p), Some(r)) => (p, r),
+            _ => (0.0, 0.0),
+        };
+        let ((gp, gr), (ip, ir)) = (drift(&self.gnss_s), drift(&self.imu_s));
+        vehicle_model::estimate::StreamClocks {
+            gnss_late_s: offset(&self.gnss_s),
+            imu_late_s: offset(&self.imu_s),
+            gnss_drift_ppm: gp,
+            imu_drift_ppm: ip,
+            gnss_ref_t_s: gr,
+            imu_ref_t_s: ir,
+        }
+    }
 }
 
 impl LiveEstimate {
@@ -234,6 +306,10 @@ pub fn attempt(
             .or(cal.sigma_gnss_antenna_m),
         quality_m: f64::NAN,
         effects: WheelEffects::default(),
+        clock_offsets: LiveClocks {
+            gnss_s: (&cal.clock_offsets.gnss_s).into(),
+            imu_s: (&cal.clock_offsets.imu_s).into(),
+        },
     };
     let diagnosis = diagnose.map(|dc| {
         crate::diagnose::diagnose(&fit, dc)
@@ -349,6 +425,7 @@ mod tests {
             sigma_gnss_antenna_m: Some([0.02, 0.03]),
             quality_m: 0.8,
             effects: WheelEffects::default(),
+            clock_offsets: LiveClocks::default(),
         }
     }
 

@@ -2,7 +2,8 @@
 //! (prepare, reference, the methods, gyro, uncertainty) and puts their
 //! results together into a [`Calibration`].
 
-use crate::config::CalibrationConfig;
+use crate::clocks::{self, ClockDrift, OffsetStatus};
+use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
 use crate::method::Method;
 use crate::prep::Prepared;
@@ -13,7 +14,7 @@ use crate::result::{
 };
 use crate::uncertainty::observability;
 use crate::warnings::{Warning, WarningCode};
-use crate::{batch, lm, paper, prep, reference};
+use crate::{batch, clock_drift, lm, paper, prep, reference};
 use interfaces::drive::Drive;
 use serde::{Deserialize, Serialize};
 
@@ -66,7 +67,22 @@ pub fn calibrate_with_progress(
         fraction: 0.0,
     });
     let mut warnings = Vec::new();
-    let prepared = prep::prepare(drive, config, &mut warnings)?;
+    let mut prepared = prep::prepare(drive, config, &mut warnings)?;
+    // The streams' slow clock drift: where it is significant (and the
+    // offsets are compensated), the streams are put on the wheels' clock
+    // rate and the drive is prepared again (its constant offsets are then
+    // those at the drift's reference time).
+    let drifts = clock_drifts(&prepared, drive, config);
+    let restamped = restamp(drive, &drifts);
+    let drive = match &restamped {
+        Some(d) => {
+            warnings.clear();
+            prepared = prep::prepare(d, config, &mut warnings)?;
+            d
+        }
+        None => drive,
+    };
+    drift_warnings(&drifts, &mut warnings);
     progress(Progress {
         stage: Stage::Reference,
         fraction: 0.1,
@@ -114,6 +130,8 @@ pub fn calibrate_with_progress(
         warnings,
     )?;
     cal.vehicle = Some(drive.vehicle.clone());
+    cal.clock_offsets.gnss_s.drift = drifts.gnss;
+    cal.clock_offsets.imu_s.drift = drifts.imu;
     if let Some(q) = cal
         .fit_quality
         .as_ref()
@@ -140,6 +158,134 @@ pub fn calibrate_with_progress(
         fraction: 1.0,
     });
     Ok(cal)
+}
+
+/// The GNSS and IMU clock drifts against the wheels.
+struct Drifts {
+    gnss: ClockDrift,
+    imu: ClockDrift,
+}
+
+/// A clock drift that could not be looked for, because `reason`.
+fn drift_not_determined(reason: String) -> ClockDrift {
+    ClockDrift {
+        status: OffsetStatus::NotDetermined,
+        reason: Some(reason),
+        ..ClockDrift::default()
+    }
+}
+
+/// Every stream's drift ([`clock_drift`]), marked applied where it is
+/// significant and `config` compensates the clocks.
+fn clock_drifts(p: &Prepared, drive: &Drive, config: &CalibrationConfig) -> Drifts {
+    if config.time_offset == TimeOffsetMode::Off {
+        let off = ClockDrift::not_checked("time offset check switched off");
+        return Drifts {
+            gnss: off.clone(),
+            imu: off,
+        };
+    }
+    let (Some(&t0), Some(&t1)) = (p.t.first(), p.t.last()) else {
+        let none = ClockDrift::not_checked("no wheel samples");
+        return Drifts {
+            gnss: none.clone(),
+            imu: none,
+        };
+    };
+    let t_ref = 0.5 * (t0 + t1);
+    let spans = clock_drift::windows(t0, t1);
+    let wheels = clocks::WheelTrack {
+        t: &p.t,
+        dn_rl: &p.dn_rl,
+        dn_rr: &p.dn_rr,
+        circumference_m: p.nominal_c,
+        track_m: p.track,
+    };
+    let apply = |mut d: ClockDrift| {
+        d.applied =
+            clock_drift::significant(&d) && config.time_offset == TimeOffsetMode::Compensate;
+        d
+    };
+    let gnss = if p.fixes.is_empty() {
+        ClockDrift::not_checked("the drive has no GNSS")
+    } else {
+        let fixes: Vec<(f64, f64, f64)> = p.fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
+        let mut given: Vec<f64> = p.fixes.iter().filter_map(|f| f.sigma).collect();
+        let motion = clock_drift::gnss_motion(&fixes, prep::median(&mut given));
+        let (whole, tries) = clock_drift::gnss_windows(&wheels, &motion, &spans);
+        if whole.status == OffsetStatus::Determined {
+            apply(clock_drift::judge(tries, (t0, t1), t_ref, &whole))
+        } else {
+            drift_not_determined(format!(
+                "the offset is not determined over the whole drive ({})",
+                whole.reason.as_deref().unwrap_or("no reason")
+            ))
+        }
+    };
+    let imu = match (drive.imu.as_deref(), &p.imu_clock) {
+        (None | Some([]), _) => ClockDrift::not_checked("the drive has no IMU"),
+        (Some(rows), whole) => match (whole.status, whole.offset_s) {
+            (OffsetStatus::Determined, Some(centre)) => {
+                let rows: Vec<clocks::ImuRow> = rows
+                    .iter()
+                    .map(|r| (r.t_s, r.gz_rad_s, r.ax_m_s2))
+                    .collect();
+                let tries = clock_drift::imu_windows(&wheels, &rows, &spans, centre);
+                apply(clock_drift::judge(tries, (t0, t1), t_ref, whole))
+            }
+            _ => drift_not_determined(
+                "the IMU offset is not determined over the whole drive".to_string(),
+            ),
+        },
+    };
+    Drifts { gnss, imu }
+}
+
+/// The drive with every stream whose drift is applied put on the wheels'
+/// clock rate (GNSS and heading by the GNSS's drift, the IMU by its own);
+/// `None` when no drift is applied.
+fn restamp(drive: &Drive, d: &Drifts) -> Option<Drive> {
+    let (g, i) = (d.gnss.applied_rate(), d.imu.applied_rate());
+    if g.is_none() && i.is_none() {
+        return None;
+    }
+    let mut out = drive.clone();
+    if let (Some(r), Some(t_ref)) = (g, d.gnss.ref_t_s) {
+        for s in out.gnss.iter_mut().flatten() {
+            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
+        }
+        for s in out.heading.iter_mut().flatten() {
+            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
+        }
+    }
+    if let (Some(r), Some(t_ref)) = (i, d.imu.ref_t_s) {
+        for s in out.imu.iter_mut().flatten() {
+            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
+        }
+    }
+    Some(out)
+}
+
+/// A warning per significant drift.
+fn drift_warnings(d: &Drifts, warnings: &mut Vec<Warning>) {
+    for (name, x) in [("gnss", &d.gnss), ("imu", &d.imu)] {
+        if let (true, Some(ppm), Some(sigma)) =
+            (clock_drift::significant(x), x.drift_ppm, x.sigma_ppm)
+        {
+            warnings.push(Warning::new(
+                WarningCode::TimeOffset,
+                format!(
+                    "the {name} clock drifts {ppm:+.0} ppm against the wheels' (sigma {sigma:.0} ppm, from {} windows){}",
+                    x.windows.len(),
+                    if x.applied {
+                        "; its times were corrected for it, the offset is the one at the middle of the drive"
+                    } else {
+                        "; not compensated"
+                    }
+                ),
+            ));
+        }
+    }
 }
 
 /// The fit quality of the model the estimate came from: the wheel + gyro

@@ -77,6 +77,7 @@ pub fn render_text(c: &Calibration) -> String {
         ("IMU", &c.clock_offsets.imu_s),
     ] {
         let _ = writeln!(s, "clock offset: {name} {}", clock_offset(o));
+        let _ = writeln!(s, "clock drift: {name} {}", o.drift);
     }
     let _ = writeln!(s);
     let _ = writeln!(

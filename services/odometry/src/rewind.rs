@@ -129,6 +129,18 @@ impl RewindingFusion {
         }
     }
 
+    /// Go back up to `window_s` of drive time from now on (the sensor clocks
+    /// of a new estimate can make samples come later than before; a shorter
+    /// window takes effect as the log is trimmed).
+    pub fn set_window_s(&mut self, window_s: f64) {
+        self.config.window_s = window_s.max(0.0);
+    }
+
+    /// How far back it goes, s.
+    pub fn window_s(&self) -> f64 {
+        self.config.window_s
+    }
+
     /// The filter (its pose, parameters, counters).
     pub fn fusion(&self) -> &Fusion {
         &self.fusion

@@ -39,6 +39,18 @@
 //! - A new estimate is taken between two samples: the pose stays where it is,
 //!   the next increments use the new values; the switch is logged with the
 //!   old and new values.
+//! - Sensor clocks: the estimate's clock offsets and drifts (the clock model
+//!   extensions, or the initial estimate's `clock_offsets`) put the wheel
+//!   and IMU stamps on the GNSS clock as they are drained, as `odometry
+//!   evaluate` aligns a drive ([`StreamClocks::align`]); poses carry the
+//!   restamped wheel times. A stream restamped later than the wheels makes
+//!   its samples come after the wheel samples of their instant: the rewind
+//!   window grows by that lateness ([`StreamClocks::max_lateness_s`]) so
+//!   that they are taken in their place; one restamped earlier waits in the
+//!   sequencer for the wheels. A sample beyond the window is counted
+//!   (`rewind.beyond_window`), never dropped silently. A new estimate whose
+//!   clocks move the wheels back by more than [`RESTART_BACKSTEP_S`] looks
+//!   like a restarted publisher: the filter starts over.
 //! - The GNSS antenna position (the lever arm of the fixes) is
 //!   `vehicle.toml`'s `[gnss]` when given: measured, it is never replaced.
 //!   Otherwise it comes from the estimate (the calibrator fits it: file
@@ -81,7 +93,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use vehicle_model::estimate::{gnss_lever_arm, Estimate, OdometryParams, ParamsError};
+use vehicle_model::estimate::{
+    gnss_lever_arm, Estimate, OdometryParams, ParamsError, StreamClocks,
+};
 use vehicle_model::estimate_gate::EstimateGate;
 
 /// How often the notifications of the topics that wake nobody (IMU, GNSS,
@@ -406,6 +420,9 @@ struct Inputs {
     estimate: TopicSubscriber<CircumferenceEstimate>,
     /// What an estimate from the bus must pass before it is used.
     gate: std::cell::RefCell<EstimateGate>,
+    /// The sensor clocks of the estimate in use: the wheel and IMU stamps
+    /// are put on the GNSS clock with them as they are drained.
+    clocks: std::cell::Cell<StreamClocks>,
 }
 
 impl Inputs {
@@ -417,6 +434,7 @@ impl Inputs {
             heading: bus.subscriber()?,
             estimate: bus.subscriber()?,
             gate: std::cell::RefCell::new(gate),
+            clocks: std::cell::Cell::new(StreamClocks::default()),
         })
     }
 
@@ -438,16 +456,17 @@ impl Inputs {
         // published before it, so it is in its queue now and lands in this
         // batch too. (Other streams may run ahead of the wheels; the
         // sequencer keeps them until the wheels pass their time.)
+        let clocks = self.clocks.get();
         while let Some(s) = self.wheels.receive()? {
             sequencer.push(Input::Wheels {
-                t_s: s.header.t_s(),
+                t_s: clocks.wheel_time_on_gnss_clock(s.header.t_s()),
                 rl_rev: s.rl_rev,
                 rr_rev: s.rr_rev,
             });
         }
         while let Some(s) = self.imu.receive()? {
             sequencer.push(Input::Imu {
-                t_s: s.header.t_s(),
+                t_s: clocks.imu_time_on_gnss_clock(s.header.t_s()),
                 gz_rad_s: s.gz_rad_s,
             });
         }
@@ -535,11 +554,21 @@ impl Inputs {
                 });
             match checked {
                 // Taken between two samples: sorted before the wheels of this batch.
-                Ok(estimate) => sequencer.push(Input::Estimate {
-                    t_s: f64::NEG_INFINITY,
-                    version: s.version,
-                    estimate,
-                }),
+                Ok(estimate) => {
+                    if estimate.clocks != self.clocks.get() {
+                        tracing::info!(
+                            "odometry: sensor clocks from estimate v{}: {}",
+                            s.version,
+                            describe_clocks(&estimate.clocks)
+                        );
+                        self.clocks.set(estimate.clocks);
+                    }
+                    sequencer.push(Input::Estimate {
+                        t_s: f64::NEG_INFINITY,
+                        version: s.version,
+                        estimate,
+                    })
+                }
                 Err(e) => {
                     rejected += 1;
                     tracing::warn!("odometry: estimate rejected: {e}");
@@ -548,6 +577,19 @@ impl Inputs {
         }
         Ok(rejected)
     }
+}
+
+/// The sensor clocks' lateness is taken over this much drive time ahead, s
+/// (a drift makes it grow slowly).
+const CLOCK_LATENESS_HORIZON_S: f64 = 3600.0;
+
+/// The clocks for a log line.
+fn describe_clocks(c: &StreamClocks) -> String {
+    format!(
+        "GNSS {:+.3} s {:+.0} ppm, IMU {:+.3} s {:+.0} ppm against the wheels; wheel and IMU stamps \
+         are put on the GNSS clock",
+        c.gnss_late_s, c.gnss_drift_ppm, c.imu_late_s, c.imu_drift_ppm
+    )
 }
 
 /// The pose kept in `path`, if there is one. A file that cannot be read is
@@ -833,6 +875,17 @@ pub fn serve(
             .map_err(|e| ServeError::ImplausibleEstimate(format!("the initial estimate: {e}")))?;
     }
     let inputs = Inputs::open(bus, gate)?;
+    if let Some(initial) = &config.initial {
+        inputs.clocks.set(initial.clocks);
+        if !initial.clocks.is_zero() {
+            tracing::info!(
+                "odometry: sensor clocks from the initial estimate: {}",
+                describe_clocks(&initial.clocks)
+            );
+        }
+    }
+    // The rewind window the clocks need, last set for these clocks.
+    let mut window_for: Option<StreamClocks> = None;
     let mut poses: TopicPublisher<Pose> = bus.publisher()?;
     let mut pose_stream_ended = false;
     // (pose time, wall clock at the wakeup that brought its wheel sample, wall clock when
@@ -908,6 +961,23 @@ pub fn serve(
             0
         };
         batch.clear();
+        let clocks = inputs.clocks.get();
+        if window_for != Some(clocks) {
+            // Restamped onto the GNSS clock, a stream's samples may come
+            // later than the wheel samples of their instant: the filter goes
+            // back that much further for them (a sample beyond it is counted
+            // in the rewind stats, never dropped silently).
+            let t = last_wheel_t.unwrap_or(0.0);
+            let window =
+                config.rewind.window_s + clocks.max_lateness_s(t, t + CLOCK_LATENESS_HORIZON_S);
+            if config.rewind.window_s > 0.0 && window != filter.window_s() {
+                tracing::info!(
+                    "odometry: going back up to {window:.2} s for samples the sensor clocks make late"
+                );
+                filter.set_window_s(window);
+            }
+            window_for = Some(clocks);
+        }
         inputs.drain(&mut sequencer)?;
         sequencer.release(&mut batch);
         report_dropped(&sequencer, &mut dropped_reported, &mut summary);

@@ -954,3 +954,154 @@ fn estimates_no_calibration_can_give_are_refused() {
     drop((bus, other_bus));
     settings.remove_leftovers();
 }
+
+/// Drive east for 10 s with the wheel stamps `wheels_late_s` late against
+/// the GNSS and IMU, every sample published in the order of its stamp (as
+/// the bridge replays a recording), the service starting from an estimate
+/// with `clocks`. Returns the poses and the summary.
+fn east_with_wheel_clock(
+    root: &std::path::Path,
+    wheels_late_s: f64,
+    clocks: vehicle_model::estimate::StreamClocks,
+) -> (Vec<Pose>, ServeSummary) {
+    let settings = BusSettings::isolated("odoclk", root);
+    let mut config = base_config(&settings);
+    let mut initial = Estimate {
+        params: OdometryParams::nominal(&vehicle()),
+        sigma_m: None,
+        quality_m: None,
+        antenna_m: None,
+        antenna_sigma_m: None,
+        effects: Default::default(),
+        clocks: Default::default(),
+    };
+    initial.clocks = clocks;
+    config.initial = Some(initial);
+    let (shutdown, service) = spawn_service(config);
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let mut sensors = Sensors::open_when_subscribed(&bus);
+    let n = 1000usize;
+    // (stamp, rank: imu 0, gnss 1, wheels 2, instant)
+    let mut events: Vec<(f64, u8, usize)> = Vec::new();
+    for i in 0..=n {
+        let t = i as f64 * 0.01;
+        events.push((t, 0, i));
+        if i.is_multiple_of(20) && i > 0 {
+            events.push((t, 1, i));
+        }
+        events.push((t + wheels_late_s, 2, i));
+    }
+    events.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut poses = Vec::new();
+    let mut wheels_sent = 0;
+    for (stamp, kind, i) in events {
+        let t = i as f64 * 0.01;
+        // Speeding up and slowing down (4.8..15.2 m/s): a time shift of the
+        // wheels then moves their increments off the fixes'.
+        let x = V * t + 4.0 * (1.3 * t).sin();
+        match kind {
+            0 => {
+                sensors
+                    .imu
+                    .publish(Imu {
+                        header: Header::from_seconds(stamp, 0),
+                        ..Imu::default()
+                    })
+                    .expect("publish imu");
+            }
+            1 => {
+                sensors
+                    .gnss
+                    .publish(GnssFix {
+                        header: Header::from_seconds(stamp, 0),
+                        // A wobble, so that late fixes would show.
+                        x_m: x + 0.03 * (1.7 * i as f64).sin(),
+                        y_m: 0.03 * (2.3 * i as f64).cos(),
+                        sigma_m: 0.05,
+                        fix: 1,
+                        _pad: [0; 7],
+                    })
+                    .expect("publish gnss");
+            }
+            _ => {
+                let rev = x / C;
+                sensors
+                    .wheels
+                    .publish(WheelRotations {
+                        header: Header::from_seconds(stamp, 0),
+                        rl_rev: rev,
+                        rr_rev: rev,
+                        ..WheelRotations::default()
+                    })
+                    .expect("publish wheels");
+                wheels_sent += 1;
+                collect(&poses_sub, &mut poses, wheels_sent);
+            }
+        }
+    }
+    let summary = stop_service(&shutdown, service);
+    drop((sensors, poses_sub));
+    drop(bus);
+    settings.remove_leftovers();
+    (poses, summary)
+}
+
+/// Wheel stamps 0.4 s late or early against the GNSS and IMU: with the
+/// estimate's clock offsets the service puts them on the GNSS clock and
+/// serves the poses of the unshifted drive (the other streams wait in the
+/// sequencer, or come late and are taken in their place by going back);
+/// without, the poses are off by the shift.
+#[test]
+fn the_estimate_s_clock_offsets_are_applied_live() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let none = vehicle_model::estimate::StreamClocks::default();
+    let (clean, _) = east_with_wheel_clock(root.path(), 0.0, none);
+    let fused = |p: &[Pose]| p.iter().filter(|p| p.mode == PoseMode::Fused as u8).count();
+    assert!(fused(&clean) > 800, "{}", fused(&clean));
+    // Largest position difference over the last half of the drive, poses
+    // paired by time.
+    let worst = |a: &[Pose]| {
+        let mut w = 0.0f64;
+        for p in &a[a.len() / 2..] {
+            // (Without the offsets the last poses have no clean partner.)
+            if let Some(q) = clean
+                .iter()
+                .find(|q| (q.header.t_s() - p.header.t_s()).abs() < 1e-6)
+            {
+                w = w.max((p.x_m - q.x_m).hypot(p.y_m - q.y_m));
+            }
+        }
+        w
+    };
+    for shift in [0.4, -0.4] {
+        // Wheels late by `shift`: the GNSS and IMU are late by -shift against them.
+        let clocks = vehicle_model::estimate::StreamClocks {
+            gnss_late_s: -shift,
+            imu_late_s: -shift,
+            ..none
+        };
+        let (applied, summary) = east_with_wheel_clock(root.path(), shift, clocks);
+        assert_eq!(applied.len(), clean.len());
+        let e = worst(&applied);
+        eprintln!(
+            "wheels {shift:+.1} s late, offsets applied: worst {e:.4} m, rewinds {}, beyond window {}",
+            summary.rewind.rewinds, summary.rewind.beyond_window
+        );
+        // (Not bit for bit: the restamped wheel times differ from the
+        // fixes' by nanoseconds, which may order a fix after its wheel sample.)
+        assert!(e < 0.02, "{shift}: {e} m");
+        assert_eq!(summary.rewind.beyond_window, 0);
+        if shift < 0.0 {
+            // The fixes come 0.4 s after their wheel samples: taken by going back.
+            assert!(summary.rewind.rewinds >= 40, "{:?}", summary.rewind);
+        }
+        // Without the offsets the wheel increments are `shift` off the
+        // fixes': the fused poses are off the clean ones.
+        let (plain, _) = east_with_wheel_clock(root.path(), shift, none);
+        let off = worst(&plain);
+        eprintln!("wheels {shift:+.1} s late, offsets not applied: worst {off:.3} m");
+        assert!(off > 0.2 && off > 10.0 * e, "{shift}: {off} m");
+    }
+}

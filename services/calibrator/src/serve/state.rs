@@ -55,7 +55,15 @@ impl Accepted {
             extensions[count] = antenna_extension(a, e.sigma_gnss_antenna_m);
             count += 1;
         }
-        for x in EffectTerms::from(e.effects).to_extensions() {
+        // The clocks before the effect terms: a clock left out would put
+        // every pose off by its offset.
+        for x in e
+            .clock_offsets
+            .stream_clocks()
+            .to_extensions()
+            .into_iter()
+            .chain(EffectTerms::from(e.effects).to_extensions())
+        {
             if count < MAX_EXTENSIONS {
                 extensions[count] = x;
                 count += 1;
@@ -156,6 +164,18 @@ mod tests {
                 sigma_gnss_antenna_m: Some([0.02, 0.03]),
                 quality_m: 0.8,
                 effects: Default::default(),
+                clock_offsets: calibrator::live::LiveClocks {
+                    gnss_s: calibrator::live::LiveClock {
+                        offset_s: Some(-0.4),
+                        applied: true,
+                        drift: calibrator::live::LiveDrift {
+                            drift_ppm: Some(-150.0),
+                            ref_t_s: Some(600.0),
+                            applied: true,
+                        },
+                    },
+                    imu_s: Default::default(),
+                },
             },
         }
     }
@@ -225,13 +245,26 @@ mod tests {
         assert_eq!(w.version, 3);
         assert_eq!((w.c_rl_m, w.c_rr_m, w.sigma_rr_m), (1.98, 1.99, 2e-3));
         assert_eq!(w.quality_m, 0.8);
-        assert_eq!(w.extension_count, 2);
+        assert_eq!(w.extension_count, 3);
         assert_eq!(w.extensions[0].effect_code, Effect::SideSlip.code());
         assert_eq!(w.extensions[0].params[0], 0.004);
         // The odometry reads the antenna back from the second extension.
         let est = vehicle_model::estimate::Estimate::from_wire(&w).unwrap();
         assert_eq!(est.antenna_m, Some([0.5, -0.3]));
         assert_eq!(est.fusable_antenna(), Some([0.5, -0.3]));
+        // The clocks the calibration applied, as the file's reader sees them.
+        let c = est.clocks;
+        assert_eq!(
+            (c.gnss_late_s, c.gnss_drift_ppm, c.gnss_ref_t_s),
+            (-0.4, -150.0, 600.0)
+        );
+        assert_eq!(c.imu_late_s, 0.0);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("state.json");
+        save_state(&path, &accepted()).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let from_file = vehicle_model::estimate::Estimate::from_json_str(&text, "state").unwrap();
+        assert_eq!(from_file.clocks, c);
         assert_eq!(w.header.t_ns, 12_500_000_000);
     }
 
