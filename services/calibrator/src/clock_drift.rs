@@ -34,6 +34,11 @@ pub const MAX_WINDOWS: usize = 8;
 pub const MIN_WINDOWS: usize = 3;
 /// A drift is significant beyond this many sigma.
 pub const SIGNIFICANCE: f64 = 3.0;
+/// Half-width of a window's offset search about the whole drive's offset,
+/// s: a drift moves a window's offset by less than this from the whole
+/// drive's unless it exceeds 1 s over half the drive (140 ppm over a 4 h
+/// drive, far beyond a crystal's); beyond it the window says so.
+const WINDOW_SEARCH_S: f64 = 1.0;
 /// Half-width of the wheel speed's window compared with the GNSS speed, s.
 const SPEED_HALF_WINDOW_S: f64 = 0.25;
 /// Process noise (white acceleration) of the GNSS velocity smoother, m^2/s^3.
@@ -384,20 +389,14 @@ pub fn gnss_windows(
     let (xs, xy) = (Sampled { t, v: &v }, Sampled { t, v: &yaw });
     let pad = 2.0 * SPEED_HALF_WINDOW_S;
     let needs = "speed changes (accelerating and braking) or turns with GNSS";
-    let fits = |speeds: &[(f64, f64)], rates: &[(f64, f64)]| {
-        vec![
-            (
-                "speed",
-                clocks::fit_lag(speeds, &xs, CLOCK_SEARCH_S, pad, false),
-            ),
-            (
-                "course rate",
-                clocks::fit_lag(rates, &xy, CLOCK_SEARCH_S, pad, true),
-            ),
-        ]
-    };
     let whole = clocks::first_determined(
-        fits(&motion.speeds, &motion.course_rates),
+        lazy_fits(
+            &motion.speeds,
+            &motion.course_rates,
+            (&xs, &xy),
+            pad,
+            CLOCK_SEARCH_S,
+        ),
         CLOCK_SEARCH_S,
         needs,
     );
@@ -409,7 +408,8 @@ pub fn gnss_windows(
             // clock sits `centre` later on the GNSS's.
             let s = in_window(&motion.speeds, a + centre, b + centre, centre);
             let r = in_window(&motion.course_rates, a + centre, b + centre, centre);
-            let o = clocks::first_determined(fits(&s, &r), CLOCK_SEARCH_S, needs);
+            let fits = lazy_fits(&s, &r, (&xs, &xy), pad, WINDOW_SEARCH_S);
+            let o = clocks::first_determined(fits, WINDOW_SEARCH_S, needs);
             match (o.offset_s, o.sigma_s) {
                 (Some(off), Some(sigma)) => Ok(WindowOffset {
                     t_s: 0.5 * (a + b),
@@ -421,6 +421,28 @@ pub fn gnss_windows(
         })
         .collect();
     (whole, tries)
+}
+
+/// The GNSS offset's tries, lazily: the speed against the wheel speed,
+/// then (only where that does not determine it) the course rate against
+/// the wheels' yaw rate.
+fn lazy_fits<'a>(
+    speeds: &'a [(f64, f64)],
+    rates: &'a [(f64, f64)],
+    wheels: (&'a Sampled<'a>, &'a Sampled<'a>),
+    pad: f64,
+    search_s: f64,
+) -> impl Iterator<Item = (&'static str, Result<clocks::LagFit, clocks::LagFailure>)> + 'a {
+    [("speed", false), ("course rate", true)]
+        .into_iter()
+        .map(move |(name, by_course)| {
+            let fit = if by_course {
+                clocks::fit_lag(rates, wheels.1, search_s, pad, true)
+            } else {
+                clocks::fit_lag(speeds, wheels.0, search_s, pad, false)
+            };
+            (name, fit)
+        })
 }
 
 /// The IMU's offset in every window of `spans` ([`clocks::imu_offset`] on
@@ -441,7 +463,7 @@ pub fn imu_windows(
                 .iter()
                 .map(|r| (r.0 - centre_s, r.1, r.2))
                 .collect();
-            let o = clocks::imu_offset(wheels, &rows, CLOCK_SEARCH_S);
+            let o = clocks::imu_offset(wheels, &rows, WINDOW_SEARCH_S);
             match (o.status, o.offset_s, o.sigma_s) {
                 (OffsetStatus::Determined, Some(off), Some(s)) => Ok(WindowOffset {
                     t_s: 0.5 * (a + b),

@@ -560,8 +560,8 @@ pub(crate) fn judge(fit: Result<LagFit, LagFailure>, search_s: f64) -> Result<La
 /// Determined from the first signal pair that determines it, else "not
 /// determined" naming every failure and `needs` (the manoeuvre that would
 /// determine it).
-pub fn first_determined(
-    tries: Vec<(&str, Result<LagFit, LagFailure>)>,
+pub fn first_determined<'a>(
+    tries: impl IntoIterator<Item = (&'a str, Result<LagFit, LagFailure>)>,
     search_s: f64,
     needs: &str,
 ) -> StreamOffset {
@@ -684,10 +684,12 @@ pub fn imu_offset(wheels: &WheelTrack<'_>, imu: &[ImuRow], search_s: f64) -> Str
         .collect();
     let yaw = windowed_rate(t, &yaw_inc, h);
     let obs = binned(rows.iter().map(|r| (r.0, r.1)), IMU_BIN_S);
-    let mut tries = vec![(
-        "yaw rate",
-        fit_lag(&obs, &Sampled { t, v: &yaw }, search_s, 2.0 * h, true),
-    )];
+    let by_yaw = fit_lag(&obs, &Sampled { t, v: &yaw }, search_s, 2.0 * h, true);
+    if let Ok(f) = judge(by_yaw, search_s) {
+        // Determined: the acceleration is not needed.
+        return StreamOffset::determined(&f, "yaw rate");
+    }
+    let mut tries = vec![("yaw rate", by_yaw)];
     let accel: Vec<(f64, f64)> = rows
         .iter()
         .filter_map(|r| r.2.filter(|a| a.is_finite()).map(|a| (r.0, a)))

@@ -54,9 +54,9 @@ const MIN_PAIRS: usize = 30;
 /// Simulated error series per candidate correlation time.
 const REALISATIONS: usize = 10;
 /// Fixes the simulations run on at most (whole segments, evenly spread).
-const SIMULATED_FIXES: usize = 5000;
+const SIMULATED_FIXES: usize = 4000;
 /// Ratio between neighbouring candidate correlation times.
-const TAU_STEP: f64 = 1.8;
+const TAU_STEP: f64 = 2.0;
 /// The longest candidate correlation time, in longest lags seen.
 const TAU_SPAN: f64 = 30.0;
 /// Starting points per lag of the variogram at most (evenly spread).

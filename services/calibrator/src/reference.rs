@@ -170,7 +170,22 @@ impl PosTrack {
 /// explained by the measured acceleration.
 type Input = [f64; 4];
 
-/// Forward Kalman filter with innovation gate + RTS smoother on `p'' = a`.
+/// Huber threshold of the position smoother's reweighting, in units of a
+/// fix's residual sigma (the norm of a 2-D residual: about 4 % of normal
+/// fixes lie beyond it).
+const SMOOTHER_HUBER_K: f64 = 2.5;
+/// Reweighting passes of the position smoother at most.
+const SMOOTHER_REWEIGHTS: usize = 3;
+
+/// The robust position smoother: [`smooth_pass`] reweighted with Huber
+/// weights. Each fix's residual against the smoothed track, over its
+/// expected spread (the fix's sigma and the track's), gives its weight
+/// (1 within [`SMOOTHER_HUBER_K`], `k / u` beyond: the fix's variance grows
+/// with how far out it lies), and the smoother runs again, until the
+/// weights settle. Heavy-tailed GNSS errors (multipath, a receiver's
+/// wander) pull the track by a bounded amount instead of quadratically;
+/// the gate still keeps gross outliers out, and the jump detection
+/// (`crate::gnss_jumps`) sets whole offset stretches aside.
 fn smooth_positions(
     fixes: &[RefFix],
     z: &[[f64; 2]],
@@ -178,6 +193,49 @@ fn smooth_positions(
     gate: f64,
     inputs: Option<&[Input]>,
     set_aside: Option<&[bool]>,
+) -> Result<PosTrack, CalibrationError> {
+    let mut weights = vec![1.0; fixes.len()];
+    let mut track = smooth_pass(fixes, z, q, gate, inputs, set_aside, &weights)?;
+    for _ in 0..SMOOTHER_REWEIGHTS {
+        let mut changed = 0usize;
+        for (j, w) in weights.iter_mut().enumerate() {
+            if !track.accepted[j] {
+                continue;
+            }
+            let r = fixes[j].sigma * fixes[j].sigma;
+            let d = (z[j][0] - track.s[j][0]).hypot(z[j][1] - track.s[j][1]);
+            // The residual's spread taken as the fix's noise plus the
+            // track's own uncertainty (an upper bound: fewer fixes are
+            // down-weighted than with the exact residual variance).
+            let u = d / (r + track.cov[j].pp).max(1e-12).sqrt();
+            let new = if u <= SMOOTHER_HUBER_K {
+                1.0
+            } else {
+                SMOOTHER_HUBER_K / u
+            };
+            if (new - *w).abs() > 0.05 * *w {
+                changed += 1;
+            }
+            *w = new;
+        }
+        if changed == 0 {
+            break;
+        }
+        track = smooth_pass(fixes, z, q, gate, inputs, set_aside, &weights)?;
+    }
+    Ok(track)
+}
+
+/// One pass of the forward Kalman filter with innovation gate + RTS
+/// smoother on `p'' = a`; fix `j`'s variance divided by `weights[j]`.
+fn smooth_pass(
+    fixes: &[RefFix],
+    z: &[[f64; 2]],
+    q: f64,
+    gate: f64,
+    inputs: Option<&[Input]>,
+    set_aside: Option<&[bool]>,
+    weights: &[f64],
 ) -> Result<PosTrack, CalibrationError> {
     let n = fixes.len();
     // The kinematic input of the interval ending at fix j: none next to a
@@ -198,7 +256,7 @@ fn smooth_positions(
     let mut rejects_in_row = 0usize;
     let mut last_rejected: Option<(f64, [f64; 2])> = None;
     for j in 0..n {
-        let r = fixes[j].sigma * fixes[j].sigma;
+        let r = fixes[j].sigma * fixes[j].sigma / weights[j].max(1e-6);
         if j == 0 {
             xf.push([z[0][0], z[0][1], 0.0, 0.0]);
             let c = Cov2 {
@@ -447,6 +505,10 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         )
     };
     let by_speed = fit(&speeds, &speed, false);
+    if let Ok(f) = clocks::judge(by_speed, CLOCK_SEARCH_S) {
+        // Determined by the speed: the course rate is not needed.
+        return clocks::StreamOffset::determined(&f, "speed");
+    }
     // The course leads or lags the heading by the side-slip's response,
     // about k v (beta = -k a_y): a systematic the fit cannot see at
     // constant speed, added to its sigma.
