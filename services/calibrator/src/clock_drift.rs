@@ -447,19 +447,19 @@ fn lazy_fits<'a>(
 
 /// The IMU's offset in every window of `spans` ([`clocks::imu_offset`] on
 /// the IMU rows of the window), centred on the whole drive's `centre_s`.
+/// `imu`: rows with finite times, in time order.
 pub fn imu_windows(
     wheels: &WheelTrack<'_>,
     imu: &[ImuRow],
     spans: &[(f64, f64)],
     centre_s: f64,
 ) -> Vec<Result<WindowOffset, String>> {
-    let finite: Vec<ImuRow> = imu.iter().copied().filter(|r| r.0.is_finite()).collect();
     spans
         .iter()
         .map(|&(a, b)| {
-            let i0 = finite.partition_point(|r| r.0 < a + centre_s);
-            let i1 = finite.partition_point(|r| r.0 < b + centre_s);
-            let rows: Vec<ImuRow> = finite[i0..i1]
+            let i0 = imu.partition_point(|r| r.0 < a + centre_s);
+            let i1 = imu.partition_point(|r| r.0 < b + centre_s);
+            let rows: Vec<ImuRow> = imu[i0..i1]
                 .iter()
                 .map(|r| (r.0 - centre_s, r.1, r.2))
                 .collect();

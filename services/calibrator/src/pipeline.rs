@@ -226,8 +226,11 @@ fn clock_drifts(p: &Prepared, drive: &Drive, config: &CalibrationConfig) -> Drif
         (None | Some([]), _) => ClockDrift::not_checked("the drive has no IMU"),
         (Some(rows), whole) => match (whole.status, whole.offset_s) {
             (OffsetStatus::Determined, Some(centre)) => {
+                // One copy, the rows with a finite time (imu_windows
+                // takes them so).
                 let rows: Vec<clocks::ImuRow> = rows
                     .iter()
+                    .filter(|r| r.t_s.is_finite())
                     .map(|r| (r.t_s, r.gz_rad_s, r.ax_m_s2))
                     .collect();
                 let tries = clock_drift::imu_windows(&wheels, &rows, &spans, centre);

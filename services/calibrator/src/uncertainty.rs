@@ -255,7 +255,8 @@ pub fn observability(
             WarningCode::NoTurn,
             format!(
                 "no turn: the drive turns only {turn_deg:.0} deg in total; c_RR - c_RL is pinned only by how straight \
-                 the path runs (road camber and side-slip bias it) and the track width cannot be estimated"
+                 the path runs: its sigma is for this road (its camber, crosswind and load act the same way throughout \
+                 and are in the estimate; another road's may differ by more), and the track width cannot be estimated"
             ),
         ));
     }
