@@ -33,6 +33,8 @@ pub const MAX_OFFSET_SIGMA_S: f64 = 0.1;
 pub const MIN_EXPLAINED: f64 = 0.5;
 /// Coarse grid step, s.
 const COARSE_STEP_S: f64 = 0.1;
+/// Observations the coarse grid looks at, at most (evenly spread).
+const COARSE_SAMPLES: usize = 4000;
 /// Fine grid step, s.
 const FINE_STEP_S: f64 = 0.01;
 /// Fine grid half-width in steps (+-0.5 s).
@@ -469,12 +471,24 @@ pub fn fit_lag(
         }
         a
     };
-    // Coarse.
+    // Coarse, on at most about COARSE_SAMPLES of the observations (evenly
+    // spread): it only has to find the neighbourhood of the minimum, which
+    // the fine grid then resolves with every observation.
+    let stride = obs.len().div_ceil(COARSE_SAMPLES).max(1);
+    let eval_coarse = |lag: f64| -> Option<Sums> {
+        let mut s = Sums::default();
+        let t_first = obs[0].0 - lag;
+        let mut cursor = x.t.partition_point(|&t| t <= t_first).saturating_sub(1);
+        for &(t, y) in obs.iter().step_by(stride) {
+            s.add(x.at(t - lag, &mut cursor)?, y);
+        }
+        Some(s)
+    };
     let nc = (search_s / COARSE_STEP_S).round() as i64;
     let mut coarse = Vec::with_capacity((2 * nc + 1) as usize);
     for i in -nc..=nc {
-        let s = eval(i as f64 * COARSE_STEP_S).ok_or(LagFailure::TooFew)?;
-        coarse.push(total(&s).sst_sse(intercept).ok_or(LagFailure::Flat)?.1);
+        let s = eval_coarse(i as f64 * COARSE_STEP_S).ok_or(LagFailure::TooFew)?;
+        coarse.push(s.sst_sse(intercept).ok_or(LagFailure::Flat)?.1);
     }
     let ic = argmin(&coarse).ok_or(LagFailure::Flat)?;
     if ic == 0 || ic + 1 == coarse.len() {
