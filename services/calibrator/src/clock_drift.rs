@@ -270,36 +270,14 @@ fn smooth_velocity(t: &[f64], p: &[f64], r: f64, q: f64) -> Vec<f64> {
     v
 }
 
-/// Median of the fixes' second differences (MAD, per axis), the GNSS
-/// position noise measured on the drive, m.
-fn measured_noise(fixes: &[(f64, f64, f64)]) -> Option<f64> {
-    let mut d: Vec<f64> = fixes
-        .windows(3)
-        .filter(|w| {
-            let (h0, h1) = (w[1].0 - w[0].0, w[2].0 - w[1].0);
-            h0 > 0.0 && h1 > 0.0 && h0 <= 1.5 && (h0 - h1).abs() <= 0.25 * h0.max(h1)
-        })
-        .flat_map(|w| {
-            [
-                (w[2].1 - 2.0 * w[1].1 + w[0].1).abs(),
-                (w[2].2 - 2.0 * w[1].2 + w[0].2).abs(),
-            ]
-        })
-        .collect();
-    if d.len() < 10 {
-        return None;
-    }
-    d.sort_by(f64::total_cmp);
-    Some(1.4826 * d[d.len() / 2] / 6f64.sqrt())
-}
-
 /// The GNSS motion along the drive from a constant-velocity smoother of
 /// the fixes `(t, x, y)` (increasing times) with the position noise
 /// `sigma_m` (measured from the fixes when `None`): the speeds, m/s, where
 /// faster than 1 m/s, and the course rates, rad/s, where faster than 2 m/s.
 pub fn gnss_motion(fixes: &[(f64, f64, f64)], sigma_m: Option<f64>) -> GnssMotion {
     let mut out = GnssMotion::default();
-    let Some(sigma) = measured_noise(fixes).or(sigma_m).map(|s| s.max(0.005)) else {
+    let measured = crate::prep::gnss_scatter_sigma(fixes);
+    let Some(sigma) = measured.or(sigma_m).map(|s| s.max(0.005)) else {
         return out;
     };
     let r = sigma * sigma;

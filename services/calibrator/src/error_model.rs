@@ -222,17 +222,8 @@ impl Linearisation {
 
     /// The median interval between fixes, s.
     fn fix_interval(&self) -> Option<f64> {
-        let mut d: Vec<f64> = self
-            .fixes
-            .windows(2)
-            .map(|w| w[1].t - w[0].t)
-            .filter(|d| *d > 0.0)
-            .collect();
-        if d.is_empty() {
-            return None;
-        }
-        d.sort_by(f64::total_cmp);
-        Some(d[d.len() / 2])
+        let t: Vec<f64> = self.fixes.iter().map(|f| f.t).collect();
+        crate::clocks::median_interval(&t)
     }
 
     /// One axis of `values` as the variogram's series: per segment, the

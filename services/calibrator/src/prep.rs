@@ -156,6 +156,26 @@ pub(crate) fn median(values: &mut [f64]) -> Option<f64> {
     Some(values[values.len() / 2])
 }
 
+/// The GNSS position noise measured on the fixes `(t, x, y)` (increasing
+/// times), m: the MAD of the second differences of equally spaced fixes
+/// (variance 6 sigma^2 for white noise), both axes pooled. `None` with
+/// fewer than ten differences.
+pub(crate) fn gnss_scatter_sigma(fixes: &[(f64, f64, f64)]) -> Option<f64> {
+    let mut d = Vec::new();
+    for w in fixes.windows(3) {
+        let (h0, h1) = (w[1].0 - w[0].0, w[2].0 - w[1].0);
+        if h0 <= 0.0 || h1 <= 0.0 || h0 > 1.5 || h1 > 1.5 || (h0 - h1).abs() > 0.25 * h0.max(h1) {
+            continue;
+        }
+        d.push((w[2].1 - 2.0 * w[1].1 + w[0].1).abs());
+        d.push((w[2].2 - 2.0 * w[1].2 + w[0].2).abs());
+    }
+    if d.len() < 10 {
+        return None;
+    }
+    Some(1.4826 * median(&mut d)? / 6f64.sqrt())
+}
+
 /// Check and convert `drive`. Skipped values go into `warnings`.
 pub fn prepare(
     drive: &Drive,

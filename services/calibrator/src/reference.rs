@@ -418,24 +418,10 @@ fn smooth_pass(
     })
 }
 
-/// GNSS noise from the fixes: MAD of second differences, per axis.
+/// GNSS noise from the fixes ([`crate::prep::gnss_scatter_sigma`]).
 fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
-    let mut d = Vec::new();
-    for w in fixes.windows(3) {
-        let (h0, h1) = (w[1].t - w[0].t, w[2].t - w[1].t);
-        if h0 <= 0.0 || h1 <= 0.0 || h0 > 1.5 || h1 > 1.5 || (h0 - h1).abs() > 0.25 * h0.max(h1) {
-            continue;
-        }
-        // Second difference of equally spaced samples: variance 6 sigma^2 for white noise.
-        d.push((w[2].x - 2.0 * w[1].x + w[0].x).abs());
-        d.push((w[2].y - 2.0 * w[1].y + w[0].y).abs());
-    }
-    if d.len() < 10 {
-        return None;
-    }
-    d.sort_by(f64::total_cmp);
-    let mad = d[d.len() / 2];
-    Some(1.4826 * mad / 6f64.sqrt())
+    let points: Vec<(f64, f64, f64)> = fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
+    crate::prep::gnss_scatter_sigma(&points)
 }
 
 /// Estimate the GNSS clock offset against the wheels over
