@@ -25,7 +25,6 @@ use crate::geodesy::LocalFrame;
 use interfaces::drive::{GnssSample, TruthSample};
 use serde::Serialize;
 use serde_json::{json, Value};
-use std::collections::BTreeMap;
 
 /// Channel of the GNSS fixes as `foxglove.LocationFix` (Map panel).
 pub const LOCATION_TOPIC: &str = "/gnss/location";
@@ -329,9 +328,6 @@ impl Outgoing for LocationOut<'_> {
     fn schema(&self) -> Vec<u8> {
         location_fix_schema()
     }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
-    }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.samples.iter().map(|s| s.t_s))
     }
@@ -383,9 +379,6 @@ impl Outgoing for TruthPoseOut<'_> {
     fn schema(&self) -> Vec<u8> {
         pose_in_frame_schema()
     }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
-    }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.samples.iter().map(|s| s.t_s))
     }
@@ -421,9 +414,6 @@ impl Outgoing for TruthTransformOut<'_> {
     }
     fn schema(&self) -> Vec<u8> {
         frame_transform_schema()
-    }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
     }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.samples.iter().map(|s| s.t_s))
@@ -465,9 +455,6 @@ impl Outgoing for LogOut<'_> {
     fn schema(&self) -> Vec<u8> {
         log_schema()
     }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
-    }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.messages.iter().map(|_| self.t_s))
     }
@@ -505,9 +492,6 @@ impl Outgoing for ServedPoseOut<'_> {
     }
     fn schema(&self) -> Vec<u8> {
         pose_in_frame_schema()
-    }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
     }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.samples.iter().map(|s| s.t_s))
@@ -557,9 +541,6 @@ impl Outgoing for ServedLocationOut<'_> {
     }
     fn schema(&self) -> Vec<u8> {
         location_fix_schema()
-    }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
     }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.samples.iter().map(|s| s.t_s))

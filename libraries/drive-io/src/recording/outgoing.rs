@@ -14,8 +14,10 @@ pub(super) trait Outgoing {
     fn schema_name(&self) -> &'static str;
     /// Schema (JSON schema text).
     fn schema(&self) -> Vec<u8>;
-    /// Channel metadata.
-    fn metadata(&self) -> BTreeMap<String, String>;
+    /// Channel metadata (none unless a channel says otherwise).
+    fn metadata(&self) -> BTreeMap<String, String> {
+        BTreeMap::new()
+    }
     /// The sample times, in order.
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_>;
     /// JSON of sample `i` into `buf`; `None` when there is no sample `i`.

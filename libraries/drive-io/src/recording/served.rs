@@ -8,7 +8,6 @@
 use super::outgoing::Outgoing;
 use serde::Serialize;
 use serde_json::json;
-use std::collections::BTreeMap;
 
 /// Channel of the served poses (our schema [`POSE_SCHEMA`]).
 pub const POSE_TOPIC: &str = interfaces::wire::POSE_SERVICE;
@@ -118,9 +117,6 @@ impl Outgoing for PoseOut<'_> {
             ],
         )
     }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
-    }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.0.iter().map(|s| s.t_s))
     }
@@ -160,9 +156,6 @@ impl Outgoing for EstimateOut<'_> {
                 ("quality_m", "number", "Held-out dead-reckoning error, m"),
             ],
         )
-    }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
     }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.0.iter().map(|s| s.t_s))

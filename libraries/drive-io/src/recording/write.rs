@@ -35,9 +35,6 @@ impl<S: Stream> Outgoing for StreamOut<'_, S> {
     fn schema(&self) -> Vec<u8> {
         stream_schema::<S>()
     }
-    fn metadata(&self) -> BTreeMap<String, String> {
-        BTreeMap::new()
-    }
     fn times(&self) -> Box<dyn Iterator<Item = f64> + '_> {
         Box::new(self.0.iter().map(Stream::t_s))
     }
