@@ -220,6 +220,13 @@ impl Linearisation {
         }
     }
 
+    /// The fixes' indices in time order (segments share boundary times).
+    fn time_order(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.fixes.len()).collect();
+        order.sort_by(|&a, &b| self.fixes[a].t.total_cmp(&self.fixes[b].t));
+        order
+    }
+
     /// The median interval between fixes, s.
     fn fix_interval(&self) -> Option<f64> {
         let t: Vec<f64> = self.fixes.iter().map(|f| f.t).collect();
@@ -517,9 +524,10 @@ pub fn correlated_covariance(
     lin: &Linearisation,
     models: &[ErrorModel; 2],
 ) -> Option<DMatrix<f64>> {
+    let order = lin.time_order();
     Some(
-        axis_covariance(lin, &lin.gains(0), &models[0])?
-            + axis_covariance(lin, &lin.gains(1), &models[1])?,
+        axis_covariance(lin, &order, &lin.gains(0), &models[0])?
+            + axis_covariance(lin, &order, &lin.gains(1), &models[1])?,
     )
 }
 
@@ -529,16 +537,15 @@ pub fn correlated_covariance(
 /// in their number.
 fn axis_covariance(
     lin: &Linearisation,
+    order: &[usize],
     gains: &[DVector<f64>],
     m: &ErrorModel,
 ) -> Option<DMatrix<f64>> {
     let n = lin.ng;
-    let mut order: Vec<usize> = (0..lin.fixes.len()).collect();
-    order.sort_by(|&a, &b| lin.fixes[a].t.total_cmp(&lin.fixes[b].t));
     let mut c = DMatrix::zeros(n, n);
     let mut f = DVector::<f64>::zeros(n);
     let mut prev: Option<usize> = None;
-    for &i in &order {
+    for &i in order {
         let v = &gains[i];
         if let Some(p) = prev {
             f += &gains[p];
@@ -561,16 +568,20 @@ pub fn conservative_covariance(
     lin: &Linearisation,
     plausible: &[Vec<ErrorModel>; 2],
 ) -> Option<(DMatrix<f64>, [ErrorModel; 2])> {
+    let order = lin.time_order();
     let mut total: Option<DMatrix<f64>> = None;
     let mut used = Vec::with_capacity(2);
     for (axis, models) in plausible.iter().enumerate() {
         let gains = lin.gains(axis);
-        let best = axis_covariance(lin, &gains, models.first()?)?;
+        let best = axis_covariance(lin, &order, &gains, models.first()?)?;
         let n = best.nrows();
-        let mut chosen = (0.0, best.clone(), models[0]);
-        for m in models {
-            let c = axis_covariance(lin, &gains, m)?;
-            let inflation: f64 = (0..n).map(|i| c[(i, i)] / best[(i, i)].max(1e-300)).sum();
+        let inflation_of = |c: &DMatrix<f64>| -> f64 {
+            (0..n).map(|i| c[(i, i)] / best[(i, i)].max(1e-300)).sum()
+        };
+        let mut chosen = (inflation_of(&best), best.clone(), models[0]);
+        for m in models.iter().skip(1) {
+            let c = axis_covariance(lin, &order, &gains, m)?;
+            let inflation = inflation_of(&c);
             if inflation > chosen.0 {
                 chosen = (inflation, c, *m);
             }
