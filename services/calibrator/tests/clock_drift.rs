@@ -17,6 +17,26 @@ fn long_drive() -> Drive {
     simulate(&c).expect("simulate")
 }
 
+/// One line of what a calibration found of a stream's drift (the
+/// figures BENCHMARKS.md quotes, seen with `-- --nocapture`).
+fn print_drift(what: &str, c: &Calibration) {
+    for (name, o) in [
+        ("gnss", &c.clock_offsets.gnss_s),
+        ("imu", &c.clock_offsets.imu_s),
+    ] {
+        let x = &o.drift;
+        println!(
+            "{what}: {name} drift {:+.0} +- {:.0} ppm (visible from {:.0} ppm), applied {}, offset {:+.3} +- {:.3} s",
+            x.drift_ppm.unwrap_or(f64::NAN),
+            x.sigma_ppm.unwrap_or(f64::NAN),
+            x.detectable_ppm.unwrap_or(f64::NAN),
+            x.applied,
+            o.offset_s.unwrap_or(f64::NAN),
+            o.sigma_s.unwrap_or(f64::NAN),
+        );
+    }
+}
+
 fn rel_err(a: &Calibration, b: &Calibration) -> f64 {
     let e = |x: f64, y: f64| ((x - y) / y).abs();
     e(a.circumference_m.rl, b.circumference_m.rl).max(e(a.circumference_m.rr, b.circumference_m.rr))
@@ -27,6 +47,7 @@ fn a_wheel_clock_drift_of_200_ppm_is_found_applied_and_reported() {
     let d = long_drive();
     let config = CalibrationConfig::default();
     let clean = calibrate(&d, &config).unwrap();
+    print_drift("clean", &clean);
     for o in [&clean.clock_offsets.gnss_s, &clean.clock_offsets.imu_s] {
         let x = &o.drift;
         assert_eq!(x.status, OffsetStatus::Determined, "{x:?}");
@@ -44,6 +65,7 @@ fn a_wheel_clock_drift_of_200_ppm_is_found_applied_and_reported() {
     // The wheels gain `ppm`: the other streams' offsets against them fall.
     let expected = -ppm / (1.0 + ppm * 1e-6);
     let cal = calibrate(&drifted, &config).unwrap();
+    print_drift("wheels +200 ppm", &cal);
     for o in [&cal.clock_offsets.gnss_s, &cal.clock_offsets.imu_s] {
         let x = &o.drift;
         assert_eq!(x.status, OffsetStatus::Determined, "{x:?}");
@@ -60,6 +82,10 @@ fn a_wheel_clock_drift_of_200_ppm_is_found_applied_and_reported() {
         );
     }
     let e = rel_err(&cal, &clean);
+    println!(
+        "wheels +200 ppm: c {:.4} % off the clean drive's",
+        100.0 * e
+    );
     assert!(
         e < 1e-4,
         "circumference {:.4} % off the clean drive's",
@@ -77,6 +103,11 @@ fn a_wheel_clock_drift_of_200_ppm_is_found_applied_and_reported() {
         ..CalibrationConfig::default()
     };
     let unapplied = calibrate(&drifted, &check).unwrap();
+    print_drift("wheels +200 ppm, not compensated", &unapplied);
+    println!(
+        "wheels +200 ppm, not compensated: c {:.4} % off the clean drive's",
+        100.0 * rel_err(&unapplied, &clean)
+    );
     assert!(!unapplied.clock_offsets.imu_s.drift.applied);
     assert_eq!(
         unapplied.clock_offsets.imu_s.drift.status,
