@@ -21,11 +21,17 @@
 //!   ([`Finding::WheelPause`]), not a late sample.
 //!
 //! [`unwrap_wheel_counters`] repairs encoder counters that wrap (8, 16 or
-//! 32 bit); [`check`] reports the rest as [`Finding`]s, each an error or a
+//! 32 bit), [`set_aside_impossible`] sets aside wheel values beyond any car
+//! (a logger glitch costs its samples, not the drive; [`repaired`] does
+//! both); [`check`] reports the rest as [`Finding`]s, each an error or a
 //! warning ([`Finding::severity`]).
 
 use interfaces::drive::{Drive, ImuSample, Wheel, WheelSample, WheelUnit};
+use std::borrow::Cow;
 use std::f64::consts::{FRAC_PI_2, TAU};
+
+mod set_aside;
+pub use set_aside::{set_aside_impossible, MAX_SET_ASIDE_SHARE, SPIKE_LOOKAHEAD};
 
 /// Fastest plausible car, m/s.
 pub const MAX_CAR_SPEED_M_S: f64 = 100.0;
@@ -56,6 +62,13 @@ pub const TRACK_CONTRADICTION_SIGMAS: f64 = 5.0;
 /// its own noise sigmas from zero: the gyro noise then biases the fitted
 /// ratio by at most 1 / (1 + 1/25), 4 % (errors in the regressor).
 pub const TURN_NOISE_SIGMAS: f64 = 5.0;
+/// Turning by the wheels that a gyro exactly constant meanwhile cannot
+/// have missed, rad (20 degrees: a MEMS gyro resolves thousandths of a
+/// degree per second, and real ones never hold a value for more than a few
+/// samples while a car drives).
+pub const STUCK_EVIDENCE_TURN_RAD: f64 = 0.35;
+/// Windows of the gentle-turning evidence, s.
+pub const VARYING_TURN_WINDOW_S: f64 = 2.0;
 /// Windows of the track comparison and the noise estimate, s.
 pub const TRACK_WINDOW_S: f64 = 1.0;
 /// A gyro whose noise over a [`TRACK_WINDOW_S`] window is below this is taken
@@ -103,6 +116,45 @@ pub enum Finding {
         /// The limit, rev/s.
         limit_rev_per_s: f64,
         /// Samples over the limit.
+        samples: usize,
+    },
+    /// Wheel values beyond any car (a logger glitch) set aside
+    /// ([`set_aside_impossible`]): the rest of the channel is used.
+    #[error(
+        "wheels.{}: {} beyond any car (limit {limit_rev_per_s:.0} rev/s; the first at t = {t_s} s: {} ({}) \
+         means {rev_per_s:.4e} rev/s){}{}",
+        wheel.prefix(),
+        set_aside_text(*set_aside, *jumps, *samples),
+        num(*value),
+        unit.suffix(),
+        if *jumps > 0 {
+            "; the counter continues from its last good value after each jump"
+        } else {
+            ""
+        },
+        match wheel {
+            Wheel::Rl | Wheel::Rr => "; the rest of the channel is used",
+            _ => "; the rear-wheel model does not read this channel",
+        }
+    )]
+    WheelSamplesSetAside {
+        /// The wheel.
+        wheel: Wheel,
+        /// Time of the first offending sample, s.
+        t_s: f64,
+        /// Its value as given (in `unit`).
+        value: f64,
+        /// The wheel's unit.
+        unit: WheelUnit,
+        /// The wheel rate it implies, rev/s.
+        rev_per_s: f64,
+        /// The limit, rev/s.
+        limit_rev_per_s: f64,
+        /// Samples set aside (impossible rates, counter spikes).
+        set_aside: usize,
+        /// Counter jumps that stayed, re-referenced.
+        jumps: usize,
+        /// Samples of the wheel with a value.
         samples: usize,
     },
     /// An encoder counter wraps around; the values were unwrapped.
@@ -283,6 +335,7 @@ impl Finding {
             | Finding::WheelsSwapped { .. } => Severity::Error,
             Finding::WheelStuck { major, .. } if *major => Severity::Error,
             Finding::CounterWrapped { .. }
+            | Finding::WheelSamplesSetAside { .. }
             | Finding::ImuStuck { .. }
             | Finding::WheelStuck { .. }
             | Finding::TrackWidthContradicted { .. }
@@ -311,6 +364,21 @@ pub struct FindingSummary {
     pub severity: Severity,
     /// The finding's message (names the stream, the time and the value).
     pub message: String,
+}
+
+/// "2 of 60000 samples set aside", "1 counter jump", or both.
+fn set_aside_text(set_aside: usize, jumps: usize, samples: usize) -> String {
+    let mut parts = Vec::new();
+    if set_aside > 0 {
+        parts.push(format!("{set_aside} of {samples} samples set aside"));
+    }
+    if jumps > 0 {
+        parts.push(format!(
+            "{jumps} counter jump{} re-referenced",
+            if jumps == 1 { "" } else { "s" }
+        ));
+    }
+    parts.join(" and ")
 }
 
 /// A value as text: plain, or in exponent form when very large or small
@@ -463,22 +531,37 @@ fn counter_wraps(samples: &[WheelSample], wheel: Wheel) -> Option<(u32, Vec<(usi
 
 // ------------------------------------------------------------ the checks
 
-/// Every [`Finding`] about `drive` as it is read: the counter wraps
-/// ([`unwrap_wheel_counters`]) and then [`check`] on the unwrapped drive
-/// (what the calibrator sees; `info` and `convert` print these).
-pub fn findings(drive: &Drive) -> Vec<Finding> {
-    match unwrap_wheel_counters(drive) {
-        Some((unwrapped, mut wraps)) => {
-            wraps.extend(check(&unwrapped));
-            wraps
-        }
-        None => check(drive),
+/// The drive as the models read it: counters that wrap unwrapped
+/// ([`unwrap_wheel_counters`]), then wheel values beyond any car set aside
+/// ([`set_aside_impossible`]), with a finding for each repair (and
+/// [`Finding::ImpossibleWheelRate`], an error, for a rear wheel that is
+/// impossible throughout). The drive is borrowed when nothing was repaired.
+pub fn repaired(drive: &Drive) -> (Cow<'_, Drive>, Vec<Finding>) {
+    let mut findings = Vec::new();
+    let mut current = Cow::Borrowed(drive);
+    if let Some((d, f)) = unwrap_wheel_counters(&current) {
+        findings.extend(f);
+        current = Cow::Owned(d);
     }
+    if let Some((d, f)) = set_aside_impossible(&current) {
+        findings.extend(f);
+        current = Cow::Owned(d);
+    }
+    (current, findings)
 }
 
-/// Every [`Finding`] about `drive` except counter wraps (run
-/// [`unwrap_wheel_counters`] first: a wrap otherwise looks like an
-/// impossible wheel rate).
+/// Every [`Finding`] about `drive` as it is read: the repairs
+/// ([`repaired`]) and then [`check`] on the repaired drive (what the
+/// calibrator sees; `info` and `convert` print these).
+pub fn findings(drive: &Drive) -> Vec<Finding> {
+    let (d, mut out) = repaired(drive);
+    out.extend(check(&d));
+    out
+}
+
+/// Every [`Finding`] about `drive` except its repairs (run [`repaired`]
+/// first: a wrap or a glitch otherwise looks like an impossible wheel rate,
+/// an error).
 pub fn check(drive: &Drive) -> Vec<Finding> {
     let mut out = Vec::new();
     for wheel in Wheel::ALL {
@@ -926,6 +1009,43 @@ impl Rear {
         (i > 0).then(|| i - 1)
     }
 
+    /// Index of the first wheel sample at or after `t`.
+    fn at_or_after(&self, t: f64) -> Option<usize> {
+        let i = self.t.partition_point(|&x| x < t);
+        (i < self.t.len()).then_some(i)
+    }
+
+    /// Turning by the wheels between samples `a..=b` that no constant
+    /// curvature explains: over windows of about [`VARYING_TURN_WINDOW_S`],
+    /// each window's heading change less the median curvature times its
+    /// distance (a circumference mismatch bends the wheels' path at a
+    /// constant curvature), counted where it exceeds four times the heading
+    /// change one count of each encoder makes, rad.
+    fn varying_turning(&self, a: usize, b: usize) -> f64 {
+        let mut windows = Vec::new();
+        let mut i = a;
+        for j in a + 1..=b {
+            if self.t[j] - self.t[i] < VARYING_TURN_WINDOW_S && j < b {
+                continue;
+            }
+            let ds = self.s(j) - self.s(i);
+            if ds.abs() >= 1.0 {
+                windows.push((ds, self.psi(j) - self.psi(i)));
+            }
+            i = j;
+        }
+        let mut curvatures: Vec<f64> = windows.iter().map(|(ds, dpsi)| dpsi / ds).collect();
+        let Some(kappa) = median_of(&mut curvatures) else {
+            return 0.0;
+        };
+        let quantum = self.c * (resolution(&self.l, a, b) + resolution(&self.r, a, b)) / self.track;
+        windows
+            .iter()
+            .map(|(ds, dpsi)| (dpsi - kappa * ds).abs())
+            .filter(|x| *x > 4.0 * quantum)
+            .sum()
+    }
+
     /// Turning by the wheels over windows of about 1 s between samples
     /// `a..=b`, counting only bends sharper than a circumference mismatch
     /// explains, rad.
@@ -1109,6 +1229,24 @@ impl Rear {
     }
 }
 
+/// The resolution of a cumulative series between samples `a..=b`: the
+/// smallest nonzero change between consecutive steps (a counter's steps
+/// differ by whole counts), ignoring differences at the level of rounding.
+fn resolution(x: &[f64], a: usize, b: usize) -> f64 {
+    let steps: Vec<f64> = x[a..=b].windows(2).map(|w| w[1] - w[0]).collect();
+    let scale = steps.iter().fold(0.0f64, |m, s| m.max(s.abs()));
+    let m = steps
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| *d > 1e-9 * scale)
+        .fold(f64::INFINITY, f64::min);
+    if m.is_finite() {
+        m
+    } else {
+        0.0
+    }
+}
+
 /// Smallest nonzero step of a cumulative series between samples `a..=b`.
 fn min_step(x: &[f64], a: usize, b: usize) -> f64 {
     let m = x[a..=b]
@@ -1171,7 +1309,9 @@ fn imu_stuck(drive: &Drive, rear: &Rear) -> Vec<Finding> {
             continue;
         }
         let (t0, t1) = (values[best_a].0, values[best_b].0);
-        let (Some(i0), Some(i1)) = (rear.at(t0), rear.at(t1)) else {
+        // The wheels over the part of the stretch they cover (the IMU may
+        // start before the wheels or end after them).
+        let (Some(i0), Some(i1)) = (rear.at_or_after(t0), rear.at(t1)) else {
             continue;
         };
         if i1 <= i0 {
@@ -1183,8 +1323,11 @@ fn imu_stuck(drive: &Drive, rear: &Rear) -> Vec<Finding> {
                 (hi - lo >= 2.0).then(|| format!("the speed change by {:.1} m/s", hi - lo))
             }
             _ => {
-                let turned = rear.turning(i0, i1);
-                (turned >= EVIDENCE_TURN_RAD).then(|| {
+                // Sharp bends, or gentle ones beyond what the encoders'
+                // resolution and a circumference mismatch explain: a gyro
+                // reads either (real ones never hold a value for long).
+                let turned = rear.turning(i0, i1).max(rear.varying_turning(i0, i1));
+                (turned >= STUCK_EVIDENCE_TURN_RAD).then(|| {
                     format!(
                         "the car turn {turned:.1} rad ({:.0} deg)",
                         turned.to_degrees()

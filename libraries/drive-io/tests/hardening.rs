@@ -857,3 +857,105 @@ fn a_length_prefix_beyond_its_record_is_refused_without_allocating_it() {
         .to_string();
     assert!(e.contains("header profile"), "{e}");
 }
+
+/// The revolutions the drive's rear-left wheel covers (cumulative counts in
+/// revolutions from the first to the last sample).
+fn rl_revolutions(d: &Drive) -> f64 {
+    let revs = d.wheel_revolutions().unwrap();
+    revs.last().unwrap().rl - revs.first().unwrap().rl
+}
+
+#[test]
+fn a_counter_spike_is_set_aside_and_a_counter_jump_re_referenced() {
+    let clean = weaving(WheelUnit::Ticks, 60.0);
+    let total = rl_revolutions(&clean);
+    // A spike: two samples far off, then the counter is back.
+    let mut spiked = clean.clone();
+    spiked.wheels.samples[1000].rl = -7.6e16;
+    spiked.wheels.samples[1001].rl = 4e9;
+    let (fixed, f) = plausibility::set_aside_impossible(&spiked).expect("found");
+    assert_eq!(fixed.wheels.samples.len(), clean.wheels.samples.len() - 2);
+    assert!(
+        matches!(
+            f.as_slice(),
+            [Finding::WheelSamplesSetAside {
+                wheel: Wheel::Rl,
+                set_aside: 2,
+                jumps: 0,
+                ..
+            }]
+        ),
+        "{f:?}"
+    );
+    assert_eq!(f[0].severity(), Severity::Warning);
+    assert!((rl_revolutions(&fixed) - total).abs() < 1e-9);
+    assert!(
+        plausibility::check(&fixed).is_empty(),
+        "{:?}",
+        plausibility::check(&fixed)
+    );
+    // A jump that stays: the counter continues from its last good value;
+    // one sample interval's distance is estimated (within a count).
+    let mut jumped = clean.clone();
+    for s in &mut jumped.wheels.samples[3000..] {
+        s.rl += 1e7;
+    }
+    let (fixed, f) = plausibility::set_aside_impossible(&jumped).expect("found");
+    assert!(
+        matches!(
+            f.as_slice(),
+            [Finding::WheelSamplesSetAside {
+                set_aside: 0,
+                jumps: 1,
+                ..
+            }]
+        ),
+        "{f:?}"
+    );
+    assert!(
+        (rl_revolutions(&fixed) - total).abs() <= 1.5 / TPR,
+        "{} against {total}",
+        rl_revolutions(&fixed)
+    );
+    assert!(plausibility::check(&fixed).is_empty());
+}
+
+#[test]
+fn a_front_glitch_empties_its_cells_and_a_1e308_jump_leaves_a_stuck_wheel() {
+    let mut d = weaving(WheelUnit::RadS, 60.0);
+    d.wheels.units.fl = Some(WheelUnit::RadS);
+    for s in &mut d.wheels.samples {
+        s.fl = Some(s.rl);
+    }
+    d.wheels.samples[2000].fl = Some(-7.6e16);
+    let (fixed, f) = plausibility::set_aside_impossible(&d).expect("found");
+    assert_eq!(
+        fixed.wheels.samples.len(),
+        d.wheels.samples.len(),
+        "rear rows kept"
+    );
+    assert_eq!(fixed.wheels.samples[2000].fl, None);
+    assert!(
+        f[0].to_string().contains("does not read this channel"),
+        "{}",
+        f[0]
+    );
+    // A counter that jumps to 1e308 and stays loses its later increments in
+    // floating point: what is left shows the wheel standing still.
+    let mut d = weaving(WheelUnit::Ticks, 60.0);
+    for s in &mut d.wheels.samples[3000..] {
+        s.rl += 1e308;
+    }
+    let all = plausibility::findings(&d);
+    assert!(
+        all.iter().any(|f| matches!(
+            f,
+            Finding::WheelStuck {
+                wheel: Wheel::Rl,
+                major: true,
+                ..
+            }
+        ) && f.is_error()),
+        "{all:?}"
+    );
+}

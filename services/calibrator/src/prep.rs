@@ -191,27 +191,28 @@ pub fn prepare(
         vehicle.gnss.antenna_y_m.unwrap_or(0.0),
     ];
 
-    // Counters that wrap are unwrapped before anything reads them.
-    let unwrapped = plausibility::unwrap_wheel_counters(drive);
-    let drive = match &unwrapped {
-        Some((d, findings)) => {
-            for f in findings {
+    // Counters that wrap are unwrapped and values beyond any car set aside
+    // before anything reads them; a rear wheel impossible throughout (a
+    // wrong unit, not a glitch) is refused first: it would distort every
+    // check after this one. The other findings come after the basic checks
+    // (an empty or wholly stuck channel is named as such).
+    let (drive, repairs) = plausibility::repaired(drive);
+    let drive: &Drive = &drive;
+    for f in &repairs {
+        match f {
+            Finding::CounterWrapped { .. } => {
                 warnings.push(Warning::new(WarningCode::CounterWrapped, f.to_string()));
             }
-            d
+            Finding::WheelSamplesSetAside { .. } => {
+                warnings.push(Warning::new(
+                    WarningCode::WheelSamplesSetAside,
+                    f.to_string(),
+                ));
+            }
+            _ => return Err(CalibrationError::ImplausibleInput(f.clone())),
         }
-        None => drive,
-    };
-    // A wheel faster than any car's would distort every check after this
-    // one: refused first. The other findings come after the basic checks
-    // (an empty or wholly stuck channel is named as such).
-    let findings = plausibility::check(drive);
-    if let Some(f) = findings
-        .iter()
-        .find(|f| matches!(f, Finding::ImpossibleWheelRate { .. }))
-    {
-        return Err(CalibrationError::ImplausibleInput(f.clone()));
     }
+    let findings = plausibility::check(drive);
     let (t, dn_rl, dn_rr, piece_starts, wheel_dt, wheel_offsets) = wheels(drive, warnings)?;
     let fixes = gnss(drive, warnings)?;
     if let Some(f) = findings.iter().find(|f| f.is_error()) {
@@ -229,7 +230,24 @@ pub fn prepare(
             });
         }
     }
-    let imu_clock = imu_clock(drive, config, &t, &dn_rl, &dn_rr, warnings);
+    // A gyro dead for the whole drive has no clock to find.
+    let gyro_dead = findings.iter().any(|f| {
+        matches!(
+            f,
+            Finding::ImuStuck {
+                field: "gz_rad_s",
+                whole_drive: true,
+                ..
+            }
+        )
+    });
+    let imu_clock = if gyro_dead {
+        StreamOffset::not_checked(
+            "the IMU's yaw rate is dead or stuck for the whole drive (imu_stuck)",
+        )
+    } else {
+        imu_clock(drive, config, &t, &dn_rl, &dn_rr, warnings)
+    };
     let imu_shift_s = if imu_clock.applied {
         imu_clock.offset_s.unwrap_or(0.0)
     } else {
@@ -1117,9 +1135,48 @@ mod tests {
     }
 
     #[test]
-    fn an_impossible_wheel_rate_is_refused() {
-        let mut rows = weaving_rows();
-        rows[700].1 = 1e308;
+    fn an_impossible_wheel_sample_is_set_aside_with_a_warning() {
+        let rows = weaving_rows();
+        let clean = prepare(
+            &drive(WheelUnit::RadS, rows.clone()),
+            &CalibrationConfig::default(),
+            &mut Vec::new(),
+        )
+        .expect("clean drive");
+        let mut glitched = rows;
+        glitched[700].1 = 1e308;
+        let mut w = Vec::new();
+        let p = prepare(
+            &drive(WheelUnit::RadS, glitched),
+            &CalibrationConfig::default(),
+            &mut w,
+        )
+        .expect("one glitch costs its sample, not the drive");
+        assert_eq!(
+            p.len(),
+            clean.len() - 1,
+            "exactly the glitched row is set aside"
+        );
+        let set_aside = w
+            .iter()
+            .find(|w| w.code == WarningCode::WheelSamplesSetAside)
+            .unwrap_or_else(|| panic!("{w:?}"));
+        assert!(
+            set_aside.message.contains("wheels.rl")
+                && set_aside.message.contains("t = 7 s")
+                && set_aside.message.contains("1 of"),
+            "{}",
+            set_aside.message
+        );
+    }
+
+    #[test]
+    fn a_wheel_impossible_throughout_is_refused() {
+        // Every value 1000 times too large: a wrong unit, not a glitch.
+        let rows: Vec<_> = weaving_rows()
+            .into_iter()
+            .map(|(t, l, r)| (t, 1000.0 * l + 1e4, r))
+            .collect();
         let d = drive(WheelUnit::RadS, rows);
         let e = prepare(&d, &CalibrationConfig::default(), &mut Vec::new()).unwrap_err();
         assert!(
@@ -1129,10 +1186,7 @@ mod tests {
             ),
             "{e}"
         );
-        assert!(
-            e.to_string().contains("wheels.rl") && e.to_string().contains("t = 7 s"),
-            "{e}"
-        );
+        assert!(e.to_string().contains("wheels.rl"), "{e}");
     }
 
     #[test]

@@ -56,6 +56,9 @@ pub enum WarningCode {
     AntennaUnobservable,
     /// An encoder tick counter wraps around; it was unwrapped.
     CounterWrapped,
+    /// Wheel values beyond any car (a logger glitch) were set aside; the
+    /// rest of the channel is used.
+    WheelSamplesSetAside,
     /// An IMU value is exactly constant while the wheels show motion (a
     /// dead or stuck sensor); it was not used where stuck.
     ImuStuck,
