@@ -185,32 +185,59 @@ pub enum Finding {
         /// Net rear-right revolutions.
         rr_revs: f64,
     },
-    /// Both rear wheels count down while the car drives forward per GNSS
-    /// (their turns are opposite to the GNSS course's turns).
+    /// Both rear wheels count down while the car drives forward: their
+    /// turns are opposite to the gyro's (or, without a gyro, the GNSS
+    /// course's).
     #[error(
-        "wheels: both rear wheels count backward ({backward_percent:.0} % of their distance) while the GNSS \
-         says the car drives forward (the wheels' turns are {ratio:+.2} times the GNSS course's turns over \
-         {turned_rad:.1} rad of turning): both wheel signs are reversed"
+        "wheels: both rear wheels count backward ({backward_percent:.0} % of their distance) while the car \
+         drives forward (the wheels' turns are {ratio:+.2} times {against}'s turns over {turned_rad:.1} rad of \
+         turning): both wheel signs are reversed"
     )]
     WheelsReversed {
         /// Share of the wheel distance driven backward, %.
         backward_percent: f64,
-        /// Wheel heading change per GNSS course change (about -1).
+        /// Wheel heading change per heading change of `against` (about -1).
         ratio: f64,
-        /// GNSS course turning compared, rad.
+        /// Turning compared, rad.
         turned_rad: f64,
+        /// What the wheels were compared with: "the gyro" or "the GNSS course".
+        against: &'static str,
     },
     /// The rear wheels turn the wrong way round in curves while the car
     /// drives forward: rl and rr are exchanged.
     #[error(
-        "wheels: the wheels' turns are {ratio:+.2} times the GNSS course's turns over {turned_rad:.1} rad of \
-         turning while the car drives forward: rl and rr are exchanged"
+        "wheels: the wheels' turns are {ratio:+.2} times {against}'s turns over {turned_rad:.1} rad of \
+         turning while the car drives forward: rl and rr are exchanged{}",
+        if *against == "the gyro" {
+            ""
+        } else {
+            " (or the GNSS track is mirrored, lat_deg and lon_deg or x_m and y_m exchanged: without a gyro \
+             the drive cannot tell which)"
+        }
     )]
     WheelsSwapped {
-        /// Wheel heading change per GNSS course change (about -1).
+        /// Wheel heading change per heading change of `against` (about -1).
+        ratio: f64,
+        /// Turning compared, rad.
+        turned_rad: f64,
+        /// What the wheels were compared with: "the gyro" or "the GNSS course".
+        against: &'static str,
+    },
+    /// The GNSS track turns the other way round than the gyro and the
+    /// wheels, which agree: the track is mirrored (latitude and longitude,
+    /// or east and north, exchanged).
+    #[error(
+        "gnss: the GNSS course turns {ratio:+.2} times as the gyro and the wheels do (they agree with each \
+         other) over {turned_rad:.1} rad of turning: the GNSS track is mirrored; are {} exchanged?",
+        if *lat_lon { "lat_deg and lon_deg" } else { "x_m and y_m" }
+    )]
+    GnssMirrored {
+        /// GNSS course change per wheel heading change (about -1).
         ratio: f64,
         /// GNSS course turning compared, rad.
         turned_rad: f64,
+        /// The fixes were given as latitude and longitude.
+        lat_lon: bool,
     },
     /// An IMU value is exactly constant while the wheels show the motion it
     /// should measure (a dead or stuck sensor).
@@ -332,7 +359,8 @@ impl Finding {
             Finding::ImpossibleWheelRate { .. }
             | Finding::WheelsOpposed { .. }
             | Finding::WheelsReversed { .. }
-            | Finding::WheelsSwapped { .. } => Severity::Error,
+            | Finding::WheelsSwapped { .. }
+            | Finding::GnssMirrored { .. } => Severity::Error,
             Finding::WheelStuck { major, .. } if *major => Severity::Error,
             Finding::CounterWrapped { .. }
             | Finding::WheelSamplesSetAside { .. }
@@ -572,16 +600,35 @@ pub fn check(drive: &Drive) -> Vec<Finding> {
         return out;
     };
     out.extend(rear.opposed());
-    out.extend(rear.reversed(drive));
+    let stuck_imu = imu_stuck(drive, &rear);
+    // A gyro stuck anywhere is no witness of the wheels' turns.
+    let gyro = if stuck_imu.iter().any(|f| {
+        matches!(
+            f,
+            Finding::ImuStuck {
+                field: "gz_rad_s",
+                ..
+            }
+        )
+    }) {
+        None
+    } else {
+        wheel_gyro_fit(drive, &rear)
+    };
+    let signs = rear.reversed(drive, gyro.as_ref());
+    let signs_wrong = signs.is_some();
+    out.extend(signs);
     out.extend(rear.stuck(Wheel::Rl));
     out.extend(rear.stuck(Wheel::Rr));
-    out.extend(imu_stuck(drive, &rear));
-    // A rate beyond any car's would dominate the fit: no track comparison then.
-    if !out
-        .iter()
-        .any(|f| matches!(f, Finding::ImpossibleWheelRate { .. }))
+    out.extend(stuck_imu);
+    // A rate beyond any car's would dominate the fit, and wrong signs make
+    // the track negative: no track comparison then.
+    if !signs_wrong
+        && !out
+            .iter()
+            .any(|f| matches!(f, Finding::ImpossibleWheelRate { .. }))
     {
-        out.extend(track_contradicted(drive, &rear));
+        out.extend(gyro.as_ref().and_then(|g| track_contradicted(g, &rear)));
     }
     out
 }
@@ -768,9 +815,24 @@ fn fit_track(rows: &[(f64, f64, f64)]) -> Option<(f64, f64, Vec<f64>)> {
     Some((s, (var * inv11).sqrt(), res))
 }
 
-/// `vehicle.toml`'s track against the track the wheels and the gyro agree
-/// on (see [`Finding::TrackWidthContradicted`]).
-fn track_contradicted(drive: &Drive, rear: &Rear) -> Option<Finding> {
+/// The wheels' heading changes against the gyro's over the turning windows
+/// (the method of [`Finding::TrackWidthContradicted`]): `s` is about 1 for
+/// a consistent drive, about -1 when the wheels' turns are mirrored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct WheelGyroFit {
+    /// Wheel heading change per gyro heading change.
+    s: f64,
+    /// Its standard error.
+    se: f64,
+    /// Turning windows used.
+    windows: usize,
+    /// The gyro's turning over them, rad.
+    turned: f64,
+}
+
+/// Fit the wheels' heading changes to the gyro's (see [`WheelGyroFit`]);
+/// `None` without a gyro or with too little turning.
+fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
     let gyro = GyroIntegral::of(drive.imu.as_deref()?)?;
     let n = rear.t.len();
     let mut wheel_dts: Vec<f64> = rear.t.windows(2).map(|w| w[1] - w[0]).collect();
@@ -845,18 +907,33 @@ fn track_contradicted(drive: &Drive, rear: &Rear) -> Option<Finding> {
         return None;
     }
     let (s, se, _) = fit_track(&kept)?;
+    s.is_finite().then_some(WheelGyroFit {
+        s,
+        se,
+        windows: kept.len(),
+        turned,
+    })
+}
+
+/// `vehicle.toml`'s track against the track the wheels and the gyro agree
+/// on (see [`Finding::TrackWidthContradicted`]).
+fn track_contradicted(fit: &WheelGyroFit, rear: &Rear) -> Option<Finding> {
+    let WheelGyroFit {
+        s,
+        se,
+        windows,
+        turned,
+    } = *fit;
     let off = (s - 1.0).abs();
-    (s > 0.0
-        && s.is_finite()
-        && off > TRACK_CONTRADICTION_REL
-        && off > TRACK_CONTRADICTION_SIGMAS * se)
-        .then_some(Finding::TrackWidthContradicted {
+    (s > 0.0 && off > TRACK_CONTRADICTION_REL && off > TRACK_CONTRADICTION_SIGMAS * se).then_some(
+        Finding::TrackWidthContradicted {
             nominal_m: rear.track,
             effective_m: s * rear.track,
             sigma_m: se * rear.track,
-            windows: kept.len(),
+            windows,
             turned_rad: turned,
-        })
+        },
+    )
 }
 
 /// The first sample of `wheel` whose rate is beyond any car's.
@@ -1084,9 +1161,56 @@ impl Rear {
         (lo, hi)
     }
 
-    /// Both wheels reversed, or rl and rr exchanged: the wheels' heading
-    /// changes are opposite to the GNSS course's.
-    fn reversed(&self, drive: &Drive) -> Option<Finding> {
+    /// Both wheels reversed, rl and rr exchanged, or the GNSS track
+    /// mirrored: of the three witnesses of the car's turns (the wheels, the
+    /// gyro, the GNSS course), the one that turns the other way round is
+    /// wrong. Without a gyro, wheels against GNSS course cannot tell the
+    /// wheels from the track (the message says so).
+    fn reversed(&self, drive: &Drive, gyro: Option<&WheelGyroFit>) -> Option<Finding> {
+        let gyro = gyro.filter(|g| g.turned >= EVIDENCE_TURN_RAD && g.s.abs() > 3.0 * g.se);
+        let course = self.course_ratio(drive);
+        let (ratio, turned, against) = match (gyro, course) {
+            (Some(g), _) if g.s < -0.5 => (g.s, g.turned, "the gyro"),
+            (Some(g), Some((c, turned))) if g.s > 0.5 && c < -0.5 => {
+                return Some(Finding::GnssMirrored {
+                    ratio: c,
+                    turned_rad: turned,
+                    lat_lon: drive.vehicle.gnss.origin_lat_deg.is_some(),
+                });
+            }
+            (None, Some((c, turned))) if c < -0.5 => (c, turned, "the GNSS course"),
+            _ => return None,
+        };
+        let n = self.t.len() - 1;
+        let (mut fwd, mut back) = (0.0, 0.0);
+        for k in 1..=n {
+            let ds = self.s(k) - self.s(k - 1);
+            if ds >= 0.0 {
+                fwd += ds;
+            } else {
+                back -= ds;
+            }
+        }
+        let backward_percent = 100.0 * back / (fwd + back).max(f64::MIN_POSITIVE);
+        Some(if backward_percent > 50.0 {
+            Finding::WheelsReversed {
+                backward_percent,
+                ratio,
+                turned_rad: turned,
+                against,
+            }
+        } else {
+            Finding::WheelsSwapped {
+                ratio,
+                turned_rad: turned,
+                against,
+            }
+        })
+    }
+
+    /// The wheels' heading changes per GNSS course change over the drive
+    /// and the course's turning, rad; `None` without enough turning.
+    fn course_ratio(&self, drive: &Drive) -> Option<(f64, f64)> {
         let fixes = drive.gnss.as_deref()?;
         let mut sigmas: Vec<f64> = fixes
             .iter()
@@ -1135,33 +1259,7 @@ impl Rear {
         if b <= 0.0 || turned < EVIDENCE_TURN_RAD || wheel_turned < EVIDENCE_TURN_RAD {
             return None;
         }
-        let ratio = a / b;
-        if ratio > -0.5 {
-            return None;
-        }
-        let n = self.t.len() - 1;
-        let (mut fwd, mut back) = (0.0, 0.0);
-        for k in 1..=n {
-            let ds = self.s(k) - self.s(k - 1);
-            if ds >= 0.0 {
-                fwd += ds;
-            } else {
-                back -= ds;
-            }
-        }
-        let backward_percent = 100.0 * back / (fwd + back).max(f64::MIN_POSITIVE);
-        Some(if backward_percent > 50.0 {
-            Finding::WheelsReversed {
-                backward_percent,
-                ratio,
-                turned_rad: turned,
-            }
-        } else {
-            Finding::WheelsSwapped {
-                ratio,
-                turned_rad: turned,
-            }
-        })
+        Some((a / b, turned))
     }
 
     /// The longest stretch where `wheel` stays exactly constant while the

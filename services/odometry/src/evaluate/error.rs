@@ -31,6 +31,11 @@ pub enum EvaluateError {
     /// Every outage was skipped.
     #[error("every outage was skipped: {0}")]
     NothingScored(String),
+    /// The drive holds what no car can do (reversed or exchanged wheel
+    /// signs, a wheel stuck over much of the drive, a wheel impossible
+    /// throughout): refused as the calibrator refuses it.
+    #[error("{0}; the drive cannot be evaluated as it is")]
+    Implausible(drive_io::plausibility::Finding),
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),

@@ -15,7 +15,9 @@ use super::truth_track::{
 };
 use crate::dead_reckoning::HeadingMode;
 use crate::inputs::drive_inputs;
+use drive_io::plausibility::{self, Finding};
 use interfaces::drive::Drive;
+use std::borrow::Cow;
 use vehicle_model::estimate::OdometryParams;
 
 /// Run the outage evaluation of `drive` with `params`.
@@ -52,10 +54,14 @@ pub fn evaluate(
         aligned = d;
         &aligned
     };
+    // The drive as the calibrator reads it: glitches set aside, what is
+    // impossible refused, what is doubtful said (the same checks and words).
+    let mut warnings = Vec::new();
+    let (repaired, pauses) = checked(drive, &mut warnings)?;
+    let drive: &Drive = &repaired;
     let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
     let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
-    let mut warnings = Vec::new();
     let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
     if let Some((offset, stretches)) = yaw_offset {
         if offset.abs() > TRUTH_YAW_OFFSET_LIMIT_RAD {
@@ -121,6 +127,14 @@ pub fn evaluate(
         ));
     }
     for &(t0, t1, align) in &windows {
+        // Nothing dead-reckons across a hole in the wheels.
+        let from = align.map_or(t0, |(ta, _)| ta.min(t0));
+        if let Some((p0, p1)) = pauses.iter().find(|(p0, p1)| *p0 < t1 && *p1 > from) {
+            warnings.push(format!(
+                "outage at {t0:.2} s skipped: the wheel stream pauses from {p0:.2} to {p1:.2} s within it"
+            ));
+            continue;
+        }
         let scored = snapshot_at(t0).and_then(|start| {
             let aligned = align.and_then(|(ta, tb)| {
                 let from = snapshot_at(ta).ok()?;
@@ -160,6 +174,35 @@ pub fn evaluate(
         truth_is_gnss_track: truth_is_the_gnss_track(drive),
         warnings,
     })
+}
+
+/// The drive with its wheel glitches set aside
+/// ([`plausibility::repaired`]) and checked ([`plausibility::check`]): an
+/// error refuses the evaluation, a warning is said; returns the repaired
+/// drive and the pauses of the wheel stream (start, end), s.
+fn checked<'a>(
+    drive: &'a Drive,
+    warnings: &mut Vec<String>,
+) -> Result<(Cow<'a, Drive>, Vec<(f64, f64)>), EvaluateError> {
+    let (repaired, repairs) = plausibility::repaired(drive);
+    let findings: Vec<Finding> = repairs
+        .into_iter()
+        .chain(plausibility::check(&repaired))
+        .collect();
+    if let Some(f) = findings.iter().find(|f| f.is_error()) {
+        return Err(EvaluateError::Implausible(f.clone()));
+    }
+    let mut pauses = Vec::new();
+    for f in findings {
+        if let Finding::WheelPause {
+            t_s, duration_s, ..
+        } = f
+        {
+            pauses.push((t_s, t_s + duration_s));
+        }
+        warnings.push(f.to_string());
+    }
+    Ok((repaired, pauses))
 }
 
 #[cfg(test)]
