@@ -168,6 +168,10 @@ fn run(bin: &Path, args: &[String], dir: &Path, label: &str) -> Result<Run> {
         .stdout(fs::File::create(&out_path)?)
         .stderr(fs::File::create(&err_path)?)
         .env("NO_COLOR", "1")
+        // As a user runs them: no backtraces (their numbers and names are
+        // not the message).
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("RUST_LIB_BACKTRACE")
         .spawn()
         .with_context(|| format!("starting {}", bin.display()))?;
     let exit = loop {
@@ -476,9 +480,13 @@ impl Expect {
             return *m;
         }
         match cmd {
-            Cmd::EvaluateOwn => match self.must(Cmd::Evaluate) {
-                m @ (Must::Notice | Must::Runs) => m,
-                _ => self.must(Cmd::Calibrate),
+            // The odometry may refuse the estimate a damaged drive gave
+            // (clearly, naming the damage); otherwise as calibrate.
+            Cmd::EvaluateOwn => match (self.must(Cmd::Evaluate), self.must(Cmd::Calibrate)) {
+                (m @ (Must::Notice | Must::Runs), _) => m,
+                (_, Must::Warn) => Must::Flag,
+                (_, Must::Clean) => Must::CleanOrRefuse,
+                (_, m) => m,
             },
             Cmd::InfoSkip => self.must(Cmd::Info),
             Cmd::CalibrateSkip => self.must(Cmd::Calibrate),
@@ -613,7 +621,7 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 Warn,
                 vec![Need::word(&[wheel, &name]), Need::Time { t: t1, tol: 1.0 }],
             )
-            .with(Evaluate, if wheel == "fl" { Clean } else { Flag });
+            .with(Evaluate, if wheel == "fl" { Clean } else { CleanOrRefuse });
             e.pct_only = true;
             (
                 e,
@@ -649,7 +657,7 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 )
                 .with(Info, Runs)
                 .with(Evaluate, Notice)
-                .with(Diagnose, Flag),
+                .with(Diagnose, CleanOrRefuse),
                 format!(
                     "wheels.csv has no rows for 600 s from t = {t_mid:.1} s (its second half comes after GNSS and IMU end): \
                      calibrate on the common span with a warning naming the wheels' gap"
@@ -673,7 +681,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     ],
                 )
                 .with(Info, Runs)
-                .with(Evaluate, Notice),
+                .with(Evaluate, Runs)
+                .with(Diagnose, CleanOrRefuse),
                 format!(
                     "every stream pauses 600 s at t = {t_mid:.1} s (the logger paused): calibrate across the gap \
                      with a warning naming it"
@@ -694,7 +703,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     Flag,
                     vec![Need::sub(&["revers", "backward", "negative", "sign"])],
                 )
-                .with(Info, Runs),
+                .with(Info, Runs)
+                .with(Evaluate, CleanOrRefuse),
                 "rl and rr negated (the car drives forward): refuse, naming the reversed wheels".to_string(),
             )
         }
@@ -713,7 +723,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                         "mixed up",
                     ])],
                 )
-                .with(Info, Runs),
+                .with(Info, Runs)
+                .with(Evaluate, CleanOrRefuse),
                 "rl and rr columns exchanged: refuse, naming the swap".to_string(),
             )
         }
@@ -780,7 +791,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                         Need::sub(&["stuck", "frozen", "constant", "dead", "zero", "flat"]),
                     ],
                 )
-                .with(Evaluate, Flag),
+                .with(Evaluate, CleanOrRefuse)
+                .with(Diagnose, CleanOrRefuse),
                 if gen == "imu-all-zero" {
                     "gz, ax, ay all 0: calibrate without the gyro, with a warning that the IMU is dead".to_string()
                 } else {
@@ -825,7 +837,7 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 Expect::new(Warn, vec![Need::word(&["sigma_m"])])
                     .with(Info, Runs)
                     .with(Evaluate, Clean)
-                    .with(Diagnose, Flag),
+                    .with(Diagnose, CleanOrRefuse),
                 format!(
                     "GNSS scattered by {SIGMA_LIE_NOISE_M} m (seeded) while sigma_m says 0.05 m: a warning naming \
                      sigma_m, the result within its own (honest) 3 sigma"
@@ -842,8 +854,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     vec![Need::sub(&["time_offset", "clock", "offset"])],
                 )
                 .with(Info, Runs)
-                .with(Evaluate, Flag)
-                .with(Diagnose, Flag),
+                .with(Evaluate, CleanOrRefuse)
+                .with(Diagnose, CleanOrRefuse),
                 "wheels' clock 0.5 s late against GNSS and IMU: found and applied, a warning naming the offset"
                     .to_string(),
             )
@@ -1257,7 +1269,14 @@ fn calib_within(v: Option<&Value>, base: &Baseline, pct_only: bool) -> (bool, St
     )
 }
 
-fn diag_within(v: Option<&Value>, base: &Baseline, pct_only: bool) -> Option<(bool, String)> {
+/// `sigma`: the sigmas (mean, difference) of the case's own calibration
+/// when it gave one, else the clean drive's.
+fn diag_within(
+    v: Option<&Value>,
+    base: &Baseline,
+    sigma: Option<(Option<f64>, Option<f64>)>,
+    pct_only: bool,
+) -> Option<(bool, String)> {
     let clean = base.diag.as_ref()?;
     let Some(v) = v else {
         return Some((false, "exit 0 but no diagnosis JSON".to_string()));
@@ -1266,10 +1285,10 @@ fn diag_within(v: Option<&Value>, base: &Baseline, pct_only: bool) -> Option<(bo
     Some(circ_within(
         (get(v, "c_rl_m"), get(v, "c_rr_m")),
         (get(clean, "c_rl_m"), get(clean, "c_rr_m")),
-        (
+        sigma.unwrap_or((
             f(&base.calib, &["sigma_m", "mean"]),
             f(&base.calib, &["sigma_m", "difference"]),
-        ),
+        )),
         pct_only,
     ))
 }
@@ -1296,7 +1315,11 @@ fn info_within(v: Option<&Value>, base: &Baseline) -> (bool, String) {
     let t0 = f(&base.info, &["duration_s"]).unwrap_or(f64::NAN);
     (
         (d - d0).abs() <= 0.01 * d0.abs() && (t - t0).abs() <= (0.01 * t0).max(0.5),
-        format!("wheel distance {d:.1} m (clean {d0:.1}), duration {t:.1} s (clean {t0:.1})"),
+        format!(
+            "wheel distance {} m (clean {d0:.1}), duration {} s (clean {t0:.1})",
+            num_text(d),
+            num_text(t)
+        ),
     )
 }
 
@@ -1311,6 +1334,8 @@ struct Row {
     detail: String,
     message: String,
     what: String,
+    /// The case's folder under the temporary folder (`--keep` keeps it).
+    folder: String,
 }
 
 fn short(text: &str, n: usize) -> String {
@@ -1321,6 +1346,43 @@ fn short(text: &str, n: usize) -> String {
         .collect::<Vec<_>>()
         .join(" | ");
     one.chars().take(n).collect()
+}
+
+/// A message as the judge reads it: without the case folder's path (its
+/// name must not lend a message words) and without the log lines' time
+/// stamps (their numbers are not times of the drive).
+fn tidy(text: &str, dir: &Path) -> String {
+    let dir = dir.to_string_lossy();
+    let text = text.replace(&format!("{dir}/"), "").replace(dir.as_ref(), "");
+    text.lines()
+        .map(|line| {
+            let b = line.as_bytes();
+            let stamped = b.len() > 20 && b[4] == b'-' && b[7] == b'-' && b[10] == b'T';
+            match line.find("Z ") {
+                Some(k) if stamped => line[k + 2..].trim_start(),
+                _ => line,
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The first 200 characters of a message, the lines that name something
+/// the case needs first.
+fn first_relevant(text: &str, needs: &[Need]) -> String {
+    let (mut hit, miss): (Vec<&str>, Vec<&str>) = text
+        .lines()
+        .partition(|l| needs.iter().any(|n| n.met_by(l)));
+    hit.extend(miss);
+    short(&hit.join("\n"), 200)
+}
+
+fn num_text(x: f64) -> String {
+    if x.abs() < 1e9 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.3e}")
+    }
 }
 
 fn exit_text(e: Exit) -> String {
@@ -1373,6 +1435,7 @@ fn run_case(
         }
     }
     let mut calib_ok_warnings: Option<String> = None;
+    let mut case_sigma: Option<(Option<f64>, Option<f64>)> = None;
     let mut clean: (Option<Value>, Option<Value>, Option<Value>) = (None, None, None);
     for cmd in cmds {
         let s = |x: &str| x.to_string();
@@ -1473,8 +1536,13 @@ fn run_case(
                 warnings.push_str(w);
             }
         }
-        if cmd == Cmd::Calibrate && r.exit == Exit::Code(0) && json.is_some() {
-            calib_ok_warnings = Some(warnings.clone());
+        let warnings = tidy(&warnings, dir);
+        let refusal = tidy(&r.stderr, dir);
+        if cmd == Cmd::Calibrate && r.exit == Exit::Code(0) {
+            if let Some(v) = &json {
+                calib_ok_warnings = Some(warnings.clone());
+                case_sigma = Some((f(v, &["sigma_m", "mean"]), f(v, &["sigma_m", "difference"])));
+            }
         }
         let must = case.expect.must(cmd);
         let within = if r.exit != Exit::Code(0) {
@@ -1487,7 +1555,7 @@ fn run_case(
                     Cmd::Calibrate | Cmd::CalibrateSkip => {
                         Some(calib_within(json.as_ref(), b, case.expect.pct_only))
                     }
-                    Cmd::Diagnose => diag_within(json.as_ref(), b, case.expect.pct_only),
+                    Cmd::Diagnose => diag_within(json.as_ref(), b, case_sigma, case.expect.pct_only),
                     Cmd::Evaluate | Cmd::EvaluateOwn => eval_within(json.as_ref(), b),
                     Cmd::Convert | Cmd::ConvertRescue => None,
                 },
@@ -1495,16 +1563,15 @@ fn run_case(
         };
         let outcome = Outcome {
             exit: r.exit,
-            refusal: &r.stderr,
+            refusal: &refusal,
             warnings: &warnings,
             within,
         };
         let (class, detail) = classify(must, &case.expect.needs, &outcome);
-        let message = if r.exit == Exit::Code(0) {
-            short(&warnings, 200)
-        } else {
-            short(&r.stderr, 200)
-        };
+        let message = first_relevant(
+            if r.exit == Exit::Code(0) { &warnings } else { &refusal },
+            &case.expect.needs,
+        );
         if base.is_none() {
             match cmd {
                 Cmd::Info => clean.0 = json.clone(),
@@ -1524,6 +1591,10 @@ fn run_case(
             detail,
             message,
             what: case.what.clone(),
+            folder: dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
         });
     }
     if base.is_some() {
@@ -1627,13 +1698,18 @@ fn main() -> Result<()> {
         return Ok(());
     }
     let bins = find_bins()?;
-    let tmp = tempfile::Builder::new()
+    let mut tmp = tempfile::Builder::new()
         .prefix("wheelcal-campaign-")
         .tempdir()
         .context("temporary folder")?;
+    if args.iter().any(|a| a == "--keep") {
+        tmp.disable_cleanup(true);
+        println!("keeping the cases in {}", tmp.path().display());
+    }
     let started = Instant::now();
     let mut rows: Vec<Row> = Vec::new();
     let mut skipped: Vec<String> = Vec::new();
+    let mut case_no = 0usize;
     for drive in &present {
         let mut src = Source::load(&data.join(drive), drive)?;
         // The drive as MCAP, by the tool a user would use.
@@ -1679,13 +1755,16 @@ fn main() -> Result<()> {
                 expect,
                 what,
             };
-            let dir = tmp.path().join(format!("{gen}--{drive}"));
+            // A neutral folder name: the case's name must not lend the
+            // tools' messages (which name the path) the words judged.
+            case_no += 1;
+            let dir = tmp.path().join(format!("c{case_no:03}"));
             let (r, b) = run_case(&bins, &case, &dir, base.as_ref())?;
             if gen == "clean" {
                 base = b;
                 // The clean case judged against itself is trivially clean;
                 // a failure would have stopped above.
-                let clean_again = run_case(&bins, &case, &tmp.path().join(format!("clean2--{drive}")), base.as_ref())?;
+                let clean_again = run_case(&bins, &case, &tmp.path().join(format!("c{case_no:03}b")), base.as_ref())?;
                 rows.extend(clean_again.0);
             } else {
                 rows.extend(r);
@@ -1765,7 +1844,7 @@ fn main() -> Result<()> {
         "results": rows.iter().map(|r| json!({
             "case": r.case, "generator": r.gen, "drive": r.drive, "command": r.cmd.name(),
             "class": r.class.name(), "exit": r.exit, "seconds": r.secs, "detail": r.detail,
-            "message": r.message, "expected": r.what,
+            "message": r.message, "expected": r.what, "folder": r.folder,
         })).collect::<Vec<_>>(),
         "skipped": skipped,
     });
