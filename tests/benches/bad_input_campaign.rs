@@ -126,7 +126,14 @@ fn find_bins() -> Result<Bins> {
         let mut cmd = Command::new(cargo);
         cmd.args(["build", "-q", "--release", "--manifest-path"])
             .arg(manifest)
-            .args(["--bin", "sensor-bridge", "--bin", "calibrator", "--bin", "odometry"]);
+            .args([
+                "--bin",
+                "sensor-bridge",
+                "--bin",
+                "calibrator",
+                "--bin",
+                "odometry",
+            ]);
         if let Some(target) = dir.parent() {
             cmd.env("CARGO_TARGET_DIR", target);
         }
@@ -584,10 +591,7 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
     let latlon = s.gnss.col("lat_deg").is_some();
     let t_mid = s.t_mid();
     let out = match gen {
-        "clean" => (
-            Expect::new(Clean, vec![]),
-            "the drive as it is".to_string(),
-        ),
+        "clean" => (Expect::new(Clean, vec![]), "the drive as it is".to_string()),
         "mcap-clean" => {
             let Some(m) = &s.mcap else { return Ok(None) };
             return Ok(Some((
@@ -705,7 +709,8 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 )
                 .with(Info, Runs)
                 .with(Evaluate, CleanOrRefuse),
-                "rl and rr negated (the car drives forward): refuse, naming the reversed wheels".to_string(),
+                "rl and rr negated (the car drives forward): refuse, naming the reversed wheels"
+                    .to_string(),
             )
         }
         "rl-rr-swapped" => {
@@ -753,7 +758,9 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     ])],
                 )
                 .with(Info, Runs)
-                .with(Evaluate, Clean),
+                // The odometry scores against truth.csv (its ENU origin from
+                // the first GNSS fix): right, or refused naming lat/lon.
+                .with(Evaluate, CleanOrRefuse),
                 "gnss.csv lat_deg and lon_deg exchanged: refuse (the track is mirrored against the gyro), naming lat/lon"
                     .to_string(),
             )
@@ -812,7 +819,10 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 })
                 .collect();
             if latlon {
-                let (a, b) = (c.col("lat_deg").context("lat")?, c.col("lon_deg").context("lon")?);
+                let (a, b) = (
+                    c.col("lat_deg").context("lat")?,
+                    c.col("lon_deg").context("lon")?,
+                );
                 for (k, (e, nn)) in noise.iter().enumerate() {
                     let lat = c.num(k, a);
                     let lon = c.num(k, b);
@@ -861,7 +871,11 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             )
         }
         "utf16be-wheels" | "utf16be-gnss" | "bom-wheels" | "bom-gnss" => {
-            let f = if gen.ends_with("wheels") { "wheels.csv" } else { "gnss.csv" };
+            let f = if gen.ends_with("wheels") {
+                "wheels.csv"
+            } else {
+                "gnss.csv"
+            };
             let b = files.get(f).cloned().context("file")?;
             let damaged = if gen.starts_with("utf16") {
                 utf16be(&b)
@@ -874,12 +888,24 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     CleanOrRefuse,
                     vec![
                         file(f),
-                        Need::sub(&["utf-16", "utf16", "encoding", "utf-8", "utf8", "bom", "byte order"]),
+                        Need::sub(&[
+                            "utf-16",
+                            "utf16",
+                            "encoding",
+                            "utf-8",
+                            "utf8",
+                            "bom",
+                            "byte order",
+                        ]),
                     ],
                 ),
                 format!(
                     "{f} {}: read it as it is, or refuse naming the file and its encoding",
-                    if gen.starts_with("utf16") { "encoded as UTF-16BE with a BOM" } else { "with a UTF-8 BOM" }
+                    if gen.starts_with("utf16") {
+                        "encoded as UTF-16BE with a BOM"
+                    } else {
+                        "with a UTF-8 BOM"
+                    }
                 ),
             )
         }
@@ -894,8 +920,12 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 "vehicle-ticks-zero" => ("ticks_per_rev", "0"),
                 _ => ("ticks_per_rev", "-48"),
             };
-            let text = String::from_utf8_lossy(files.get("vehicle.toml").context("vehicle")?).into_owned();
-            files.insert("vehicle.toml".into(), set_vehicle_key(&text, key, value).into_bytes());
+            let text =
+                String::from_utf8_lossy(files.get("vehicle.toml").context("vehicle")?).into_owned();
+            files.insert(
+                "vehicle.toml".into(),
+                set_vehicle_key(&text, key, value).into_bytes(),
+            );
             (
                 Expect::new(Flag, vec![Need::word(&[key])]),
                 format!("vehicle.toml {key} = {value}: refuse naming {key}"),
@@ -907,9 +937,14 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 "truncated-imu" => "imu.csv",
                 _ => "gnss.csv",
             };
-            let Some(b) = files.get(f).cloned() else { return Ok(None) };
+            let Some(b) = files.get(f).cloned() else {
+                return Ok(None);
+            };
             let p = b.len() * 3 / 5;
-            let line_start = b[..p].iter().rposition(|&c| c == b'\n').map_or(0, |k| k + 1);
+            let line_start = b[..p]
+                .iter()
+                .rposition(|&c| c == b'\n')
+                .map_or(0, |k| k + 1);
             let commas: Vec<usize> = b[line_start..]
                 .iter()
                 .enumerate()
@@ -927,8 +962,12 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                 format!("{f} cut in the middle of line {line}: refuse naming the file and line, or read up to it with a warning"),
             )
         }
-        "malformed-wheels" | "malformed-gnss" | "nan-cell-wheels" | "inf-cell-imu"
-        | "time-backwards-wheels" | "time-backwards-gnss" => {
+        "malformed-wheels"
+        | "malformed-gnss"
+        | "nan-cell-wheels"
+        | "inf-cell-imu"
+        | "time-backwards-wheels"
+        | "time-backwards-gnss" => {
             let (f, base) = match gen {
                 "malformed-gnss" | "time-backwards-gnss" => ("gnss.csv", s.gnss.clone()),
                 "inf-cell-imu" => match &s.imu {
@@ -939,7 +978,11 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             };
             let mut c = base;
             let k = c.rows.len() / 2;
-            let col = if f == "imu.csv" { c.col("gz_rad_s").context("gz")? } else { 1 };
+            let col = if f == "imu.csv" {
+                c.col("gz_rad_s").context("gz")?
+            } else {
+                1
+            };
             let line = k + 2; // header is line 1
             let what = match gen {
                 "malformed-wheels" | "malformed-gnss" => {
@@ -961,7 +1004,11 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
                     "t_s going back"
                 }
             };
-            let line = if what.starts_with("t_s") { line + 1 } else { line };
+            let line = if what.starts_with("t_s") {
+                line + 1
+            } else {
+                line
+            };
             let colname = c.header[col].clone();
             put(&mut files, f, &c);
             let needs = if what.starts_with("t_s") || what.contains("1.2.3") {
@@ -971,7 +1018,9 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             };
             (
                 Expect::new(Flag, needs),
-                format!("{f} line {line} ({colname}): {what}: an error naming file, line and column"),
+                format!(
+                    "{f} line {line} ({colname}): {what}: an error naming file, line and column"
+                ),
             )
         }
         "missing-rr" | "missing-gz" | "missing-lon" => {
@@ -995,7 +1044,10 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             if f == "gnss.csv" {
                 e = e.with(Evaluate, CleanOrRefuse);
             }
-            (e, format!("{f} without its {colname} column: an error naming it"))
+            (
+                e,
+                format!("{f} without its {colname} column: an error naming it"),
+            )
         }
         "unknown-columns" => {
             let mut c = w.clone();
@@ -1039,9 +1091,12 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             (
                 e,
                 if gen == "header-only-gnss" {
-                    "gnss.csv with its header only: calibrate refuses (no reference), saying so".to_string()
+                    "gnss.csv with its header only: calibrate refuses (no reference), saying so"
+                        .to_string()
                 } else {
-                    format!("{f} empty (0 bytes): refuse naming it, or go on without it with a warning")
+                    format!(
+                        "{f} empty (0 bytes): refuse naming it, or go on without it with a warning"
+                    )
                 },
             )
         }
@@ -1095,7 +1150,13 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             let Some((t0, t1, turn, dist)) = straight_window(s, 40.0, 100.0) else {
                 return Ok(None);
             };
-            for f in ["wheels.csv", "gnss.csv", "imu.csv", "truth.csv", "heading.csv"] {
+            for f in [
+                "wheels.csv",
+                "gnss.csv",
+                "imu.csv",
+                "truth.csv",
+                "heading.csv",
+            ] {
                 if let Some(b) = files.get(f) {
                     let mut c = Csv::parse(b, f)?;
                     c.keep_rows(|t| t >= t0 && t <= t1);
@@ -1154,7 +1215,12 @@ fn straight_window(s: &Source, len: f64, min_m: f64) -> Option<(f64, f64, f64, f
         let mut c = vec![0.0; times.len()];
         for k in 1..times.len() {
             let r = rate(k);
-            c[k] = c[k - 1] + if r.is_finite() { r * (times[k] - times[k - 1]) } else { 0.0 };
+            c[k] = c[k - 1]
+                + if r.is_finite() {
+                    r * (times[k] - times[k - 1])
+                } else {
+                    0.0
+                };
         }
         c
     };
@@ -1212,7 +1278,10 @@ fn warning_lines(v: &Value) -> String {
                     c.as_str().unwrap_or(""),
                     m.as_str().unwrap_or("")
                 )),
-                _ => out.push_str(&format!("{}\n", w.as_str().map_or(w.to_string(), str::to_string))),
+                _ => out.push_str(&format!(
+                    "{}\n",
+                    w.as_str().map_or(w.to_string(), str::to_string)
+                )),
             }
         }
     }
@@ -1237,7 +1306,10 @@ fn circ_within(
     }
     if pct_only {
         let ok = (case.0 - clean.0).abs() <= pct && (case.1 - clean.1).abs() <= pct;
-        return (ok, format!("{figures} (limit 0.05 % = {:.2} mm each)", 1000.0 * pct));
+        return (
+            ok,
+            format!("{figures} (limit 0.05 % = {:.2} mm each)", 1000.0 * pct),
+        );
     }
     let d_mean = 0.5 * (case.0 + case.1) - 0.5 * (clean.0 + clean.1);
     let d_diff = (case.1 - case.0) - (clean.1 - clean.0);
@@ -1353,7 +1425,9 @@ fn short(text: &str, n: usize) -> String {
 /// stamps (their numbers are not times of the drive).
 fn tidy(text: &str, dir: &Path) -> String {
     let dir = dir.to_string_lossy();
-    let text = text.replace(&format!("{dir}/"), "").replace(dir.as_ref(), "");
+    let text = text
+        .replace(&format!("{dir}/"), "")
+        .replace(dir.as_ref(), "");
     text.lines()
         .map(|line| {
             let b = line.as_bytes();
@@ -1449,7 +1523,13 @@ fn run_case(
             }
             Cmd::Calibrate | Cmd::CalibrateSkip => {
                 let j = out(&format!("{}.json", cmd.name()));
-                let mut a = vec![s("calibrate"), inp.clone(), s("--json"), j.clone(), s("--no-progress")];
+                let mut a = vec![
+                    s("calibrate"),
+                    inp.clone(),
+                    s("--json"),
+                    j.clone(),
+                    s("--no-progress"),
+                ];
                 if cmd == Cmd::CalibrateSkip {
                     a.push(s("--skip-corrupt-chunks"));
                 }
@@ -1459,7 +1539,13 @@ fn run_case(
                 let j = out("diagnose.json");
                 (
                     &bins.calibrator,
-                    vec![s("diagnose"), inp.clone(), s("--json"), j.clone(), s("--no-progress")],
+                    vec![
+                        s("diagnose"),
+                        inp.clone(),
+                        s("--json"),
+                        j.clone(),
+                        s("--no-progress"),
+                    ],
                     Some(j),
                 )
             }
@@ -1490,7 +1576,11 @@ fn run_case(
                 )
             }
             Cmd::Convert | Cmd::ConvertRescue => {
-                let mut a = vec![s("convert"), inp.clone(), out(&format!("{}-out", cmd.name()))];
+                let mut a = vec![
+                    s("convert"),
+                    inp.clone(),
+                    out(&format!("{}-out", cmd.name())),
+                ];
                 if cmd == Cmd::ConvertRescue {
                     a.push(s(if case.gen == "mcap-truncated" {
                         "--allow-truncated"
@@ -1555,7 +1645,9 @@ fn run_case(
                     Cmd::Calibrate | Cmd::CalibrateSkip => {
                         Some(calib_within(json.as_ref(), b, case.expect.pct_only))
                     }
-                    Cmd::Diagnose => diag_within(json.as_ref(), b, case_sigma, case.expect.pct_only),
+                    Cmd::Diagnose => {
+                        diag_within(json.as_ref(), b, case_sigma, case.expect.pct_only)
+                    }
                     Cmd::Evaluate | Cmd::EvaluateOwn => eval_within(json.as_ref(), b),
                     Cmd::Convert | Cmd::ConvertRescue => None,
                 },
@@ -1569,7 +1661,11 @@ fn run_case(
         };
         let (class, detail) = classify(must, &case.expect.needs, &outcome);
         let message = first_relevant(
-            if r.exit == Exit::Code(0) { &warnings } else { &refusal },
+            if r.exit == Exit::Code(0) {
+                &warnings
+            } else {
+                &refusal
+            },
             &case.expect.needs,
         );
         if base.is_none() {
@@ -1603,7 +1699,10 @@ fn run_case(
     // The clean case: its outputs are the baseline, and its evaluation
     // (with its own estimate, scored where `auto` scores) fixes the point.
     let (Some(info), Some(calib)) = (clean.0, clean.1) else {
-        bail!("{}: the clean drive did not calibrate or summarise", case.drive);
+        bail!(
+            "{}: the clean drive did not calibrate or summarise",
+            case.drive
+        );
     };
     let estimate = dir.join("calibrate.json");
     let j = dir.join("baseline-evaluate.json");
@@ -1675,7 +1774,11 @@ fn main() -> Result<()> {
     let data = arg(&args, "--data")
         .map(PathBuf::from)
         .unwrap_or_else(drive_io::dev_data::real_data_dir);
-    let drives: Vec<&str> = if quick { vec![DRIVES[0]] } else { DRIVES.to_vec() };
+    let drives: Vec<&str> = if quick {
+        vec![DRIVES[0]]
+    } else {
+        DRIVES.to_vec()
+    };
     let present: Vec<&str> = drives
         .iter()
         .copied()
@@ -1742,8 +1845,8 @@ fn main() -> Result<()> {
                     }
                 }
             }
-            let Some((input, expect, what)) = generate(gen, &src)
-                .with_context(|| format!("generating {name}"))?
+            let Some((input, expect, what)) =
+                generate(gen, &src).with_context(|| format!("generating {name}"))?
             else {
                 skipped.push(format!("{name}: does not apply to this drive"));
                 continue;
@@ -1764,7 +1867,12 @@ fn main() -> Result<()> {
                 base = b;
                 // The clean case judged against itself is trivially clean;
                 // a failure would have stopped above.
-                let clean_again = run_case(&bins, &case, &tmp.path().join(format!("c{case_no:03}b")), base.as_ref())?;
+                let clean_again = run_case(
+                    &bins,
+                    &case,
+                    &tmp.path().join(format!("c{case_no:03}b")),
+                    base.as_ref(),
+                )?;
                 rows.extend(clean_again.0);
             } else {
                 rows.extend(r);

@@ -32,7 +32,10 @@ pub enum Must {
 
 impl Must {
     fn refusal_allowed(self) -> bool {
-        matches!(self, Must::Flag | Must::CleanOrRefuse | Must::Notice | Must::Runs)
+        matches!(
+            self,
+            Must::Flag | Must::CleanOrRefuse | Must::Notice | Must::Runs
+        )
     }
 }
 
@@ -260,7 +263,11 @@ pub fn classify(must: Must, needs: &[Need], out: &Outcome<'_>) -> (Class, String
             match must {
                 Must::Clean | Must::CleanOrRefuse | Must::Runs => {
                     if within {
-                        let class = if warned { Class::OkWarned } else { Class::OkClean };
+                        let class = if warned {
+                            Class::OkWarned
+                        } else {
+                            Class::OkClean
+                        };
                         (class, figures)
                     } else if warned {
                         (Class::WarnedWrong, figures)
@@ -324,7 +331,10 @@ mod tests {
         let t = Need::Time { t: 40.3, tol: 1.0 };
         assert!(t.met_by("first at t = 40.94 s"));
         assert!(!t.met_by("first at t = 42.0 s, 1e-3"));
-        assert_eq!(numbers("a -1.5 b 40.31 s x2 7.6e16"), vec![-1.5, 40.31, 7.6]);
+        assert_eq!(
+            numbers("a -1.5 b 40.31 s x2 7.6e16"),
+            vec![-1.5, 40.31, 7.6]
+        );
     }
 
     #[test]
@@ -344,7 +354,10 @@ mod tests {
             within: None,
         };
         assert_eq!(classify(Must::Flag, &needs, &refused).0, Class::OkRefused);
-        assert_eq!(classify(Must::Warn, &needs, &refused).0, Class::RefusedWrongly);
+        assert_eq!(
+            classify(Must::Warn, &needs, &refused).0,
+            Class::RefusedWrongly
+        );
         let vague = Outcome {
             refusal: "error: bad input",
             ..refused
