@@ -844,7 +844,24 @@ fn generate(gen: &'static str, s: &Source) -> Result<Option<(Input, Expect, Stri
             }
             put(&mut files, "gnss.csv", &c);
             (
-                Expect::new(Warn, vec![Need::word(&["sigma_m"])])
+                Expect::new(
+                    Warn,
+                    // Naming sigma_m in passing ("the GNSS noise of 0.050 m
+                    // (the receiver's sigma_m)") while blaming physics is not
+                    // naming the lie: the message must say the claim is off.
+                    vec![
+                        Need::word(&["sigma_m"]),
+                        Need::sub(&[
+                            "claim",
+                            "scatter",
+                            "optimistic",
+                            "understate",
+                            "underestimate",
+                            "too small",
+                            "smaller than",
+                        ]),
+                    ],
+                )
                     .with(Info, Runs)
                     .with(Evaluate, Clean)
                     .with(Diagnose, CleanOrRefuse),
