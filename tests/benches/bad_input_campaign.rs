@@ -1269,6 +1269,8 @@ fn straight_window(s: &Source, len: f64, min_m: f64) -> Option<(f64, f64, f64, f
 
 /// What the clean drive gave, per drive.
 struct Baseline {
+    /// Per command, the clean drive's warnings (`warning_key`).
+    warned: BTreeMap<Cmd, std::collections::BTreeSet<String>>,
     calib: Value,
     diag: Option<Value>,
     eval_median: Option<f64>,
@@ -1484,6 +1486,32 @@ fn exit_text(e: Exit) -> String {
     }
 }
 
+/// A warning line without its figures, to tell a warning the clean drive
+/// also gives from a new one.
+fn warning_key(line: &str) -> String {
+    line.chars()
+        .filter(|c| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+')))
+        .collect()
+}
+
+fn keys(text: &str) -> std::collections::BTreeSet<String> {
+    text.lines().map(warning_key).collect()
+}
+
+/// The stderr lines that are warnings or errors (not progress or info).
+fn not_info(text: &str) -> String {
+    text.lines()
+        .filter(|l| {
+            let l = l.trim_start();
+            !(l.starts_with("INFO")
+                || l.starts_with("DEBUG")
+                || l.starts_with("TRACE")
+                || l.is_empty())
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
 /// Runs every command of one case; `None` baseline: this is the clean case,
 /// whose outputs become the baseline.
 fn run_case(
@@ -1527,6 +1555,7 @@ fn run_case(
     }
     let mut calib_ok_warnings: Option<String> = None;
     let mut case_sigma: Option<(Option<f64>, Option<f64>)> = None;
+    let mut clean_warned: BTreeMap<Cmd, std::collections::BTreeSet<String>> = BTreeMap::new();
     let mut clean: (Option<Value>, Option<Value>, Option<Value>) = (None, None, None);
     for cmd in cmds {
         let s = |x: &str| x.to_string();
@@ -1617,7 +1646,7 @@ fn run_case(
             (None, Cmd::Info | Cmd::InfoSkip) => serde_json::from_str(&r.stdout).ok(),
             _ => None,
         };
-        let mut warnings = r.stderr.clone();
+        let mut warnings = format!("{}\n", r.stderr);
         if let Some(v) = &json {
             warnings.push_str(&warning_lines(v));
             if matches!(cmd, Cmd::Info | Cmd::InfoSkip) {
@@ -1638,12 +1667,12 @@ fn run_case(
         if matches!(cmd, Cmd::Convert | Cmd::ConvertRescue) {
             warnings.push_str(&r.stdout);
         }
+        let mut warnings = not_info(&tidy(&warnings, dir));
         if cmd == Cmd::EvaluateOwn {
             if let Some(w) = &calib_ok_warnings {
                 warnings.push_str(w);
             }
         }
-        let warnings = tidy(&warnings, dir);
         let refusal = tidy(&r.stderr, dir);
         if cmd == Cmd::Calibrate && r.exit == Exit::Code(0) {
             if let Some(v) = &json {
@@ -1670,11 +1699,24 @@ fn run_case(
                 },
             }
         };
+        let new_warnings = match base {
+            None => true,
+            Some(b) => {
+                let clean = b.warned.get(&cmd);
+                warnings
+                    .lines()
+                    .any(|l| clean.is_none_or(|c| !c.contains(&warning_key(l))))
+            }
+        };
+        if base.is_none() {
+            clean_warned.insert(cmd, keys(&warnings));
+        }
         let outcome = Outcome {
             exit: r.exit,
             refusal: &refusal,
             warnings: &warnings,
             within,
+            new_warnings,
         };
         let (class, detail) = classify(must, &case.expect.needs, &outcome);
         let message = first_relevant(
@@ -1737,6 +1779,27 @@ fn run_case(
         "baseline-evaluate",
     )?;
     let ev = read_json(&j);
+    let mut eval_warnings = format!("{}\n", r.stderr);
+    if let Some(v) = &ev {
+        eval_warnings.push_str(&warning_lines(v));
+    }
+    let eval_keys = keys(&not_info(&tidy(&eval_warnings, dir)));
+    let mut own_keys = eval_keys.clone();
+    own_keys.extend(
+        clean_warned
+            .get(&Cmd::Calibrate)
+            .cloned()
+            .unwrap_or_default(),
+    );
+    clean_warned.insert(Cmd::Evaluate, eval_keys);
+    clean_warned.insert(Cmd::EvaluateOwn, own_keys);
+    for (skip, plain) in [
+        (Cmd::InfoSkip, Cmd::Info),
+        (Cmd::CalibrateSkip, Cmd::Calibrate),
+    ] {
+        let k = clean_warned.get(&plain).cloned().unwrap_or_default();
+        clean_warned.insert(skip, k);
+    }
     let (eval_median, truth_point) = match (&r.exit, &ev) {
         (Exit::Code(0), Some(v)) => {
             let point = v
@@ -1765,6 +1828,7 @@ fn run_case(
     Ok((
         rows,
         Some(Baseline {
+            warned: clean_warned,
             calib,
             diag: clean.2,
             eval_median,

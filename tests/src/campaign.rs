@@ -228,6 +228,9 @@ pub struct Outcome<'a> {
     /// On success: whether the result is within tolerance of the clean
     /// drive's (`None` when not compared), with the figures as text.
     pub within: Option<(bool, String)>,
+    /// Whether some warning is new against the clean drive's (the tool
+    /// noticed something, even if its message names none of the needs).
+    pub new_warnings: bool,
 }
 
 /// The class of an outcome for a case that requires `must` and whose
@@ -277,8 +280,7 @@ pub fn classify(must: Must, needs: &[Need], out: &Outcome<'_>) -> (Class, String
                 }
                 Must::Flag | Must::Warn | Must::Notice => {
                     if !warned {
-                        let some_warning = !out.warnings.trim().is_empty();
-                        if some_warning && within {
+                        if out.new_warnings && within {
                             (
                                 Class::Vague,
                                 format!("warnings name not {}; {figures}", list(needs)),
@@ -318,6 +320,7 @@ mod tests {
             refusal: "",
             warnings,
             within: Some((within, String::new())),
+            new_warnings: !warnings.is_empty(),
         }
     }
 
@@ -345,6 +348,7 @@ mod tests {
             refusal: "thread panicked",
             warnings: "",
             within: None,
+            new_warnings: false,
         };
         assert_eq!(classify(Must::Flag, &needs, &panic).0, Class::Abort);
         let refused = Outcome {
@@ -352,6 +356,7 @@ mod tests {
             refusal: "error: wheel rl impossible",
             warnings: "",
             within: None,
+            new_warnings: false,
         };
         assert_eq!(classify(Must::Flag, &needs, &refused).0, Class::OkRefused);
         assert_eq!(
@@ -374,6 +379,18 @@ mod tests {
         assert_eq!(
             classify(Must::Flag, &needs, &ok_run("[x] rl glitch", true)).0,
             Class::OkWarned
+        );
+        assert_eq!(
+            classify(Must::Flag, &needs, &ok_run("[x] something", true)).0,
+            Class::Vague
+        );
+        let old_warning_only = Outcome {
+            new_warnings: false,
+            ..ok_run("[x] as on the clean drive", true)
+        };
+        assert_eq!(
+            classify(Must::Flag, &needs, &old_warning_only).0,
+            Class::SilentWrong
         );
         assert_eq!(
             classify(Must::Flag, &needs, &ok_run("[x] rl glitch", false)).0,
