@@ -27,8 +27,9 @@
 //! Classes (`integration_tests::campaign::Class`): `abort` (signal, exit 101
 //! = panic, or no exit within 120 s), `silent-wrong` (exit 0, no warning
 //! naming the damage, and a result beyond tolerance or a case that requires a
-//! refusal or a warning), `vague` (refused or warned, but not naming what the
-//! case needs), `refused-wrongly` (refused where the case says the data
+//! refusal or a warning), `vague` (refused, or exit 0 with a result within
+//! tolerance and a warning the clean drive does not give, but not naming what
+//! the case needs), `refused-wrongly` (refused where the case says the data
 //! supports a result), `warned-wrong` (a warning naming the damage, but a
 //! result beyond tolerance), `ok-refused`, `ok-warned`, `ok-clean`.
 //! Tolerances against the clean drive: circumferences (calibrate; the
