@@ -2,9 +2,11 @@
 //! process graph over iceoryx2 for the `graph_*` tests; [`latency`] has what
 //! the latency benchmarks share; [`faults`] is the fault suite (services
 //! killed at random moments); [`python`] finds a Python for the example
-//! subscribers' tests. The main job (`wheelcal-demo`) lives in
+//! subscribers' tests; [`campaign`] judges the bad-input campaign bench's
+//! outcomes. The main job (`wheelcal-demo`) lives in
 //! `examples/demo`.
 
+pub mod campaign;
 pub mod faults;
 pub mod graph;
 pub mod latency;
