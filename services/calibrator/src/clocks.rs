@@ -253,6 +253,196 @@ pub struct ClockOffsets {
     pub gnss_s: StreamOffset,
     /// IMU against the wheels.
     pub imu_s: StreamOffset,
+    /// Every pair of streams compared (each determined with its sigma, or
+    /// why not): the measurements [`solve_offsets`] combined into `gnss_s`.
+    #[serde(default)]
+    pub pairs: Vec<PairOffset>,
+}
+
+/// A stream with its own clock: a node of the graph of pairwise offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClockStream {
+    /// The wheels (the calibration's time base).
+    Wheels,
+    /// The GNSS fixes.
+    Gnss,
+    /// The IMU.
+    Imu,
+}
+
+impl ClockStream {
+    /// Lower-case name for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            ClockStream::Wheels => "wheels",
+            ClockStream::Gnss => "gnss",
+            ClockStream::Imu => "imu",
+        }
+    }
+}
+
+/// One pairwise measurement: `later`'s stamps are late against `base`'s by
+/// `offset.offset_s` (`t_later = t_base + offset`), or not determined.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairOffset {
+    /// The stream the offset is measured against.
+    pub base: ClockStream,
+    /// The stream whose offset it is.
+    pub later: ClockStream,
+    /// The measurement (its sigma includes the systematic lags of the
+    /// signals compared, see [`solve_offsets`]).
+    pub offset: StreamOffset,
+}
+
+/// A stream's offset against the wheels from [`solve_offsets`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointOffset {
+    /// `t_stream = t_wheels + offset_s`, s.
+    pub offset_s: f64,
+    /// Its 1-sigma (inflated by the loop's chi-square per degree of
+    /// freedom where that exceeds 1), s.
+    pub sigma_s: f64,
+    /// The determined pairs it came from, e.g. "gnss-imu (course rate) +
+    /// wheels-imu (yaw rate)".
+    pub path: String,
+    /// True when it rests on the direct pair with the wheels alone.
+    pub direct: bool,
+}
+
+/// Chi-square per degree of freedom of a loop of pairs beyond which they
+/// contradict each other (3 sigma for one loop): the pairs are then not
+/// combined, each stream keeps its direct pair with the wheels.
+const LOOP_CHI2_LIMIT: f64 = 9.0;
+
+/// The offset of `stream` against the wheels by weighted least squares over
+/// every determined pair of `pairs` (the wheels' offset held at 0): one
+/// determined pair closes the chain for the others (wheels-IMU and GNSS-IMU
+/// give wheels-GNSS). `Err` says why not: no chain of determined pairs
+/// reaches `stream`, or the pairs of a loop contradict each other and the
+/// direct pair is not determined.
+pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointOffset, String> {
+    const NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
+    let idx = |s: ClockStream| NODES.iter().position(|n| *n == s).unwrap_or(0);
+    let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
+        .iter()
+        .filter_map(|p| match (p.offset.status, p.offset.offset_s, p.offset.sigma_s) {
+            (OffsetStatus::Determined, Some(o), Some(s)) if s > 0.0 && idx(p.base) != idx(p.later) => {
+                Some((idx(p.base), idx(p.later), o, s, p))
+            }
+            _ => None,
+        })
+        .collect();
+    let target = idx(stream);
+    if target == 0 {
+        return Ok(JointOffset {
+            offset_s: 0.0,
+            sigma_s: 0.0,
+            path: "the time base".to_string(),
+            direct: true,
+        });
+    }
+    // The streams a chain of determined pairs links to the wheels.
+    let mut reached = [true, false, false];
+    loop {
+        let mut grew = false;
+        for &(a, b, ..) in &edges {
+            if reached[a] != reached[b] {
+                reached[a] = true;
+                reached[b] = true;
+                grew = true;
+            }
+        }
+        if !grew {
+            break;
+        }
+    }
+    if !reached[target] {
+        return Err(format!(
+            "no chain of determined pairs links the {} to the wheels",
+            stream.name()
+        ));
+    }
+    let used: Vec<_> = edges
+        .iter()
+        .filter(|e| reached[e.0] && reached[e.1])
+        .collect();
+    // Unknowns: the reached streams other than the wheels.
+    let unknowns: Vec<usize> = (1..NODES.len()).filter(|&i| reached[i]).collect();
+    let col = |i: usize| unknowns.iter().position(|&u| u == i);
+    let n = unknowns.len();
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+    for &&(a, b, o, s, _) in &used {
+        // o = x_b - x_a, weight 1 / s^2.
+        let w = 1.0 / (s * s);
+        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
+        if let Some(c) = col(b) {
+            row.push((c, 1.0));
+        }
+        if let Some(c) = col(a) {
+            row.push((c, -1.0));
+        }
+        for &(i, ri) in &row {
+            rhs[i] += w * ri * o;
+            for &(j, rj) in &row {
+                normal[(i, j)] += w * ri * rj;
+            }
+        }
+    }
+    let cov = normal
+        .try_inverse()
+        .ok_or_else(|| "the pairs do not determine the offsets".to_string())?;
+    let x = &cov * &rhs;
+    let value = |i: usize| col(i).map_or(0.0, |c| x[c]);
+    let dof = used.len().saturating_sub(n);
+    let chi2: f64 = used
+        .iter()
+        .map(|&&(a, b, o, s, _)| {
+            let r = (value(b) - value(a) - o) / s;
+            r * r
+        })
+        .sum();
+    let describe = |e: &&(usize, usize, f64, f64, &PairOffset)| {
+        format!(
+            "{}-{} ({})",
+            e.4.base.name(),
+            e.4.later.name(),
+            e.4.offset.from.as_deref().unwrap_or("?")
+        )
+    };
+    let direct = used
+        .iter()
+        .find(|e| (e.0 == 0 && e.1 == target) || (e.1 == 0 && e.0 == target));
+    if dof > 0 && chi2 / dof as f64 > LOOP_CHI2_LIMIT {
+        // The loop contradicts itself: no combination, the direct pair alone.
+        let why = format!(
+            "the pairs {} contradict each other (chi-square {:.1} over {dof} loop(s))",
+            used.iter().map(describe).collect::<Vec<_>>().join(", "),
+            chi2
+        );
+        return match direct {
+            Some(e) => Ok(JointOffset {
+                offset_s: if e.0 == 0 { e.2 } else { -e.2 },
+                sigma_s: e.3,
+                path: format!("{}; {why}: the direct pair alone", describe(e)),
+                direct: true,
+            }),
+            None => Err(why),
+        };
+    }
+    let inflate = if dof > 0 {
+        (chi2 / dof as f64).max(1.0).sqrt()
+    } else {
+        1.0
+    };
+    let c = col(target).unwrap_or(0);
+    Ok(JointOffset {
+        offset_s: x[c],
+        sigma_s: cov[(c, c)].max(0.0).sqrt() * inflate,
+        path: used.iter().map(describe).collect::<Vec<_>>().join(" + "),
+        direct: used.len() == 1 && direct.is_some(),
+    })
 }
 
 /// A signal sampled at increasing times, linear between samples.

@@ -570,6 +570,7 @@ fn assemble(
         clock_offsets: crate::clocks::ClockOffsets {
             gnss_s: r.gnss_clock.clone(),
             imu_s: p.imu_clock.clone(),
+            pairs: r.clock_pairs.clone(),
         },
         comparison,
         tracks: Tracks {

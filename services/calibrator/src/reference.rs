@@ -23,7 +23,7 @@
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
-use crate::clocks::{self, StreamOffset, CLOCK_SEARCH_S};
+use crate::clocks::{self, ClockStream, PairOffset, StreamOffset, CLOCK_SEARCH_S};
 use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
 use crate::gnss_jumps::{self, JumpSearch};
@@ -97,8 +97,11 @@ pub struct Reference {
     pub jumps: Vec<gnss_jumps::Jump>,
     /// The wheel/GNSS time offset, when checked and determinable.
     pub time_offset: Option<TimeOffset>,
-    /// The GNSS clock offset against the wheels, determined or not (and why).
+    /// The GNSS clock offset against the wheels, determined or not (and
+    /// why): every pair of streams combined ([`clocks::solve_offsets`]).
     pub gnss_clock: StreamOffset,
+    /// The pairs of streams compared for it.
+    pub clock_pairs: Vec<PairOffset>,
     /// Side-slip gain k in beta = -k a_y, rad per m/s^2, when estimated.
     pub side_slip_gain: Option<f64>,
     /// Mean gyro bias of the heading filter, rad/s.
@@ -433,7 +436,7 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
 /// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
 /// determined (with the reason and the manoeuvre that would determine it)
 /// when neither does.
-fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
+fn estimate_time_offset(p: &Prepared, track: &PosTrack, rates: &CourseRates) -> StreamOffset {
     let h = 0.25;
     let n = p.len();
     if n < 3 {
@@ -454,33 +457,11 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         .collect();
     let yaw_rate = clocks::windowed_rate(&p.t, &inc, h);
     drop(inc);
-    let mut speeds = Vec::new();
-    let mut course_rates = Vec::new();
-    let mut course_speed = 0.0;
-    let m = track.t.len();
-    let v_of = |j: usize| {
-        let s = track.s[j];
-        (s[2] * s[2] + s[3] * s[3]).sqrt()
-    };
-    for j in 0..m {
-        if !track.accepted[j] {
-            continue;
-        }
-        let v = v_of(j);
-        if v > 1.0 {
-            speeds.push((track.t[j], v));
-        }
-        if j == 0 || j + 1 >= m || !track.accepted[j - 1] || !track.accepted[j + 1] {
-            continue;
-        }
-        let (a, b) = (track.s[j - 1], track.s[j + 1]);
-        let dt = track.t[j + 1] - track.t[j - 1];
-        if v_of(j - 1) > COURSE_MIN_SPEED && v_of(j + 1) > COURSE_MIN_SPEED && dt > 0.0 {
-            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
-            course_rates.push((track.t[j], d / dt));
-            course_speed += v;
-        }
-    }
+    let speeds: Vec<(f64, f64)> = (0..track.t.len())
+        .filter(|&j| track.accepted[j])
+        .map(|j| (track.t[j], track.speed(j)))
+        .filter(|(_, v)| *v > 1.0)
+        .collect();
     let fit = |obs: &[(f64, f64)], v: &[f32], intercept: bool| {
         clocks::fit_lag(
             obs,
@@ -495,12 +476,8 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         // Determined by the speed: the course rate is not needed.
         return clocks::StreamOffset::determined(&f, "speed");
     }
-    // The course leads or lags the heading by the side-slip's response,
-    // about k v (beta = -k a_y): a systematic the fit cannot see at
-    // constant speed, added to its sigma.
-    let slip_lag = SLIP_GAIN_TYPICAL * course_speed / (course_rates.len().max(1) as f64);
-    let by_course = fit(&course_rates, &yaw_rate, true).map(|mut f| {
-        f.sigma_s = f.sigma_s.hypot(slip_lag);
+    let by_course = fit(&rates.obs, &yaw_rate, true).map(|mut f| {
+        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
         f
     });
     let tries = vec![("speed", by_speed), ("course rate", by_course)];
@@ -509,6 +486,159 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         CLOCK_SEARCH_S,
         "speed changes (accelerating and braking) or turns with GNSS",
     )
+}
+
+/// The GNSS course rate at the accepted epochs of the smoothed track (both
+/// neighbours accepted and faster than [`COURSE_MIN_SPEED`]), for the clock
+/// offsets against the wheels' and the gyro's yaw rates.
+struct CourseRates {
+    /// (GNSS time, course rate rad/s).
+    obs: Vec<(f64, f64)>,
+    /// The course leads or lags the heading by the side-slip's response,
+    /// about k v (beta = -k a_y): a systematic lag the fit cannot see at
+    /// constant speed, added to the sigma of an offset found from it, s.
+    slip_lag_s: f64,
+}
+
+impl PosTrack {
+    /// Speed at epoch `j`, m/s.
+    fn speed(&self, j: usize) -> f64 {
+        let s = self.s[j];
+        (s[2] * s[2] + s[3] * s[3]).sqrt()
+    }
+}
+
+fn course_rates(track: &PosTrack) -> CourseRates {
+    let mut obs = Vec::new();
+    let mut course_speed = 0.0;
+    let m = track.t.len();
+    for j in 1..m.saturating_sub(1) {
+        if !(track.accepted[j - 1] && track.accepted[j] && track.accepted[j + 1]) {
+            continue;
+        }
+        let (a, b) = (track.s[j - 1], track.s[j + 1]);
+        let dt = track.t[j + 1] - track.t[j - 1];
+        if track.speed(j - 1) > COURSE_MIN_SPEED && track.speed(j + 1) > COURSE_MIN_SPEED && dt > 0.0
+        {
+            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
+            obs.push((track.t[j], d / dt));
+            course_speed += track.speed(j);
+        }
+    }
+    let slip_lag_s = SLIP_GAIN_TYPICAL * course_speed / (obs.len().max(1) as f64);
+    CourseRates { obs, slip_lag_s }
+}
+
+/// The GNSS clock against the IMU's: the GNSS course rate against the
+/// gyro's yaw rate (as prepared: on the IMU clock less `p.imu_shift_s`),
+/// by [`clocks::fit_lag`]; its sigma includes the side-slip lag. The pair
+/// that closes the chain wheels-IMU-GNSS when the GNSS's speed and course
+/// do not determine its offset against the wheels directly (a drive at
+/// near-constant speed whose wheel yaw rate is too coarse).
+fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
+    let h = 0.25;
+    let Some(gyro) = p.gyro.as_ref() else {
+        return StreamOffset::not_checked("the drive has no usable gyro");
+    };
+    let (t, g): (Vec<f64>, Vec<f64>) = p
+        .t
+        .iter()
+        .zip(gyro)
+        .filter(|(_, g)| g.is_finite())
+        .map(|(t, g)| (*t, *g))
+        .unzip();
+    if t.len() < 3 {
+        return StreamOffset::not_determined("the gyro covers too few wheel samples".to_string());
+    }
+    let inc: Vec<f64> = std::iter::once(0.0)
+        .chain(g.windows(2).map(|w| w[1] - w[0]))
+        .collect();
+    let yaw_rate = clocks::windowed_rate(&t, &inc, h);
+    let fit = clocks::fit_lag(
+        &rates.obs,
+        &clocks::Sampled { t: &t, v: &yaw_rate },
+        CLOCK_SEARCH_S,
+        2.0 * h,
+        true,
+    )
+    .map(|mut f| {
+        // Against the IMU's own clock.
+        f.lag_s -= p.imu_shift_s;
+        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
+        f
+    });
+    clocks::first_determined(
+        [("course rate against the gyro", fit)],
+        CLOCK_SEARCH_S,
+        "turns with GNSS",
+    )
+}
+
+/// The pairs of streams compared (wheels-GNSS, wheels-IMU, IMU-GNSS), the
+/// wheels-IMU pair's sigma widened by the lag the car itself puts between
+/// the wheels' and the gyro's yaw rates ([`crate::prep::IMU_PHYSICAL_LAG_S`]).
+fn clock_pairs(p: &Prepared, direct: &StreamOffset, gnss_imu: StreamOffset) -> Vec<PairOffset> {
+    let mut imu = p.imu_clock.clone();
+    if let Some(s) = imu.sigma_s.as_mut() {
+        *s = s.hypot(crate::prep::IMU_PHYSICAL_LAG_S);
+    }
+    vec![
+        PairOffset {
+            base: ClockStream::Wheels,
+            later: ClockStream::Gnss,
+            offset: direct.clone(),
+        },
+        PairOffset {
+            base: ClockStream::Wheels,
+            later: ClockStream::Imu,
+            offset: imu,
+        },
+        PairOffset {
+            base: ClockStream::Imu,
+            later: ClockStream::Gnss,
+            offset: gnss_imu,
+        },
+    ]
+}
+
+/// The GNSS offset against the wheels over every pair ([`clocks::solve_offsets`]):
+/// determined when the combination is (within [`clocks::MAX_OFFSET_SIGMA_S`]),
+/// else the direct pair's result with why the chain did not help.
+fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffset {
+    match clocks::solve_offsets(pairs, ClockStream::Gnss) {
+        Ok(j) if j.sigma_s <= clocks::MAX_OFFSET_SIGMA_S => StreamOffset {
+            status: clocks::OffsetStatus::Determined,
+            offset_s: Some(j.offset_s),
+            sigma_s: Some(j.sigma_s),
+            from: Some(if j.direct {
+                direct.from.clone().unwrap_or(j.path)
+            } else {
+                j.path
+            }),
+            applied: false,
+            reason: None,
+            drift: direct.drift.clone(),
+        },
+        Ok(j) if direct.status != clocks::OffsetStatus::Determined => {
+            let mut o = direct.clone();
+            o.reason = Some(format!(
+                "{}; through {}: sigma {:.2} s",
+                o.reason.as_deref().unwrap_or("not determined"),
+                j.path,
+                j.sigma_s
+            ));
+            o
+        }
+        Err(why) if direct.status != clocks::OffsetStatus::Determined => {
+            let mut o = direct.clone();
+            o.reason = Some(format!(
+                "{}; {why}",
+                o.reason.as_deref().unwrap_or("not determined")
+            ));
+            o
+        }
+        _ => direct.clone(),
+    }
 }
 
 /// The heading reference at the epochs and between them.
@@ -857,8 +987,12 @@ pub fn build(
     let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
     let mut time_offset = None;
     let mut clock = StreamOffset::not_checked("time offset check switched off");
+    let mut clock_pairs_found = Vec::new();
     if config.time_offset != TimeOffsetMode::Off {
-        clock = estimate_time_offset(p, &pass1);
+        let rates = course_rates(&pass1);
+        let direct = estimate_time_offset(p, &pass1, &rates);
+        clock_pairs_found = clock_pairs(p, &direct, gnss_imu_pair(p, &rates));
+        clock = joint_gnss_offset(&direct, &clock_pairs_found);
         if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
             let significant = clock.significant(0.015).is_some();
             let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
@@ -1126,6 +1260,7 @@ pub fn build(
         jumps: jumps.jumps,
         time_offset,
         gnss_clock: clock,
+        clock_pairs: clock_pairs_found,
         side_slip_gain,
         heading_filter_gyro_bias,
         distance_m,
