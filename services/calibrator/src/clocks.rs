@@ -31,6 +31,9 @@ pub const MAX_OFFSET_SIGMA_S: f64 = 0.1;
 /// signal's variance (the rest is the drive's own noise) for a determined
 /// offset.
 pub const MIN_EXPLAINED: f64 = 0.5;
+/// A fit that does not determine an offset alone is kept as a weak pair
+/// (`StreamOffset::weak`) up to this sigma, s.
+pub const WEAK_MAX_SIGMA_S: f64 = 3.0 * MAX_OFFSET_SIGMA_S;
 /// Coarse grid step, s.
 const COARSE_STEP_S: f64 = 0.1;
 /// Observations the coarse grid looks at, at most (evenly spread).
@@ -81,6 +84,13 @@ pub struct StreamOffset {
     /// at [`ClockDrift::ref_t_s`].
     #[serde(default)]
     pub drift: ClockDrift,
+    /// When not determined: the best fit that still explains at least
+    /// [`MIN_EXPLAINED`] of the variance with a sigma within
+    /// [`WEAK_MAX_SIGMA_S`], as (offset, sigma), s. Too uncertain alone, it
+    /// is weighted into the joint solution over the pairs of streams
+    /// ([`solve_offsets`]), where other pairs may make it determined.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weak: Option<[f64; 2]>,
 }
 
 /// One window's offset, for the drift's line fit.
@@ -197,6 +207,7 @@ impl StreamOffset {
             applied: false,
             reason: Some(reason.to_string()),
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -210,6 +221,7 @@ impl StreamOffset {
             applied: false,
             reason: Some(reason),
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -223,6 +235,7 @@ impl StreamOffset {
             applied: false,
             reason: None,
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -326,11 +339,13 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
     let idx = |s: ClockStream| NODES.iter().position(|n| *n == s).unwrap_or(0);
     let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
         .iter()
-        .filter_map(|p| match (p.offset.status, p.offset.offset_s, p.offset.sigma_s) {
-            (OffsetStatus::Determined, Some(o), Some(s)) if s > 0.0 && idx(p.base) != idx(p.later) => {
-                Some((idx(p.base), idx(p.later), o, s, p))
-            }
-            _ => None,
+        .filter_map(|p| {
+            let (o, s) = match (p.offset.status, p.offset.offset_s, p.offset.sigma_s, p.offset.weak) {
+                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
+                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
+                _ => return None,
+            };
+            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
         })
         .collect();
     let target = idx(stream);
@@ -405,10 +420,15 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
         .sum();
     let describe = |e: &&(usize, usize, f64, f64, &PairOffset)| {
         format!(
-            "{}-{} ({})",
+            "{}-{} ({}{})",
             e.4.base.name(),
             e.4.later.name(),
-            e.4.offset.from.as_deref().unwrap_or("?")
+            e.4.offset.from.as_deref().unwrap_or("?"),
+            if e.4.offset.status == OffsetStatus::Determined {
+                String::new()
+            } else {
+                format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
+            }
         )
     };
     let direct = used
@@ -437,11 +457,17 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
         1.0
     };
     let c = col(target).unwrap_or(0);
+    // The pairs the target's offset depends on: d x / d o_e = cov r_e w_e.
+    let moves = |e: &&&(usize, usize, f64, f64, &PairOffset)| {
+        let r = |i: usize| col(i).map_or(0.0, |k| cov[(c, k)]);
+        (r(e.1) - r(e.0)).abs() > 1e-9 * cov[(c, c)].abs()
+    };
+    let from: Vec<_> = used.iter().filter(moves).collect();
     Ok(JointOffset {
         offset_s: x[c],
         sigma_s: cov[(c, c)].max(0.0).sqrt() * inflate,
-        path: used.iter().map(describe).collect::<Vec<_>>().join(" + "),
-        direct: used.len() == 1 && direct.is_some(),
+        path: from.iter().map(|e| describe(e)).collect::<Vec<_>>().join(" + "),
+        direct: from.len() == 1 && direct.is_some(),
     })
 }
 
@@ -770,13 +796,27 @@ pub fn first_determined<'a>(
     needs: &str,
 ) -> StreamOffset {
     let mut why = Vec::new();
+    let mut weak: Option<(LagFit, &str)> = None;
     for (from, fit) in tries {
         match judge(fit, search_s) {
             Ok(f) => return StreamOffset::determined(&f, from),
             Err(e) => why.push(format!("{from}: {e}")),
         }
+        if let Ok(f) = fit {
+            if f.explained >= MIN_EXPLAINED
+                && f.sigma_s <= WEAK_MAX_SIGMA_S
+                && weak.is_none_or(|(w, _)| f.sigma_s < w.sigma_s)
+            {
+                weak = Some((f, from));
+            }
+        }
     }
-    StreamOffset::not_determined(format!("{}; needs {needs}", why.join("; ")))
+    let mut o = StreamOffset::not_determined(format!("{}; needs {needs}", why.join("; ")));
+    if let Some((f, from)) = weak {
+        o.weak = Some([f.lag_s, f.sigma_s]);
+        o.from = Some(from.to_string());
+    }
+    o
 }
 
 /// Median sample interval of increasing times, s.

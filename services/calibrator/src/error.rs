@@ -86,6 +86,13 @@ pub enum CalibrationError {
         /// Minimum, m.
         needed_m: f64,
     },
+    /// No GNSS course (nor absolute heading) to reference the heading: the
+    /// detail counts the fixes by why their course was not used.
+    #[error("no GNSS course to reference the heading: {detail}")]
+    NoCourse {
+        /// What was rejected and why, and what is left.
+        detail: String,
+    },
     /// A parameter the configuration demands cannot be estimated on this drive.
     #[error("{parameter} cannot be estimated on this drive: {reason}")]
     Unobservable {

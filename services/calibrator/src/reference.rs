@@ -40,6 +40,8 @@ const Q_ACCEL_FREE: f64 = 4.0;
 const Q_ACCEL_IMU: f64 = 0.5;
 /// Minimum speed for a usable GNSS course, m/s.
 const COURSE_MIN_SPEED: f64 = 2.0;
+/// Largest variance of a usable GNSS course, rad^2 (0.2 rad).
+const COURSE_MAX_VAR: f64 = 0.04;
 /// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
 /// rate lags the yaw rate by about k v, a systematic error of the GNSS time
 /// offset found from the course rate.
@@ -91,6 +93,9 @@ pub struct Reference {
     pub gnss_sigma_m: f64,
     /// True when `gnss_sigma_m` was estimated from the fixes.
     pub gnss_sigma_estimated: bool,
+    /// The receiver's claimed sigma when the fixes' scatter refuted it
+    /// (then `gnss_sigma_m` is the scatter).
+    pub gnss_sigma_claim: Option<SigmaClaim>,
     /// Fixes rejected by the gate.
     pub outliers: usize,
     /// GNSS jumps found against the wheels and set aside.
@@ -427,6 +432,52 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
     crate::prep::gnss_scatter_sigma(&points)
 }
 
+/// A claimed GNSS sigma is refuted when the fixes scatter more than this
+/// many times the claim: the measured scatter ([`crate::prep::gnss_scatter_sigma_robust`])
+/// is a lower bound of the error, and with at least
+/// [`CLAIM_MIN_DIFFERENCES`] differences its MAD is known to about 15 %
+/// (1.1 / sqrt(n)), so twice the claim is 6 of its sigmas away.
+pub const CLAIM_FACTOR: f64 = 2.0;
+/// Fourth differences the check of a claimed sigma needs.
+pub const CLAIM_MIN_DIFFERENCES: usize = 50;
+
+/// A receiver's `sigma_m` the fixes' own scatter refutes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmaClaim {
+    /// The median claimed sigma, m.
+    pub claimed_m: f64,
+    /// The scatter measured on the fixes, m (used instead).
+    pub measured_m: f64,
+}
+
+/// The receiver's claimed sigma (median of the fixes' `sigma_m`) against
+/// the scatter of the fixes themselves; `Some` with a warning naming
+/// `sigma_m` when the scatter exceeds [`CLAIM_FACTOR`] times the claim.
+fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<SigmaClaim> {
+    let mut given: Vec<f64> = fixes.iter().filter_map(|f| f.sigma).collect();
+    let claimed_m = crate::prep::median(&mut given)?;
+    let points: Vec<(f64, f64, f64)> = fixes
+        .iter()
+        .filter(|f| f.sigma.is_some())
+        .map(|f| (f.t, f.x, f.y))
+        .collect();
+    let (measured_m, n) = crate::prep::gnss_scatter_sigma_robust(&points)?;
+    if n < CLAIM_MIN_DIFFERENCES || measured_m <= CLAIM_FACTOR * claimed_m {
+        return None;
+    }
+    warnings.push(Warning::new(
+        WarningCode::GnssSigmaUnderstated,
+        format!(
+            "gnss.csv sigma_m claims {claimed_m:.2} m (median of {} fixes) but the fixes scatter {measured_m:.2} m from one to the next (fourth differences, which the drive's motion does not reach): the receiver understates its noise; its fixes are weighted with {measured_m:.2} m instead (set gnss_sigma_m to override)",
+            given.len()
+        ),
+    ));
+    Some(SigmaClaim {
+        claimed_m,
+        measured_m,
+    })
+}
+
 /// Estimate the GNSS clock offset against the wheels over
 /// +-[`CLOCK_SEARCH_S`] with [`clocks::fit_lag`]: the speed of the smoothed
 /// GNSS track against the wheel speed at shifted times, `sum (v_gnss(t) - k
@@ -618,6 +669,7 @@ fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffse
             applied: false,
             reason: None,
             drift: direct.drift.clone(),
+            weak: None,
         },
         Ok(j) if direct.status != clocks::OffsetStatus::Determined => {
             let mut o = direct.clone();
@@ -825,18 +877,27 @@ fn course_and_heading(
     let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
     let [lx, ly] = p.lever_arm;
     let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
+    // Fixes whose course is not used: rejected, slow, uncertain, reversing.
+    let mut skipped = [0usize; 4];
     for j in 0..pass1.t.len() {
         if !pass1.accepted[j] {
+            skipped[0] += 1;
             continue;
         }
         let s = pass1.s[j];
         let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
         if v < COURSE_MIN_SPEED {
+            skipped[1] += 1;
             continue;
         }
         let var_c = pass1.cov[j].vv / (v * v);
-        if var_c > 0.04 || reversing(p, pass1.t[j]) {
+        if var_c > COURSE_MAX_VAR {
+            skipped[2] += 1;
+            continue;
+        }
+        if reversing(p, pass1.t[j]) {
             // Reversing, the course points backwards: not a heading.
+            skipped[3] += 1;
             continue;
         }
         let w = omega_at(pass1.t[j]).unwrap_or(0.0);
@@ -864,9 +925,24 @@ fn course_and_heading(
     meas.sort_by(|a, b| a.t.total_cmp(&b.t));
     meas.dedup_by(|b, a| b.t <= a.t);
     if meas.len() < 2 {
-        return Err(CalibrationError::TooShort {
-            distance_m: 0.0,
-            needed_m: 50.0,
+        let speed_sigma = |j: usize| pass1.cov[j].vv.max(0.0).sqrt();
+        let mut sv: Vec<f64> = (0..pass1.t.len())
+            .filter(|&j| pass1.accepted[j])
+            .map(speed_sigma)
+            .collect();
+        let median_sv = crate::prep::median(&mut sv).unwrap_or(f64::NAN);
+        return Err(CalibrationError::NoCourse {
+            detail: format!(
+                "of {} GNSS fixes, {} were rejected as outliers, {} are slower than {COURSE_MIN_SPEED:.1} m/s, {} have a course sigma above {:.2} rad (the smoothed GNSS velocity's sigma, median {median_sv:.2} m/s, is too large against the speed: noisy fixes or gaps), {} are while reversing; {} course(s) and {} absolute heading(s) are left, at least 2 are needed",
+                pass1.t.len(),
+                skipped[0],
+                skipped[1],
+                skipped[2],
+                COURSE_MAX_VAR.sqrt(),
+                skipped[3],
+                course_meas.len(),
+                p.headings.len(),
+            ),
         });
     }
     let bias0 = standstill_gyro_bias(p).map_or(0.0, |b| b.0);
@@ -962,10 +1038,22 @@ pub fn build(
             }
         }
     };
+    // A receiver's sigma_m below the scatter its own fixes show is not
+    // believed: the larger is used.
+    let claim = match config.gnss_sigma_m {
+        Some(_) => None,
+        None => check_claimed_sigma(&p.fixes, warnings),
+    };
+    let floor = claim.map_or(0.0, |c| c.measured_m);
+    let gnss_sigma_m = if estimated {
+        gnss_sigma_m
+    } else {
+        gnss_sigma_m.max(floor)
+    };
     let sigma_of = |f: &Fix| -> f64 {
         match (config.gnss_sigma_m, f.sigma) {
             (Some(s), _) => s,
-            (None, Some(s)) => s.max(0.01),
+            (None, Some(s)) => s.max(0.01).max(floor),
             (None, None) => gnss_sigma_m,
         }
     };
@@ -1256,6 +1344,7 @@ pub fn build(
         fixes,
         gnss_sigma_m,
         gnss_sigma_estimated: estimated,
+        gnss_sigma_claim: claim,
         outliers,
         jumps: jumps.jumps,
         time_offset,
