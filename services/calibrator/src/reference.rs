@@ -40,6 +40,9 @@ const Q_ACCEL_FREE: f64 = 4.0;
 const Q_ACCEL_IMU: f64 = 0.5;
 /// Minimum speed for a usable GNSS course, m/s.
 const COURSE_MIN_SPEED: f64 = 2.0;
+/// The least distance with GNSS reference a calibration needs, m (the
+/// fits' own minimum, `lm`).
+const MIN_REFERENCE_M: f64 = 50.0;
 /// Largest variance of a usable GNSS course, rad^2 (0.2 rad).
 const COURSE_MAX_VAR: f64 = 0.04;
 /// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
@@ -1333,6 +1336,33 @@ pub fn build(
             .collect()
     };
     let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &bridged);
+    let wheel_distance_m: f64 = (0..n)
+        .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c)
+        .sum();
+    if distance_m < MIN_REFERENCE_M && wheel_distance_m >= MIN_REFERENCE_M {
+        let mut gaps: Vec<f64> = acc_t.windows(2).map(|w| w[1] - w[0]).collect();
+        let median_gap = crate::prep::median(&mut gaps).unwrap_or(f64::NAN);
+        let hint = if median_gap > config.max_gnss_gap_s {
+            format!(
+                "the accepted fixes are a median {median_gap:.1} s apart, more than max_gnss_gap_s ({:.1} s): every interval counts as an outage (raise max_gnss_gap_s if the receiver logs this slowly)",
+                config.max_gnss_gap_s
+            )
+        } else {
+            format!(
+                "the accepted fixes are a median {median_gap:.1} s apart, but not where the car moves"
+            )
+        };
+        return Err(CalibrationError::ReferenceTooShort {
+            distance_m,
+            wheel_distance_m,
+            needed_m: MIN_REFERENCE_M,
+            detail: format!(
+                "of {} GNSS fixes, {outliers} were rejected as outliers and {set_aside_count} set aside in jumps; {} are left and {hint}",
+                fixes.len(),
+                acc_t.len()
+            ),
+        });
+    }
     let heading_filter_gyro_bias =
         gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
     Ok(Reference {
