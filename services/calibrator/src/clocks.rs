@@ -1031,6 +1031,70 @@ mod tests {
         assert!((sa - sb).abs() < 0.1 * sa + 1e-6, "{a:?} vs {b:?}");
     }
 
+    fn pair(base: ClockStream, later: ClockStream, v: Option<(f64, f64)>) -> PairOffset {
+        let offset = match v {
+            Some((o, s)) => StreamOffset {
+                status: OffsetStatus::Determined,
+                offset_s: Some(o),
+                sigma_s: Some(s),
+                from: Some("test".to_string()),
+                ..StreamOffset::default()
+            },
+            None => StreamOffset::not_determined("flat".to_string()),
+        };
+        PairOffset {
+            base,
+            later,
+            offset,
+        }
+    }
+
+    #[test]
+    fn one_determined_pair_closes_the_chain_for_the_others() {
+        use ClockStream::{Gnss, Imu, Wheels};
+        // Wheels-IMU +0.5 (0.03), IMU-GNSS -0.1 (0.04), wheels-GNSS not
+        // determined: wheels-GNSS = +0.4 with sigma hypot(0.03, 0.04).
+        let pairs = [
+            pair(Wheels, Gnss, None),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((-0.1, 0.04))),
+        ];
+        let j = solve_offsets(&pairs, Gnss).unwrap();
+        assert!((j.offset_s - 0.4).abs() < 1e-12, "{j:?}");
+        assert!((j.sigma_s - 0.05).abs() < 1e-12, "{j:?}");
+        assert!(!j.direct && j.path.contains("wheels-imu") && j.path.contains("imu-gnss"));
+        // Without the IMU-GNSS pair nothing links the GNSS to the wheels.
+        let e = solve_offsets(&pairs[..2], Gnss).unwrap_err();
+        assert!(e.contains("no chain"), "{e}");
+        // The IMU's own offset rests on its direct pair alone.
+        let i = solve_offsets(&pairs, Imu).unwrap();
+        assert!((i.offset_s - 0.5).abs() < 1e-12 && i.direct, "{i:?}");
+    }
+
+    #[test]
+    fn a_loop_is_weighted_and_a_contradicting_loop_is_not_combined() {
+        use ClockStream::{Gnss, Imu, Wheels};
+        // Direct 0.40 (0.04); chain 0.5 - 0.1 = 0.40 too: the same value, a
+        // smaller sigma (1 / (1/0.04^2 + 1/0.05^2)).
+        let agree = [
+            pair(Wheels, Gnss, Some((0.4, 0.04))),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((-0.1, 0.04))),
+        ];
+        let j = solve_offsets(&agree, Gnss).unwrap();
+        let expected = (1.0f64 / (1.0 / 0.0016 + 1.0 / 0.0025)).sqrt();
+        assert!((j.offset_s - 0.4).abs() < 1e-12 && (j.sigma_s - expected).abs() < 1e-12);
+        // The chain says +0.9: 8 sigma from the direct pair.
+        let contradict = [
+            pair(Wheels, Gnss, Some((0.4, 0.04))),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((0.4, 0.04))),
+        ];
+        let j = solve_offsets(&contradict, Gnss).unwrap();
+        assert!((j.offset_s - 0.4).abs() < 1e-12 && j.direct, "{j:?}");
+        assert!(j.path.contains("contradict"), "{j:?}");
+    }
+
     #[test]
     fn a_straight_drive_does_not_determine_the_imu_offset() {
         let n = 10_000;
