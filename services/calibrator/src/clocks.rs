@@ -340,7 +340,12 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
     let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
         .iter()
         .filter_map(|p| {
-            let (o, s) = match (p.offset.status, p.offset.offset_s, p.offset.sigma_s, p.offset.weak) {
+            let (o, s) = match (
+                p.offset.status,
+                p.offset.offset_s,
+                p.offset.sigma_s,
+                p.offset.weak,
+            ) {
                 (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
                 (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
                 _ => return None,
@@ -466,7 +471,11 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
     Ok(JointOffset {
         offset_s: x[c],
         sigma_s: cov[(c, c)].max(0.0).sqrt() * inflate,
-        path: from.iter().map(|e| describe(e)).collect::<Vec<_>>().join(" + "),
+        path: from
+            .iter()
+            .map(|e| describe(e))
+            .collect::<Vec<_>>()
+            .join(" + "),
         direct: from.len() == 1 && direct.is_some(),
     })
 }

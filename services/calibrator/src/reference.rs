@@ -572,7 +572,9 @@ fn course_rates(track: &PosTrack) -> CourseRates {
         }
         let (a, b) = (track.s[j - 1], track.s[j + 1]);
         let dt = track.t[j + 1] - track.t[j - 1];
-        if track.speed(j - 1) > COURSE_MIN_SPEED && track.speed(j + 1) > COURSE_MIN_SPEED && dt > 0.0
+        if track.speed(j - 1) > COURSE_MIN_SPEED
+            && track.speed(j + 1) > COURSE_MIN_SPEED
+            && dt > 0.0
         {
             let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
             obs.push((track.t[j], d / dt));
@@ -594,13 +596,12 @@ fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
     let Some(gyro) = p.gyro.as_ref() else {
         return StreamOffset::not_checked("the drive has no usable gyro");
     };
-    let (t, g): (Vec<f64>, Vec<f64>) = p
-        .t
-        .iter()
-        .zip(gyro)
-        .filter(|(_, g)| g.is_finite())
-        .map(|(t, g)| (*t, *g))
-        .unzip();
+    let (t, g): (Vec<f64>, Vec<f64>) =
+        p.t.iter()
+            .zip(gyro)
+            .filter(|(_, g)| g.is_finite())
+            .map(|(t, g)| (*t, *g))
+            .unzip();
     if t.len() < 3 {
         return StreamOffset::not_determined("the gyro covers too few wheel samples".to_string());
     }
@@ -610,7 +611,10 @@ fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
     let yaw_rate = clocks::windowed_rate(&t, &inc, h);
     let fit = clocks::fit_lag(
         &rates.obs,
-        &clocks::Sampled { t: &t, v: &yaw_rate },
+        &clocks::Sampled {
+            t: &t,
+            v: &yaw_rate,
+        },
         CLOCK_SEARCH_S,
         2.0 * h,
         true,
@@ -880,7 +884,7 @@ fn course_and_heading(
     let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
     let [lx, ly] = p.lever_arm;
     let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
-    // Fixes whose course is not used: rejected, slow, uncertain, reversing.
+                                                               // Fixes whose course is not used: rejected, slow, uncertain, reversing.
     let mut skipped = [0usize; 4];
     for j in 0..pass1.t.len() {
         if !pass1.accepted[j] {

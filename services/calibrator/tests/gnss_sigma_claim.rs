@@ -53,11 +53,7 @@ fn check(d: &Drive, name: &str) {
         .find(|w| w.code == WarningCode::GnssSigmaUnderstated)
         .expect("a warning about sigma_m");
     println!("{}", w.message);
-    assert!(
-        w.message.contains("sigma_m claims 0.05 m"),
-        "{}",
-        w.message
-    );
+    assert!(w.message.contains("sigma_m claims 0.05 m"), "{}", w.message);
     // Without the check (today's main) 1105 of 1343 fixes (paper) and
     // 448 of 609 (wid-trial02) are thrown away.
     assert!(
@@ -66,7 +62,11 @@ fn check(d: &Drive, name: &str) {
         lie.diagnostics.gnss_outliers
     );
     let e = rel_err(&lie, &honest);
-    assert!(e < 1e-4, "{name}: {:.4} % off the honest drive's", 100.0 * e);
+    assert!(
+        e < 1e-4,
+        "{name}: {:.4} % off the honest drive's",
+        100.0 * e
+    );
     let q = lie.fit_quality.expect("fit quality");
     assert!(q.gnss_noise_source.contains("sigma_m claims"), "{q:?}");
 }

@@ -30,7 +30,10 @@ fn fixes_further_apart_than_the_outage_limit_are_named_as_the_cause() {
         "{e}"
     );
     let text = e.to_string();
-    assert!(text.contains("max_gnss_gap_s") && text.contains("3.0 s apart"), "{text}");
+    assert!(
+        text.contains("max_gnss_gap_s") && text.contains("3.0 s apart"),
+        "{text}"
+    );
     // (With max_gnss_gap_s raised to 3.5 s the batch fit still refuses
     // it: its segments need 8 fixes; not handled here.)
 }
