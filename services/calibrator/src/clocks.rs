@@ -31,6 +31,9 @@ pub const MAX_OFFSET_SIGMA_S: f64 = 0.1;
 /// signal's variance (the rest is the drive's own noise) for a determined
 /// offset.
 pub const MIN_EXPLAINED: f64 = 0.5;
+/// A fit that does not determine an offset alone is kept as a weak pair
+/// (`StreamOffset::weak`) up to this sigma, s.
+pub const WEAK_MAX_SIGMA_S: f64 = 3.0 * MAX_OFFSET_SIGMA_S;
 /// Coarse grid step, s.
 const COARSE_STEP_S: f64 = 0.1;
 /// Observations the coarse grid looks at, at most (evenly spread).
@@ -81,6 +84,13 @@ pub struct StreamOffset {
     /// at [`ClockDrift::ref_t_s`].
     #[serde(default)]
     pub drift: ClockDrift,
+    /// When not determined: the best fit that still explains at least
+    /// [`MIN_EXPLAINED`] of the variance with a sigma within
+    /// [`WEAK_MAX_SIGMA_S`], as (offset, sigma), s. Too uncertain alone, it
+    /// is weighted into the joint solution over the pairs of streams
+    /// ([`solve_offsets`]), where other pairs may make it determined.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub weak: Option<[f64; 2]>,
 }
 
 /// One window's offset, for the drift's line fit.
@@ -197,6 +207,7 @@ impl StreamOffset {
             applied: false,
             reason: Some(reason.to_string()),
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -210,6 +221,7 @@ impl StreamOffset {
             applied: false,
             reason: Some(reason),
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -223,6 +235,7 @@ impl StreamOffset {
             applied: false,
             reason: None,
             drift: ClockDrift::default(),
+            weak: None,
         }
     }
 
@@ -253,6 +266,218 @@ pub struct ClockOffsets {
     pub gnss_s: StreamOffset,
     /// IMU against the wheels.
     pub imu_s: StreamOffset,
+    /// Every pair of streams compared (each determined with its sigma, or
+    /// why not): the measurements [`solve_offsets`] combined into `gnss_s`.
+    #[serde(default)]
+    pub pairs: Vec<PairOffset>,
+}
+
+/// A stream with its own clock: a node of the graph of pairwise offsets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClockStream {
+    /// The wheels (the calibration's time base).
+    Wheels,
+    /// The GNSS fixes.
+    Gnss,
+    /// The IMU.
+    Imu,
+}
+
+impl ClockStream {
+    /// Lower-case name for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            ClockStream::Wheels => "wheels",
+            ClockStream::Gnss => "gnss",
+            ClockStream::Imu => "imu",
+        }
+    }
+}
+
+/// One pairwise measurement: `later`'s stamps are late against `base`'s by
+/// `offset.offset_s` (`t_later = t_base + offset`), or not determined.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PairOffset {
+    /// The stream the offset is measured against.
+    pub base: ClockStream,
+    /// The stream whose offset it is.
+    pub later: ClockStream,
+    /// The measurement (its sigma includes the systematic lags of the
+    /// signals compared, see [`solve_offsets`]).
+    pub offset: StreamOffset,
+}
+
+/// A stream's offset against the wheels from [`solve_offsets`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointOffset {
+    /// `t_stream = t_wheels + offset_s`, s.
+    pub offset_s: f64,
+    /// Its 1-sigma (inflated by the loop's chi-square per degree of
+    /// freedom where that exceeds 1), s.
+    pub sigma_s: f64,
+    /// The determined pairs it came from, e.g. "gnss-imu (course rate) +
+    /// wheels-imu (yaw rate)".
+    pub path: String,
+    /// True when it rests on the direct pair with the wheels alone.
+    pub direct: bool,
+}
+
+/// Chi-square per degree of freedom of a loop of pairs beyond which they
+/// contradict each other (3 sigma for one loop): the pairs are then not
+/// combined, each stream keeps its direct pair with the wheels.
+const LOOP_CHI2_LIMIT: f64 = 9.0;
+
+/// The offset of `stream` against the wheels by weighted least squares over
+/// every determined pair of `pairs` (the wheels' offset held at 0): one
+/// determined pair closes the chain for the others (wheels-IMU and GNSS-IMU
+/// give wheels-GNSS). `Err` says why not: no chain of determined pairs
+/// reaches `stream`, or the pairs of a loop contradict each other and the
+/// direct pair is not determined.
+pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointOffset, String> {
+    const NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
+    let idx = |s: ClockStream| NODES.iter().position(|n| *n == s).unwrap_or(0);
+    let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
+        .iter()
+        .filter_map(|p| {
+            let (o, s) = match (
+                p.offset.status,
+                p.offset.offset_s,
+                p.offset.sigma_s,
+                p.offset.weak,
+            ) {
+                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
+                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
+                _ => return None,
+            };
+            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
+        })
+        .collect();
+    let target = idx(stream);
+    if target == 0 {
+        return Ok(JointOffset {
+            offset_s: 0.0,
+            sigma_s: 0.0,
+            path: "the time base".to_string(),
+            direct: true,
+        });
+    }
+    // The streams a chain of determined pairs links to the wheels.
+    let mut reached = [true, false, false];
+    loop {
+        let mut grew = false;
+        for &(a, b, ..) in &edges {
+            if reached[a] != reached[b] {
+                reached[a] = true;
+                reached[b] = true;
+                grew = true;
+            }
+        }
+        if !grew {
+            break;
+        }
+    }
+    if !reached[target] {
+        return Err(format!(
+            "no chain of determined pairs links the {} to the wheels",
+            stream.name()
+        ));
+    }
+    let used: Vec<_> = edges
+        .iter()
+        .filter(|e| reached[e.0] && reached[e.1])
+        .collect();
+    // Unknowns: the reached streams other than the wheels.
+    let unknowns: Vec<usize> = (1..NODES.len()).filter(|&i| reached[i]).collect();
+    let col = |i: usize| unknowns.iter().position(|&u| u == i);
+    let n = unknowns.len();
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+    for &&(a, b, o, s, _) in &used {
+        // o = x_b - x_a, weight 1 / s^2.
+        let w = 1.0 / (s * s);
+        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
+        if let Some(c) = col(b) {
+            row.push((c, 1.0));
+        }
+        if let Some(c) = col(a) {
+            row.push((c, -1.0));
+        }
+        for &(i, ri) in &row {
+            rhs[i] += w * ri * o;
+            for &(j, rj) in &row {
+                normal[(i, j)] += w * ri * rj;
+            }
+        }
+    }
+    let cov = normal
+        .try_inverse()
+        .ok_or_else(|| "the pairs do not determine the offsets".to_string())?;
+    let x = &cov * &rhs;
+    let value = |i: usize| col(i).map_or(0.0, |c| x[c]);
+    let dof = used.len().saturating_sub(n);
+    let chi2: f64 = used
+        .iter()
+        .map(|&&(a, b, o, s, _)| {
+            let r = (value(b) - value(a) - o) / s;
+            r * r
+        })
+        .sum();
+    let describe = |e: &&(usize, usize, f64, f64, &PairOffset)| {
+        format!(
+            "{}-{} ({}{})",
+            e.4.base.name(),
+            e.4.later.name(),
+            e.4.offset.from.as_deref().unwrap_or("?"),
+            if e.4.offset.status == OffsetStatus::Determined {
+                String::new()
+            } else {
+                format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
+            }
+        )
+    };
+    let direct = used
+        .iter()
+        .find(|e| (e.0 == 0 && e.1 == target) || (e.1 == 0 && e.0 == target));
+    if dof > 0 && chi2 / dof as f64 > LOOP_CHI2_LIMIT {
+        // The loop contradicts itself: no combination, the direct pair alone.
+        let why = format!(
+            "the pairs {} contradict each other (chi-square {:.1} over {dof} loop(s))",
+            used.iter().map(describe).collect::<Vec<_>>().join(", "),
+            chi2
+        );
+        return match direct {
+            Some(e) => Ok(JointOffset {
+                offset_s: if e.0 == 0 { e.2 } else { -e.2 },
+                sigma_s: e.3,
+                path: format!("{}; {why}: the direct pair alone", describe(e)),
+                direct: true,
+            }),
+            None => Err(why),
+        };
+    }
+    let inflate = if dof > 0 {
+        (chi2 / dof as f64).max(1.0).sqrt()
+    } else {
+        1.0
+    };
+    let c = col(target).unwrap_or(0);
+    // The pairs the target's offset depends on: d x / d o_e = cov r_e w_e.
+    let moves = |e: &&&(usize, usize, f64, f64, &PairOffset)| {
+        let r = |i: usize| col(i).map_or(0.0, |k| cov[(c, k)]);
+        (r(e.1) - r(e.0)).abs() > 1e-9 * cov[(c, c)].abs()
+    };
+    let from: Vec<_> = used.iter().filter(moves).collect();
+    Ok(JointOffset {
+        offset_s: x[c],
+        sigma_s: cov[(c, c)].max(0.0).sqrt() * inflate,
+        path: from
+            .iter()
+            .map(|e| describe(e))
+            .collect::<Vec<_>>()
+            .join(" + "),
+        direct: from.len() == 1 && direct.is_some(),
+    })
 }
 
 /// A signal sampled at increasing times, linear between samples.
@@ -580,13 +805,27 @@ pub fn first_determined<'a>(
     needs: &str,
 ) -> StreamOffset {
     let mut why = Vec::new();
+    let mut weak: Option<(LagFit, &str)> = None;
     for (from, fit) in tries {
         match judge(fit, search_s) {
             Ok(f) => return StreamOffset::determined(&f, from),
             Err(e) => why.push(format!("{from}: {e}")),
         }
+        if let Ok(f) = fit {
+            if f.explained >= MIN_EXPLAINED
+                && f.sigma_s <= WEAK_MAX_SIGMA_S
+                && weak.is_none_or(|(w, _)| f.sigma_s < w.sigma_s)
+            {
+                weak = Some((f, from));
+            }
+        }
     }
-    StreamOffset::not_determined(format!("{}; needs {needs}", why.join("; ")))
+    let mut o = StreamOffset::not_determined(format!("{}; needs {needs}", why.join("; ")));
+    if let Some((f, from)) = weak {
+        o.weak = Some([f.lag_s, f.sigma_s]);
+        o.from = Some(from.to_string());
+    }
+    o
 }
 
 /// Median sample interval of increasing times, s.
@@ -799,6 +1038,70 @@ mod tests {
         assert!((la - lb).abs() < 1e-4, "{a:?} vs {b:?}");
         let (sa, sb) = (a.sigma_s.unwrap(), b.sigma_s.unwrap());
         assert!((sa - sb).abs() < 0.1 * sa + 1e-6, "{a:?} vs {b:?}");
+    }
+
+    fn pair(base: ClockStream, later: ClockStream, v: Option<(f64, f64)>) -> PairOffset {
+        let offset = match v {
+            Some((o, s)) => StreamOffset {
+                status: OffsetStatus::Determined,
+                offset_s: Some(o),
+                sigma_s: Some(s),
+                from: Some("test".to_string()),
+                ..StreamOffset::default()
+            },
+            None => StreamOffset::not_determined("flat".to_string()),
+        };
+        PairOffset {
+            base,
+            later,
+            offset,
+        }
+    }
+
+    #[test]
+    fn one_determined_pair_closes_the_chain_for_the_others() {
+        use ClockStream::{Gnss, Imu, Wheels};
+        // Wheels-IMU +0.5 (0.03), IMU-GNSS -0.1 (0.04), wheels-GNSS not
+        // determined: wheels-GNSS = +0.4 with sigma hypot(0.03, 0.04).
+        let pairs = [
+            pair(Wheels, Gnss, None),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((-0.1, 0.04))),
+        ];
+        let j = solve_offsets(&pairs, Gnss).unwrap();
+        assert!((j.offset_s - 0.4).abs() < 1e-12, "{j:?}");
+        assert!((j.sigma_s - 0.05).abs() < 1e-12, "{j:?}");
+        assert!(!j.direct && j.path.contains("wheels-imu") && j.path.contains("imu-gnss"));
+        // Without the IMU-GNSS pair nothing links the GNSS to the wheels.
+        let e = solve_offsets(&pairs[..2], Gnss).unwrap_err();
+        assert!(e.contains("no chain"), "{e}");
+        // The IMU's own offset rests on its direct pair alone.
+        let i = solve_offsets(&pairs, Imu).unwrap();
+        assert!((i.offset_s - 0.5).abs() < 1e-12 && i.direct, "{i:?}");
+    }
+
+    #[test]
+    fn a_loop_is_weighted_and_a_contradicting_loop_is_not_combined() {
+        use ClockStream::{Gnss, Imu, Wheels};
+        // Direct 0.40 (0.04); chain 0.5 - 0.1 = 0.40 too: the same value, a
+        // smaller sigma (1 / (1/0.04^2 + 1/0.05^2)).
+        let agree = [
+            pair(Wheels, Gnss, Some((0.4, 0.04))),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((-0.1, 0.04))),
+        ];
+        let j = solve_offsets(&agree, Gnss).unwrap();
+        let expected = (1.0f64 / (1.0 / 0.0016 + 1.0 / 0.0025)).sqrt();
+        assert!((j.offset_s - 0.4).abs() < 1e-12 && (j.sigma_s - expected).abs() < 1e-12);
+        // The chain says +0.9: 8 sigma from the direct pair.
+        let contradict = [
+            pair(Wheels, Gnss, Some((0.4, 0.04))),
+            pair(Wheels, Imu, Some((0.5, 0.03))),
+            pair(Imu, Gnss, Some((0.4, 0.04))),
+        ];
+        let j = solve_offsets(&contradict, Gnss).unwrap();
+        assert!((j.offset_s - 0.4).abs() < 1e-12 && j.direct, "{j:?}");
+        assert!(j.path.contains("contradict"), "{j:?}");
     }
 
     #[test]

@@ -86,6 +86,26 @@ pub enum CalibrationError {
         /// Minimum, m.
         needed_m: f64,
     },
+    /// The wheels drove far enough but the GNSS reference is valid over too
+    /// little of it: the detail says which fixes were lost and why.
+    #[error("the GNSS reference covers only {distance_m:.1} m of the {wheel_distance_m:.0} m the wheels drove (at least {needed_m:.0} m are needed): {detail}")]
+    ReferenceTooShort {
+        /// Distance driven with reference, m.
+        distance_m: f64,
+        /// Distance the wheels drove (nominal circumference), m.
+        wheel_distance_m: f64,
+        /// Minimum, m.
+        needed_m: f64,
+        /// Which fixes were rejected or set aside, how far apart the rest are.
+        detail: String,
+    },
+    /// No GNSS course (nor absolute heading) to reference the heading: the
+    /// detail counts the fixes by why their course was not used.
+    #[error("no GNSS course to reference the heading: {detail}")]
+    NoCourse {
+        /// What was rejected and why, and what is left.
+        detail: String,
+    },
     /// A parameter the configuration demands cannot be estimated on this drive.
     #[error("{parameter} cannot be estimated on this drive: {reason}")]
     Unobservable {

@@ -90,7 +90,7 @@ pub mod track_width;
 pub mod uncertainty;
 pub mod warnings;
 
-pub use clocks::{ClockOffsets, OffsetStatus, StreamOffset};
+pub use clocks::{ClockOffsets, ClockStream, OffsetStatus, PairOffset, StreamOffset};
 pub use config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};
 pub use error::CalibrationError;
 pub use method::Method;

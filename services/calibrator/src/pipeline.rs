@@ -310,17 +310,22 @@ fn fit_quality(
         return None;
     }
     let source = if config.gnss_sigma_m.is_some() {
-        "the configuration (gnss_sigma_m)"
+        "the configuration (gnss_sigma_m)".to_string()
     } else if r.gnss_sigma_estimated {
-        "measured on the drive (the fixes' scatter, at least 0.3 m)"
+        "measured on the drive (the fixes' scatter, at least 0.3 m)".to_string()
+    } else if let Some(c) = r.gnss_sigma_claim {
+        format!(
+            "the fixes' scatter measured on the drive; the receiver's sigma_m claims {:.2} m",
+            c.claimed_m
+        )
     } else {
-        "the receiver's sigma_m (median)"
+        "the receiver's sigma_m (median)".to_string()
     };
     Some(crate::result::FitQuality {
         residual_rms_m: rms,
         model: model.to_string(),
         gnss_noise_m: noise,
-        gnss_noise_source: source.to_string(),
+        gnss_noise_source: source,
         ratio: rms / noise,
         limit: config.max_fit_ratio,
     })
@@ -570,6 +575,7 @@ fn assemble(
         clock_offsets: crate::clocks::ClockOffsets {
             gnss_s: r.gnss_clock.clone(),
             imu_s: p.imu_clock.clone(),
+            pairs: r.clock_pairs.clone(),
         },
         comparison,
         tracks: Tracks {

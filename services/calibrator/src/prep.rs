@@ -176,6 +176,36 @@ pub(crate) fn gnss_scatter_sigma(fixes: &[(f64, f64, f64)]) -> Option<f64> {
     Some(1.4826 * median(&mut d)? / 6f64.sqrt())
 }
 
+/// The GNSS position noise measured on the fixes `(t, x, y)` (increasing
+/// times) without the drive's dynamics, m: the MAD of the fourth
+/// differences of five equally spaced fixes (variance 70 sigma^2 for white
+/// noise; any cubic motion, so every constant jerk, cancels), both axes
+/// pooled, with how many differences it rests on. `None` with fewer than
+/// ten differences. Receivers filter their output, so this short-term
+/// scatter is a lower bound of their error, never an overstatement.
+pub(crate) fn gnss_scatter_sigma_robust(fixes: &[(f64, f64, f64)]) -> Option<(f64, usize)> {
+    let mut d = Vec::new();
+    for w in fixes.windows(5) {
+        let h: Vec<f64> = w.windows(2).map(|p| p[1].0 - p[0].0).collect();
+        let (lo, hi) = h
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+        if lo <= 0.0 || hi > 1.5 || hi - lo > 0.25 * hi {
+            continue;
+        }
+        let diff4 = |k: fn(&(f64, f64, f64)) -> f64| {
+            k(&w[0]) - 4.0 * k(&w[1]) + 6.0 * k(&w[2]) - 4.0 * k(&w[3]) + k(&w[4])
+        };
+        d.push(diff4(|f| f.1).abs());
+        d.push(diff4(|f| f.2).abs());
+    }
+    if d.len() < 10 {
+        return None;
+    }
+    let n = d.len();
+    Some((1.4826 * median(&mut d)? / 70f64.sqrt(), n))
+}
+
 /// Check and convert `drive`. Skipped values go into `warnings`.
 pub fn prepare(
     drive: &Drive,

@@ -23,7 +23,7 @@
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
-use crate::clocks::{self, StreamOffset, CLOCK_SEARCH_S};
+use crate::clocks::{self, ClockStream, PairOffset, StreamOffset, CLOCK_SEARCH_S};
 use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
 use crate::gnss_jumps::{self, JumpSearch};
@@ -40,6 +40,11 @@ const Q_ACCEL_FREE: f64 = 4.0;
 const Q_ACCEL_IMU: f64 = 0.5;
 /// Minimum speed for a usable GNSS course, m/s.
 const COURSE_MIN_SPEED: f64 = 2.0;
+/// The least distance with GNSS reference a calibration needs, m (the
+/// fits' own minimum, `lm`).
+const MIN_REFERENCE_M: f64 = 50.0;
+/// Largest variance of a usable GNSS course, rad^2 (0.2 rad).
+const COURSE_MAX_VAR: f64 = 0.04;
 /// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
 /// rate lags the yaw rate by about k v, a systematic error of the GNSS time
 /// offset found from the course rate.
@@ -91,14 +96,20 @@ pub struct Reference {
     pub gnss_sigma_m: f64,
     /// True when `gnss_sigma_m` was estimated from the fixes.
     pub gnss_sigma_estimated: bool,
+    /// The receiver's claimed sigma when the fixes' scatter refuted it
+    /// (then `gnss_sigma_m` is the scatter).
+    pub gnss_sigma_claim: Option<SigmaClaim>,
     /// Fixes rejected by the gate.
     pub outliers: usize,
     /// GNSS jumps found against the wheels and set aside.
     pub jumps: Vec<gnss_jumps::Jump>,
     /// The wheel/GNSS time offset, when checked and determinable.
     pub time_offset: Option<TimeOffset>,
-    /// The GNSS clock offset against the wheels, determined or not (and why).
+    /// The GNSS clock offset against the wheels, determined or not (and
+    /// why): every pair of streams combined ([`clocks::solve_offsets`]).
     pub gnss_clock: StreamOffset,
+    /// The pairs of streams compared for it.
+    pub clock_pairs: Vec<PairOffset>,
     /// Side-slip gain k in beta = -k a_y, rad per m/s^2, when estimated.
     pub side_slip_gain: Option<f64>,
     /// Mean gyro bias of the heading filter, rad/s.
@@ -424,6 +435,52 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
     crate::prep::gnss_scatter_sigma(&points)
 }
 
+/// A claimed GNSS sigma is refuted when the fixes scatter more than this
+/// many times the claim: the measured scatter ([`crate::prep::gnss_scatter_sigma_robust`])
+/// is a lower bound of the error, and with at least
+/// [`CLAIM_MIN_DIFFERENCES`] differences its MAD is known to about 15 %
+/// (1.1 / sqrt(n)), so twice the claim is 6 of its sigmas away.
+pub const CLAIM_FACTOR: f64 = 2.0;
+/// Fourth differences the check of a claimed sigma needs.
+pub const CLAIM_MIN_DIFFERENCES: usize = 50;
+
+/// A receiver's `sigma_m` the fixes' own scatter refutes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SigmaClaim {
+    /// The median claimed sigma, m.
+    pub claimed_m: f64,
+    /// The scatter measured on the fixes, m (used instead).
+    pub measured_m: f64,
+}
+
+/// The receiver's claimed sigma (median of the fixes' `sigma_m`) against
+/// the scatter of the fixes themselves; `Some` with a warning naming
+/// `sigma_m` when the scatter exceeds [`CLAIM_FACTOR`] times the claim.
+fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<SigmaClaim> {
+    let mut given: Vec<f64> = fixes.iter().filter_map(|f| f.sigma).collect();
+    let claimed_m = crate::prep::median(&mut given)?;
+    let points: Vec<(f64, f64, f64)> = fixes
+        .iter()
+        .filter(|f| f.sigma.is_some())
+        .map(|f| (f.t, f.x, f.y))
+        .collect();
+    let (measured_m, n) = crate::prep::gnss_scatter_sigma_robust(&points)?;
+    if n < CLAIM_MIN_DIFFERENCES || measured_m <= CLAIM_FACTOR * claimed_m {
+        return None;
+    }
+    warnings.push(Warning::new(
+        WarningCode::GnssSigmaUnderstated,
+        format!(
+            "gnss.csv sigma_m claims {claimed_m:.2} m (median of {} fixes) but the fixes scatter {measured_m:.2} m from one to the next (fourth differences, which the drive's motion does not reach): the receiver understates its noise; its fixes are weighted with {measured_m:.2} m instead (set gnss_sigma_m to override)",
+            given.len()
+        ),
+    ));
+    Some(SigmaClaim {
+        claimed_m,
+        measured_m,
+    })
+}
+
 /// Estimate the GNSS clock offset against the wheels over
 /// +-[`CLOCK_SEARCH_S`] with [`clocks::fit_lag`]: the speed of the smoothed
 /// GNSS track against the wheel speed at shifted times, `sum (v_gnss(t) - k
@@ -433,7 +490,7 @@ fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
 /// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
 /// determined (with the reason and the manoeuvre that would determine it)
 /// when neither does.
-fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
+fn estimate_time_offset(p: &Prepared, track: &PosTrack, rates: &CourseRates) -> StreamOffset {
     let h = 0.25;
     let n = p.len();
     if n < 3 {
@@ -454,33 +511,11 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         .collect();
     let yaw_rate = clocks::windowed_rate(&p.t, &inc, h);
     drop(inc);
-    let mut speeds = Vec::new();
-    let mut course_rates = Vec::new();
-    let mut course_speed = 0.0;
-    let m = track.t.len();
-    let v_of = |j: usize| {
-        let s = track.s[j];
-        (s[2] * s[2] + s[3] * s[3]).sqrt()
-    };
-    for j in 0..m {
-        if !track.accepted[j] {
-            continue;
-        }
-        let v = v_of(j);
-        if v > 1.0 {
-            speeds.push((track.t[j], v));
-        }
-        if j == 0 || j + 1 >= m || !track.accepted[j - 1] || !track.accepted[j + 1] {
-            continue;
-        }
-        let (a, b) = (track.s[j - 1], track.s[j + 1]);
-        let dt = track.t[j + 1] - track.t[j - 1];
-        if v_of(j - 1) > COURSE_MIN_SPEED && v_of(j + 1) > COURSE_MIN_SPEED && dt > 0.0 {
-            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
-            course_rates.push((track.t[j], d / dt));
-            course_speed += v;
-        }
-    }
+    let speeds: Vec<(f64, f64)> = (0..track.t.len())
+        .filter(|&j| track.accepted[j])
+        .map(|j| (track.t[j], track.speed(j)))
+        .filter(|(_, v)| *v > 1.0)
+        .collect();
     let fit = |obs: &[(f64, f64)], v: &[f32], intercept: bool| {
         clocks::fit_lag(
             obs,
@@ -495,12 +530,8 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         // Determined by the speed: the course rate is not needed.
         return clocks::StreamOffset::determined(&f, "speed");
     }
-    // The course leads or lags the heading by the side-slip's response,
-    // about k v (beta = -k a_y): a systematic the fit cannot see at
-    // constant speed, added to its sigma.
-    let slip_lag = SLIP_GAIN_TYPICAL * course_speed / (course_rates.len().max(1) as f64);
-    let by_course = fit(&course_rates, &yaw_rate, true).map(|mut f| {
-        f.sigma_s = f.sigma_s.hypot(slip_lag);
+    let by_course = fit(&rates.obs, &yaw_rate, true).map(|mut f| {
+        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
         f
     });
     let tries = vec![("speed", by_speed), ("course rate", by_course)];
@@ -509,6 +540,164 @@ fn estimate_time_offset(p: &Prepared, track: &PosTrack) -> StreamOffset {
         CLOCK_SEARCH_S,
         "speed changes (accelerating and braking) or turns with GNSS",
     )
+}
+
+/// The GNSS course rate at the accepted epochs of the smoothed track (both
+/// neighbours accepted and faster than [`COURSE_MIN_SPEED`]), for the clock
+/// offsets against the wheels' and the gyro's yaw rates.
+struct CourseRates {
+    /// (GNSS time, course rate rad/s).
+    obs: Vec<(f64, f64)>,
+    /// The course leads or lags the heading by the side-slip's response,
+    /// about k v (beta = -k a_y): a systematic lag the fit cannot see at
+    /// constant speed, added to the sigma of an offset found from it, s.
+    slip_lag_s: f64,
+}
+
+impl PosTrack {
+    /// Speed at epoch `j`, m/s.
+    fn speed(&self, j: usize) -> f64 {
+        let s = self.s[j];
+        (s[2] * s[2] + s[3] * s[3]).sqrt()
+    }
+}
+
+fn course_rates(track: &PosTrack) -> CourseRates {
+    let mut obs = Vec::new();
+    let mut course_speed = 0.0;
+    let m = track.t.len();
+    for j in 1..m.saturating_sub(1) {
+        if !(track.accepted[j - 1] && track.accepted[j] && track.accepted[j + 1]) {
+            continue;
+        }
+        let (a, b) = (track.s[j - 1], track.s[j + 1]);
+        let dt = track.t[j + 1] - track.t[j - 1];
+        if track.speed(j - 1) > COURSE_MIN_SPEED
+            && track.speed(j + 1) > COURSE_MIN_SPEED
+            && dt > 0.0
+        {
+            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
+            obs.push((track.t[j], d / dt));
+            course_speed += track.speed(j);
+        }
+    }
+    let slip_lag_s = SLIP_GAIN_TYPICAL * course_speed / (obs.len().max(1) as f64);
+    CourseRates { obs, slip_lag_s }
+}
+
+/// The GNSS clock against the IMU's: the GNSS course rate against the
+/// gyro's yaw rate (as prepared: on the IMU clock less `p.imu_shift_s`),
+/// by [`clocks::fit_lag`]; its sigma includes the side-slip lag. The pair
+/// that closes the chain wheels-IMU-GNSS when the GNSS's speed and course
+/// do not determine its offset against the wheels directly (a drive at
+/// near-constant speed whose wheel yaw rate is too coarse).
+fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
+    let h = 0.25;
+    let Some(gyro) = p.gyro.as_ref() else {
+        return StreamOffset::not_checked("the drive has no usable gyro");
+    };
+    let (t, g): (Vec<f64>, Vec<f64>) =
+        p.t.iter()
+            .zip(gyro)
+            .filter(|(_, g)| g.is_finite())
+            .map(|(t, g)| (*t, *g))
+            .unzip();
+    if t.len() < 3 {
+        return StreamOffset::not_determined("the gyro covers too few wheel samples".to_string());
+    }
+    let inc: Vec<f64> = std::iter::once(0.0)
+        .chain(g.windows(2).map(|w| w[1] - w[0]))
+        .collect();
+    let yaw_rate = clocks::windowed_rate(&t, &inc, h);
+    let fit = clocks::fit_lag(
+        &rates.obs,
+        &clocks::Sampled {
+            t: &t,
+            v: &yaw_rate,
+        },
+        CLOCK_SEARCH_S,
+        2.0 * h,
+        true,
+    )
+    .map(|mut f| {
+        // Against the IMU's own clock.
+        f.lag_s -= p.imu_shift_s;
+        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
+        f
+    });
+    clocks::first_determined(
+        [("course rate against the gyro", fit)],
+        CLOCK_SEARCH_S,
+        "turns with GNSS",
+    )
+}
+
+/// The pairs of streams compared (wheels-GNSS, wheels-IMU, IMU-GNSS), the
+/// wheels-IMU pair's sigma widened by the lag the car itself puts between
+/// the wheels' and the gyro's yaw rates ([`crate::prep::IMU_PHYSICAL_LAG_S`]).
+fn clock_pairs(p: &Prepared, direct: &StreamOffset, gnss_imu: StreamOffset) -> Vec<PairOffset> {
+    let mut imu = p.imu_clock.clone();
+    if let Some(s) = imu.sigma_s.as_mut() {
+        *s = s.hypot(crate::prep::IMU_PHYSICAL_LAG_S);
+    }
+    vec![
+        PairOffset {
+            base: ClockStream::Wheels,
+            later: ClockStream::Gnss,
+            offset: direct.clone(),
+        },
+        PairOffset {
+            base: ClockStream::Wheels,
+            later: ClockStream::Imu,
+            offset: imu,
+        },
+        PairOffset {
+            base: ClockStream::Imu,
+            later: ClockStream::Gnss,
+            offset: gnss_imu,
+        },
+    ]
+}
+
+/// The GNSS offset against the wheels over every pair ([`clocks::solve_offsets`]):
+/// determined when the combination is (within [`clocks::MAX_OFFSET_SIGMA_S`]),
+/// else the direct pair's result with why the chain did not help.
+fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffset {
+    match clocks::solve_offsets(pairs, ClockStream::Gnss) {
+        Ok(j) if j.sigma_s <= clocks::MAX_OFFSET_SIGMA_S => StreamOffset {
+            status: clocks::OffsetStatus::Determined,
+            offset_s: Some(j.offset_s),
+            sigma_s: Some(j.sigma_s),
+            from: Some(if j.direct {
+                direct.from.clone().unwrap_or(j.path)
+            } else {
+                j.path
+            }),
+            applied: false,
+            reason: None,
+            drift: direct.drift.clone(),
+            weak: None,
+        },
+        Ok(j) if direct.status != clocks::OffsetStatus::Determined => {
+            let mut o = direct.clone();
+            o.reason = Some(format!(
+                "{}; through {}: sigma {:.2} s",
+                o.reason.as_deref().unwrap_or("not determined"),
+                j.path,
+                j.sigma_s
+            ));
+            o
+        }
+        Err(why) if direct.status != clocks::OffsetStatus::Determined => {
+            let mut o = direct.clone();
+            o.reason = Some(format!(
+                "{}; {why}",
+                o.reason.as_deref().unwrap_or("not determined")
+            ));
+            o
+        }
+        _ => direct.clone(),
+    }
 }
 
 /// The heading reference at the epochs and between them.
@@ -695,18 +884,27 @@ fn course_and_heading(
     let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
     let [lx, ly] = p.lever_arm;
     let mut course_meas: Vec<(HeadingMeas, f64)> = Vec::new(); // with speed
+                                                               // Fixes whose course is not used: rejected, slow, uncertain, reversing.
+    let mut skipped = [0usize; 4];
     for j in 0..pass1.t.len() {
         if !pass1.accepted[j] {
+            skipped[0] += 1;
             continue;
         }
         let s = pass1.s[j];
         let v = (s[2] * s[2] + s[3] * s[3]).sqrt();
         if v < COURSE_MIN_SPEED {
+            skipped[1] += 1;
             continue;
         }
         let var_c = pass1.cov[j].vv / (v * v);
-        if var_c > 0.04 || reversing(p, pass1.t[j]) {
+        if var_c > COURSE_MAX_VAR {
+            skipped[2] += 1;
+            continue;
+        }
+        if reversing(p, pass1.t[j]) {
             // Reversing, the course points backwards: not a heading.
+            skipped[3] += 1;
             continue;
         }
         let w = omega_at(pass1.t[j]).unwrap_or(0.0);
@@ -734,9 +932,24 @@ fn course_and_heading(
     meas.sort_by(|a, b| a.t.total_cmp(&b.t));
     meas.dedup_by(|b, a| b.t <= a.t);
     if meas.len() < 2 {
-        return Err(CalibrationError::TooShort {
-            distance_m: 0.0,
-            needed_m: 50.0,
+        let speed_sigma = |j: usize| pass1.cov[j].vv.max(0.0).sqrt();
+        let mut sv: Vec<f64> = (0..pass1.t.len())
+            .filter(|&j| pass1.accepted[j])
+            .map(speed_sigma)
+            .collect();
+        let median_sv = crate::prep::median(&mut sv).unwrap_or(f64::NAN);
+        return Err(CalibrationError::NoCourse {
+            detail: format!(
+                "of {} GNSS fixes, {} were rejected as outliers, {} are slower than {COURSE_MIN_SPEED:.1} m/s, {} have a course sigma above {:.2} rad (the smoothed GNSS velocity's sigma, median {median_sv:.2} m/s, is too large against the speed: noisy fixes or gaps), {} are while reversing; {} course(s) and {} absolute heading(s) are left, at least 2 are needed",
+                pass1.t.len(),
+                skipped[0],
+                skipped[1],
+                skipped[2],
+                COURSE_MAX_VAR.sqrt(),
+                skipped[3],
+                course_meas.len(),
+                p.headings.len(),
+            ),
         });
     }
     let bias0 = standstill_gyro_bias(p).map_or(0.0, |b| b.0);
@@ -832,10 +1045,22 @@ pub fn build(
             }
         }
     };
+    // A receiver's sigma_m below the scatter its own fixes show is not
+    // believed: the larger is used.
+    let claim = match config.gnss_sigma_m {
+        Some(_) => None,
+        None => check_claimed_sigma(&p.fixes, warnings),
+    };
+    let floor = claim.map_or(0.0, |c| c.measured_m);
+    let gnss_sigma_m = if estimated {
+        gnss_sigma_m
+    } else {
+        gnss_sigma_m.max(floor)
+    };
     let sigma_of = |f: &Fix| -> f64 {
         match (config.gnss_sigma_m, f.sigma) {
             (Some(s), _) => s,
-            (None, Some(s)) => s.max(0.01),
+            (None, Some(s)) => s.max(0.01).max(floor),
             (None, None) => gnss_sigma_m,
         }
     };
@@ -857,8 +1082,12 @@ pub fn build(
     let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
     let mut time_offset = None;
     let mut clock = StreamOffset::not_checked("time offset check switched off");
+    let mut clock_pairs_found = Vec::new();
     if config.time_offset != TimeOffsetMode::Off {
-        clock = estimate_time_offset(p, &pass1);
+        let rates = course_rates(&pass1);
+        let direct = estimate_time_offset(p, &pass1, &rates);
+        clock_pairs_found = clock_pairs(p, &direct, gnss_imu_pair(p, &rates));
+        clock = joint_gnss_offset(&direct, &clock_pairs_found);
         if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
             let significant = clock.significant(0.015).is_some();
             let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
@@ -1111,6 +1340,33 @@ pub fn build(
             .collect()
     };
     let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &bridged);
+    let wheel_distance_m: f64 = (0..n)
+        .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c)
+        .sum();
+    if distance_m < MIN_REFERENCE_M && wheel_distance_m >= MIN_REFERENCE_M {
+        let mut gaps: Vec<f64> = acc_t.windows(2).map(|w| w[1] - w[0]).collect();
+        let median_gap = crate::prep::median(&mut gaps).unwrap_or(f64::NAN);
+        let hint = if median_gap > config.max_gnss_gap_s {
+            format!(
+                "the accepted fixes are a median {median_gap:.1} s apart, more than max_gnss_gap_s ({:.1} s): every interval counts as an outage (raise max_gnss_gap_s if the receiver logs this slowly)",
+                config.max_gnss_gap_s
+            )
+        } else {
+            format!(
+                "the accepted fixes are a median {median_gap:.1} s apart, but not where the car moves"
+            )
+        };
+        return Err(CalibrationError::ReferenceTooShort {
+            distance_m,
+            wheel_distance_m,
+            needed_m: MIN_REFERENCE_M,
+            detail: format!(
+                "of {} GNSS fixes, {outliers} were rejected as outliers and {set_aside_count} set aside in jumps; {} are left and {hint}",
+                fixes.len(),
+                acc_t.len()
+            ),
+        });
+    }
     let heading_filter_gyro_bias =
         gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
     Ok(Reference {
@@ -1122,10 +1378,12 @@ pub fn build(
         fixes,
         gnss_sigma_m,
         gnss_sigma_estimated: estimated,
+        gnss_sigma_claim: claim,
         outliers,
         jumps: jumps.jumps,
         time_offset,
         gnss_clock: clock,
+        clock_pairs: clock_pairs_found,
         side_slip_gain,
         heading_filter_gyro_bias,
         distance_m,

@@ -79,6 +79,23 @@ pub fn render_text(c: &Calibration) -> String {
         let _ = writeln!(s, "clock offset: {name} {}", clock_offset(o));
         let _ = writeln!(s, "clock drift: {name} {}", o.drift);
     }
+    for p in &c.clock_offsets.pairs {
+        let weak = match (p.offset.status, p.offset.weak) {
+            (OffsetStatus::NotDetermined, Some([v, sd])) => format!(
+                "; weak fit {:+.0} ms (sigma {:.0} ms) used in the combination",
+                1000.0 * v,
+                1000.0 * sd
+            ),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            s,
+            "clock pair: {} against {} {}{weak}",
+            p.later.name(),
+            p.base.name(),
+            clock_offset(&p.offset).replace("relative to the wheels ", "")
+        );
+    }
     let _ = writeln!(s);
     let _ = writeln!(
         s,

@@ -18,6 +18,9 @@ pub enum WarningCode {
     NoImu,
     /// GNSS fixes rejected as outliers.
     GnssOutliers,
+    /// The receiver's `sigma_m` is far below the scatter of its fixes; the
+    /// scatter is used.
+    GnssSigmaUnderstated,
     /// GNSS jumps found against the wheels and set aside.
     GnssJumps,
     /// The calibrated model fits the GNSS far worse than its noise.
