@@ -55,3 +55,44 @@ impl DriveInput {
         Ok(read_drive_with(path, self.options(skip_corrupt_chunks)?))
     }
 }
+
+/// A read drive, or with `allow_truncated` what a truncated MCAP recording
+/// held before its damage (a warning in the drive's own warnings names the
+/// damage); a truncated recording without `allow_truncated` is an error that
+/// says the option exists.
+pub fn accept_truncated(
+    read: Result<LoadedDrive, DriveError>,
+    allow_truncated: bool,
+) -> anyhow::Result<LoadedDrive> {
+    match read {
+        Err(DriveError::TruncatedMcap {
+            partial: Some(partial),
+            path,
+            offset,
+            file_len,
+            record,
+            messages_read,
+        }) => {
+            let damage = DriveError::TruncatedMcap {
+                path,
+                offset,
+                file_len,
+                record,
+                messages_read,
+                partial: None,
+            };
+            if allow_truncated {
+                let mut loaded = *partial;
+                loaded.warnings.push(format!(
+                    "{damage}: --allow-truncated: only what was read before the damage is used"
+                ));
+                Ok(loaded)
+            } else {
+                Err(anyhow::Error::new(damage).context(
+                    "the recording is truncated; --allow-truncated uses what was read before the damage",
+                ))
+            }
+        }
+        other => Ok(other?),
+    }
+}

@@ -50,6 +50,8 @@ pub(super) struct CsvFile {
     pub header_line: usize,
     /// Which columns some caller asked for.
     claimed: Vec<bool>,
+    /// The last data line, when it has no line end.
+    unterminated_line: Option<usize>,
 }
 
 /// `s` without the double quotes around it, if it has them.
@@ -72,6 +74,17 @@ fn next_line(
     path: &Path,
     line: usize,
 ) -> Result<bool, DriveError> {
+    next_line_ended(reader, buf, path, line).map(|l| l.is_some())
+}
+
+/// [`next_line`], also saying whether the line had its line end: `Some(true)`
+/// for a line ending in `\n`, `Some(false)` for a last line without one.
+fn next_line_ended(
+    reader: &mut dyn BufRead,
+    buf: &mut Vec<u8>,
+    path: &Path,
+    line: usize,
+) -> Result<Option<bool>, DriveError> {
     buf.clear();
     let limit = MAX_CSV_LINE_BYTES as u64 + 1;
     let n = reader
@@ -79,18 +92,48 @@ fn next_line(
         .read_until(b'\n', buf)
         .map_err(|e| DriveError::io(path, e))?;
     if n == 0 {
-        return Ok(false);
+        return Ok(None);
     }
     if buf.last() == Some(&b'\n') {
         buf.pop();
-    } else if buf.len() > MAX_CSV_LINE_BYTES {
+        return Ok(Some(true));
+    }
+    if buf.len() > MAX_CSV_LINE_BYTES {
         return Err(DriveError::LineTooLong {
             path: path.to_path_buf(),
             line,
             limit: MAX_CSV_LINE_BYTES,
         });
     }
-    Ok(true)
+    Ok(Some(false))
+}
+
+/// `Some("UTF-16BE")` or `Some("UTF-16LE")` when the first line is UTF-16
+/// text (its byte-order mark, or ASCII with a NUL byte beside every
+/// character), which reads as valid but meaningless UTF-8.
+fn utf16(first_line: &[u8]) -> Option<&'static str> {
+    match first_line {
+        [0xfe, 0xff, ..] => return Some("UTF-16BE"),
+        [0xff, 0xfe, ..] => return Some("UTF-16LE"),
+        _ => {}
+    }
+    let pairs = first_line.len() / 2;
+    if pairs < 2 {
+        return None;
+    }
+    let nul_at = |k: usize| {
+        first_line
+            .chunks(2)
+            .filter(|c| c.len() == 2 && c[k] == 0)
+            .count()
+    };
+    if nul_at(0) == pairs {
+        Some("UTF-16BE")
+    } else if nul_at(1) == pairs {
+        Some("UTF-16LE")
+    } else {
+        None
+    }
 }
 
 fn as_text<'b>(buf: &'b [u8], path: &Path, line: usize) -> Result<&'b str, DriveError> {
@@ -114,6 +157,17 @@ impl CsvFile {
         let mut header = None;
         while next_line(reader.as_mut(), &mut buf, path, line_no + 1)? {
             line_no += 1;
+            if line_no == 1 {
+                if let Some(encoding) = utf16(&buf) {
+                    return Err(DriveError::BadHeader {
+                        path: path.to_path_buf(),
+                        line: 1,
+                        message: format!(
+                            "the file is {encoding} encoded, not UTF-8: save it as UTF-8 (plain text)"
+                        ),
+                    });
+                }
+            }
             let mut line = as_text(&buf, path, line_no)?;
             if line_no == 1 {
                 // A spreadsheet's UTF-8 byte-order mark.
@@ -158,6 +212,7 @@ impl CsvFile {
             columns,
             header_line: line_no,
             claimed,
+            unterminated_line: None,
         })
     }
 
@@ -188,6 +243,18 @@ impl CsvFile {
         self.claimed[i] = true;
     }
 
+    /// A warning when the last line has no line end (the file may have been
+    /// cut while it was written), after [`CsvFile::for_each_row`].
+    pub fn cut_warning(&self) -> Option<String> {
+        self.unterminated_line.map(|line| {
+            format!(
+                "{}: line {line}, the last, has no line end: the file may have been cut while it was written \
+                 (the line is read as it is; check its values)",
+                self.path.display()
+            )
+        })
+    }
+
     /// A warning listing the columns nobody asked for, if any.
     pub fn unknown_columns_warning(&self) -> Option<String> {
         let unknown: Vec<String> = self
@@ -216,8 +283,13 @@ impl CsvFile {
     ) -> Result<(), DriveError> {
         let mut buf = Vec::with_capacity(256);
         let mut line_no = self.header_line;
-        while next_line(self.reader.as_mut(), &mut buf, &self.path, line_no + 1)? {
+        while let Some(ended) =
+            next_line_ended(self.reader.as_mut(), &mut buf, &self.path, line_no + 1)?
+        {
             line_no += 1;
+            if !ended {
+                self.unterminated_line = Some(line_no);
+            }
             let line = as_text(&buf, &self.path, line_no)?;
             if is_skipped(line) {
                 continue;

@@ -395,6 +395,7 @@ fn read_wheels(
         Ok(())
     })?;
     warnings.extend(csv.unknown_columns_warning());
+    warnings.extend(csv.cut_warning());
     Ok(WheelSeries { units, samples })
 }
 
@@ -577,6 +578,7 @@ fn read_stream<S: Stream>(
         ));
     }
     warnings.extend(csv.unknown_columns_warning());
+    warnings.extend(csv.cut_warning());
     Ok(RawStream { position, samples })
 }
 

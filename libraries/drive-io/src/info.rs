@@ -209,7 +209,15 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
         .truth
         .as_ref()
         .map(|g| path_length(g.iter().map(|s| (s.x_m, s.y_m))));
-    let distance_wheels_m = drive.wheel_revolutions().ok().map(|revs| {
+    // The wheels as the calibrator reads them (glitches set aside), and no
+    // distance from a circumference that is not positive.
+    let vehicle = drive.vehicle.check_plausible();
+    let (repaired, _) = plausibility::repaired(drive);
+    let c = drive.vehicle.nominal_circumference_m;
+    let wheel_revs = (c.is_finite() && c > 0.0)
+        .then(|| repaired.wheel_revolutions().ok())
+        .flatten();
+    let distance_wheels_m = wheel_revs.map(|revs| {
         let mut total = 0.0;
         let mut previous: Option<f64> = None;
         for r in revs {
@@ -289,9 +297,18 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
         gnss_outages,
         gnss_outage_threshold_s,
         has_truth_params: drive.truth_params.is_some(),
-        findings: plausibility::findings(drive)
+        findings: vehicle
+            .err()
+            .map(|e| FindingSummary {
+                severity: Severity::Error,
+                message: format!("vehicle.toml: {e}; the calibrator and the odometry refuse it"),
+            })
             .into_iter()
-            .map(|f| f.summary())
+            .chain(
+                plausibility::findings(drive)
+                    .into_iter()
+                    .map(|f| f.summary()),
+            )
             .collect(),
         warnings: Vec::new(),
     }

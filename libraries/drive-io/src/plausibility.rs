@@ -62,6 +62,13 @@ pub const TRACK_CONTRADICTION_SIGMAS: f64 = 5.0;
 /// its own noise sigmas from zero: the gyro noise then biases the fitted
 /// ratio by at most 1 / (1 + 1/25), 4 % (errors in the regressor).
 pub const TURN_NOISE_SIGMAS: f64 = 5.0;
+/// Standard errors between the wheels-to-gyro turn ratios +1 (signs
+/// right) and -1 (signs wrong) before the gyro decides which.
+pub const SIGN_SIGMAS: f64 = 10.0;
+/// Standard errors from zero the GNSS course's turns per wheel turn must
+/// lie before their sign counts (one-sided, about 3e-5 by chance; GNSS
+/// jumps are taken out first).
+pub const COURSE_SIGN_SIGMAS: f64 = 4.0;
 /// Turning by the wheels that a gyro exactly constant meanwhile cannot
 /// have missed, rad (20 degrees: a MEMS gyro resolves thousandths of a
 /// degree per second, and real ones never hold a value for more than a few
@@ -903,7 +910,7 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
         turning
     };
     let turned: f64 = kept.iter().map(|w| w.1.abs()).sum();
-    if kept.len() < 10 || turned < EVIDENCE_TURN_RAD {
+    if kept.len() < 10 {
         return None;
     }
     let (s, se, _) = fit_track(&kept)?;
@@ -925,15 +932,17 @@ fn track_contradicted(fit: &WheelGyroFit, rear: &Rear) -> Option<Finding> {
         turned,
     } = *fit;
     let off = (s - 1.0).abs();
-    (s > 0.0 && off > TRACK_CONTRADICTION_REL && off > TRACK_CONTRADICTION_SIGMAS * se).then_some(
-        Finding::TrackWidthContradicted {
+    (turned >= EVIDENCE_TURN_RAD
+        && s > 0.0
+        && off > TRACK_CONTRADICTION_REL
+        && off > TRACK_CONTRADICTION_SIGMAS * se)
+        .then_some(Finding::TrackWidthContradicted {
             nominal_m: rear.track,
             effective_m: s * rear.track,
             sigma_m: se * rear.track,
             windows,
             turned_rad: turned,
-        },
-    )
+        })
 }
 
 /// The first sample of `wheel` whose rate is beyond any car's.
@@ -1167,13 +1176,15 @@ impl Rear {
     /// wrong. Without a gyro, wheels against GNSS course cannot tell the
     /// wheels from the track (the message says so).
     fn reversed(&self, drive: &Drive, gyro: Option<&WheelGyroFit>) -> Option<Finding> {
-        let gyro = gyro.filter(|g| g.turned >= EVIDENCE_TURN_RAD && g.s.abs() > 3.0 * g.se);
+        // The gyro decides where its turns tell +1 from -1 beyond doubt:
+        // ten standard errors between them.
+        let gyro = gyro.filter(|g| 2.0 > SIGN_SIGMAS * g.se);
         let course = self.course_ratio(drive);
         let (ratio, turned, against) = match (gyro, course) {
             (Some(g), _) if g.s < -0.5 => (g.s, g.turned, "the gyro"),
             (Some(g), Some((c, turned))) if g.s > 0.5 && c < -0.5 => {
                 return Some(Finding::GnssMirrored {
-                    ratio: c,
+                    ratio: 1.0 / c,
                     turned_rad: turned,
                     lat_lon: drive.vehicle.gnss.origin_lat_deg.is_some(),
                 });
@@ -1243,23 +1254,38 @@ impl Rear {
                 Some((course, self.psi(i)))
             })
             .collect();
-        let (mut a, mut b, mut turned, mut wheel_turned) = (0.0, 0.0, 0.0, 0.0);
-        for w in segs.windows(2) {
-            let dc = wrap(w[1].0 - w[0].0);
-            let dpsi = w[1].1 - w[0].1;
-            // A cusp (the course flips when the car changes direction) says nothing.
-            if dc.abs() > 2.0 {
-                continue;
-            }
-            a += dpsi * dc;
-            b += dc * dc;
-            turned += dc.abs();
-            wheel_turned += dpsi.abs();
-        }
-        if b <= 0.0 || turned < EVIDENCE_TURN_RAD || wheel_turned < EVIDENCE_TURN_RAD {
+        // (wheel heading change, course change) of consecutive segments; a
+        // cusp (the course flips when the car changes direction) says nothing.
+        let pairs: Vec<(f64, f64)> = segs
+            .windows(2)
+            .map(|w| (w[1].1 - w[0].1, wrap(w[1].0 - w[0].0)))
+            .filter(|(_, dc)| dc.abs() <= 2.0)
+            .collect();
+        let turned: f64 = pairs.iter().map(|p| p.1.abs()).sum();
+        let wheel_turned: f64 = pairs.iter().map(|p| p.0.abs()).sum();
+        if pairs.len() < 10 || wheel_turned < EVIDENCE_TURN_RAD {
             return None;
         }
-        Some((a / b, turned))
+        // The course regressed on the wheels' heading (the precise one of
+        // the two: the course's noise then biases nothing), with one pass of
+        // 5-MAD outlier removal (a GNSS jump bends two chords).
+        let (r, residuals, _) = slope(&pairs)?;
+        let (_, spread) = median_sigma(&residuals)?;
+        let kept: Vec<(f64, f64)> = pairs
+            .iter()
+            .zip(&residuals)
+            .filter(|(_, e)| spread <= 0.0 || e.abs() <= 5.0 * spread)
+            .map(|(p, _)| *p)
+            .collect();
+        let (r, _, se) = if kept.len() >= 10 {
+            slope(&kept)?
+        } else {
+            let (_, res, se) = slope(&pairs)?;
+            (r, res, se)
+        };
+        // Reported as the wheels' turns per course turn, where the sign is
+        // beyond doubt.
+        (r.abs() > COURSE_SIGN_SIGMAS * se).then(|| (1.0 / r, turned))
     }
 
     /// The longest stretch where `wheel` stays exactly constant while the
@@ -1343,6 +1369,19 @@ fn resolution(x: &[f64], a: usize, b: usize) -> f64 {
     } else {
         0.0
     }
+}
+
+/// Least squares `y = r x` through the origin over `(x, y)` pairs: the
+/// slope, the residuals and the slope's standard error.
+fn slope(pairs: &[(f64, f64)]) -> Option<(f64, Vec<f64>, f64)> {
+    let b: f64 = pairs.iter().map(|p| p.0 * p.0).sum();
+    if b <= 0.0 || pairs.len() < 2 {
+        return None;
+    }
+    let r = pairs.iter().map(|p| p.0 * p.1).sum::<f64>() / b;
+    let residuals: Vec<f64> = pairs.iter().map(|p| p.1 - r * p.0).collect();
+    let var = residuals.iter().map(|e| e * e).sum::<f64>() / (pairs.len() - 1) as f64;
+    Some((r, residuals, (var / b).sqrt()))
 }
 
 /// Smallest nonzero step of a cumulative series between samples `a..=b`.

@@ -959,3 +959,60 @@ fn a_front_glitch_empties_its_cells_and_a_1e308_jump_leaves_a_stuck_wheel() {
         "{all:?}"
     );
 }
+
+#[test]
+fn the_gyro_tells_mirrored_wheels_from_a_mirrored_gnss_track() {
+    let clean = weaving(WheelUnit::RadS, 120.0);
+    assert!(plausibility::check(&clean).is_empty());
+    // The GNSS track mirrored (north negated, as exchanged lat/lon do up to
+    // a rotation): the gyro and the wheels agree, the course does not.
+    let mut mirrored = clean.clone();
+    for f in mirrored.gnss.as_mut().unwrap() {
+        f.y_m = -f.y_m;
+    }
+    let f = plausibility::check(&mirrored);
+    assert!(
+        matches!(f.as_slice(), [Finding::GnssMirrored { ratio, .. }] if *ratio < -0.8),
+        "{f:?}"
+    );
+    assert!(
+        f[0].is_error() && f[0].to_string().contains("x_m and y_m"),
+        "{}",
+        f[0]
+    );
+    // Without a gyro the drive cannot tell the two apart, and says so.
+    mirrored.imu = None;
+    let f = plausibility::check(&mirrored);
+    assert!(
+        matches!(
+            f.as_slice(),
+            [Finding::WheelsSwapped {
+                against: "the GNSS course",
+                ..
+            }]
+        ),
+        "{f:?}"
+    );
+    assert!(
+        f[0].to_string().contains("or the GNSS track is mirrored"),
+        "{}",
+        f[0]
+    );
+    // Reversed wheels with a gyro and no GNSS at all: the gyro names them.
+    let mut reversed = clean;
+    reversed.gnss = None;
+    for s in &mut reversed.wheels.samples {
+        (s.rl, s.rr) = (-s.rl, -s.rr);
+    }
+    let f = plausibility::check(&reversed);
+    assert!(
+        f.iter().any(|f| matches!(
+            f,
+            Finding::WheelsReversed {
+                against: "the gyro",
+                ..
+            }
+        )),
+        "{f:?}"
+    );
+}

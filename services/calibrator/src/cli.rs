@@ -123,6 +123,10 @@ pub struct CalibrateArgs {
     /// fail their CRC (a warning names each one) instead of refusing it.
     #[arg(long)]
     pub skip_corrupt_chunks: bool,
+    /// Calibrate what a truncated MCAP recording holds before its damage
+    /// (a warning names the damage) instead of refusing it.
+    #[arg(long)]
+    pub allow_truncated: bool,
 }
 
 impl CalibrateArgs {
@@ -207,10 +211,11 @@ impl Bar {
 
 /// Run `calibrator calibrate`.
 pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
-    let loaded = args
-        .input
-        .read(&args.drive, args.skip_corrupt_chunks)?
-        .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
+    let loaded = drive_io::cli::accept_truncated(
+        args.input.read(&args.drive, args.skip_corrupt_chunks)?,
+        args.allow_truncated,
+    )
+    .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");
     }
@@ -286,8 +291,15 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         None
     };
     if let Some(path) = &args.json {
+        // What reading the files said belongs with the result too.
+        let mut with_reading = cal.clone();
+        with_reading.warnings.extend(
+            reading
+                .iter()
+                .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
+        );
         let mut value =
-            serde_json::to_value(&cal).context("cannot encode the calibration as JSON")?;
+            serde_json::to_value(&with_reading).context("cannot encode the calibration as JSON")?;
         if let (Some(terms), Some(obj)) = (effects, value.as_object_mut()) {
             obj.insert(
                 "effects".to_string(),

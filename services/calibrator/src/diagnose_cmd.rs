@@ -30,14 +30,23 @@ pub struct DiagnoseArgs {
     /// No progress display.
     #[arg(long)]
     pub no_progress: bool,
+    /// Read a damaged MCAP recording by leaving out each chunk whose records
+    /// fail their CRC (a warning names each one) instead of refusing it.
+    #[arg(long)]
+    pub skip_corrupt_chunks: bool,
+    /// Diagnose what a truncated MCAP recording holds before its damage
+    /// (a warning names the damage) instead of refusing it.
+    #[arg(long)]
+    pub allow_truncated: bool,
 }
 
 /// Run `calibrator diagnose`.
 pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
-    let loaded = args
-        .input
-        .read(&args.drive, false)?
-        .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
+    let loaded = drive_io::cli::accept_truncated(
+        args.input.read(&args.drive, args.skip_corrupt_chunks)?,
+        args.allow_truncated,
+    )
+    .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
     for w in &loaded.warnings {
         tracing::warn!("{w}");
     }
@@ -71,7 +80,14 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     if shown {
         eprintln!();
     }
-    let d = result.with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+    let mut d = result.with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+    // What reading the files said belongs with the result too.
+    d.warnings.extend(
+        loaded
+            .warnings
+            .iter()
+            .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
+    );
     print!("{}", render_text(&d));
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&d).context("cannot encode the diagnosis")?;
@@ -123,6 +139,13 @@ pub fn render_text(d: &Diagnosis) -> String {
         "plain 2W model: c_RL {:.4} m, c_RR {:.4} m, track {:.3} m (vehicle.toml)",
         d.base_model.c_rl_m, d.base_model.c_rr_m, d.base_model.track_width_m
     );
+    if !d.warnings.is_empty() {
+        let _ = writeln!(s, "read with warnings:");
+        for w in &d.warnings {
+            let code = serde_json::to_string(&w.code).unwrap_or_default();
+            let _ = writeln!(s, "  - [{}] {}", code.trim_matches('"'), w.message);
+        }
+    }
     let _ = writeln!(
         s,
         "noise: GNSS {:.3} m (1 sigma), {} blocks of {:.0} s{}",

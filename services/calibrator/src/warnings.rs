@@ -57,6 +57,9 @@ pub enum WarningCode {
     ScaleFromGyroModel,
     /// The GNSS antenna position is poorly determined by the drive.
     AntennaUnobservable,
+    /// What reading the drive's files said (a damaged chunk left out, an
+    /// unknown column, a last line without its line end, ...).
+    Reading,
     /// An encoder tick counter wraps around; it was unwrapped.
     CounterWrapped,
     /// Wheel values beyond any car (a logger glitch) were set aside; the

@@ -366,6 +366,10 @@ pub struct Diagnosis {
     pub not_accepted: Vec<NotAccepted>,
     /// The noise the thresholds came from.
     pub noise: NoiseLevels,
+    /// What the plain model's calibration warned of (values set aside, a
+    /// dead sensor, ...): the diagnosis reads the drive as it did.
+    #[serde(default)]
+    pub warnings: Vec<crate::warnings::Warning>,
     /// The plain model.
     pub base_model: BaseModel,
     /// The extension: every accepted term (zero for the others).
@@ -401,6 +405,9 @@ pub fn diagnose_with_progress(
         ..CalibrationConfig::default()
     };
     let cal = calibrate(drive, &plain)?;
+    // The drive as the calibration read it: wheel glitches set aside.
+    let (repaired, _) = drive_io::plausibility::repaired(drive);
+    let drive: &Drive = &repaired;
     let base = BaseModel {
         c_rl_m: cal.circumference_m.rl,
         c_rr_m: cal.circumference_m.rr,
@@ -670,6 +677,7 @@ pub fn diagnose_with_progress(
     }
     progress(DiagnoseStage::Done, 1.0);
     Ok(Diagnosis {
+        warnings: cal.warnings.clone(),
         findings,
         ambiguous: sel.ambiguous,
         unexplained,

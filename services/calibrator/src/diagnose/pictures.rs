@@ -1051,6 +1051,7 @@ mod tests {
 
     fn diagnosis(findings: Vec<Finding>) -> Diagnosis {
         Diagnosis {
+            warnings: Vec::new(),
             findings,
             ambiguous: Vec::new(),
             unexplained: Vec::new(),

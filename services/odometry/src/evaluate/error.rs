@@ -36,6 +36,9 @@ pub enum EvaluateError {
     /// throughout): refused as the calibrator refuses it.
     #[error("{0}; the drive cannot be evaluated as it is")]
     Implausible(drive_io::plausibility::Finding),
+    /// Gyro heading asked for a drive whose gyro is dead for the whole drive.
+    #[error("{0}: heading mode gyro cannot use it (use --heading wheels)")]
+    DeadGyro(drive_io::plausibility::Finding),
     /// A setting is out of range.
     #[error("invalid setting: {0}")]
     Config(String),

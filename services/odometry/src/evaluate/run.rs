@@ -57,7 +57,25 @@ pub fn evaluate(
     // The drive as the calibrator reads it: glitches set aside, what is
     // impossible refused, what is doubtful said (the same checks and words).
     let mut warnings = Vec::new();
-    let (repaired, pauses) = checked(drive, &mut warnings)?;
+    let (repaired, pauses, stuck_gyro) = checked(drive, &mut warnings)?;
+    // A dead gyro heads nothing: refused in gyro heading mode when dead for
+    // the whole drive, its stretch left out otherwise.
+    let gyro_heading = config.odometer.heading == HeadingMode::Gyro;
+    if gyro_heading {
+        if let Some(f) = stuck_gyro.iter().find_map(|(_, _, whole)| whole.as_ref()) {
+            return Err(EvaluateError::DeadGyro(f.clone()));
+        }
+    }
+    let holes: Vec<(f64, f64, &str)> = pauses
+        .iter()
+        .map(|&(a, b)| (a, b, "the wheel stream pauses"))
+        .chain(
+            stuck_gyro
+                .iter()
+                .filter(|_| gyro_heading)
+                .map(|&(a, b, _)| (a, b, "the gyro is stuck (imu.gz_rad_s)")),
+        )
+        .collect();
     let drive: &Drive = &repaired;
     let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
@@ -127,11 +145,11 @@ pub fn evaluate(
         ));
     }
     for &(t0, t1, align) in &windows {
-        // Nothing dead-reckons across a hole in the wheels.
+        // Nothing dead-reckons across a hole in the wheels or a stuck gyro.
         let from = align.map_or(t0, |(ta, _)| ta.min(t0));
-        if let Some((p0, p1)) = pauses.iter().find(|(p0, p1)| *p0 < t1 && *p1 > from) {
+        if let Some((p0, p1, what)) = holes.iter().find(|(p0, p1, _)| *p0 < t1 && *p1 > from) {
             warnings.push(format!(
-                "outage at {t0:.2} s skipped: the wheel stream pauses from {p0:.2} to {p1:.2} s within it"
+                "outage at {t0:.2} s skipped: {what} from {p0:.2} to {p1:.2} s within it"
             ));
             continue;
         }
@@ -176,14 +194,21 @@ pub fn evaluate(
     })
 }
 
+/// Stretches of the drive (start, end), s.
+type Stretches = Vec<(f64, f64)>;
+/// Stretches where the gyro is stuck, with the finding when it is stuck
+/// for the whole drive.
+type StuckGyro = Vec<(f64, f64, Option<Finding>)>;
+
 /// The drive with its wheel glitches set aside
 /// ([`plausibility::repaired`]) and checked ([`plausibility::check`]): an
 /// error refuses the evaluation, a warning is said; returns the repaired
-/// drive and the pauses of the wheel stream (start, end), s.
+/// drive, the pauses of the wheel stream and the stretches where the gyro
+/// is stuck.
 fn checked<'a>(
     drive: &'a Drive,
     warnings: &mut Vec<String>,
-) -> Result<(Cow<'a, Drive>, Vec<(f64, f64)>), EvaluateError> {
+) -> Result<(Cow<'a, Drive>, Stretches, StuckGyro), EvaluateError> {
     let (repaired, repairs) = plausibility::repaired(drive);
     let findings: Vec<Finding> = repairs
         .into_iter()
@@ -192,17 +217,24 @@ fn checked<'a>(
     if let Some(f) = findings.iter().find(|f| f.is_error()) {
         return Err(EvaluateError::Implausible(f.clone()));
     }
-    let mut pauses = Vec::new();
+    let (mut pauses, mut stuck) = (Vec::new(), Vec::new());
     for f in findings {
-        if let Finding::WheelPause {
-            t_s, duration_s, ..
-        } = f
-        {
-            pauses.push((t_s, t_s + duration_s));
+        match &f {
+            Finding::WheelPause {
+                t_s, duration_s, ..
+            } => pauses.push((*t_s, t_s + duration_s)),
+            Finding::ImuStuck {
+                field: "gz_rad_s",
+                t_start_s,
+                t_end_s,
+                whole_drive,
+                ..
+            } => stuck.push((*t_start_s, *t_end_s, whole_drive.then(|| f.clone()))),
+            _ => {}
         }
         warnings.push(f.to_string());
     }
-    Ok((repaired, pauses))
+    Ok((repaired, pauses, stuck))
 }
 
 #[cfg(test)]
