@@ -955,6 +955,113 @@ fn estimates_no_calibration_can_give_are_refused() {
     settings.remove_leftovers();
 }
 
+/// Issue 35 item 3: a same-user process publishes version 99 with
+/// circumferences 7 % too large (inside every gate) before the calibrator's
+/// first estimate. The fixes contradict it within one window: it is dropped
+/// with the reason (back to nominal), the calibrator's v1 and v2 are taken
+/// after it, and a 10 s tunnel at the end dead-reckons on v2, not on the lie.
+#[test]
+fn a_plausible_lie_on_the_bus_is_dropped_when_the_fixes_contradict_it() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odolie", root.path());
+    let (shutdown, service) = spawn_service(base_config(&settings));
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let liar_bus = Bus::open(&settings, "liar").expect("liar bus");
+    let calibrator_bus = Bus::open(&settings, "calibrator").expect("calibrator bus");
+    let mut liar: TopicPublisher<CircumferenceEstimate> =
+        liar_bus.publisher().expect("liar publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let mut sensors = Sensors::open_when_subscribed(&bus);
+    let with_c = |c: f64| Estimate {
+        params: OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: c,
+                c_rr: c,
+                track_width: TRACK,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        },
+        sigma_m: Some((1e-3, 1e-3)),
+        quality_m: Some(0.5),
+        antenna_m: None,
+        antenna_sigma_m: None,
+        effects: vehicle_model::effects::WheelEffects::default(),
+        clocks: Default::default(),
+    };
+    let (lie_at, tunnel, n) = (100usize, 1500usize, 2500usize);
+    let mut calibrator: Option<TopicPublisher<CircumferenceEstimate>> = None;
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        let header = Header::from_seconds(i as f64 * 0.01, 0);
+        if i == lie_at {
+            liar.publish(with_c(C * 1.07).to_wire(header, 99))
+                .expect("publish the lie");
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        if i == 1200 {
+            let publisher = calibrator.insert(
+                calibrator_bus
+                    .publisher()
+                    .expect("calibrator's estimate publisher"),
+            );
+            publisher
+                .publish(with_c(C).to_wire(header, 1))
+                .expect("publish v1");
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        if i == 1400 {
+            if let Some(publisher) = calibrator.as_mut() {
+                publisher
+                    .publish(with_c(C * 1.002).to_wire(header, 2))
+                    .expect("publish v2");
+            }
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        sensors.east_instant(i, (i < tunnel).then_some([0.0, 0.0]));
+    }
+    collect(&poses_sub, &mut poses, n + 1);
+    let summary = stop_service(&shutdown, service);
+    assert_eq!(summary.estimates_dropped, 1, "{summary:?}");
+    assert_eq!(summary.skipped, 0, "{summary:?}");
+    assert_eq!(summary.estimate_version, 2, "{summary:?}");
+    let first = |v: u64| poses.iter().position(|p| p.estimate_version == v);
+    let (lie, dropped) = (
+        first(99).expect("the lie was taken"),
+        poses
+            .iter()
+            .skip_while(|p| p.estimate_version != 99)
+            .position(|p| p.estimate_version == 0)
+            .expect("the lie was dropped"),
+    );
+    // v1 and v2 both taken (a pose may carry v1 or not: the two can come
+    // in one wakeup).
+    assert_eq!(summary.estimate_switches, 3, "v99, v1, v2: {summary:?}");
+    let v2 = first(2).expect("v2");
+    println!(
+        "the lie taken at t = {:.2} s, dropped {:.2} s later; v2 in use from {:.2} s",
+        poses[lie].header.t_s(),
+        dropped as f64 * 0.01,
+        poses[v2].header.t_s()
+    );
+    assert!(dropped as f64 * 0.01 < 10.0, "dropped late: {dropped}");
+    assert!(lie < v2);
+    // After the 10 s tunnel the pose is where the car is: on the lie it
+    // would be 0.7 m/s x 10 s = 7 m ahead.
+    let last = poses.last().expect("poses");
+    let error = (last.x_m - V * 25.0).hypot(last.y_m);
+    println!("error after the 10 s tunnel: {error:.2} m");
+    assert_eq!(last.mode, PoseMode::DeadReckoning as u8);
+    assert!(error < 0.5, "{last:?}");
+    drop((sensors, liar, calibrator, poses_sub));
+    drop((bus, liar_bus, calibrator_bus));
+    settings.remove_leftovers();
+}
+
 /// Drive east for 10 s with the wheel stamps `wheels_late_s` late against
 /// the GNSS and IMU, every sample published in the order of its stamp (as
 /// the bridge replays a recording), the service starting from an estimate

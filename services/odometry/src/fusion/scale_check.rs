@@ -74,6 +74,8 @@ pub struct Contradiction {
     pub distance_m: f64,
     /// Windows used.
     pub windows: u32,
+    /// Windows left out as GNSS jumps.
+    pub outliers: u32,
 }
 
 /// The start of a window: the fix, its sigma, and the check's own
@@ -226,13 +228,9 @@ impl ScaleCheck {
                 chi2,
                 distance_m: self.distance,
                 windows: self.windows,
+                outliers: self.outliers,
             });
         }
-    }
-
-    /// Windows left out as GNSS jumps.
-    pub(super) fn outliers(&self) -> u32 {
-        self.outliers
     }
 
     /// The contradiction found, once.
