@@ -212,6 +212,20 @@ pub enum BusError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// The root directory belongs to another user and others may write in it.
+    #[error(
+        "iceoryx2 root directory {path} belongs to uid {owner} and is writable by others \
+         (mode {mode:o}): another user could plant, replace or remove the graph's files; run \
+         the graph with a root directory of its own user (WHEELCAL_IOX_ROOT) or remove it"
+    )]
+    ForeignRoot {
+        /// The directory.
+        path: PathBuf,
+        /// Its owner's uid.
+        owner: u32,
+        /// Its permission bits.
+        mode: u32,
+    },
     /// Node creation failed.
     #[error("cannot create iceoryx2 node {name:?}: {detail}")]
     Node {
@@ -520,6 +534,10 @@ impl Bus {
                     source,
                 })?;
         }
+        let root = settings.root.clone().unwrap_or_else(|| {
+            PathBuf::from(String::from_utf8_lossy(config.global.root_path().as_bytes()).as_ref())
+        });
+        check_root_dir(&root)?;
         let node_name = NodeName::new(name).map_err(|e| BusError::InvalidSetting {
             setting: "node name",
             value: name.to_string(),
@@ -774,6 +792,68 @@ fn keep_shm_private(prefix: &str) -> Result<(), BusError> {
         }
     }
     Ok(())
+}
+
+/// Refuse an iceoryx2 root directory another user owns that others may
+/// write in (group or other write permission): whoever can write there can
+/// plant, replace or remove the graph's files. This user's own root with
+/// such permissions is made private (with a warning). A root that does not
+/// exist yet (iceoryx2 creates its default one) is not checked.
+fn check_root_dir(root: &StdPath) -> Result<(), BusError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let Ok(meta) = std::fs::metadata(root) else {
+        return Ok(());
+    };
+    let Ok(me) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return Ok(());
+    };
+    let mode = meta.permissions().mode() & 0o7777;
+    match root_verdict(meta.uid(), mode, me) {
+        RootVerdict::Fine => Ok(()),
+        RootVerdict::Tighten => {
+            let private = std::fs::Permissions::from_mode(mode & !0o022);
+            match std::fs::set_permissions(root, private) {
+                Ok(()) => tracing::warn!(
+                    "iceoryx2 root directory {} was writable by others (mode {mode:o}): made \
+                     writable by this user only",
+                    root.display()
+                ),
+                Err(e) => tracing::warn!(
+                    "iceoryx2 root directory {} is writable by others (mode {mode:o}) and \
+                     cannot be made private: {e}",
+                    root.display()
+                ),
+            }
+            Ok(())
+        }
+        RootVerdict::Refuse => Err(BusError::ForeignRoot {
+            path: root.to_path_buf(),
+            owner: meta.uid(),
+            mode,
+        }),
+    }
+}
+
+/// What [`check_root_dir`] makes of a root directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RootVerdict {
+    /// Used as it is.
+    Fine,
+    /// This user's, writable by others: made private.
+    Tighten,
+    /// Another user's, writable by others: refused.
+    Refuse,
+}
+
+/// The verdict on a root directory owned by `owner` with permission bits
+/// `mode`, for the user `me`.
+fn root_verdict(owner: u32, mode: u32, me: u32) -> RootVerdict {
+    let others_write = mode & 0o022 != 0;
+    match (others_write, owner == me) {
+        (false, _) => RootVerdict::Fine,
+        (true, true) => RootVerdict::Tighten,
+        (true, false) => RootVerdict::Refuse,
+    }
 }
 
 /// Remove the resources of dead nodes under `config`; returns how many.
@@ -1338,6 +1418,48 @@ mod tests {
         assert!(e.contains("belongs to uid 54321"), "{e}");
         other.remove_leftovers();
         let _ = std::fs::remove_file(&planted);
+    }
+
+    /// Issue 35 item 9: an iceoryx2 root created 0777 by another user is
+    /// refused with its path; this user's own root writable by others is
+    /// made private.
+    #[test]
+    fn a_root_directory_others_can_write_is_refused_or_made_private() {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        assert_eq!(root_verdict(1000, 0o700, 1000), RootVerdict::Fine);
+        assert_eq!(root_verdict(0, 0o755, 1000), RootVerdict::Fine);
+        assert_eq!(root_verdict(1000, 0o777, 1000), RootVerdict::Tighten);
+        assert_eq!(root_verdict(1000, 0o720, 1000), RootVerdict::Tighten);
+        assert_eq!(root_verdict(54_321, 0o777, 1000), RootVerdict::Refuse);
+        assert_eq!(root_verdict(54_321, 0o1777, 1000), RootVerdict::Refuse);
+
+        let parent = tempfile::tempdir().expect("tempdir");
+        let settings = BusSettings::isolated("openroot", parent.path());
+        let root = settings.root.clone().expect("root");
+        std::fs::create_dir(&root).expect("mkdir");
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o777)).expect("chmod");
+        drop(Bus::open(&settings, "own-root").expect("this user's root"));
+        let mode = std::fs::metadata(&root).expect("root").permissions().mode();
+        assert_eq!(mode & 0o022, 0, "made private: {mode:o}");
+        settings.remove_leftovers();
+
+        let me = std::fs::metadata("/proc/self").expect("self").uid();
+        if me != 0 {
+            println!("skipped the foreign root: needs root to give a directory to another user");
+            return;
+        }
+        let foreign = BusSettings::isolated("foreignroot", parent.path());
+        let root = foreign.root.clone().expect("root");
+        std::fs::create_dir(&root).expect("mkdir");
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o777)).expect("chmod");
+        std::os::unix::fs::chown(&root, Some(54_321), None).expect("chown");
+        let e = Bus::open(&foreign, "victim").expect_err("refused").to_string();
+        assert!(
+            e.contains(&root.display().to_string()) && e.contains("uid 54321"),
+            "{e}"
+        );
+        assert!(e.contains("mode 777"), "{e}");
+        foreign.remove_leftovers();
     }
 
     /// `Topic::TYPE_NAME` is the `#[type_name]` iceoryx2 matches by.
