@@ -63,7 +63,9 @@ fn the_calibrated_estimate_is_never_contradicted_on_the_real_drives_and_a_lie_is
             lie.params.two_wheel.c_rl *= 1.07;
             lie.params.two_wheel.c_rr *= 1.07;
             let (found, _) = contradictions(&inputs, &lie, config);
-            let first = found.first().unwrap_or_else(|| panic!("{name}: the lie stands"));
+            let first = found
+                .first()
+                .unwrap_or_else(|| panic!("{name}: the lie stands"));
             let t0 = inputs.first().map_or(0.0, |i| i.t_s());
             println!(
                 "{name} {heading}: 7 % lie contradicted {:.1} s into the drive: scale {:.4} +- {:.4} \
@@ -73,7 +75,10 @@ fn the_calibrated_estimate_is_never_contradicted_on_the_real_drives_and_a_lie_is
                 first.measured_sigma,
                 first.distance_m
             );
-            assert!((first.measured_scale * 1.07 - scale).abs() < 0.02, "{first:?}");
+            assert!(
+                (first.measured_scale * 1.07 - scale).abs() < 0.02,
+                "{first:?}"
+            );
         }
         checked += 1;
     }

@@ -627,14 +627,16 @@ mod tests {
         assert!(m.contains("contradicted"), "{m}");
         // The calibrator's v1 and v2 are taken: its versions are its own,
         // the step is from the estimate in use.
-        g.check(1, calibrator, &est(2.0, 2.0)).expect("v1 after the drop");
+        g.check(1, calibrator, &est(2.0, 2.0))
+            .expect("v1 after the drop");
         g.check(2, calibrator, &est(2.01, 2.01)).expect("v2");
         assert_eq!(g.publisher(), calibrator);
         // A lie later, after the calibrator left: dropped, back to the
         // calibrator's v2 (pinned again), whose v3 is then taken, stepping
         // from v2, not from the lie.
         g.forget_publisher();
-        g.check(100, liar, &est(2.1, 2.1)).expect("a step under 5 %");
+        g.check(100, liar, &est(2.1, 2.1))
+            .expect("a step under 5 %");
         let (back, fall) = g.drop_contradicted(100);
         assert!(fall);
         assert_eq!(back, Some((2, est(2.01, 2.01))));

@@ -27,14 +27,8 @@ impl Fusion {
                     self.fresh_consider_variances()[0].sqrt(),
                 )
             });
-            self.scale_check.fix(
-                t_s,
-                x_m,
-                y_m,
-                sigma_m,
-                self.config.lever_arm_m,
-                estimate,
-            );
+            self.scale_check
+                .fix(t_s, x_m, y_m, sigma_m, self.config.lever_arm_m, estimate);
         }
         match (*m, self.state) {
             (

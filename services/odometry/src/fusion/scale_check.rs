@@ -276,9 +276,7 @@ mod tests {
         inputs
             .iter()
             .map(|i| match *i {
-                Input::Gnss {
-                    t_s, x_m, y_m, ..
-                } => Input::Gnss {
+                Input::Gnss { t_s, x_m, y_m, .. } => Input::Gnss {
                     t_s,
                     x_m: x_m + sigma * gauss(),
                     y_m: y_m + sigma * gauss(),
@@ -327,7 +325,11 @@ mod tests {
             let inputs = noisy(&sim.inputs, 0.3, seed);
             let (found, fusion) = run_with(&inputs, heading, 1.07, 20.0);
             let c = found.unwrap_or_else(|| {
-                panic!("not found: {:?} {:?}", fusion.measured_scale(), fusion.stats())
+                panic!(
+                    "not found: {:?} {:?}",
+                    fusion.measured_scale(),
+                    fusion.stats()
+                )
             });
             println!(
                 "{heading:?}: v{} contradicted {:.1} s after the switch: measured scale \
