@@ -22,6 +22,7 @@ impl Fusion {
                 inc.ds_m,
                 inc.dyaw_rad,
                 inc.beta_rad,
+                inc.t1_s - inc.t0_s,
                 config.distance_noise_frac * inc.ds_m.abs(),
             );
         }
@@ -41,6 +42,7 @@ impl Fusion {
                     inc.ds_m,
                     dyaw,
                     inc.beta_rad,
+                    inc.t1_s - inc.t0_s,
                     config.distance_noise_frac * inc.ds_m.abs(),
                 );
                 // The car moves along its heading plus the side-slip angle

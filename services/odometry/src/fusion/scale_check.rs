@@ -24,9 +24,14 @@
 //! `z = e L` plus noise of variance `v = sigma_1^2 + sigma_2^2 +
 //! sum (distance_noise_frac ds)^2` (the two fixes' own sigmas, as the filter
 //! takes them, and the wheels' distance noise of each increment, as the
-//! filter's prediction takes it). The windows' weighted least
-//! squares give `e_hat = sum(z L / v) / sum(L^2 / v)` with variance
-//! `1 / sum(L^2 / v)`.
+//! filter's prediction takes it). A time offset `delta` between the wheel
+//! and the GNSS stamps (an estimate's clocks wrong, or none) adds
+//! `delta dv`, with `dv` the change of speed over the window: the windows'
+//! weighted least squares fit both, `z = e L + delta dv`, and the test
+//! takes `e_hat` with its marginal variance, `delta` having a prior of zero
+//! with a 1-sigma of a second (at a constant speed `delta` is not seen and
+//! the fit is `e_hat = sum(z L / v) / sum(L^2 / v)` with variance
+//! `1 / sum(L^2 / v)`). So a wrong clock is not taken for a wrong wheel.
 //!
 //! An estimate claims its scale to `sigma_s` (the filter's consider sigma for
 //! a calibration). It is contradicted when
@@ -86,7 +91,17 @@ struct Start {
     y: f64,
     sigma: f64,
     dr: [f64; 3],
+    speed: f64,
 }
+
+/// The prior 1-sigma of the time offset between the wheel and the GNSS
+/// stamps, s: sensor latencies and unsynchronised clocks are fractions of a
+/// second (`StreamClocks`); a second leaves the offset to the data.
+const CLOCK_OFFSET_SIGMA_S: f64 = 1.0;
+
+/// The speed is smoothed over this time constant, s (wheel counts are
+/// quantised at each 10 ms sample).
+const SPEED_TAU_S: f64 = 0.2;
 
 /// The running check (see the module doc).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -100,10 +115,13 @@ pub(super) struct ScaleCheck {
     path: f64,
     /// Variance of that length from the wheels' distance noise, m^2.
     path_var: f64,
-    /// sum(L^2 / v).
-    info: f64,
-    /// sum(z L / v).
-    weighted: f64,
+    /// Speed along the path, smoothed over [`SPEED_TAU_S`], m/s.
+    speed: f64,
+    /// The normal equations of `z = e L + delta dv`: sum(L^2 / v),
+    /// sum(L dv / v), sum(dv^2 / v).
+    info: [f64; 3],
+    /// sum(z L / v), sum(z dv / v).
+    weighted: [f64; 2],
     distance: f64,
     windows: u32,
     /// Windows whose fixes disagree with any wheel this car can have.
@@ -119,6 +137,7 @@ impl ScaleCheck {
     pub(super) fn clear(&mut self) {
         *self = ScaleCheck {
             dr: self.dr,
+            speed: self.speed,
             ..ScaleCheck::default()
         };
     }
@@ -131,9 +150,15 @@ impl ScaleCheck {
         self.path_var = 0.0;
     }
 
-    /// An increment of the odometer: distance, yaw change and side-slip,
-    /// and the 1-sigma of the distance's noise, m.
-    pub(super) fn predicted(&mut self, ds: f64, dyaw: f64, beta: f64, sigma_ds: f64) {
+    /// An increment of the odometer: distance, yaw change, side-slip and
+    /// time step, and the 1-sigma of the distance's noise, m.
+    pub(super) fn predicted(&mut self, ds: f64, dyaw: f64, beta: f64, dt: f64, sigma_ds: f64) {
+        if dt > 0.0 {
+            let v = ds / dt;
+            if v.is_finite() {
+                self.speed += (v - self.speed) * (dt / SPEED_TAU_S).min(1.0);
+            }
+        }
         let course = self.dr[2] + 0.5 * dyaw + beta;
         self.dr[0] += ds * course.cos();
         self.dr[1] += ds * course.sin();
@@ -162,6 +187,7 @@ impl ScaleCheck {
             y: y_m,
             sigma: sigma_m,
             dr: self.dr,
+            speed: self.speed,
         };
         let Some(start) = self.start else {
             self.restart_window();
@@ -188,7 +214,7 @@ impl ScaleCheck {
         };
         let (a0, a1) = (antenna(start.dr), antenna(self.dr));
         let length = (a1[0] - a0[0]).hypot(a1[1] - a0[1]);
-        if !(length > 0.5 * WINDOW_M) {
+        if length.is_nan() || length <= 0.5 * WINDOW_M {
             return; // turned on the spot or reversed back: little to compare
         }
         let z = (x_m - start.x).hypot(y_m - start.y) - length;
@@ -204,8 +230,12 @@ impl ScaleCheck {
             self.outliers += 1;
             return;
         }
-        self.info += length * length / v;
-        self.weighted += z * length / v;
+        let dv = self.speed - start.speed;
+        self.info[0] += length * length / v;
+        self.info[1] += length * dv / v;
+        self.info[2] += dv * dv / v;
+        self.weighted[0] += z * length / v;
+        self.weighted[1] += z * dv / v;
         self.distance += length;
         self.windows += 1;
         let Some((version, sigma_s)) = estimate else {
@@ -214,8 +244,9 @@ impl ScaleCheck {
         if self.decided {
             return;
         }
-        let e = self.weighted / self.info;
-        let var = 1.0 / self.info;
+        let Some((e, var)) = self.fit() else {
+            return;
+        };
         let chi2 = e * e / (var + sigma_s * sigma_s);
         if chi2 > CHI2_1DOF_1E6 {
             self.decided = true;
@@ -241,13 +272,25 @@ impl ScaleCheck {
     /// The scale measured so far relative to the estimate's and its 1-sigma,
     /// with the distance behind it; `None` before a window closed.
     pub(super) fn measured(&self) -> Option<(f64, f64, f64)> {
-        (self.info > 0.0).then(|| {
-            (
-                1.0 + self.weighted / self.info,
-                (1.0 / self.info).sqrt(),
-                self.distance,
-            )
-        })
+        self.fit()
+            .map(|(e, var)| (1.0 + e, var.sqrt(), self.distance))
+    }
+
+    /// The scale error and its marginal variance from the windows so far.
+    fn fit(&self) -> Option<(f64, f64)> {
+        let [a00, a01, a11] = self.info;
+        let [b0, b1] = self.weighted;
+        if a00 <= 0.0 {
+            return None;
+        }
+        // The offset's prior: zero, with CLOCK_OFFSET_SIGMA_S.
+        let a11 = a11 + CLOCK_OFFSET_SIGMA_S.powi(-2);
+        let det = a00 * a11 - a01 * a01;
+        if det <= 0.0 {
+            return None;
+        }
+        let fit = ((a11 * b0 - a01 * b1) / det, a11 / det);
+        (fit.0.is_finite() && fit.1.is_finite()).then_some(fit)
     }
 }
 
