@@ -398,6 +398,54 @@ mod tests {
     }
 
     #[test]
+    fn dropping_the_lie_keeps_a_tunnel_after_it_honest() {
+        // The lie (7 %) at 10 s, a 30 s tunnel from 60 s: the error at its
+        // end with the lie dropped (back to the true estimate, as the
+        // service falls back on the one before) and kept.
+        let sim = simulate(95.0, &|t| !(60.0..90.0).contains(&t), 0.0, 0.3);
+        let inputs = noisy(&sim.inputs, 0.3, 11);
+        let end = inputs
+            .iter()
+            .filter(|i| matches!(i, Input::Wheels { .. }))
+            .position(|i| i.t_s() >= 89.99)
+            .expect("the tunnel's end");
+        let mut errors = Vec::new();
+        for act in [true, false] {
+            let mut fusion = Fusion::new(params(), 1, config(HeadingMode::Gyro));
+            let mut poses = Vec::new();
+            let mut switched = false;
+            let mut dropped_at = None;
+            for input in &inputs {
+                if !switched && input.t_s() >= 10.0 {
+                    let mut lie = params();
+                    lie.two_wheel.c_rl *= 1.07;
+                    lie.two_wheel.c_rr *= 1.07;
+                    fusion.set_estimate(lie, 99);
+                    switched = true;
+                }
+                poses.extend(fusion.process(input).expect("input accepted"));
+                if let Some(c) = fusion.take_contradiction() {
+                    if act {
+                        fusion.set_estimate(params(), 1);
+                        dropped_at = Some(c.t_s);
+                    }
+                }
+            }
+            let (p, truth) = (poses[end].pose, sim.truth[end].1);
+            let error = (p.x - truth.x).hypot(p.y - truth.y);
+            println!(
+                "lie {}: error at the end of the 30 s tunnel {error:.2} m{}",
+                if act { "dropped" } else { "kept" },
+                dropped_at.map_or(String::new(), |t| format!(" (dropped at {t:.1} s)"))
+            );
+            errors.push(error);
+        }
+        // Kept, the tunnel is driven 7 % long: about 21 m at its end.
+        assert!(errors[1] > 15.0, "{errors:?}");
+        assert!(errors[0] < 2.0, "{errors:?}");
+    }
+
+    #[test]
     fn the_true_estimate_and_a_recalibration_sized_error_are_not_contradicted() {
         for seed in 1..=6 {
             let heading = if seed % 2 == 0 {
