@@ -391,6 +391,10 @@ pub struct ServeSummary {
     /// Estimates dropped because the GNSS fixes contradicted them
     /// (`odometry::fusion::Contradiction`).
     pub estimates_dropped: u64,
+    /// Pose readers that took nothing for the pose budget (waits that ran
+    /// out), and poses dropped at once for such a reader while its buffer
+    /// stayed full (`TopicPublisher::stalls`).
+    pub pose_reader_stalls: (u64, u64),
     /// Times the inputs went stale.
     pub stale_events: u64,
     /// Early wakeups before a wheel sample ([`odometry::cadence`]).
@@ -1265,6 +1269,16 @@ pub fn serve(
     let stats = filter.fusion().stats();
     summary.fusion = stats;
     summary.rewind = filter.stats();
+    summary.pose_reader_stalls = poses.stalls();
+    if summary.pose_reader_stalls.0 > 0 || summary.estimates_dropped > 0 {
+        tracing::warn!(
+            "odometry: {} estimate(s) dropped as contradicted by the fixes; pose readers stalled \
+             {} time(s), {} pose(s) dropped for them",
+            summary.estimates_dropped,
+            summary.pose_reader_stalls.0,
+            summary.pose_reader_stalls.1
+        );
+    }
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
          GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \
