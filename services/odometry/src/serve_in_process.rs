@@ -60,6 +60,19 @@ fn collect(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, want: usize) {
     }
 }
 
+/// Wait `pause` while reading the poses that arrive: a reader that reads
+/// nothing for long loses poses once its buffer is full (the pose stream's
+/// publisher waits at most the pose budget, `interfaces::bus`).
+fn read_poses_for(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, pause: Duration) {
+    let start = Instant::now();
+    while start.elapsed() < pause {
+        while let Some(p) = sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
 /// The service's settings in the bus `settings`, nothing kept or traced.
 fn base_config(settings: &BusSettings) -> ServeConfig {
     ServeConfig {
@@ -272,7 +285,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 version: 1,
                 estimate: new,
             });
-            std::thread::sleep(Duration::from_millis(200));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(200));
         }
         // Irregular pauses, so that wakeups group the samples differently.
         if i % 97 == 0 {
@@ -698,7 +711,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
             estimates
                 .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))
                 .expect("publish estimate");
-            std::thread::sleep(Duration::from_millis(200));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(200));
         }
         sensors.east_instant(i, Some(arm));
     }
@@ -922,7 +935,7 @@ fn estimates_no_calibration_can_give_are_refused() {
             estimates
                 .publish(e.to_wire(Header::from_seconds(i as f64 * 0.01, 0), *v))
                 .expect("publish estimate");
-            std::thread::sleep(Duration::from_millis(150));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
         }
         sensors.east_instant(i, Some([0.0, 0.0]));
     }
@@ -933,7 +946,7 @@ fn estimates_no_calibration_can_give_are_refused() {
     intruder
         .publish(good.to_wire(Header::from_seconds(10.0, 0), 200))
         .expect("publish");
-    std::thread::sleep(Duration::from_millis(300));
+    read_poses_for(&poses_sub, &mut poses, Duration::from_millis(300));
     for i in n + 1..=n + 100 {
         sensors.east_instant(i, Some([0.0, 0.0]));
     }
@@ -1001,7 +1014,7 @@ fn a_plausible_lie_on_the_bus_is_dropped_when_the_fixes_contradict_it() {
         if i == lie_at {
             liar.publish(with_c(C * 1.07).to_wire(header, 99))
                 .expect("publish the lie");
-            std::thread::sleep(Duration::from_millis(150));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
         }
         if i == 1200 {
             let publisher = calibrator.insert(
@@ -1012,7 +1025,7 @@ fn a_plausible_lie_on_the_bus_is_dropped_when_the_fixes_contradict_it() {
             publisher
                 .publish(with_c(C).to_wire(header, 1))
                 .expect("publish v1");
-            std::thread::sleep(Duration::from_millis(150));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
         }
         if i == 1400 {
             if let Some(publisher) = calibrator.as_mut() {
@@ -1020,7 +1033,7 @@ fn a_plausible_lie_on_the_bus_is_dropped_when_the_fixes_contradict_it() {
                     .publish(with_c(C * 1.002).to_wire(header, 2))
                     .expect("publish v2");
             }
-            std::thread::sleep(Duration::from_millis(150));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
         }
         sensors.east_instant(i, (i < tunnel).then_some([0.0, 0.0]));
     }
