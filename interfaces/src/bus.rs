@@ -17,7 +17,13 @@
 //!   and every later one at once while its buffer stays full (a stopped
 //!   process costs the publisher one stall timeout, not one per sample; the
 //!   others lose nothing); a dead subscriber's resources are cleaned up while
-//!   the publisher waits.
+//!   the publisher waits. The pose stream is the graph's output, which a
+//!   stopped reader (a viewer under SIGSTOP, a debugger) must not hold back:
+//!   its publisher waits at most [`BusSettings::pose_budget`] (default
+//!   [`DEFAULT_POSE_BUDGET`]) on a full subscriber, then drops that
+//!   subscriber's samples while its buffer stays full, with a warning and
+//!   the counters of [`TopicPublisher::stalls`]. The sensor streams keep
+//!   lossless delivery to live readers (a calibrator busy with a fit).
 //! - The estimate ([`Delivery::Latest`]) keeps a history of one, so a subscriber
 //!   that starts late gets the latest accepted estimate. The publisher delivers
 //!   history when it updates its connections: call
@@ -83,6 +89,13 @@ pub type Ipc = ipc::Service;
 pub const ENV_PREFIX: &str = "WHEELCAL_IOX_PREFIX";
 /// Environment variable holding the iceoryx2 root path of the graph.
 pub const ENV_ROOT: &str = "WHEELCAL_IOX_ROOT";
+/// Environment variable holding the pose stream's wait budget, ms
+/// ([`BusSettings::pose_budget`]).
+pub const ENV_POSE_BUDGET_MS: &str = "WHEELCAL_POSE_BUDGET_MS";
+/// How long a pose publisher waits on a full subscriber by default: a few
+/// pose periods at 100 Hz, far below what a stopped reader would cost the
+/// graph's output with the sensor streams' stall timeout.
+pub const DEFAULT_POSE_BUDGET: Duration = Duration::from_millis(30);
 
 /// Event id: a new sample was published.
 pub const EVENT_SAMPLE: usize = 1;
@@ -211,6 +224,20 @@ pub enum BusError {
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
+    },
+    /// The root directory belongs to another user and others may write in it.
+    #[error(
+        "iceoryx2 root directory {path} belongs to uid {owner} and is writable by others \
+         (mode {mode:o}): another user could plant, replace or remove the graph's files; run \
+         the graph with a root directory of its own user (WHEELCAL_IOX_ROOT) or remove it"
+    )]
+    ForeignRoot {
+        /// The directory.
+        path: PathBuf,
+        /// Its owner's uid.
+        owner: u32,
+        /// Its permission bits.
+        mode: u32,
     },
     /// Node creation failed.
     #[error("cannot create iceoryx2 node {name:?}: {detail}")]
@@ -371,6 +398,10 @@ pub struct BusSettings {
     /// How long a publisher waits on one full subscriber before it drops the
     /// sample for that subscriber (default 10 s).
     pub stall_timeout: Option<Duration>,
+    /// How long a pose publisher waits on one full subscriber before it
+    /// drops the sample for that subscriber (default [`DEFAULT_POSE_BUDGET`],
+    /// never more than the stall timeout).
+    pub pose_budget: Option<Duration>,
 }
 
 impl BusSettings {
@@ -382,6 +413,9 @@ impl BusSettings {
             prefix: var(ENV_PREFIX),
             root: var(ENV_ROOT).map(PathBuf::from),
             stall_timeout: None,
+            pose_budget: var(ENV_POSE_BUDGET_MS)
+                .and_then(|v| v.parse::<u64>().ok())
+                .map(Duration::from_millis),
         }
     }
 
@@ -400,6 +434,7 @@ impl BusSettings {
             root: Some(root_parent.join(&prefix)),
             prefix: Some(prefix),
             stall_timeout: None,
+            pose_budget: None,
         }
     }
 
@@ -487,6 +522,18 @@ impl BusSettings {
     pub fn stall_timeout(&self) -> Duration {
         self.stall_timeout.unwrap_or(Duration::from_secs(10))
     }
+
+    /// How long a publisher of topic `T` waits on one full subscriber: the
+    /// pose budget for the pose stream, the stall timeout for the others.
+    pub fn wait_budget<T: Topic>(&self) -> Duration {
+        if T::SERVICE == POSE_SERVICE {
+            self.pose_budget
+                .unwrap_or(DEFAULT_POSE_BUDGET)
+                .min(self.stall_timeout())
+        } else {
+            self.stall_timeout()
+        }
+    }
 }
 
 /// The publish-subscribe service of a topic and its event service.
@@ -520,6 +567,10 @@ impl Bus {
                     source,
                 })?;
         }
+        let root = settings.root.clone().unwrap_or_else(|| {
+            PathBuf::from(String::from_utf8_lossy(config.global.root_path().as_bytes()).as_ref())
+        });
+        check_root_dir(&root)?;
         let node_name = NodeName::new(name).map_err(|e| BusError::InvalidSetting {
             setting: "node name",
             value: name.to_string(),
@@ -638,7 +689,7 @@ impl Bus {
         let mut builder = service.publisher_builder().max_loaned_samples(2);
         let stalls = std::sync::Arc::new(StallCounters::default());
         if let Delivery::Lossless { .. } = T::DELIVERY {
-            let stall = self.settings.stall_timeout();
+            let stall = self.settings.wait_budget::<T>();
             let config = self.config.clone();
             let last_cleanup_ms = AtomicU64::new(0);
             let memory = std::sync::Mutex::new(StallMemory::default());
@@ -776,6 +827,68 @@ fn keep_shm_private(prefix: &str) -> Result<(), BusError> {
     Ok(())
 }
 
+/// Refuse an iceoryx2 root directory another user owns that others may
+/// write in (group or other write permission): whoever can write there can
+/// plant, replace or remove the graph's files. This user's own root with
+/// such permissions is made private (with a warning). A root that does not
+/// exist yet (iceoryx2 creates its default one) is not checked.
+fn check_root_dir(root: &StdPath) -> Result<(), BusError> {
+    use std::os::unix::fs::{MetadataExt, PermissionsExt};
+    let Ok(meta) = std::fs::metadata(root) else {
+        return Ok(());
+    };
+    let Ok(me) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return Ok(());
+    };
+    let mode = meta.permissions().mode() & 0o7777;
+    match root_verdict(meta.uid(), mode, me) {
+        RootVerdict::Fine => Ok(()),
+        RootVerdict::Tighten => {
+            let private = std::fs::Permissions::from_mode(mode & !0o022);
+            match std::fs::set_permissions(root, private) {
+                Ok(()) => tracing::warn!(
+                    "iceoryx2 root directory {} was writable by others (mode {mode:o}): made \
+                     writable by this user only",
+                    root.display()
+                ),
+                Err(e) => tracing::warn!(
+                    "iceoryx2 root directory {} is writable by others (mode {mode:o}) and \
+                     cannot be made private: {e}",
+                    root.display()
+                ),
+            }
+            Ok(())
+        }
+        RootVerdict::Refuse => Err(BusError::ForeignRoot {
+            path: root.to_path_buf(),
+            owner: meta.uid(),
+            mode,
+        }),
+    }
+}
+
+/// What [`check_root_dir`] makes of a root directory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RootVerdict {
+    /// Used as it is.
+    Fine,
+    /// This user's, writable by others: made private.
+    Tighten,
+    /// Another user's, writable by others: refused.
+    Refuse,
+}
+
+/// The verdict on a root directory owned by `owner` with permission bits
+/// `mode`, for the user `me`.
+fn root_verdict(owner: u32, mode: u32, me: u32) -> RootVerdict {
+    let others_write = mode & 0o022 != 0;
+    match (others_write, owner == me) {
+        (false, _) => RootVerdict::Fine,
+        (true, true) => RootVerdict::Tighten,
+        (true, false) => RootVerdict::Refuse,
+    }
+}
+
 /// Remove the resources of dead nodes under `config`; returns how many.
 pub fn cleanup_dead_nodes(config: &Config) -> usize {
     let mut cleaned = 0;
@@ -845,7 +958,7 @@ fn backpressure(
     if info.elapsed_time >= stall {
         counters.timed_out.fetch_add(1, Ordering::Relaxed);
         tracing::warn!(
-            "a subscriber (port {:x}) took no sample for {:.1} s: dropping samples for it \
+            "a subscriber (port {:x}) took no sample for {:.3} s: dropping samples for it \
              while its buffer stays full (it will see a gap in the sequence numbers)",
             info.receiver_port_id,
             info.elapsed_time.as_secs_f64()
@@ -1285,6 +1398,54 @@ mod tests {
         settings.remove_leftovers();
     }
 
+    /// Issue 35 item 9: a pose subscriber that takes nothing (a stopped
+    /// process) holds the pose publisher back by the pose budget once, not
+    /// by the sensor streams' stall timeout, and costs a live reader nothing.
+    #[test]
+    fn a_stopped_pose_reader_holds_the_poses_back_by_the_budget_only() {
+        let root = tempfile::tempdir().expect("tempdir");
+        let settings = BusSettings::isolated("posebudget", root.path());
+        assert_eq!(settings.wait_budget::<Pose>(), DEFAULT_POSE_BUDGET);
+        assert_eq!(settings.wait_budget::<Imu>(), settings.stall_timeout());
+        let bus = Bus::open(&settings, "pose-budget-test").expect("bus");
+        let mut publisher: TopicPublisher<Pose> = bus.publisher().expect("publisher");
+        let reader: TopicSubscriber<Pose> = bus.subscriber().expect("reader");
+        let stopped: TopicSubscriber<Pose> = bus.subscriber().expect("stopped");
+        publisher.announce().expect("announce");
+        reader.take_events().expect("attach");
+        stopped.take_events().expect("attach");
+        let Delivery::Lossless { buffer } = Pose::DELIVERY else {
+            panic!("the pose is a stream")
+        };
+        let n = buffer + 500;
+        let mut got = 0u64;
+        let mut slowest = Duration::ZERO;
+        for i in 0..n {
+            let sample = Pose {
+                header: Header::from_seconds(i as f64 * 0.01, 0),
+                ..Pose::default()
+            };
+            let start = Instant::now();
+            publisher.publish(sample).expect("publish");
+            slowest = slowest.max(start.elapsed());
+            while reader.receive().expect("receive").is_some() {
+                got += 1;
+            }
+        }
+        assert_eq!(got, n as u64, "the live reader lost nothing");
+        let (timed_out, at_once) = publisher.stalls();
+        println!("slowest publish {slowest:?}; {timed_out} wait(s), {at_once} dropped at once");
+        assert_eq!(timed_out, 1, "one wait for the stopped reader");
+        assert_eq!(at_once as usize, n - buffer - 1);
+        assert!(
+            slowest < DEFAULT_POSE_BUDGET + Duration::from_millis(200),
+            "a publish waited {slowest:?}"
+        );
+        drop((publisher, reader, stopped));
+        drop(bus);
+        settings.remove_leftovers();
+    }
+
     /// The graph's shared-memory files are this user's alone, and a
     /// management segment of the prefix planted by another user is refused.
     #[test]
@@ -1338,6 +1499,50 @@ mod tests {
         assert!(e.contains("belongs to uid 54321"), "{e}");
         other.remove_leftovers();
         let _ = std::fs::remove_file(&planted);
+    }
+
+    /// Issue 35 item 9: an iceoryx2 root created 0777 by another user is
+    /// refused with its path; this user's own root writable by others is
+    /// made private.
+    #[test]
+    fn a_root_directory_others_can_write_is_refused_or_made_private() {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        assert_eq!(root_verdict(1000, 0o700, 1000), RootVerdict::Fine);
+        assert_eq!(root_verdict(0, 0o755, 1000), RootVerdict::Fine);
+        assert_eq!(root_verdict(1000, 0o777, 1000), RootVerdict::Tighten);
+        assert_eq!(root_verdict(1000, 0o720, 1000), RootVerdict::Tighten);
+        assert_eq!(root_verdict(54_321, 0o777, 1000), RootVerdict::Refuse);
+        assert_eq!(root_verdict(54_321, 0o1777, 1000), RootVerdict::Refuse);
+
+        let parent = tempfile::tempdir().expect("tempdir");
+        let settings = BusSettings::isolated("openroot", parent.path());
+        let root = settings.root.clone().expect("root");
+        std::fs::create_dir(&root).expect("mkdir");
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o777)).expect("chmod");
+        drop(Bus::open(&settings, "own-root").expect("this user's root"));
+        let mode = std::fs::metadata(&root).expect("root").permissions().mode();
+        assert_eq!(mode & 0o022, 0, "made private: {mode:o}");
+        settings.remove_leftovers();
+
+        let me = std::fs::metadata("/proc/self").expect("self").uid();
+        if me != 0 {
+            println!("skipped the foreign root: needs root to give a directory to another user");
+            return;
+        }
+        let foreign = BusSettings::isolated("foreignroot", parent.path());
+        let root = foreign.root.clone().expect("root");
+        std::fs::create_dir(&root).expect("mkdir");
+        std::fs::set_permissions(&root, std::fs::Permissions::from_mode(0o777)).expect("chmod");
+        std::os::unix::fs::chown(&root, Some(54_321), None).expect("chown");
+        let e = Bus::open(&foreign, "victim")
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            e.contains(&root.display().to_string()) && e.contains("uid 54321"),
+            "{e}"
+        );
+        assert!(e.contains("mode 777"), "{e}");
+        foreign.remove_leftovers();
     }
 
     /// `Topic::TYPE_NAME` is the `#[type_name]` iceoryx2 matches by.

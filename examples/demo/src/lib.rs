@@ -296,6 +296,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         prefix: Some(format!("wcdemo_{}_", std::process::id())),
         root: Some(std::env::temp_dir().join(format!("wheelcal-demo-{}", std::process::id()))),
         stall_timeout: None,
+        pose_budget: None,
     };
     let bus = Bus::open(&settings, "demo-bridge")?;
     let drive = Arc::new(drive);

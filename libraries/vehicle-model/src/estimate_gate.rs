@@ -38,8 +38,11 @@
 //!    the service calls [`EstimateGate::forget_publisher`] (it knows the
 //!    pinned publisher left the bus). An estimate whose publisher is not known
 //!    (`None`) is not checked against the pin and does not set it.
-//! 9. **Versions strictly increasing**: a version below the current one, or
-//!    the current one with other values, is refused. The current version with
+//! 9. **Versions strictly increasing** per publisher: a version below the
+//!    current one of the same publisher (or when either publisher is not
+//!    known), or the current one with other values, is refused. Another
+//!    publisher's version numbers are its own (it can only come after the
+//!    pin was released). The current version with
 //!    the very same values (a late subscriber gets the history sample again,
 //!    or the publisher re-sends it after a restart) is accepted idempotently:
 //!    [`EstimateGate::check_outcome`] tells it apart as
@@ -53,6 +56,14 @@
 //!     "10 sigma" would be about 0.2 % and would refuse the genuine change
 //!     after a tyre-pressure change, locking the odometry on a stale estimate
 //!     with no way back.
+//! 11. **Not contradicted**: an estimate the odometry dropped because the
+//!     data contradicted it ([`EstimateGate::drop_contradicted`]) is refused
+//!     when it is sent again (same version and values).
+//!
+//! A dropped estimate blocks nothing: after
+//! [`EstimateGate::drop_contradicted`] the current estimate is the one
+//! accepted before it (or none), its publisher is pinned again (or none),
+//! and the version and step rules compare with that one.
 //!
 //! The gate is pure: the service owns the bus and decides what to log.
 
@@ -201,6 +212,15 @@ pub enum EstimateRejected {
         /// The version received.
         version: u64,
     },
+    /// The odometry dropped this estimate: the data contradicted it.
+    #[error(
+        "estimate refused: version {version} with these values was dropped, the data \
+         contradicted it"
+    )]
+    Contradicted {
+        /// The version received.
+        version: u64,
+    },
     /// A circumference moved too far from the current accepted estimate.
     #[error(
         "estimate refused: {field} steps from {from} m to {to} m ({step_pct:+.2} %), more than \
@@ -234,7 +254,11 @@ pub enum GateOutcome {
 struct Current {
     version: u64,
     estimate: Estimate,
+    publisher: Option<u128>,
 }
+
+/// How many accepted estimates the gate remembers to fall back on.
+const HISTORY: usize = 8;
 
 /// Checks estimates from the bus before they are applied (see the module doc
 /// for the rules) and remembers the one accepted last.
@@ -244,6 +268,10 @@ pub struct EstimateGate {
     nominal_track_m: f64,
     limits: GateLimits,
     current: Option<Current>,
+    /// The estimates accepted before the current one, oldest first.
+    before: Vec<Current>,
+    /// Estimates dropped as contradicted by the data.
+    contradicted: Vec<(u64, Estimate)>,
     /// Set by [`EstimateGate::forget_publisher`]: the next accepted estimate
     /// starts a new version sequence.
     new_sequence: bool,
@@ -265,6 +293,8 @@ impl EstimateGate {
             nominal_track_m: vehicle.track_width_m,
             limits,
             current: None,
+            before: Vec::new(),
+            contradicted: Vec::new(),
             new_sequence: false,
             publisher: None,
         }
@@ -311,8 +341,19 @@ impl EstimateGate {
                 });
             }
         }
+        if self
+            .contradicted
+            .iter()
+            .any(|(v, e)| *v == version && e == estimate)
+        {
+            return Err(EstimateRejected::Contradicted { version });
+        }
         if let Some(cur) = &self.current {
-            if !self.new_sequence {
+            let same_sequence = match (publisher, cur.publisher) {
+                (Some(a), Some(b)) => a == b,
+                _ => true,
+            };
+            if !self.new_sequence && same_sequence {
                 if version == cur.version {
                     return if *estimate == cur.estimate {
                         Ok(GateOutcome::Repeat)
@@ -329,10 +370,16 @@ impl EstimateGate {
             }
             check_step(&cur.estimate, estimate, self.limits.step_rel)?;
         }
-        self.current = Some(Current {
+        if let Some(previous) = self.current.replace(Current {
             version,
             estimate: *estimate,
-        });
+            publisher,
+        }) {
+            if self.before.len() == HISTORY {
+                self.before.remove(0);
+            }
+            self.before.push(previous);
+        }
         self.new_sequence = false;
         if publisher.is_some() {
             self.publisher = publisher;
@@ -348,6 +395,33 @@ impl EstimateGate {
     /// The current accepted estimate, if any.
     pub fn current_estimate(&self) -> Option<&Estimate> {
         self.current.as_ref().map(|c| &c.estimate)
+    }
+
+    /// The odometry dropped estimate `version`: the data contradict it. It is
+    /// refused if sent again; when it is the current estimate, the one
+    /// accepted before it becomes current again (its publisher pinned, or
+    /// none) and is returned with its version, to fall back on (`None`:
+    /// back to the nominal values). When it is not the current one (a newer
+    /// estimate was accepted since), nothing else changes and `None` is
+    /// returned with `false`.
+    ///
+    /// Returns (the estimate to fall back on, whether to fall back).
+    pub fn drop_contradicted(&mut self, version: u64) -> (Option<(u64, Estimate)>, bool) {
+        let Some(cur) = self.current else {
+            return (None, false);
+        };
+        if cur.version != version {
+            if let Some(i) = self.before.iter().rposition(|c| c.version == version) {
+                let dropped = self.before.remove(i);
+                self.contradicted.push((dropped.version, dropped.estimate));
+            }
+            return (None, false);
+        }
+        self.contradicted.push((cur.version, cur.estimate));
+        self.current = self.before.pop();
+        self.publisher = self.current.and_then(|c| c.publisher);
+        self.new_sequence = false;
+        (self.current.map(|c| (c.version, c.estimate)), true)
     }
 
     /// The pinned publisher, if any.
@@ -531,6 +605,47 @@ mod tests {
             effects: WheelEffects::default(),
             clocks: Default::default(),
         }
+    }
+
+    #[test]
+    fn a_contradicted_lie_is_dropped_and_blocks_nothing() {
+        // Issue 35 item 3: a same-user process publishes version 99 with
+        // circumferences 7 % too large (inside every gate) before the
+        // calibrator's first estimate, and it is taken.
+        let (liar, calibrator) = (Some(0xbad_u128), Some(0xca1_u128));
+        let mut g = EstimateGate::new(&vehicle());
+        g.check(99, liar, &est(2.14, 2.14)).expect("plausible");
+        // Today the calibrator's v1 is then refused for good.
+        assert!(g.check(1, calibrator, &est(2.0, 2.0)).is_err());
+        // The odometry finds v99 contradicted by the fixes and drops it:
+        // nothing before it, back to nominal.
+        assert_eq!(g.drop_contradicted(99), (None, true));
+        assert_eq!(g.current_version(), None);
+        assert_eq!(g.publisher(), None);
+        // Sent again, it is refused with the reason.
+        let m = g.check(99, liar, &est(2.14, 2.14)).unwrap_err().to_string();
+        assert!(m.contains("contradicted"), "{m}");
+        // The calibrator's v1 and v2 are taken: its versions are its own,
+        // the step is from the estimate in use.
+        g.check(1, calibrator, &est(2.0, 2.0))
+            .expect("v1 after the drop");
+        g.check(2, calibrator, &est(2.01, 2.01)).expect("v2");
+        assert_eq!(g.publisher(), calibrator);
+        // A lie later, after the calibrator left: dropped, back to the
+        // calibrator's v2 (pinned again), whose v3 is then taken, stepping
+        // from v2, not from the lie.
+        g.forget_publisher();
+        g.check(100, liar, &est(2.1, 2.1))
+            .expect("a step under 5 %");
+        let (back, fall) = g.drop_contradicted(100);
+        assert!(fall);
+        assert_eq!(back, Some((2, est(2.01, 2.01))));
+        assert_eq!((g.current_version(), g.publisher()), (Some(2), calibrator));
+        assert!(g.check(3, liar, &est(2.0, 2.0)).is_err(), "pinned again");
+        g.check(3, calibrator, &est(2.02, 2.02)).expect("v3");
+        // Dropping a version that is no longer current changes nothing else.
+        assert_eq!(g.drop_contradicted(2), (None, false));
+        assert_eq!(g.current_version(), Some(3));
     }
 
     #[test]

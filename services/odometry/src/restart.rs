@@ -18,12 +18,26 @@
 //!   (an error up to the distance itself stays inside 2 sigma) and the yaw's
 //!   by the wheel heading's noise. Counts that imply a speed beyond any car
 //!   are a counter reset or another source: refused.
-//! - **The stream started over** (time back: the bridge or the car restarted,
-//!   its counters with it): the counts cannot be compared. A pose kept at a
+//! - **The clock went back but the counters went on** (the new run's clock
+//!   is earlier than the kept pose's, the bridge or the car restarted its
+//!   clock but not its counters): the counts are compared all the same. Time
+//!   cannot bound the distance, so no speed check: the counts say how far
+//!   the car went (hundreds of revolutions are hundreds of metres, not a
+//!   parked car), and the pose is carried over as above with the doubt of
+//!   the path in its covariance. Counts that went down by more than
+//!   [`RestartConfig::max_reverse_m`] are no counter that went on nor one
+//!   that started over: refused.
+//! - **The stream started over** (time back, and the counters restarted from
+//!   about zero, within [`RestartConfig::restarted_counter_m`], or the file
+//!   does not keep the counts): the counts cannot be compared. A pose kept at a
 //!   standstill is used: as it is when it was the service's last word, and
 //!   widened by how far a car starting off could have gone before the next
 //!   periodic write when it was not. A pose kept while the car moved, or one
 //!   from a file that does not say, is refused with the reason.
+//! - **A kept pose no car can have** (a coordinate beyond
+//!   [`RestartConfig::max_coordinate_m`], a covariance that is not finite,
+//!   not symmetric or not positive definite, counts or a speed that are not
+//!   finite) is refused with the reason, whatever the wheels say.
 //!
 //! What no record can tell: a car moved while powered off (towed, on a
 //! ferry) that powers on where no GNSS reaches. With GNSS, three fixes that
@@ -94,6 +108,18 @@ pub struct RestartConfig {
     /// Yaw 1-sigma as a fraction of the wheel heading's change over the
     /// gap (track width and slip errors scale with it).
     pub yaw_sigma_per_rad: f64,
+    /// A counter within this distance of zero at the first sample of a run
+    /// whose clock went back has started over with its stream, m: a car
+    /// that starts off when its stream does is a few metres from where the
+    /// counting began by the time the odometry sees the first sample.
+    pub restarted_counter_m: f64,
+    /// The farthest a car reverses, m: counts that went down by more, under
+    /// a clock that went back, are not the same counters.
+    pub max_reverse_m: f64,
+    /// The largest |x| or |y| of a kept pose, m: the local ENU frame of a
+    /// drive is anchored near it, and no point on Earth is farther than half
+    /// its circumference (2.0e7 m) from the anchor along the surface.
+    pub max_coordinate_m: f64,
 }
 
 impl Default for RestartConfig {
@@ -104,6 +130,9 @@ impl Default for RestartConfig {
             max_accel_m_s2: 5.0,
             yaw_sigma_per_m: 0.003,
             yaw_sigma_per_rad: 0.05,
+            restarted_counter_m: 10.0,
+            max_reverse_m: 100.0,
+            max_coordinate_m: 2.0e7,
         }
     }
 }
@@ -137,35 +166,139 @@ pub fn judge_restart(
     params: &TwoWheelParams,
     config: &RestartConfig,
 ) -> Restart {
+    if let Err(why) = plausible(kept, config) {
+        return Restart::Refuse { why };
+    }
+    match kept.wheels {
+        Some(mark) if first.t_s >= mark.t_s => bridge(kept, &mark, first, params, config, true),
+        Some(mark) => clock_back(kept, &mark, first, params, config),
+        None => started_over(kept, config),
+    }
+}
+
+/// Whether the kept record is one a car can have: finite numbers, a position
+/// on Earth, a covariance that is a covariance.
+fn plausible(kept: &KeptRecord, config: &RestartConfig) -> Result<(), String> {
     let finite = [kept.pose.x, kept.pose.y, kept.pose.yaw]
         .iter()
         .chain(&kept.covariance)
         .all(|v| v.is_finite());
     if !finite {
-        return Restart::Refuse {
-            why: "the kept pose is not finite".into(),
-        };
+        return Err("the kept pose is not finite".into());
     }
-    match kept.wheels {
-        Some(mark) if first.t_s >= mark.t_s => bridge(kept, &mark, first, params, config),
-        _ => started_over(kept, config),
+    let limit = config.max_coordinate_m;
+    if kept.pose.x.abs() > limit || kept.pose.y.abs() > limit {
+        return Err(format!(
+            "the kept pose ({:.3e}, {:.3e}) m lies beyond {limit:.1e} m of the frame's origin: \
+             no place on Earth",
+            kept.pose.x, kept.pose.y
+        ));
     }
+    let c = &kept.covariance;
+    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+        let (a, b) = (c[3 * i + j], c[3 * j + i]);
+        if (a - b).abs() > 1e-9 * (c[4 * i] * c[4 * j]).sqrt().max(f64::MIN_POSITIVE) {
+            return Err(format!(
+                "the kept covariance is not symmetric: [{i}][{j}] = {a:e}, [{j}][{i}] = {b:e}"
+            ));
+        }
+    }
+    let m = nalgebra::Matrix3::from_row_slice(c);
+    if m.cholesky().is_none() {
+        return Err(format!(
+            "the kept covariance is not positive definite (diagonal {:e}, {:e}, {:e})",
+            c[0], c[4], c[8]
+        ));
+    }
+    if let Some(w) = kept.wheels {
+        if !(w.t_s.is_finite() && w.rl_rev.is_finite() && w.rr_rev.is_finite()) {
+            return Err("the kept wheel counts or their time are not finite".into());
+        }
+    }
+    if kept.speed_m_s.is_some_and(|v| !v.is_finite()) {
+        return Err("the kept speed is not finite".into());
+    }
+    if !(kept.write_every_s.is_finite() && kept.write_every_s > 0.0) {
+        return Err(format!(
+            "the kept write interval {} s is not a positive number",
+            kept.write_every_s
+        ));
+    }
+    Ok(())
 }
 
-/// The wheel stream went on: carry the pose over the gap with the counts.
-fn bridge(
+/// The new run's clock is earlier than the kept pose's: compare the counts
+/// unless they started over from about zero.
+fn clock_back(
     kept: &KeptRecord,
     mark: &WheelMark,
     first: &WheelMark,
     params: &TwoWheelParams,
     config: &RestartConfig,
 ) -> Restart {
+    let near_zero = |rl: f64, rr: f64| {
+        (rl * params.c_rl).abs() <= config.restarted_counter_m
+            && (rr * params.c_rr).abs() <= config.restarted_counter_m
+    };
+    if near_zero(first.rl_rev, first.rr_rev) && !near_zero(mark.rl_rev, mark.rr_rev) {
+        return started_over(kept, config);
+    }
+    let (d_l, d_r) = (
+        (first.rl_rev - mark.rl_rev) * params.c_rl,
+        (first.rr_rev - mark.rr_rev) * params.c_rr,
+    );
+    if d_l.min(d_r) < -config.max_reverse_m {
+        return Restart::Refuse {
+            why: format!(
+                "the clock went back {:.2} s and the wheel counts went down by {:.1} / {:.1} \
+                 revolutions since the kept pose: neither the same counters nor ones that \
+                 started over",
+                mark.t_s - first.t_s,
+                mark.rl_rev - first.rl_rev,
+                mark.rr_rev - first.rr_rev
+            ),
+        };
+    }
+    match bridge(kept, mark, first, params, config, false) {
+        Restart::Resume {
+            pose,
+            covariance,
+            moved_m,
+            ..
+        } => Restart::Resume {
+            pose,
+            covariance,
+            moved_m,
+            why: format!(
+                "the clock went back {:.2} s but the wheel counts went on: {moved_m:.2} m \
+                 driven since the kept pose, carried over with the wheel counts",
+                mark.t_s - first.t_s
+            ),
+        },
+        refused => refused,
+    }
+}
+
+/// The wheel counts went on: carry the pose over the gap with them (with
+/// `time_bound`, counts beyond any car in the time between are refused).
+fn bridge(
+    kept: &KeptRecord,
+    mark: &WheelMark,
+    first: &WheelMark,
+    params: &TwoWheelParams,
+    config: &RestartConfig,
+    time_bound: bool,
+) -> Restart {
     let (dn_l, dn_r) = (first.rl_rev - mark.rl_rev, first.rr_rev - mark.rr_rev);
     let (d_l, d_r) = (dn_l * params.c_rl, dn_r * params.c_rr);
     let longest = d_l.abs().max(d_r.abs());
     let dt = first.t_s - mark.t_s;
     // Half a second of slack for the time stamps of two samples.
-    let reach = config.max_speed_m_s * (dt + 0.5);
+    let reach = if time_bound {
+        config.max_speed_m_s * (dt + 0.5)
+    } else {
+        f64::INFINITY
+    };
     if !longest.is_finite() || longest > reach {
         return Restart::Refuse {
             why: format!(
@@ -418,6 +551,86 @@ mod tests {
         };
         assert_eq!(moved_m, 2.5);
         assert!((covariance[0] - parked.covariance[0] - 6.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_clock_reset_compares_the_counts_when_they_went_on() {
+        // Parked at t = 300 s with 900 / 901 revolutions, the service's last
+        // word. The new run's clock starts over at 5 s, but the counters went
+        // on: 388 revolutions (776 m) more. Not a parked car.
+        let parked = kept(Some(mark(300.0, 900.0, 901.0)), Some(0.0), true);
+        let config = RestartConfig::default();
+        let moved = judge_restart(&parked, &mark(5.0, 1288.0, 1289.0), &params(), &config);
+        let Restart::Resume {
+            pose,
+            covariance,
+            moved_m,
+            why,
+        } = moved
+        else {
+            panic!("carried over: {moved:?}")
+        };
+        assert!((moved_m - 776.0).abs() < 1e-9, "{moved_m}");
+        assert!(why.contains("clock went back"), "{why}");
+        // Straight on (equal counts): 776 m east, and the covariance admits
+        // any path of that length (half of it per axis, 1 sigma).
+        assert!((pose.x - 876.0).abs() < 1e-6 && (pose.y - 50.0).abs() < 1e-6);
+        assert!(covariance[0].sqrt() >= 0.5 * 776.0 && covariance[4].sqrt() >= 0.5 * 776.0);
+        // The same counts, unmoved: the parked pose as it is.
+        let still = judge_restart(&parked, &mark(5.0, 900.0, 901.0), &params(), &config);
+        assert!(matches!(still, Restart::Resume { moved_m, covariance, .. }
+            if moved_m == 0.0 && covariance == parked.covariance));
+        // Counts that went down by hundreds of revolutions (neither on nor
+        // from zero) are refused.
+        let down = judge_restart(&parked, &mark(5.0, 512.0, 513.0), &params(), &config);
+        assert!(
+            matches!(&down, Restart::Refuse { why } if why.contains("went down by 388.0")),
+            "{down:?}"
+        );
+        // Counters that started over from about zero: the parked rule.
+        let zero = judge_restart(&parked, &mark(5.0, 1.0, 1.0), &params(), &config);
+        assert!(
+            matches!(zero, Restart::Resume { moved_m, .. } if moved_m == 0.0),
+            "{zero:?}"
+        );
+    }
+
+    #[test]
+    fn a_kept_pose_no_car_can_have_is_refused_with_the_reason() {
+        let config = RestartConfig::default();
+        let first = mark(0.0, 0.0, 0.0);
+        let good = kept(None, Some(0.0), true);
+        assert!(matches!(
+            judge_restart(&good, &first, &params(), &config),
+            Restart::Resume { .. }
+        ));
+        let refused = |k: KeptRecord| match judge_restart(&k, &first, &params(), &config) {
+            Restart::Refuse { why } => why,
+            other => panic!("resumed from {k:?}: {other:?}"),
+        };
+        let mut far = good;
+        far.pose.x = 1e300;
+        assert!(refused(far).contains("no place on Earth"));
+        let mut far_y = good;
+        far_y.pose.y = -3.0e7;
+        assert!(refused(far_y).contains("no place on Earth"));
+        let mut negative = good;
+        negative.covariance[4] = -0.01;
+        assert!(refused(negative).contains("not positive definite"));
+        let mut zero = good;
+        zero.covariance = [0.0; 9];
+        assert!(refused(zero).contains("not positive definite"));
+        let mut skew = good;
+        skew.covariance[1] = 0.005;
+        assert!(refused(skew).contains("not symmetric"));
+        let mut inf = good;
+        inf.covariance[8] = f64::INFINITY;
+        assert!(refused(inf).contains("not finite"));
+        let mut counts = kept(Some(mark(10.0, f64::NAN, 1.0)), Some(0.0), true);
+        assert!(refused(counts).contains("wheel counts"));
+        counts.wheels = None;
+        counts.write_every_s = 0.0;
+        assert!(refused(counts).contains("write interval"));
     }
 
     #[test]

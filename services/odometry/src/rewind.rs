@@ -154,6 +154,13 @@ impl RewindingFusion {
         &mut self.fusion
     }
 
+    /// The filter's [`Fusion::take_contradiction`], without forgetting the
+    /// log (the caller that acts on it changes the filter through
+    /// [`RewindingFusion::fusion_mut`], which does).
+    pub fn take_contradiction(&mut self) -> Option<crate::fusion::Contradiction> {
+        self.fusion.take_contradiction()
+    }
+
     /// What going back did so far.
     pub fn stats(&self) -> RewindStats {
         self.stats

@@ -388,6 +388,13 @@ pub struct ServeSummary {
     pub poses: u64,
     /// Estimates switched to.
     pub estimate_switches: u64,
+    /// Estimates dropped because the GNSS fixes contradicted them
+    /// (`odometry::fusion::Contradiction`).
+    pub estimates_dropped: u64,
+    /// Pose readers that took nothing for the pose budget (waits that ran
+    /// out), and poses dropped at once for such a reader while its buffer
+    /// stayed full (`TopicPublisher::stalls`).
+    pub pose_reader_stalls: (u64, u64),
     /// Times the inputs went stale.
     pub stale_events: u64,
     /// Early wakeups before a wheel sample ([`odometry::cadence`]).
@@ -590,6 +597,64 @@ fn describe_clocks(c: &StreamClocks) -> String {
          are put on the GNSS clock",
         c.gnss_late_s, c.gnss_drift_ppm, c.imu_late_s, c.imu_drift_ppm
     )
+}
+
+/// The GNSS fixes contradict the estimate in use: drop it (the gate refuses
+/// it from now on) and fall back on the one accepted before it, or on the
+/// nominal values, with the reason in the log.
+fn drop_contradicted(
+    filter: &mut RewindingFusion,
+    inputs: &Inputs,
+    vehicle: &VehicleParams,
+    c: &odometry::fusion::Contradiction,
+) {
+    let why = format!(
+        "the GNSS fixes measure the wheels' distance scale at {:.4} +- {:.4} of what estimate v{} \
+         makes of it, which claims 1 +- {:.4} (chi-square {:.1} over {:.0} m in {} windows, {} left out as GNSS jumps; t = {:.2} s)",
+        c.measured_scale,
+        c.measured_sigma,
+        c.version,
+        c.applied_sigma,
+        c.chi2,
+        c.distance_m,
+        c.windows,
+        c.outliers,
+        c.t_s
+    );
+    let (fallback, fall_back) = inputs.gate.borrow_mut().drop_contradicted(c.version);
+    if !fall_back {
+        tracing::warn!(
+            "odometry: estimate v{} dropped: {why}; a newer estimate is taken next",
+            c.version
+        );
+        return;
+    }
+    let fusion = filter.fusion_mut();
+    match fallback {
+        Some((version, estimate)) => {
+            tracing::warn!(
+                "odometry: estimate v{} dropped: {why}; back to v{version}",
+                c.version
+            );
+            if let Some(antenna) = fusion.antenna_to_take(estimate.fusable_antenna()) {
+                if let Err(e) = fusion.set_lever_arm(antenna) {
+                    tracing::warn!("odometry: the antenna of v{version}: {e}; kept as it was");
+                }
+            }
+            fusion.set_estimate(estimate.params, version);
+            fusion.set_effects(estimate.effects.into());
+            inputs.clocks.set(estimate.clocks);
+        }
+        None => {
+            tracing::warn!(
+                "odometry: estimate v{} dropped: {why}; back to the nominal values of vehicle.toml",
+                c.version
+            );
+            fusion.set_nominal(vehicle);
+            fusion.set_effects(Default::default());
+            inputs.clocks.set(StreamClocks::default());
+        }
+    }
 }
 
 /// The pose kept in `path`, if there is one. A file that cannot be read is
@@ -1095,6 +1160,10 @@ pub fn serve(
                     tracing::error!("odometry: {e}");
                 }
             }
+            if let Some(contradiction) = filter.take_contradiction() {
+                drop_contradicted(&mut filter, &inputs, &config.vehicle, &contradiction);
+                summary.estimates_dropped += 1;
+            }
         }
         // The early pass (1-2 ms before the sample is due, as a rule woken
         // for it): this pass found no sample and warms what the sample's
@@ -1200,6 +1269,16 @@ pub fn serve(
     let stats = filter.fusion().stats();
     summary.fusion = stats;
     summary.rewind = filter.stats();
+    summary.pose_reader_stalls = poses.stalls();
+    if summary.pose_reader_stalls.0 > 0 || summary.estimates_dropped > 0 {
+        tracing::warn!(
+            "odometry: {} estimate(s) dropped as contradicted by the fixes; pose readers stalled \
+             {} time(s), {} pose(s) dropped for them",
+            summary.estimates_dropped,
+            summary.pose_reader_stalls.0,
+            summary.pose_reader_stalls.1
+        );
+    }
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
          GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \

@@ -60,6 +60,19 @@ fn collect(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, want: usize) {
     }
 }
 
+/// Wait `pause` while reading the poses that arrive: a reader that reads
+/// nothing for long loses poses once its buffer is full (the pose stream's
+/// publisher waits at most the pose budget, `interfaces::bus`).
+fn read_poses_for(sub: &TopicSubscriber<Pose>, poses: &mut Vec<Pose>, pause: Duration) {
+    let start = Instant::now();
+    while start.elapsed() < pause {
+        while let Some(p) = sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
 /// The service's settings in the bus `settings`, nothing kept or traced.
 fn base_config(settings: &BusSettings) -> ServeConfig {
     ServeConfig {
@@ -272,7 +285,7 @@ fn serve_fuses_dead_reckons_switches_estimate_reports_stale_inputs_and_matches_o
                 version: 1,
                 estimate: new,
             });
-            std::thread::sleep(Duration::from_millis(200));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(200));
         }
         // Irregular pauses, so that wakeups group the samples differently.
         if i % 97 == 0 {
@@ -698,7 +711,7 @@ fn an_estimate_with_the_calibrated_antenna_puts_the_served_pose_on_the_rear_axle
             estimates
                 .publish(estimate.to_wire(Header::from_seconds(t, 0), 1))
                 .expect("publish estimate");
-            std::thread::sleep(Duration::from_millis(200));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(200));
         }
         sensors.east_instant(i, Some(arm));
     }
@@ -922,7 +935,7 @@ fn estimates_no_calibration_can_give_are_refused() {
             estimates
                 .publish(e.to_wire(Header::from_seconds(i as f64 * 0.01, 0), *v))
                 .expect("publish estimate");
-            std::thread::sleep(Duration::from_millis(150));
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
         }
         sensors.east_instant(i, Some([0.0, 0.0]));
     }
@@ -933,7 +946,7 @@ fn estimates_no_calibration_can_give_are_refused() {
     intruder
         .publish(good.to_wire(Header::from_seconds(10.0, 0), 200))
         .expect("publish");
-    std::thread::sleep(Duration::from_millis(300));
+    read_poses_for(&poses_sub, &mut poses, Duration::from_millis(300));
     for i in n + 1..=n + 100 {
         sensors.east_instant(i, Some([0.0, 0.0]));
     }
@@ -952,6 +965,113 @@ fn estimates_no_calibration_can_give_are_refused() {
     );
     drop((sensors, estimates, intruder, poses_sub));
     drop((bus, other_bus));
+    settings.remove_leftovers();
+}
+
+/// Issue 35 item 3: a same-user process publishes version 99 with
+/// circumferences 7 % too large (inside every gate) before the calibrator's
+/// first estimate. The fixes contradict it within one window: it is dropped
+/// with the reason (back to nominal), the calibrator's v1 and v2 are taken
+/// after it, and a 10 s tunnel at the end dead-reckons on v2, not on the lie.
+#[test]
+fn a_plausible_lie_on_the_bus_is_dropped_when_the_fixes_contradict_it() {
+    interfaces::logging::init();
+    let root = tempfile::tempdir().expect("tempdir");
+    let settings = BusSettings::isolated("odolie", root.path());
+    let (shutdown, service) = spawn_service(base_config(&settings));
+    let bus = Bus::open(&settings, "test-publisher").expect("test bus");
+    let liar_bus = Bus::open(&settings, "liar").expect("liar bus");
+    let calibrator_bus = Bus::open(&settings, "calibrator").expect("calibrator bus");
+    let mut liar: TopicPublisher<CircumferenceEstimate> =
+        liar_bus.publisher().expect("liar publisher");
+    let poses_sub: TopicSubscriber<Pose> = bus.subscriber().expect("pose subscriber");
+    let mut sensors = Sensors::open_when_subscribed(&bus);
+    let with_c = |c: f64| Estimate {
+        params: OdometryParams {
+            two_wheel: TwoWheelParams {
+                c_rl: c,
+                c_rr: c,
+                track_width: TRACK,
+            },
+            gyro_bias_rad_s: 0.0,
+            gyro_scale: 0.0,
+        },
+        sigma_m: Some((1e-3, 1e-3)),
+        quality_m: Some(0.5),
+        antenna_m: None,
+        antenna_sigma_m: None,
+        effects: vehicle_model::effects::WheelEffects::default(),
+        clocks: Default::default(),
+    };
+    let (lie_at, tunnel, n) = (100usize, 1500usize, 2500usize);
+    let mut calibrator: Option<TopicPublisher<CircumferenceEstimate>> = None;
+    let mut poses = Vec::new();
+    for i in 0..=n {
+        while let Some(p) = poses_sub.receive().expect("receive pose") {
+            poses.push(p);
+        }
+        let header = Header::from_seconds(i as f64 * 0.01, 0);
+        if i == lie_at {
+            liar.publish(with_c(C * 1.07).to_wire(header, 99))
+                .expect("publish the lie");
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
+        }
+        if i == 1200 {
+            let publisher = calibrator.insert(
+                calibrator_bus
+                    .publisher()
+                    .expect("calibrator's estimate publisher"),
+            );
+            publisher
+                .publish(with_c(C).to_wire(header, 1))
+                .expect("publish v1");
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
+        }
+        if i == 1400 {
+            if let Some(publisher) = calibrator.as_mut() {
+                publisher
+                    .publish(with_c(C * 1.002).to_wire(header, 2))
+                    .expect("publish v2");
+            }
+            read_poses_for(&poses_sub, &mut poses, Duration::from_millis(150));
+        }
+        sensors.east_instant(i, (i < tunnel).then_some([0.0, 0.0]));
+    }
+    collect(&poses_sub, &mut poses, n + 1);
+    let summary = stop_service(&shutdown, service);
+    assert_eq!(summary.estimates_dropped, 1, "{summary:?}");
+    assert_eq!(summary.skipped, 0, "{summary:?}");
+    assert_eq!(summary.estimate_version, 2, "{summary:?}");
+    let first = |v: u64| poses.iter().position(|p| p.estimate_version == v);
+    let (lie, dropped) = (
+        first(99).expect("the lie was taken"),
+        poses
+            .iter()
+            .skip_while(|p| p.estimate_version != 99)
+            .position(|p| p.estimate_version == 0)
+            .expect("the lie was dropped"),
+    );
+    // v1 and v2 both taken (a pose may carry v1 or not: the two can come
+    // in one wakeup).
+    assert_eq!(summary.estimate_switches, 3, "v99, v1, v2: {summary:?}");
+    let v2 = first(2).expect("v2");
+    println!(
+        "the lie taken at t = {:.2} s, dropped {:.2} s later; v2 in use from {:.2} s",
+        poses[lie].header.t_s(),
+        dropped as f64 * 0.01,
+        poses[v2].header.t_s()
+    );
+    assert!(dropped as f64 * 0.01 < 10.0, "dropped late: {dropped}");
+    assert!(lie < v2);
+    // After the 10 s tunnel the pose is where the car is: on the lie it
+    // would be 0.7 m/s x 10 s = 7 m ahead.
+    let last = poses.last().expect("poses");
+    let error = (last.x_m - V * 25.0).hypot(last.y_m);
+    println!("error after the 10 s tunnel: {error:.2} m");
+    assert_eq!(last.mode, PoseMode::DeadReckoning as u8);
+    assert!(error < 0.5, "{last:?}");
+    drop((sensors, liar, calibrator, poses_sub));
+    drop((bus, liar_bus, calibrator_bus));
     settings.remove_leftovers();
 }
 
@@ -1099,8 +1219,11 @@ fn the_estimate_s_clock_offsets_are_applied_live() {
         }
         // Without the offsets the wheel increments are `shift` off the
         // fixes': the fused poses are off the clean ones.
-        let (plain, _) = east_with_wheel_clock(root.path(), shift, none);
+        let (plain, plain_summary) = east_with_wheel_clock(root.path(), shift, none);
         let off = worst(&plain);
+        // The wheels' scale is right: a wrong clock is not taken for a
+        // wrong wheel by the check of the estimate against the fixes.
+        assert_eq!(plain_summary.estimates_dropped, 0, "{shift}");
         eprintln!("wheels {shift:+.1} s late, offsets not applied: worst {off:.3} m");
         assert!(off > 0.2 && off > 10.0 * e, "{shift}: {off} m");
     }

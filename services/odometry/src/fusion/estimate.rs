@@ -23,6 +23,7 @@ impl Fusion {
         self.odometer.set_params(params);
         self.nominal = false;
         self.estimate_version = version;
+        self.scale_check.clear();
         let bias_variance = self.fresh_bias_variance(self.last_wheels.map_or(0.0, |w| w.0));
         let [scale_variance, difference_variance] = self.fresh_consider_variances();
         if let State::Running { x, p } = &mut self.state {

@@ -6,6 +6,7 @@ use super::config::FusionConfig;
 use super::error::FusionError;
 use super::kalman::symmetrise;
 use super::queue::Pending;
+use super::scale_check::{Contradiction, ScaleCheck};
 use super::state::{all_finite, State, StateMat, StateVec};
 use crate::dead_reckoning::Odometer;
 use interfaces::drive::VehicleParams;
@@ -90,6 +91,8 @@ pub struct Fusion {
     /// Time of the last standstill gyro bias measurement, s.
     pub(super) last_standstill_bias_s: Option<f64>,
     pub(super) stats: FusionStats,
+    /// The estimate's wheel scale against the fixes.
+    pub(super) scale_check: ScaleCheck,
 }
 
 impl Fusion {
@@ -117,6 +120,7 @@ impl Fusion {
             resumed_unconfirmed: false,
             last_standstill_bias_s: None,
             stats: FusionStats::default(),
+            scale_check: ScaleCheck::default(),
         }
     }
 
@@ -127,6 +131,34 @@ impl Fusion {
         let mut fusion = Fusion::new(OdometryParams::nominal(vehicle), 0, config);
         fusion.nominal = true;
         fusion
+    }
+
+    /// The fixes contradict the estimate in use (see `fusion::scale_check`):
+    /// returned once, at the fix that shows it. The filter keeps the
+    /// estimate; the caller drops it and switches to the one before
+    /// ([`Fusion::set_estimate`], [`Fusion::set_nominal`]).
+    pub fn take_contradiction(&mut self) -> Option<Contradiction> {
+        self.scale_check.take()
+    }
+
+    /// The wheels' scale the fixes measure relative to the estimate in use,
+    /// its 1-sigma and the distance it stands on, m; `None` before the
+    /// first comparison.
+    pub fn measured_scale(&self) -> Option<(f64, f64, f64)> {
+        self.scale_check.measured()
+    }
+
+    /// Back to the nominal `vehicle.toml` values between two samples (an
+    /// estimate dropped with nothing before it), trusted as the nominal
+    /// guess (see [`Fusion::nominal`]).
+    pub fn set_nominal(&mut self, vehicle: &VehicleParams) {
+        self.set_estimate(OdometryParams::nominal(vehicle), 0);
+        self.nominal = true;
+        let [scale_variance, difference_variance] = self.fresh_consider_variances();
+        if let State::Running { p, .. } = &mut self.state {
+            p[(super::state::SCALE, super::state::SCALE)] = scale_variance;
+            p[(super::state::WHEEL_DIFF, super::state::WHEEL_DIFF)] = difference_variance;
+        }
     }
 
     /// The parameters in use.

@@ -14,6 +14,22 @@ use vehicle_model::two_wheel::{wrap_angle, Pose2};
 impl Fusion {
     /// Apply a measurement at its time (the filter has been predicted to it).
     pub(super) fn measure(&mut self, m: &Measurement) -> Result<(), FusionError> {
+        if let Measurement::Gnss {
+            t_s,
+            x_m,
+            y_m,
+            sigma_m,
+        } = *m
+        {
+            let estimate = (!self.nominal).then(|| {
+                (
+                    self.estimate_version,
+                    self.fresh_consider_variances()[0].sqrt(),
+                )
+            });
+            self.scale_check
+                .fix(t_s, x_m, y_m, sigma_m, self.config.lever_arm_m, estimate);
+        }
         match (*m, self.state) {
             (
                 Measurement::Gnss {

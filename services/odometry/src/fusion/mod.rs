@@ -79,7 +79,9 @@
 //! - `measure`: the GNSS and heading updates, their gates and the reset of
 //!   a lost filter;
 //! - `process`: one input in, a pose out at every wheel sample;
-//! - `rehearsal`: the work of a made-up wheel sample, run on a copy.
+//! - `rehearsal`: the work of a made-up wheel sample, run on a copy;
+//! - `scale_check`: whether the fixes contradict the estimate's wheel scale
+//!   ([`Fusion::take_contradiction`]).
 
 mod bias;
 mod config;
@@ -94,6 +96,7 @@ mod predict;
 mod process;
 mod queue;
 mod rehearsal;
+mod scale_check;
 mod state;
 #[cfg(test)]
 mod test_support;
@@ -103,3 +106,4 @@ pub use error::{FusionError, ProcessError};
 pub use filter::{FusedPose, Fusion, FusionStats};
 pub use kalman::{position_chi2, CHI2_1DOF_999, CHI2_2DOF_95, CHI2_2DOF_999};
 pub use queue::MAX_PENDING;
+pub use scale_check::{Contradiction, CHI2_1DOF_1E6};

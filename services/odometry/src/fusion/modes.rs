@@ -45,6 +45,7 @@ impl Fusion {
         };
         self.odometer.restart();
         self.pending.clear();
+        self.scale_check.restart_window();
         self.last_wheels = None;
         self.last_accepted_fix_s = None;
         self.first_rejected_fix_s = None;

@@ -17,6 +17,15 @@ impl Fusion {
         let scale = 1.0 + self.odometer.params().gyro_scale;
         let track = self.odometer.params().two_wheel.track_width;
         self.travelled_m += inc.ds_m.abs();
+        if let State::Uninitialised { .. } = self.state {
+            self.scale_check.predicted(
+                inc.ds_m,
+                inc.dyaw_rad,
+                inc.beta_rad,
+                inc.t1_s - inc.t0_s,
+                config.distance_noise_frac * inc.ds_m.abs(),
+            );
+        }
         match &mut self.state {
             State::Uninitialised { local, .. } => {
                 *local =
@@ -29,6 +38,13 @@ impl Fusion {
                 // d(dyaw)/d(b): the residual bias is subtracted from gyro increments only.
                 let dyaw_db = if gyro { -dt / scale } else { 0.0 };
                 let dyaw = inc.dyaw_rad + dyaw_db * x[3];
+                self.scale_check.predicted(
+                    inc.ds_m,
+                    dyaw,
+                    inc.beta_rad,
+                    inc.t1_s - inc.t0_s,
+                    config.distance_noise_frac * inc.ds_m.abs(),
+                );
                 // The car moves along its heading plus the side-slip angle
                 // (0 unless the estimate carries a side-slip term).
                 let course = x[2] + 0.5 * dyaw + inc.beta_rad;
