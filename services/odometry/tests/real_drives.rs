@@ -126,3 +126,39 @@ fn the_wid_truth_is_the_gnss_track_and_comma2k19s_is_not() {
         TruthPoint::AXLE
     );
 }
+
+/// The drive with every wheel sample stamped `by_s` later.
+fn wheels_late(drive: &interfaces::drive::Drive, by_s: f64) -> interfaces::drive::Drive {
+    let mut d = drive.clone();
+    for s in &mut d.wheels.samples {
+        s.t_s += by_s;
+    }
+    d
+}
+
+#[test]
+fn a_wheel_clock_off_the_truth_is_found_said_and_taken_out() {
+    for name in ["wid-trial02", "wid-trial04"] {
+        let Some(path) = drive_io::dev_data::real_drive(name) else {
+            return;
+        };
+        let drive = drive_io::read_drive(&path).expect("read drive").drive;
+        let clean = run(&drive, HeadingMode::Gyro);
+        let late = run(&wheels_late(&drive, 0.5), HeadingMode::Gyro);
+        let said = late
+            .warnings
+            .iter()
+            .find(|w| w.contains("wheels.csv") && w.contains("off truth.csv"))
+            .unwrap_or_else(|| panic!("{name}: {:?}", late.warnings));
+        println!(
+            "{name}: {said}; median {:.3} m (clean drive {:.3} m)",
+            late.median_error_m, clean.median_error_m
+        );
+        assert!(
+            (late.median_error_m - clean.median_error_m).abs() < 0.1 * clean.median_error_m,
+            "{name}: {} m against {} m",
+            late.median_error_m,
+            clean.median_error_m
+        );
+    }
+}

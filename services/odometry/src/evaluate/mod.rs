@@ -83,6 +83,7 @@ mod run;
 mod test_drives;
 mod truth_point;
 mod truth_track;
+mod wheel_clock;
 
 pub use config::EvaluateConfig;
 pub use error::EvaluateError;

@@ -13,6 +13,7 @@ use super::truth_point::truth_is_the_gnss_track;
 use super::truth_track::{
     truth_yaw_offset, TruthTrack, TRUTH_YAW_OFFSET_LIMIT_RAD, YAW_CHECK_STRETCH_M,
 };
+use super::wheel_clock;
 use crate::dead_reckoning::HeadingMode;
 use crate::inputs::drive_inputs;
 use drive_io::plausibility::{self, Finding};
@@ -77,9 +78,31 @@ pub fn evaluate(
         )
         .collect();
     let drive: &Drive = &repaired;
+    let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
+    // The wheels on the truth's clock: a lag the speeds show beyond doubt
+    // is taken out of the wheel time stamps (the estimate's clocks are
+    // already applied above).
+    let shifted;
+    let drive: &Drive = match wheel_lag(drive, &truth, params) {
+        Some(lag) => {
+            let mut d = drive.clone();
+            for s in &mut d.wheels.samples {
+                s.t_s -= lag;
+            }
+            warnings.push(format!(
+                "wheels.csv: the wheels' time stamps are {:+.0} ms off truth.csv's (from the speeds of the \
+                 wheels and of the truth track); the wheel times were shifted by {:+.0} ms for the scoring \
+                 (calibrate the drive to find every stream's clock offset)",
+                lag * 1e3,
+                -lag * 1e3
+            ));
+            shifted = d;
+            &shifted
+        }
+        None => drive,
+    };
     let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
-    let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
     let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
     if let Some((offset, stretches)) = yaw_offset {
         if offset.abs() > TRUTH_YAW_OFFSET_LIMIT_RAD {
@@ -192,6 +215,17 @@ pub fn evaluate(
         truth_is_gnss_track: truth_is_the_gnss_track(drive),
         warnings,
     })
+}
+
+/// The wheels' clock lag against the truth, when it is beyond doubt
+/// ([`wheel_clock::wheel_clock_lag`]).
+fn wheel_lag(drive: &Drive, truth: &TruthTrack<'_>, params: &OdometryParams) -> Option<f64> {
+    let revs = drive.wheel_revolutions().ok()?;
+    let (w0, w1) = (revs.first()?.t_s, revs.last()?.t_s);
+    let rows = truth.rows;
+    let (from, to) = (w0.max(rows.first()?.t_s), w1.min(rows.last()?.t_s));
+    let c = 0.5 * (params.two_wheel.c_rl + params.two_wheel.c_rr);
+    wheel_clock::wheel_clock_lag(&revs, truth, c, from, to)
 }
 
 /// Stretches of the drive (start, end), s.
