@@ -62,7 +62,7 @@ pub(super) fn wheel_clock_lag(
     };
     // Wheel speeds on the grid (wheel clock), with the truth's at every lag.
     let steps = ((to_s - from_s - 2.0 * MAX_LAG_S - WINDOW_S) / GRID_S).floor();
-    if !(steps >= 100.0) {
+    if steps.is_nan() || steps < 100.0 {
         return None;
     }
     let grid: Vec<(f64, f64)> = (0..steps as usize)
@@ -90,7 +90,7 @@ pub(super) fn wheel_clock_lag(
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
     let variance = best_sse / (n as f64 - 1.0);
-    if !(variance > 0.0) {
+    if variance.is_nan() || variance <= 0.0 {
         return None;
     }
     let independent = GRID_S / WINDOW_S;
