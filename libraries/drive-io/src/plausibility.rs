@@ -65,6 +65,9 @@ pub const TURN_NOISE_SIGMAS: f64 = 5.0;
 /// Standard errors between the wheels-to-gyro turn ratios +1 (signs
 /// right) and -1 (signs wrong) before the gyro decides which.
 pub const SIGN_SIGMAS: f64 = 10.0;
+/// The wheels' and the gyro's heading changes must correlate at least this
+/// well (in absolute value) before the gyro decides a sign.
+pub const MIN_SIGN_CORRELATION: f64 = 0.5;
 /// Standard errors from zero the GNSS course's turns per wheel turn must
 /// lie before their sign counts (one-sided, about 3e-5 by chance; GNSS
 /// jumps are taken out first).
@@ -835,6 +838,10 @@ struct WheelGyroFit {
     windows: usize,
     /// The gyro's turning over them, rad.
     turned: f64,
+    /// Correlation of the wheels' and the gyro's heading changes over the
+    /// windows: near +1 or -1 where they see the same turns, near zero
+    /// where the clocks disagree (a stream seconds late).
+    corr: f64,
 }
 
 /// Fit the wheels' heading changes to the gyro's (see [`WheelGyroFit`]);
@@ -914,11 +921,16 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
         return None;
     }
     let (s, se, _) = fit_track(&kept)?;
-    s.is_finite().then_some(WheelGyroFit {
+    let (sxy, sxx, syy) = kept.iter().fold((0.0, 0.0, 0.0), |(a, b, c), &(w, g, _)| {
+        (a + w * g, b + g * g, c + w * w)
+    });
+    let corr = sxy / (sxx * syy).sqrt();
+    (s.is_finite() && corr.is_finite()).then_some(WheelGyroFit {
         s,
         se,
         windows: kept.len(),
         turned,
+        corr,
     })
 }
 
@@ -930,6 +942,7 @@ fn track_contradicted(fit: &WheelGyroFit, rear: &Rear) -> Option<Finding> {
         se,
         windows,
         turned,
+        ..
     } = *fit;
     let off = (s - 1.0).abs();
     (turned >= EVIDENCE_TURN_RAD
@@ -1176,9 +1189,11 @@ impl Rear {
     /// wrong. Without a gyro, wheels against GNSS course cannot tell the
     /// wheels from the track (the message says so).
     fn reversed(&self, drive: &Drive, gyro: Option<&WheelGyroFit>) -> Option<Finding> {
-        // The gyro decides where its turns tell +1 from -1 beyond doubt:
-        // ten standard errors between them.
-        let gyro = gyro.filter(|g| 2.0 > SIGN_SIGMAS * g.se);
+        // The gyro decides where its turns tell +1 from -1 beyond doubt
+        // (ten standard errors between them) and the two see the same turns
+        // (a clock seconds off decorrelates them: that is no mirror).
+        let gyro =
+            gyro.filter(|g| 2.0 > SIGN_SIGMAS * g.se && g.corr.abs() >= MIN_SIGN_CORRELATION);
         let course = self.course_ratio(drive);
         let (ratio, turned, against) = match (gyro, course) {
             (Some(g), _) if g.s < -0.5 => (g.s, g.turned, "the gyro"),

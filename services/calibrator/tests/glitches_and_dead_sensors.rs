@@ -199,3 +199,30 @@ fn a_working_imu_is_not_taken_for_dead() {
         );
     }
 }
+
+#[test]
+fn exchanged_wheels_are_named_and_a_late_wheel_clock_is_not_taken_for_them() {
+    // A highway segment with 0.1 rad of turning: the gyro still tells.
+    let Some(d) = load("comma2k19-seg40") else {
+        return;
+    };
+    let mut swapped = d.clone();
+    for s in &mut swapped.wheels.samples {
+        (s.rl, s.rr) = (s.rr, s.rl);
+    }
+    let e = calibrate(&swapped, &CalibrationConfig::default()).unwrap_err();
+    assert!(e.to_string().contains("rl and rr are exchanged"), "{e}");
+    // The wheels 2.5 s late: their turns and the gyro's no longer line up,
+    // which is no mirror; the clock search finds and applies the offset.
+    let mut late = d;
+    for s in &mut late.wheels.samples {
+        s.t_s += 2.5;
+    }
+    let cal = calibrate(&late, &CalibrationConfig::default())
+        .unwrap_or_else(|e| panic!("a late wheel clock refused: {e}"));
+    assert!(
+        cal.clock_offsets.gnss_s.applied,
+        "{:?}",
+        cal.clock_offsets.gnss_s
+    );
+}

@@ -397,7 +397,9 @@ pub fn diagnose_with_progress(
     let plain = CalibrationConfig {
         track_width: TrackWidthMode::Fixed,
         estimate_gyro: false,
-        time_offset: TimeOffsetMode::Off,
+        // Clocks are looked at and a significant offset said (the diagnosis
+        // itself models GNSS latency, so nothing is shifted).
+        time_offset: TimeOffsetMode::Check,
         estimate_lever_arm: false,
         side_slip: false,
         // A drive the plain model fits badly is what the diagnosis is for.
