@@ -1016,3 +1016,57 @@ fn the_gyro_tells_mirrored_wheels_from_a_mirrored_gnss_track() {
         "{f:?}"
     );
 }
+
+#[test]
+fn a_utf16_file_and_a_cut_last_line_are_named_as_such() {
+    let dir = minimal_folder();
+    let wheels = dir.path().join("wheels.csv");
+    // UTF-16BE with its byte-order mark: valid UTF-8 bytes, meaningless.
+    let text = "t_s,rl_rev,rr_rev\n0,0,0\n0.1,1,1\n";
+    let mut bytes = vec![0xfe, 0xff];
+    for u in text.encode_utf16() {
+        bytes.extend(u.to_be_bytes());
+    }
+    std::fs::write(&wheels, &bytes).unwrap();
+    let e = read_drive(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("wheels.csv") && e.contains("UTF-16BE"), "{e}");
+    // The same without the mark.
+    std::fs::write(&wheels, &bytes[2..]).unwrap();
+    let e = read_drive(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("UTF-16BE"), "{e}");
+    // A last line without its line end (a file cut while written).
+    std::fs::write(&wheels, "t_s,rl_rev,rr_rev\n0,0,0\n0.1,1,1\n0.2,2,1").unwrap();
+    let loaded = read_drive(dir.path()).unwrap();
+    assert!(
+        loaded
+            .warnings
+            .iter()
+            .any(|w| w.contains("wheels.csv") && w.contains("line 4") && w.contains("no line end")),
+        "{:?}",
+        loaded.warnings
+    );
+}
+
+#[test]
+fn info_flags_a_vehicle_no_car_has_and_measures_the_wheels_as_read() {
+    let mut d = weaving(WheelUnit::RadS, 60.0);
+    d.vehicle.track_width_m = -1.5;
+    let summary = drive_io::summarize(&d);
+    assert!(
+        summary
+            .findings
+            .iter()
+            .any(|f| f.severity == Severity::Error && f.message.contains("track_width_m = -1.5")),
+        "{:?}",
+        summary.findings
+    );
+    // A glitch does not become a distance.
+    let mut d = weaving(WheelUnit::RadS, 60.0);
+    let clean = drive_io::summarize(&d).distance_wheels_m.unwrap();
+    d.wheels.samples[3000].rl = -7.6e16;
+    let glitched = drive_io::summarize(&d).distance_wheels_m.unwrap();
+    assert!(
+        (glitched - clean).abs() < 1e-3 * clean,
+        "{glitched} against {clean}"
+    );
+}

@@ -247,3 +247,41 @@ fn calibrate_starts_from_an_earlier_estimate_and_says_when_it_is_another_cars() 
         "{stdout}"
     );
 }
+
+#[test]
+fn a_truncated_recording_is_calibrated_with_allow_truncated_and_says_so_in_the_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let mcap = dir.path().join("drive.mcap");
+    drive_io::write_drive(&common::Synth::default().drive(), &mcap).unwrap();
+    let bytes = std::fs::read(&mcap).unwrap();
+    std::fs::write(&mcap, &bytes[..bytes.len() * 7 / 10]).unwrap();
+    // Without the option: refused, and the message says the option exists.
+    let out = bin().arg("calibrate").arg(&mcap).output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("--allow-truncated"), "{stderr}");
+    // With it: calibrated on what was read, the damage in the JSON.
+    let json = dir.path().join("cal.json");
+    let out = bin()
+        .arg("calibrate")
+        .arg(&mcap)
+        .arg("--allow-truncated")
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w["code"] == "reading" && w["message"].as_str().unwrap().contains("truncated")),
+        "{warnings:?}"
+    );
+}

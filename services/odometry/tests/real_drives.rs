@@ -162,3 +162,56 @@ fn a_wheel_clock_off_the_truth_is_found_said_and_taken_out() {
         );
     }
 }
+
+#[test]
+fn evaluate_reads_a_damaged_drive_as_calibrate_does() {
+    let Some(path) = drive_io::dev_data::real_drive("wid-trial04") else {
+        return;
+    };
+    let drive = drive_io::read_drive(&path).expect("read drive").drive;
+    let config = EvaluateConfig {
+        outage_s: 30.0,
+        ..EvaluateConfig::default()
+    };
+    let params = OdometryParams::nominal(&drive.vehicle);
+    let clean = evaluate(&drive, &params, &config).expect("clean");
+    // A 1e308 glitch in rl: set aside with a warning naming it, the score
+    // as without it.
+    let mut glitched = drive.clone();
+    glitched.wheels.samples[4000].rl = 1e308;
+    let r = evaluate(&glitched, &params, &config).expect("glitched");
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains("wheels.rl") && w.contains("set aside")),
+        "{:?}",
+        r.warnings
+    );
+    assert!((r.median_error_m - clean.median_error_m).abs() < 0.01 * clean.median_error_m);
+    // Reversed wheel signs: refused as calibrate refuses them.
+    let mut reversed = drive.clone();
+    for s in &mut reversed.wheels.samples {
+        (s.rl, s.rr) = (-s.rl, -s.rr);
+    }
+    let e = evaluate(&reversed, &params, &config)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("both wheel signs are reversed"), "{e}");
+    // A 60 s hole in the wheels: no outage is scored across it.
+    let mut holed = drive;
+    let (a, b) = (40.0, 100.0);
+    holed.wheels.samples.retain(|s| s.t_s < a || s.t_s > b);
+    let r = evaluate(&holed, &params, &config).expect("holed");
+    assert!(
+        r.outages
+            .iter()
+            .all(|o| o.t_start_s + config.outage_s <= a || o.t_start_s >= b),
+        "{:?}",
+        r.outages.iter().map(|o| o.t_start_s).collect::<Vec<_>>()
+    );
+    assert!(
+        r.warnings.iter().any(|w| w.contains("pauses")),
+        "{:?}",
+        r.warnings
+    );
+}

@@ -460,9 +460,28 @@ pub fn diagnose_with_progress(
     let stats = BlockStats::new(&design);
     let used = stats.used_blocks();
     if used.len() < 4 {
+        // Holes in the drive are a reason worth naming.
+        let holes: Vec<&str> = cal
+            .warnings
+            .iter()
+            .filter(|w| {
+                matches!(
+                    w.code,
+                    crate::WarningCode::WheelPause
+                        | crate::WarningCode::StreamGap
+                        | crate::WarningCode::GnssOutage
+                )
+            })
+            .map(|w| w.message.as_str())
+            .collect();
         return Err(DiagnoseError::TooShort(format!(
-            "{} blocks of {block_s:.0} s with data; at least 4 (a longer drive, or moving more of the time)",
-            used.len()
+            "{} blocks of {block_s:.0} s with data; at least 4 (a longer drive, or moving more of the time){}",
+            used.len(),
+            if holes.is_empty() {
+                String::new()
+            } else {
+                format!("; the drive has holes: {}", holes.join("; "))
+            }
         )));
     }
     progress(DiagnoseStage::Select, 0.4);
