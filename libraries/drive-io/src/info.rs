@@ -212,7 +212,7 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
     // The wheels as the calibrator reads them (glitches set aside), and no
     // distance from a circumference that is not positive.
     let vehicle = drive.vehicle.check_plausible();
-    let (repaired, _) = plausibility::repaired(drive);
+    let (repaired, repairs) = plausibility::repaired(drive);
     let c = drive.vehicle.nominal_circumference_m;
     let wheel_revs = (c.is_finite() && c > 0.0)
         .then(|| repaired.wheel_revolutions().ok())
@@ -304,9 +304,11 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
                 message: format!("vehicle.toml: {e}; the calibrator and the odometry refuse it"),
             })
             .into_iter()
+            // What plausibility::findings gives, without repairing twice.
             .chain(
-                plausibility::findings(drive)
+                repairs
                     .into_iter()
+                    .chain(plausibility::check(&repaired))
                     .map(|f| f.summary()),
             )
             .collect(),

@@ -986,12 +986,7 @@ fn impossible_rate(drive: &Drive, wheel: Wheel) -> Option<Finding> {
             .filter(|(t, v)| t.is_finite() && v.is_finite())
             .collect();
         // The counter's resolution (its smallest step) is allowed on top.
-        let quantum = values
-            .windows(2)
-            .map(|w| ((w[1].1 - w[0].1) * k).abs())
-            .filter(|d| *d > 0.0)
-            .fold(f64::INFINITY, f64::min);
-        let quantum = if quantum.is_finite() { quantum } else { 0.0 };
+        let quantum = count_quantum(values.iter().map(|v| v.1), k);
         for w in values.windows(2) {
             let dt = w[1].0 - w[0].0;
             let d = ((w[1].1 - w[0].1) * k).abs();
@@ -1365,6 +1360,27 @@ impl Rear {
         } else {
             (lo, hi)
         }
+    }
+}
+
+/// A counter's resolution in revolutions: the smallest nonzero step
+/// between its consecutive values (`k` revolutions per unit); 0 without one.
+fn count_quantum(values: impl Iterator<Item = f64>, k: f64) -> f64 {
+    let mut prev: Option<f64> = None;
+    let mut q = f64::INFINITY;
+    for v in values {
+        if let Some(v0) = prev {
+            let d = ((v - v0) * k).abs();
+            if d > 0.0 {
+                q = q.min(d);
+            }
+        }
+        prev = Some(v);
+    }
+    if q.is_finite() {
+        q
+    } else {
+        0.0
     }
 }
 

@@ -27,7 +27,7 @@
 //! error: what is left cannot support a calibration); a front wheel is
 //! emptied with a warning.
 
-use super::{rev_scale, set_value, value_of, wheel_rate_limit, Finding};
+use super::{count_quantum, rev_scale, set_value, value_of, wheel_rate_limit, Finding};
 use interfaces::drive::{Drive, Wheel, WheelUnit};
 
 /// How many samples after an impossible count value a spike may last
@@ -162,7 +162,7 @@ fn scan(
             }
         }
     } else {
-        let quantum = count_quantum(&values, k);
+        let quantum = count_quantum(values.iter().flatten().copied(), k);
         let possible = |from: (f64, f64), to: (f64, f64)| {
             let dt = to.0 - from.0;
             dt > 0.0 && ((to.1 - from.1) * k).abs() - quantum <= limit * dt
@@ -240,24 +240,4 @@ fn scan(
         bad,
         offsets,
     ))
-}
-
-/// The counter's resolution in revolutions: its smallest nonzero step.
-fn count_quantum(values: &[Option<f64>], k: f64) -> f64 {
-    let mut prev: Option<f64> = None;
-    let mut q = f64::INFINITY;
-    for v in values.iter().flatten() {
-        if let Some(v0) = prev {
-            let d = ((v - v0) * k).abs();
-            if d > 0.0 {
-                q = q.min(d);
-            }
-        }
-        prev = Some(*v);
-    }
-    if q.is_finite() {
-        q
-    } else {
-        0.0
-    }
 }

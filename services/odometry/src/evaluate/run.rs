@@ -17,7 +17,7 @@ use super::wheel_clock;
 use crate::dead_reckoning::HeadingMode;
 use crate::inputs::drive_inputs;
 use drive_io::plausibility::{self, Finding};
-use interfaces::drive::Drive;
+use interfaces::drive::{Drive, WheelRevs};
 use std::borrow::Cow;
 use vehicle_model::estimate::OdometryParams;
 
@@ -82,8 +82,9 @@ pub fn evaluate(
     // The wheels on the truth's clock: a lag the speeds show beyond doubt
     // is taken out of the wheel time stamps (the estimate's clocks are
     // already applied above).
+    let revs = drive.wheel_revolutions()?;
     let shifted;
-    let drive: &Drive = match wheel_lag(drive, &truth, params) {
+    let (drive, revs): (&Drive, _) = match wheel_lag(&revs, &truth, params) {
         Some(lag) => {
             let mut d = drive.clone();
             for s in &mut d.wheels.samples {
@@ -97,11 +98,10 @@ pub fn evaluate(
                 -lag * 1e3
             ));
             shifted = d;
-            &shifted
+            (&shifted, shifted.wheel_revolutions()?)
         }
-        None => drive,
+        None => (drive, revs),
     };
-    let revs = drive.wheel_revolutions()?;
     let inputs = drive_inputs(drive)?;
     let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
     if let Some((offset, stretches)) = yaw_offset {
@@ -219,13 +219,12 @@ pub fn evaluate(
 
 /// The wheels' clock lag against the truth, when it is beyond doubt
 /// ([`wheel_clock::wheel_clock_lag`]).
-fn wheel_lag(drive: &Drive, truth: &TruthTrack<'_>, params: &OdometryParams) -> Option<f64> {
-    let revs = drive.wheel_revolutions().ok()?;
+fn wheel_lag(revs: &[WheelRevs], truth: &TruthTrack<'_>, params: &OdometryParams) -> Option<f64> {
     let (w0, w1) = (revs.first()?.t_s, revs.last()?.t_s);
     let rows = truth.rows;
     let (from, to) = (w0.max(rows.first()?.t_s), w1.min(rows.last()?.t_s));
     let c = 0.5 * (params.two_wheel.c_rl + params.two_wheel.c_rr);
-    wheel_clock::wheel_clock_lag(&revs, truth, c, from, to)
+    wheel_clock::wheel_clock_lag(revs, truth, c, from, to)
 }
 
 /// Stretches of the drive (start, end), s.
