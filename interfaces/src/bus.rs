@@ -23,7 +23,12 @@
 //!   [`DEFAULT_POSE_BUDGET`]) on a full subscriber, then drops that
 //!   subscriber's samples while its buffer stays full, with a warning and
 //!   the counters of [`TopicPublisher::stalls`]. The sensor streams keep
-//!   lossless delivery to live readers (a calibrator busy with a fit).
+//!   lossless delivery at `--max` replay speed (a calibrator busy with a
+//!   fit is waited on); paced (live) they are opened with
+//!   [`Bus::live_publisher`], which waits at most
+//!   [`BusSettings::live_budget`] (default [`DEFAULT_LIVE_BUDGET`]): a
+//!   paced reader whose buffer is full is already seconds late, and a
+//!   stopped one must not hold the odometry's inputs back.
 //! - The estimate ([`Delivery::Latest`]) keeps a history of one, so a subscriber
 //!   that starts late gets the latest accepted estimate. The publisher delivers
 //!   history when it updates its connections: call
@@ -96,6 +101,15 @@ pub const ENV_POSE_BUDGET_MS: &str = "WHEELCAL_POSE_BUDGET_MS";
 /// pose periods at 100 Hz, far below what a stopped reader would cost the
 /// graph's output with the sensor streams' stall timeout.
 pub const DEFAULT_POSE_BUDGET: Duration = Duration::from_millis(30);
+/// Environment variable holding the wait budget of live (paced) sensor
+/// publishers, ms ([`BusSettings::live_budget`]).
+pub const ENV_LIVE_BUDGET_MS: &str = "WHEELCAL_LIVE_BUDGET_MS";
+/// How long a live sensor publisher waits on a full subscriber by default. A
+/// paced stream's full buffer ([`STREAM_BUFFER`] samples) means its reader is
+/// already seconds behind real time: waiting longer only makes the data late
+/// for every other reader (the odometry's poses), so a live publisher gives
+/// up after a few sample periods and drops that reader's samples instead.
+pub const DEFAULT_LIVE_BUDGET: Duration = Duration::from_millis(100);
 
 /// Event id: a new sample was published.
 pub const EVENT_SAMPLE: usize = 1;
@@ -402,6 +416,10 @@ pub struct BusSettings {
     /// drops the sample for that subscriber (default [`DEFAULT_POSE_BUDGET`],
     /// never more than the stall timeout).
     pub pose_budget: Option<Duration>,
+    /// How long a live (paced) sensor publisher ([`Bus::live_publisher`])
+    /// waits on one full subscriber (default [`DEFAULT_LIVE_BUDGET`], never
+    /// more than the stall timeout).
+    pub live_budget: Option<Duration>,
 }
 
 impl BusSettings {
@@ -414,6 +432,9 @@ impl BusSettings {
             root: var(ENV_ROOT).map(PathBuf::from),
             stall_timeout: None,
             pose_budget: var(ENV_POSE_BUDGET_MS)
+                .and_then(|v| v.parse::<u64>().ok())
+                .map(Duration::from_millis),
+            live_budget: var(ENV_LIVE_BUDGET_MS)
                 .and_then(|v| v.parse::<u64>().ok())
                 .map(Duration::from_millis),
         }
@@ -435,6 +456,7 @@ impl BusSettings {
             prefix: Some(prefix),
             stall_timeout: None,
             pose_budget: None,
+            live_budget: None,
         }
     }
 
@@ -533,6 +555,14 @@ impl BusSettings {
         } else {
             self.stall_timeout()
         }
+    }
+
+    /// How long a live (paced) publisher of topic `T` waits on one full
+    /// subscriber: the live budget, or the pose budget if that is shorter.
+    pub fn live_wait_budget<T: Topic>(&self) -> Duration {
+        self.live_budget
+            .unwrap_or(DEFAULT_LIVE_BUDGET)
+            .min(self.wait_budget::<T>())
     }
 }
 
@@ -683,13 +713,29 @@ impl Bus {
         Ok((pubsub, event))
     }
 
-    /// Open topic `T` for publishing.
+    /// Open topic `T` for publishing. A lossless stream waits on a full
+    /// subscriber for [`BusSettings::wait_budget`]: the stall timeout for the
+    /// sensor streams (lossless at `--max` replay speed), the pose budget for
+    /// the poses.
     pub fn publisher<T: Topic>(&self) -> Result<TopicPublisher<T>, BusError> {
+        self.publisher_waiting(self.settings.wait_budget::<T>())
+    }
+
+    /// Open topic `T` for publishing a live stream, paced in real time (or a
+    /// multiple of it): a full subscriber is waited on for at most
+    /// [`BusSettings::live_wait_budget`] (milliseconds), then loses its
+    /// samples while its buffer stays full, with a warning and the counters
+    /// of [`TopicPublisher::stalls`]. A stopped reader (SIGSTOP, a debugger)
+    /// then costs the other readers one budget, not the stall timeout.
+    pub fn live_publisher<T: Topic>(&self) -> Result<TopicPublisher<T>, BusError> {
+        self.publisher_waiting(self.settings.live_wait_budget::<T>())
+    }
+
+    fn publisher_waiting<T: Topic>(&self, stall: Duration) -> Result<TopicPublisher<T>, BusError> {
         let (service, event) = self.open_services::<T>()?;
         let mut builder = service.publisher_builder().max_loaned_samples(2);
         let stalls = std::sync::Arc::new(StallCounters::default());
         if let Delivery::Lossless { .. } = T::DELIVERY {
-            let stall = self.settings.wait_budget::<T>();
             let config = self.config.clone();
             let last_cleanup_ms = AtomicU64::new(0);
             let memory = std::sync::Mutex::new(StallMemory::default());

@@ -297,6 +297,7 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
         root: Some(std::env::temp_dir().join(format!("wheelcal-demo-{}", std::process::id()))),
         stall_timeout: None,
         pose_budget: None,
+        live_budget: None,
     };
     let bus = Bus::open(&settings, "demo-bridge")?;
     let drive = Arc::new(drive);

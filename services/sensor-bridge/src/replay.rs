@@ -378,7 +378,7 @@ pub fn to_wire(drive: &Drive) -> Result<WireDrive, ReplayError> {
 }
 
 /// What a replay published.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct ReplayStats {
     /// Wheel samples published.
     pub wheels: u64,
@@ -394,6 +394,10 @@ pub struct ReplayStats {
     pub drive_s: f64,
     /// Stopped early by Ctrl-C / SIGTERM.
     pub interrupted: bool,
+    /// Per topic with a stalled reader: the topic's service name, the waits
+    /// that ran out the whole budget and the samples then dropped at once
+    /// for that reader (the others lost nothing).
+    pub stalled: Vec<(&'static str, u64, u64)>,
 }
 
 impl ReplayStats {
@@ -421,10 +425,15 @@ pub fn replay(
     if wire.wheels.is_empty() {
         return Err(ReplayError::NoWheels);
     }
-    let mut wheels: TopicPublisher<WheelRotations> = bus.publisher()?;
-    let mut gnss = open_if(bus, !wire.gnss.is_empty())?;
-    let mut imu = open_if(bus, !wire.imu.is_empty())?;
-    let mut heading = open_if(bus, !wire.heading.is_empty())?;
+    // Paced, the streams are live: a reader whose buffer is full is already
+    // seconds late and must not hold the others back beyond a few
+    // milliseconds (`Bus::live_publisher`). At `--max` nothing is lost: the
+    // publishers wait on the slowest reader up to the stall timeout.
+    let live = matches!(opts.pacing, Pacing::Speed(_));
+    let mut wheels: TopicPublisher<WheelRotations> = open(bus, live)?;
+    let mut gnss = open_if(bus, !wire.gnss.is_empty(), live)?;
+    let mut imu = open_if(bus, !wire.imu.is_empty(), live)?;
+    let mut heading = open_if(bus, !wire.heading.is_empty(), live)?;
 
     if opts.wait_subscribers > 0 {
         let want = opts.wait_subscribers;
@@ -577,6 +586,22 @@ pub fn replay(
         }
     }
     stats.wall_s = start.elapsed().as_secs_f64();
+    let stalls = [
+        Some((wheels.service_name(), wheels.stalls())),
+        gnss.as_ref().map(|p| (p.service_name(), p.stalls())),
+        imu.as_ref().map(|p| (p.service_name(), p.stalls())),
+        heading.as_ref().map(|p| (p.service_name(), p.stalls())),
+    ];
+    for (name, (timed_out, at_once)) in stalls.into_iter().flatten() {
+        if timed_out + at_once > 0 {
+            tracing::warn!(
+                "bridge: a reader of {name} stopped taking samples: {} sample(s) not delivered \
+                 to it ({timed_out} after a full wait, {at_once} at once); other readers lost nothing",
+                timed_out + at_once
+            );
+            stats.stalled.push((name, timed_out, at_once));
+        }
+    }
     if !stats.interrupted {
         wheels.end_of_stream()?;
         if let Some(p) = &gnss {
@@ -619,9 +644,21 @@ pub fn publish_drive(
     Ok(stats)
 }
 
-fn open_if<T: bus::Topic>(bus: &Bus, wanted: bool) -> Result<Option<TopicPublisher<T>>, BusError> {
+fn open<T: bus::Topic>(bus: &Bus, live: bool) -> Result<TopicPublisher<T>, BusError> {
+    if live {
+        bus.live_publisher::<T>()
+    } else {
+        bus.publisher::<T>()
+    }
+}
+
+fn open_if<T: bus::Topic>(
+    bus: &Bus,
+    wanted: bool,
+    live: bool,
+) -> Result<Option<TopicPublisher<T>>, BusError> {
     if wanted {
-        bus.publisher::<T>().map(Some)
+        open(bus, live).map(Some)
     } else {
         Ok(None)
     }
