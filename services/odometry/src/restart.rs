@@ -16,7 +16,11 @@
 //!   position moved by the arc's chord; the chord assumes a constant
 //!   curvature, so the position variance grows by `(distance / 2)^2` per axis
 //!   (an error up to the distance itself stays inside 2 sigma) and the yaw's
-//!   by the wheel heading's noise. Counts that imply a speed beyond any car
+//!   by the wheel heading's noise. Over a long gap the wheel heading, and
+//!   with it the chord's direction, is not known (beyond
+//!   [`RestartConfig::chord_yaw_known_rad`]): a chord the wrong way would
+//!   be up to twice the distance off, so the kept position stays the centre
+//!   and the distance the doubt. Counts that imply a speed beyond any car
 //!   are a counter reset or another source: refused.
 //! - **The clock went back but the counters went on** (the new run's clock
 //!   is earlier than the kept pose's, the bridge or the car restarted its
@@ -120,6 +124,10 @@ pub struct RestartConfig {
     /// drive is anchored near it, and no point on Earth is farther than half
     /// its circumference (2.0e7 m) from the anchor along the surface.
     pub max_coordinate_m: f64,
+    /// The wheel heading's 1-sigma over a gap up to which the chord of the
+    /// arc gives the direction the car went, rad; beyond it the kept
+    /// position is carried over with the distance as its doubt.
+    pub chord_yaw_known_rad: f64,
 }
 
 impl Default for RestartConfig {
@@ -133,6 +141,7 @@ impl Default for RestartConfig {
             restarted_counter_m: 10.0,
             max_reverse_m: 100.0,
             max_coordinate_m: 2.0e7,
+            chord_yaw_known_rad: 0.5,
         }
     }
 }
@@ -315,14 +324,26 @@ fn bridge(
     } else {
         ds * half.sin() / half
     };
+    let yaw_sigma = config.yaw_sigma_per_m * longest + config.yaw_sigma_per_rad * dyaw.abs();
     let moved = step(kept.pose, chord, dyaw, 0.0);
+    // The chord points where the wheel heading says; once that heading is
+    // uncertain by more than `chord_yaw_known_rad`, so is the chord's
+    // direction, and a chord the wrong way is up to twice the distance off.
+    // The car is then anywhere within `longest` of the kept position: the
+    // kept position is the centre, and (longest / 2)^2 per axis holds every
+    // such place inside 2 sigma.
+    let position = if yaw_sigma > config.chord_yaw_known_rad {
+        (kept.pose.x, kept.pose.y)
+    } else {
+        (moved.x, moved.y)
+    };
     let pose = Pose2 {
+        x: position.0,
+        y: position.1,
         yaw: wrap_angle(moved.yaw),
-        ..moved
     };
     let mut covariance = kept.covariance;
     let position_var = (0.5 * longest).powi(2);
-    let yaw_sigma = config.yaw_sigma_per_m * longest + config.yaw_sigma_per_rad * dyaw.abs();
     covariance[0] += position_var;
     covariance[4] += position_var;
     covariance[8] += yaw_sigma * yaw_sigma;
@@ -415,6 +436,38 @@ mod tests {
             t_s,
             rl_rev,
             rr_rev,
+        }
+    }
+
+    #[test]
+    fn a_long_unseen_drive_keeps_the_kept_position_as_the_centre_of_its_doubt() {
+        // 2 km under a clock that went back, turning one and a half times
+        // round (the wheel heading over 2 km is not known to a radian): a
+        // chord along that heading may point anywhere. Every place within
+        // 2 km of the kept position, wherever the path went, must lie
+        // inside 2 sigma of the carried pose.
+        let p = params();
+        let turns = 1.5 * std::f64::consts::TAU;
+        let ds = 2000.0;
+        let (d_l, d_r) = (
+            ds - 0.5 * p.track_width * turns,
+            ds + 0.5 * p.track_width * turns,
+        );
+        let kept = kept(Some(mark(500.0, 1000.0, 1000.0)), Some(20.0), true);
+        let first = mark(3.0, 1000.0 + d_l / p.c_rl, 1000.0 + d_r / p.c_rr);
+        let Restart::Resume {
+            pose, covariance, ..
+        } = judge_restart(&kept, &first, &p, &RestartConfig::default())
+        else {
+            panic!("a counter that went on is carried over");
+        };
+        assert_eq!((pose.x, pose.y), (kept.pose.x, kept.pose.y));
+        let sigma = covariance[0].sqrt().min(covariance[4].sqrt());
+        for k in 0..16 {
+            let a = k as f64 * std::f64::consts::TAU / 16.0;
+            let (x, y) = (kept.pose.x + d_r * a.cos(), kept.pose.y + d_r * a.sin());
+            let err = (x - pose.x).hypot(y - pose.y);
+            assert!(err <= 2.0 * sigma + 1e-9, "{err} m against sigma {sigma} m");
         }
     }
 
@@ -572,9 +625,11 @@ mod tests {
         };
         assert!((moved_m - 776.0).abs() < 1e-9, "{moved_m}");
         assert!(why.contains("clock went back"), "{why}");
-        // Straight on (equal counts): 776 m east, and the covariance admits
-        // any path of that length (half of it per axis, 1 sigma).
-        assert!((pose.x - 876.0).abs() < 1e-6 && (pose.y - 50.0).abs() < 1e-6);
+        // Equal counts, but over 776 m the wheel heading is uncertain by
+        // 2.3 rad (0.003 rad/m): which way the chord points is not known, so
+        // the kept position is the centre and the covariance admits any path
+        // of that length (half of it per axis, 1 sigma).
+        assert!((pose.x - 100.0).abs() < 1e-6 && (pose.y - 50.0).abs() < 1e-6);
         assert!(covariance[0].sqrt() >= 0.5 * 776.0 && covariance[4].sqrt() >= 0.5 * 776.0);
         // The same counts, unmoved: the parked pose as it is.
         let still = judge_restart(&parked, &mark(5.0, 900.0, 901.0), &params(), &config);
