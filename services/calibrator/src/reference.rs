@@ -49,6 +49,14 @@ const COURSE_MAX_VAR: f64 = 0.04;
 /// rate lags the yaw rate by about k v, a systematic error of the GNSS time
 /// offset found from the course rate.
 const SLIP_GAIN_TYPICAL: f64 = 0.005;
+/// A typical distance of the GNSS antenna ahead of the rear axle, m (the
+/// catalogue's `gnss_lever_arm` spans 0.1-2 m): the antenna's course leads
+/// the body's heading by about l_x / v (its velocity turns with l_x w), a
+/// systematic error of the time offset found from the course rate when the
+/// antenna has not been calibrated yet. On wid-trial02, whose antenna the
+/// calibration puts 0.49 m ahead, the lead weighted by the turns is 0.109 s
+/// and the IMU-GNSS pair reads -0.11 +- 0.06 s where the speed gives 0.00.
+const ANTENNA_AHEAD_TYPICAL_M: f64 = 0.5;
 
 /// The estimated wheel/GNSS time offset.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -550,7 +558,9 @@ struct CourseRates {
     obs: Vec<(f64, f64)>,
     /// The course leads or lags the heading by the side-slip's response,
     /// about k v (beta = -k a_y): a systematic lag the fit cannot see at
-    /// constant speed, added to the sigma of an offset found from it, s.
+    /// constant speed, added to the sigma of an offset found from it, s;
+    /// with the lead of an antenna ahead of the axle (about l_x / v, see
+    /// [`ANTENNA_AHEAD_TYPICAL_M`]) beside it.
     slip_lag_s: f64,
 }
 
@@ -565,6 +575,7 @@ impl PosTrack {
 fn course_rates(track: &PosTrack) -> CourseRates {
     let mut obs = Vec::new();
     let mut course_speed = 0.0;
+    let mut inverse_speed = 0.0;
     let m = track.t.len();
     for j in 1..m.saturating_sub(1) {
         if !(track.accepted[j - 1] && track.accepted[j] && track.accepted[j + 1]) {
@@ -579,9 +590,12 @@ fn course_rates(track: &PosTrack) -> CourseRates {
             let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
             obs.push((track.t[j], d / dt));
             course_speed += track.speed(j);
+            inverse_speed += 1.0 / track.speed(j).max(COURSE_MIN_SPEED);
         }
     }
-    let slip_lag_s = SLIP_GAIN_TYPICAL * course_speed / (obs.len().max(1) as f64);
+    let n = obs.len().max(1) as f64;
+    let slip_lag_s =
+        (SLIP_GAIN_TYPICAL * course_speed / n).hypot(ANTENNA_AHEAD_TYPICAL_M * inverse_speed / n);
     CourseRates { obs, slip_lag_s }
 }
 

@@ -106,13 +106,35 @@ fn a_cut_of_wid_trial02_half_a_second_off_keeps_its_gnss_offset_and_circumferenc
     for p in &cal.clock_offsets.pairs {
         println!("{:?}-{:?}: {:?}", p.base, p.later, p.offset);
     }
-    // Every pair is determined here (the speed varies enough on this cut):
-    // the combination moves with the shift and stays consistent.
-    assert!(cal
-        .clock_offsets
-        .pairs
-        .iter()
-        .all(|p| p.offset.status == OffsetStatus::Determined));
+    // The speed varies enough on this cut: the wheels' pairs with the GNSS
+    // and the IMU are determined, and the combination moves with the shift.
+    // The IMU-GNSS pair (course rate against the gyro) reads about -0.10 s:
+    // the course of the antenna, 0.49 m ahead of the rear axle, leads the
+    // heading by l_x / v (0.109 s weighted by this drive's turns), a lead
+    // its sigma now includes, so it stays weak, not a wrong offset.
+    let status = |base, later| {
+        cal.clock_offsets
+            .pairs
+            .iter()
+            .find(|p| p.base == base && p.later == later)
+            .expect("pair reported")
+            .offset
+            .clone()
+    };
+    assert_eq!(
+        status(ClockStream::Wheels, ClockStream::Gnss).status,
+        OffsetStatus::Determined
+    );
+    assert_eq!(
+        status(ClockStream::Wheels, ClockStream::Imu).status,
+        OffsetStatus::Determined
+    );
+    let imu_gnss = status(ClockStream::Imu, ClockStream::Gnss);
+    let [lag, sigma] = imu_gnss
+        .weak
+        .or_else(|| imu_gnss.offset_s.zip(imu_gnss.sigma_s).map(|(o, s)| [o, s]))
+        .expect("the IMU-GNSS pair fitted");
+    assert!(lag.abs() <= 2.0 * sigma, "{imu_gnss:?}");
     let (o0, o) = (g0.offset_s.unwrap(), g.offset_s.unwrap());
     let s = g.sigma_s.unwrap().hypot(g0.sigma_s.unwrap());
     assert!((o - o0 + 0.5).abs() <= 2.0 * s, "{g0:?} {g:?}");

@@ -144,16 +144,11 @@ fn convert(args: &ConvertArgs) -> Result<()> {
     let read = args
         .input_options
         .read(&args.input, args.skip_corrupt_chunks)?;
-    let loaded = match read {
-        Ok(l) => l,
-        Err(DriveError::TruncatedMcap {
-            partial: Some(partial),
-            ..
-        }) if args.allow_truncated => *partial,
-        Err(e) => {
-            return Err(e).with_context(|| format!("reading {}", args.input.display()));
-        }
-    };
+    // A truncated recording: what was read before the damage, with a
+    // warning naming the damage (kept in the converted recording's log),
+    // only with --allow-truncated.
+    let loaded = drive_io::cli::accept_truncated(read, args.allow_truncated)
+        .with_context(|| format!("reading {}", args.input.display()))?;
     print_warnings(&loaded);
     // What is said here is also logged in the recording (foxglove.Log).
     let mut warnings = loaded.warnings.clone();

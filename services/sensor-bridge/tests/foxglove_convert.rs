@@ -125,3 +125,36 @@ fn convert_writes_foxglove_channels_by_default_and_not_with_no_foxglove() {
         assert!(back.drive == original);
     }
 }
+
+#[test]
+fn a_truncated_recording_converts_only_with_allow_truncated_and_its_log_names_the_damage() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("drive");
+    write_folder(&folder);
+    let mcap = dir.path().join("drive.mcap");
+    convert(&[&folder, &mcap], &[]);
+    let bytes = std::fs::read(&mcap).unwrap();
+    std::fs::write(&mcap, &bytes[..bytes.len() * 7 / 10]).unwrap();
+    let out_path = dir.path().join("again.mcap");
+    // Without the option: refused, and the message says the option exists.
+    let out = Command::new(env!("CARGO_BIN_EXE_sensor-bridge"))
+        .arg("convert")
+        .arg(&mcap)
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("--allow-truncated"), "{stderr}");
+    // With it: what was read before the damage, and the damage is named in
+    // the converted recording's log (it was dropped before).
+    convert(&[&mcap, &out_path], &["--allow-truncated"]);
+    let logs = read_drive(&out_path).unwrap();
+    let recorded = std::fs::read(&out_path).unwrap();
+    let text = String::from_utf8_lossy(&recorded);
+    assert!(
+        text.contains("only what was read before the damage"),
+        "no log of the damage; reading warnings: {:?}",
+        logs.warnings
+    );
+}
