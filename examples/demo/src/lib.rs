@@ -386,11 +386,8 @@ pub fn run(opts: &DemoOptions) -> Result<()> {
     std::fs::write(&json, serde_json::to_string_pretty(&result)? + "\n")
         .with_context(|| format!("writing {}", json.display()))?;
     let picture = opts.out_dir.join("tracks.svg");
-    std::fs::write(
-        &picture,
-        svg::tracks_svg(&drive, outage, &seen.poses, &result),
-    )
-    .with_context(|| format!("writing {}", picture.display()))?;
+    let svg = svg::tracks_svg(&drive, outage, &seen.poses, &result)?;
+    std::fs::write(&picture, svg).with_context(|| format!("writing {}", picture.display()))?;
     println!("picture of the tracks: {}", picture.display());
     println!("numbers: {}", json.display());
     Ok(())
