@@ -19,10 +19,6 @@ impl CpuLatencyZero {
     }
 }
 
-/// The `p` quantile (0..=1, nearest rank) of sorted values; NaN when empty.
-pub fn quantile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
-}
+/// The `p` quantile (0..=1, nearest rank) of sorted values; NaN when empty
+/// (one home: [`stats::nearest_rank`]).
+pub use stats::nearest_rank as quantile;

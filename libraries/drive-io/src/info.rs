@@ -107,23 +107,10 @@ impl DriveSummary {
     }
 }
 
-fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_unstable_by(f64::total_cmp);
-    let n = values.len();
-    Some(if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    })
-}
-
 fn stream(name: &str, times: &[f64]) -> StreamSummary {
     let mut intervals: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
     let max_interval_s = intervals.iter().copied().reduce(f64::max);
-    let med = median(&mut intervals.clone());
+    let med = stats::median(&mut intervals.clone());
     let (gaps, gap_time_s) = match med {
         Some(m) => {
             let long: Vec<f64> = intervals

@@ -643,26 +643,6 @@ pub fn check(drive: &Drive) -> Vec<Finding> {
     out
 }
 
-/// The median of `values` (reordered), `None` when empty.
-fn median_of(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    let (_, m, _) = values.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*m)
-}
-
-/// Median and 1.4826 MAD (a Gaussian sigma) of `values`.
-fn median_sigma(values: &[f64]) -> Option<(f64, f64)> {
-    let mut v = values.to_vec();
-    let m = median_of(&mut v)?;
-    for x in &mut v {
-        *x = (*x - m).abs();
-    }
-    Some((m, 1.4826 * median_of(&mut v)?))
-}
-
 /// Pauses of the wheel stream.
 fn wheel_pauses(drive: &Drive) -> Vec<Finding> {
     let t: Vec<f64> = drive
@@ -677,7 +657,7 @@ fn wheel_pauses(drive: &Drive) -> Vec<Finding> {
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
-    let Some(med) = median_of(&mut dts) else {
+    let Some(med) = stats::upper_median(&mut dts) else {
         return Vec::new();
     };
     let limit = (PAUSE_FACTOR * med).max(PAUSE_MIN_S);
@@ -724,7 +704,7 @@ impl GyroIntegral {
             return None;
         }
         let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        let dt = median_of(&mut dts)?;
+        let dt = stats::upper_median(&mut dts)?;
         Some(GyroIntegral {
             t,
             cum,
@@ -768,7 +748,7 @@ impl GyroIntegral {
             .filter(|(t, _)| t[1] - t[0] <= self.gap)
             .map(|(_, w)| w[1] - w[0])
             .collect();
-        let (_, s) = median_sigma(&steps)?;
+        let (_, s) = stats::upper_median_and_sigma(&steps)?;
         let per_sample = s / std::f64::consts::SQRT_2;
         Some(per_sample / (secs / self.dt).max(1.0).sqrt())
     }
@@ -850,7 +830,7 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
     let gyro = GyroIntegral::of(drive.imu.as_deref()?)?;
     let n = rear.t.len();
     let mut wheel_dts: Vec<f64> = rear.t.windows(2).map(|w| w[1] - w[0]).collect();
-    let wheel_gap = 10.0 * median_of(&mut wheel_dts)?;
+    let wheel_gap = 10.0 * stats::upper_median(&mut wheel_dts)?;
     let mut windows = Vec::new();
     let mut i = 0;
     for j in 1..n {
@@ -878,7 +858,7 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
         .map(|w| w.dpsi_g / w.dt)
         .collect();
     let (bias, noise) = if standstill.len() >= 3 {
-        median_sigma(&standstill)?
+        stats::upper_median_and_sigma(&standstill)?
     } else {
         let kappa_min = MAX_CIRCUMFERENCE_MISMATCH / rear.track;
         let straight: Vec<f64> = windows
@@ -887,7 +867,7 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
             .map(|w| w.dpsi_g / w.dt)
             .collect();
         let bias = if straight.len() >= 3 {
-            median_sigma(&straight)?.0
+            stats::upper_median_and_sigma(&straight)?.0
         } else {
             0.0
         };
@@ -905,7 +885,7 @@ fn wheel_gyro_fit(drive: &Drive, rear: &Rear) -> Option<WheelGyroFit> {
     }
     // One pass of outlier removal (a wheel spinning, a pothole).
     let (_, _, res) = fit_track(&turning)?;
-    let (_, spread) = median_sigma(&res)?;
+    let (_, spread) = stats::upper_median_and_sigma(&res)?;
     let kept: Vec<(f64, f64, f64)> = if spread > 0.0 {
         turning
             .iter()
@@ -1129,7 +1109,7 @@ impl Rear {
             i = j;
         }
         let mut curvatures: Vec<f64> = windows.iter().map(|(ds, dpsi)| dpsi / ds).collect();
-        let Some(kappa) = median_of(&mut curvatures) else {
+        let Some(kappa) = stats::upper_median(&mut curvatures) else {
             return 0.0;
         };
         let quantum = self.c * (resolution(&self.l, a, b) + resolution(&self.r, a, b)) / self.track;
@@ -1268,7 +1248,7 @@ impl Rear {
         // cusp (the course flips when the car changes direction) says nothing.
         let pairs: Vec<(f64, f64)> = segs
             .windows(2)
-            .map(|w| (w[1].1 - w[0].1, wrap(w[1].0 - w[0].0)))
+            .map(|w| (w[1].1 - w[0].1, stats::wrap_angle(w[1].0 - w[0].0)))
             .filter(|(_, dc)| dc.abs() <= 2.0)
             .collect();
         let turned: f64 = pairs.iter().map(|p| p.1.abs()).sum();
@@ -1280,7 +1260,7 @@ impl Rear {
         // the two: the course's noise then biases nothing), with one pass of
         // 5-MAD outlier removal (a GNSS jump bends two chords).
         let (r, residuals, _) = slope(&pairs)?;
-        let (_, spread) = median_sigma(&residuals)?;
+        let (_, spread) = stats::upper_median_and_sigma(&residuals)?;
         let kept: Vec<(f64, f64)> = pairs
             .iter()
             .zip(&residuals)
@@ -1429,16 +1409,6 @@ fn min_step(x: &[f64], a: usize, b: usize) -> f64 {
     }
 }
 
-/// An angle wrapped to (-pi, pi].
-fn wrap(a: f64) -> f64 {
-    let w = a.rem_euclid(TAU);
-    if w > std::f64::consts::PI {
-        w - TAU
-    } else {
-        w
-    }
-}
-
 /// Reads one value of an IMU sample.
 type ImuField = fn(&ImuSample) -> Option<f64>;
 
@@ -1517,15 +1487,4 @@ fn imu_stuck(drive: &Drive, rear: &Rear) -> Vec<Finding> {
         });
     }
     out
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn wrap_keeps_angles_in_range() {
-        assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
-        assert!((wrap(-0.1) + 0.1).abs() < 1e-12);
-    }
 }

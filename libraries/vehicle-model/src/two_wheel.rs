@@ -90,15 +90,8 @@ pub fn dead_reckon(start: Pose2, revs: &[WheelRevs], params: &TwoWheelParams) ->
     out
 }
 
-/// Wrap an angle to (-pi, pi].
-pub fn wrap_angle(a: f64) -> f64 {
-    let w = a.rem_euclid(std::f64::consts::TAU);
-    if w > std::f64::consts::PI {
-        w - std::f64::consts::TAU
-    } else {
-        w
-    }
-}
+/// Wrap an angle to (-pi, pi] (one home: [`stats::wrap_angle`]).
+pub use stats::wrap_angle;
 
 #[cfg(test)]
 mod tests {

@@ -836,11 +836,7 @@ pub fn median_interval(t: &[f64]) -> Option<f64> {
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
-    if d.is_empty() {
-        return None;
-    }
-    d.sort_by(f64::total_cmp);
-    Some(d[d.len() / 2])
+    stats::upper_median(&mut d)
 }
 
 /// Times closer than this are the same instant (a double holds UNIX seconds

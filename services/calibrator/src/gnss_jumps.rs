@@ -25,7 +25,6 @@
 /// across the travel) off the dead-reckoning's (a Rayleigh tail of exp(-18): about one false edge in
 /// 10^8 differences of Gaussian noise).
 pub const EDGE_SIGMAS: f64 = 6.0;
-use crate::prep::median;
 
 /// Longest jump looked for, s: a longer offset is a datum shift or the
 /// wheels' own drift, which the dead-reckoning cannot tell apart from a
@@ -117,7 +116,7 @@ pub fn find(
             (l > 0.3).then(|| (dz[0] * dd[0] + dz[1] * dd[1]) / (l * l))
         })
         .collect();
-    let scale = median(&mut ratios).unwrap_or(1.0);
+    let scale = stats::upper_median(&mut ratios).unwrap_or(1.0);
     // Residual displacement per pair, and the wheels' direction of travel
     // (where they moved): stamp jitter and the wheels' scale err along it,
     // the heading across it, so each has its own spread.
@@ -141,15 +140,15 @@ pub fn find(
             across.push(c.abs());
         }
     }
-    let Some(mad) = median(&mut comps) else {
+    let Some(mad) = stats::upper_median(&mut comps) else {
         return out;
     };
     // A floor of 1 mm: fixes rounded to the millimetre have no finer noise.
     let sigma_e = (1.4826 * mad).max(1e-3);
     let (sigma_al, sigma_cr) = if along.len() >= 20 {
         (
-            median(&mut along).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
-            median(&mut across).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
+            stats::upper_median(&mut along).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
+            stats::upper_median(&mut across).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
         )
     } else {
         (sigma_e, sigma_e)

@@ -211,7 +211,7 @@ fn clock_drifts(p: &Prepared, drive: &Drive, config: &CalibrationConfig) -> Drif
     } else {
         let fixes: Vec<(f64, f64, f64)> = p.fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
         let mut given: Vec<f64> = p.fixes.iter().filter_map(|f| f.sigma).collect();
-        let motion = clock_drift::gnss_motion(&fixes, prep::median(&mut given));
+        let motion = clock_drift::gnss_motion(&fixes, stats::upper_median(&mut given));
         let (whole, tries) = clock_drift::gnss_windows(&wheels, &motion, &spans);
         if whole.status == OffsetStatus::Determined {
             apply(clock_drift::judge(tries, (t0, t1), t_ref, &whole))

@@ -166,8 +166,7 @@ pub fn wheel_ratio(c: &Calibration) -> Result<NamedFigure, FigureError> {
     let nom = points(nominal, nominal);
     let median = |v: &[[f64; 2]]| -> f64 {
         let mut y: Vec<f64> = v.iter().map(|p| p[1]).filter(|y| y.is_finite()).collect();
-        y.sort_by(f64::total_cmp);
-        y.get(y.len() / 2).copied().unwrap_or(f64::NAN)
+        stats::upper_median(&mut y).unwrap_or(f64::NAN)
     };
     let (lo, hi) = est
         .iter()

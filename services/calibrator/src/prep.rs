@@ -147,15 +147,6 @@ impl Prepared {
     }
 }
 
-/// The middle value (the upper one of an even count), sorting `values`.
-pub(crate) fn median(values: &mut [f64]) -> Option<f64> {
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    Some(values[values.len() / 2])
-}
-
 /// The GNSS position noise measured on the fixes `(t, x, y)` (increasing
 /// times), m: the MAD of the second differences of equally spaced fixes
 /// (variance 6 sigma^2 for white noise), both axes pooled. `None` with
@@ -173,7 +164,7 @@ pub(crate) fn gnss_scatter_sigma(fixes: &[(f64, f64, f64)]) -> Option<f64> {
     if d.len() < 10 {
         return None;
     }
-    Some(1.4826 * median(&mut d)? / 6f64.sqrt())
+    Some(1.4826 * stats::upper_median(&mut d)? / 6f64.sqrt())
 }
 
 /// The GNSS position noise measured on the fixes `(t, x, y)` (increasing
@@ -203,7 +194,7 @@ pub(crate) fn gnss_scatter_sigma_robust(fixes: &[(f64, f64, f64)]) -> Option<(f6
         return None;
     }
     let n = d.len();
-    Some((1.4826 * median(&mut d)? / 70f64.sqrt(), n))
+    Some((1.4826 * stats::upper_median(&mut d)? / 70f64.sqrt(), n))
 }
 
 /// Check and convert `drive`. Skipped values go into `warnings`.
@@ -605,7 +596,7 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
         .map(|w| w[1].t_s - w[0].t_s)
         .filter(|d| d.is_finite() && *d > 0.0)
         .collect();
-    let wheel_dt = median(&mut dts).unwrap_or(0.01).max(1e-4);
+    let wheel_dt = stats::upper_median(&mut dts).unwrap_or(0.01).max(1e-4);
     let gap_threshold = (10.0 * wheel_dt).max(0.5);
 
     let n = samples.len();
@@ -801,7 +792,7 @@ fn imu(
         .map(|w| w[1] - w[0])
         .filter(|d| *d > 0.0)
         .collect();
-    let threshold = (10.0 * median(&mut dts).unwrap_or(0.01)).max(0.5);
+    let threshold = (10.0 * stats::upper_median(&mut dts).unwrap_or(0.01)).max(0.5);
     let mut out = Vec::with_capacity(t.len());
     let mut k = 0usize;
     let mut prev: Option<(f64, f64)> = None; // (time, rate)

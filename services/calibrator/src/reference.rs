@@ -466,7 +466,7 @@ pub struct SigmaClaim {
 /// `sigma_m` when the scatter exceeds [`CLAIM_FACTOR`] times the claim.
 fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<SigmaClaim> {
     let mut given: Vec<f64> = fixes.iter().filter_map(|f| f.sigma).collect();
-    let claimed_m = crate::prep::median(&mut given)?;
+    let claimed_m = stats::upper_median(&mut given)?;
     let points: Vec<(f64, f64, f64)> = fixes
         .iter()
         .filter(|f| f.sigma.is_some())
@@ -951,7 +951,7 @@ fn course_and_heading(
             .filter(|&j| pass1.accepted[j])
             .map(speed_sigma)
             .collect();
-        let median_sv = crate::prep::median(&mut sv).unwrap_or(f64::NAN);
+        let median_sv = stats::upper_median(&mut sv).unwrap_or(f64::NAN);
         return Err(CalibrationError::NoCourse {
             detail: format!(
                 "of {} GNSS fixes, {} were rejected as outliers, {} are slower than {COURSE_MIN_SPEED:.1} m/s, {} have a course sigma above {:.2} rad (the smoothed GNSS velocity's sigma, median {median_sv:.2} m/s, is too large against the speed: noisy fixes or gaps), {} are while reversing; {} course(s) and {} absolute heading(s) are left, at least 2 are needed",
@@ -1359,7 +1359,7 @@ pub fn build(
         .sum();
     if distance_m < MIN_REFERENCE_M && wheel_distance_m >= MIN_REFERENCE_M {
         let mut gaps: Vec<f64> = acc_t.windows(2).map(|w| w[1] - w[0]).collect();
-        let median_gap = crate::prep::median(&mut gaps).unwrap_or(f64::NAN);
+        let median_gap = stats::upper_median(&mut gaps).unwrap_or(f64::NAN);
         let hint = if median_gap > config.max_gnss_gap_s {
             format!(
                 "the accepted fixes are a median {median_gap:.1} s apart, more than max_gnss_gap_s ({:.1} s): every interval counts as an outage (raise max_gnss_gap_s if the receiver logs this slowly)",
