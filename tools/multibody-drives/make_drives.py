@@ -202,6 +202,7 @@ class Driver:
         hi = min(len(r.s), self.hint + 120)
         d = (r.x[lo:hi] - px) ** 2 + (r.y[lo:hi] - py) ** 2
         i = lo + int(np.argmin(d))
+        self.hint = i
         return i
 
     def inputs(self, x):
@@ -210,17 +211,24 @@ class Driver:
         c, s = math.cos(psi), math.sin(psi)
         fx, fy = x[0] + p.a * c, x[1] + p.a * s
         i = self.nearest(fx, fy)
-        e = -(fx - r.x[i]) * math.sin(r.th[i]) + (fy - r.y[i]) * math.cos(r.th[i])
-        he = math.atan2(math.sin(r.th[i] - psi), math.cos(r.th[i] - psi))
+        # project on the path's tangent at i (smooth between the path points)
+        ct, st = math.cos(r.th[i]), math.sin(r.th[i])
+        along = (fx - r.x[i]) * ct + (fy - r.y[i]) * st
+        e = -(fx - r.x[i]) * st + (fy - r.y[i]) * ct - 0.5 * r.kappa[i] * along * along
+        th_path = r.th[i] + r.kappa[i] * along
+        he = math.atan2(math.sin(th_path - psi), math.cos(th_path - psi))
         lwb = p.a + p.b
         delta_des = he - math.atan2(1.2 * e, abs(vx) + 2.0) + math.atan(lwb * r.kappa[i])
         delta_des += 0.05 * (vx * r.kappa[i] - x[5])  # yaw-rate damping
         u0 = max(-0.4, min(0.4, 6.0 * (delta_des - x[2])))
-        # speed: along the profile; never past the coming stop
-        ir = max(0, i - int(round(lwb / r.DS)))  # the rear axle's station
-        vref, aff = r.v[ir], r.a[ir]
+        # speed: along the profile (rear axle's station); never past the coming stop
+        sr = r.s[i] + along - lwb
+        j = min(max(int(sr / r.DS), 0), len(r.s) - 2)
+        f = min(max(sr / r.DS - j, 0.0), 1.0)
+        vref = r.v[j] + f * (r.v[j + 1] - r.v[j])
+        aff = r.a[j] + f * (r.a[j + 1] - r.a[j])
         u1 = aff + 1.2 * (vref - vx)
-        if ir >= self.stop_index:
+        if sr >= self.stop_index * r.DS:
             u1 = -2.0
         u1 = max(-4.0, min(2.5, u1))
         return [u0, u1], i
@@ -277,9 +285,9 @@ def simulate(vehicle_id, route_seed, verbose=True):
             (t_now, t_end),
             x,
             method="BDF",
-            max_step=0.02,
-            rtol=1e-6,
-            atol=1e-7,
+            max_step=0.05,
+            rtol=1e-5,
+            atol=1e-6,
             dense_output=True,
             events=stopped,
         )
@@ -355,13 +363,17 @@ def derive(sim, effects, noise_seed):
     def fz(zu, phiu, track, side):
         return (zu + p.R_w * (np.cos(phiu) - 1) + side * 0.5 * track * np.sin(phiu)) * p.K_zt
 
+    # The package labels its wheels L/R the other way round from their place:
+    # its "left" wheel speed is v_x + T/2 * yaw rate and its yaw moment takes
+    # its "left" wheel at body y = -T/2. We name the wheels by where they are
+    # (y = +T/2 is left, ISO 8855 as the drive format), so its L is our right.
     Fz = {
-        "fl": fz(X[:, 16], X[:, 13], p.T_f, -1),
-        "fr": fz(X[:, 16], X[:, 13], p.T_f, +1),
-        "rl": fz(X[:, 21], X[:, 18], p.T_r, -1),
-        "rr": fz(X[:, 21], X[:, 18], p.T_r, +1),
+        "fl": fz(X[:, 16], X[:, 13], p.T_f, +1),
+        "fr": fz(X[:, 16], X[:, 13], p.T_f, -1),
+        "rl": fz(X[:, 21], X[:, 18], p.T_r, +1),
+        "rr": fz(X[:, 21], X[:, 18], p.T_r, -1),
     }
-    spin = {"fl": X[:, 23], "fr": X[:, 24], "rl": X[:, 25], "rr": X[:, 26]}
+    spin = {"fl": X[:, 24], "fr": X[:, 23], "rl": X[:, 26], "rr": X[:, 25]}
     moving = vx > 0.5
     wear_rng = np.random.default_rng(20_000 + int(sim["route_seed"]))
     wear_mm = {w: float(wear_rng.uniform(0.5, 3.0)) for w in ("rl", "rr", "fl", "fr")}
@@ -464,9 +476,12 @@ def derive(sim, effects, noise_seed):
     rate_l = np.gradient(revs["rl"], t)
     rate_r = np.gradient(revs["rr"], t)
     m2 = m & (rate_l > 0.5) & (rate_r > 0.5)
-    c_l = (v_ra - r * half) / rate_l
-    c_r = (v_ra + r * half) / rate_r
-    k_z_app, r2_zapp = slope(((c_l - c_r) / (c_l + c_r))[m2], a_y[m2], intercept=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c_l = (v_ra - r * half) / rate_l
+        c_r = (v_ra + r * half) / rate_r
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = (c_l - c_r) / (c_l + c_r)
+    k_z_app, r2_zapp = slope(ratio[m2], a_y[m2], intercept=True)
     # longitudinal slip of the rear axle: wheel speed = v (1 + k_s a_x)
     ws = 0.5 * (spin["rl"] + spin["rr"]) * p.R_w
     k_s, r2_s = slope((ws / np.maximum(v_ra, 1e-3) - 1)[m], a_x[m], intercept=True)

@@ -425,72 +425,79 @@ pub fn replay(
     if wire.wheels.is_empty() {
         return Err(ReplayError::NoWheels);
     }
-    // Paced, the streams are live: a reader whose buffer is full is already
-    // seconds late and must not hold the others back beyond a few
-    // milliseconds (`Bus::live_publisher`). At `--max` nothing is lost: the
-    // publishers wait on the slowest reader up to the stall timeout.
-    let live = matches!(opts.pacing, Pacing::Speed(_));
-    let mut wheels: TopicPublisher<WheelRotations> = open(bus, live)?;
-    let mut gnss = open_if(bus, !wire.gnss.is_empty(), live)?;
-    let mut imu = open_if(bus, !wire.imu.is_empty(), live)?;
-    let mut heading = open_if(bus, !wire.heading.is_empty(), live)?;
-
+    let mut publishers = Publishers::open(bus, wire, opts.pacing)?;
     if opts.wait_subscribers > 0 {
-        let want = opts.wait_subscribers;
-        tracing::info!("waiting for {want} subscriber(s) on every published topic");
-        bus::wait_until(
-            || {
-                let mut v = vec![(wheels.service_name(), wheels.subscriber_count(), want)];
-                let mut add = |name: &'static str, count: Option<usize>| {
-                    if let Some(c) = count {
-                        v.push((name, c, want));
-                    }
-                };
-                add(
-                    interfaces::wire::GNSS_SERVICE,
-                    gnss.as_ref().map(|p| p.subscriber_count()),
-                );
-                add(
-                    interfaces::wire::IMU_SERVICE,
-                    imu.as_ref().map(|p| p.subscriber_count()),
-                );
-                add(
-                    interfaces::wire::HEADING_SERVICE,
-                    heading.as_ref().map(|p| p.subscriber_count()),
-                );
-                v
-            },
-            opts.wait_timeout,
-        )?;
+        publishers.wait_for(opts.wait_subscribers, opts.wait_timeout)?;
     }
-
-    wheels.announce()?;
-    for r in [
-        gnss.as_ref().map(|p| p.announce()),
-        imu.as_ref().map(|p| p.announce()),
-        heading.as_ref().map(|p| p.announce()),
-    ]
-    .into_iter()
-    .flatten()
-    {
-        r?;
-    }
+    publishers.announce()?;
     if !bus::sleep_unless_shutdown(opts.settle) {
         return Ok(ReplayStats {
             interrupted: true,
             ..ReplayStats::default()
         });
     }
-
-    let order = wire.delivery_order(&opts.latency);
     let (t0, t_end) = wire.time_span_ns().ok_or(ReplayError::NoWheels)?;
     let mut stats = ReplayStats {
         drive_s: (t_end - t0) as f64 * 1e-9,
         ..ReplayStats::default()
     };
+    log_start(wire, opts, stats.drive_s);
+    let start = Instant::now();
+    let mut next_progress_s = opts.progress_every_s;
+    let mut outages = OutageLog::default();
+    for (stream, i) in wire.delivery_order(&opts.latency) {
+        let t_ns = wire.time_ns(stream, i);
+        let drive_elapsed_s = (t_ns + opts.latency.of_ns(stream) - t0) as f64 * 1e-9;
+        if !wait_until_due(opts.pacing, start, drive_elapsed_s) || bus::shutdown_requested() {
+            stats.interrupted = true;
+            break;
+        }
+        publishers.publish(wire, stream, i, &mut stats)?;
+        if !wire.gnss.is_empty() {
+            outages.saw(stream, t_ns);
+        }
+        if opts.progress_every_s > 0.0 && drive_elapsed_s >= next_progress_s {
+            next_progress_s += opts.progress_every_s;
+            tracing::info!(
+                "bridge: t = {:.0} s of {:.0} s, {} samples published, {} subscriber(s) on wheels",
+                drive_elapsed_s,
+                stats.drive_s,
+                stats.total(),
+                publishers.wheels.subscriber_count()
+            );
+        }
+    }
+    stats.wall_s = start.elapsed().as_secs_f64();
+    stats.stalled = publishers.stalled();
+    if !stats.interrupted {
+        publishers.end_of_stream()?;
+        tracing::info!(
+            "bridge: published {} samples in {:.2} s ({:.0} samples/s); end of stream",
+            stats.total(),
+            stats.wall_s,
+            stats.total() as f64 / stats.wall_s.max(1e-9)
+        );
+        bus::sleep_unless_shutdown(opts.linger);
+    }
+    Ok(stats)
+}
+
+/// Sleep until a sample `drive_elapsed_s` into the drive is due at this
+/// pace (at once with `--max`); false when a shutdown came first.
+fn wait_until_due(pacing: Pacing, start: Instant, drive_elapsed_s: f64) -> bool {
+    let Pacing::Speed(f) = pacing else {
+        return true;
+    };
+    let due = Duration::from_secs_f64(drive_elapsed_s / f);
+    let now = start.elapsed();
+    due <= now || bus::sleep_unless_shutdown(due - now)
+}
+
+/// What the replay is about to do, in the log.
+fn log_start(wire: &WireDrive, opts: &ReplayOptions, drive_s: f64) {
     tracing::info!(
         "replaying {:.1} s of drive: {} wheel, {} GNSS, {} IMU, {} heading samples, {}",
-        stats.drive_s,
+        drive_s,
         wire.wheels.len(),
         wire.gnss.len(),
         wire.imu.len(),
@@ -510,34 +517,24 @@ pub fn replay(
             l.wheels_s
         );
     }
-    let start = Instant::now();
-    let mut next_progress_s = opts.progress_every_s;
-    let mut last_gnss_ns: Option<i64> = None;
-    let mut in_outage = false;
-    for (stream, i) in order {
-        let t_ns = wire.time_ns(stream, i);
-        let drive_elapsed_s = (t_ns + opts.latency.of_ns(stream) - t0) as f64 * 1e-9;
-        if let Pacing::Speed(f) = opts.pacing {
-            let due = Duration::from_secs_f64(drive_elapsed_s / f);
-            let now = start.elapsed();
-            if due > now && !bus::sleep_unless_shutdown(due - now) {
-                stats.interrupted = true;
-                break;
-            }
-        }
-        if bus::shutdown_requested() {
-            stats.interrupted = true;
-            break;
-        }
+}
+
+/// GNSS silence announced in the log: when the wheels pass a gap of more
+/// than [`OUTAGE_LOG_S`] after the last fix, and when a fix comes back.
+#[derive(Default)]
+struct OutageLog {
+    last_gnss_ns: Option<i64>,
+    in_outage: bool,
+}
+
+impl OutageLog {
+    fn saw(&mut self, stream: Stream, t_ns: i64) {
         match stream {
             Stream::Wheels => {
-                wheels.publish(wire.wheels[i])?;
-                stats.wheels += 1;
-                // GNSS silence is announced when the wheels pass the gap.
-                if let Some(last) = last_gnss_ns {
+                if let Some(last) = self.last_gnss_ns {
                     let silent_s = (t_ns - last) as f64 * 1e-9;
-                    if !in_outage && silent_s > OUTAGE_LOG_S && !wire.gnss.is_empty() {
-                        in_outage = true;
+                    if !self.in_outage && silent_s > OUTAGE_LOG_S {
+                        self.in_outage = true;
                         tracing::info!(
                             "bridge: t = {:.1} s: GNSS silent for {:.1} s (outage in the drive)",
                             t_ns as f64 * 1e-9,
@@ -547,81 +544,168 @@ pub fn replay(
                 }
             }
             Stream::Gnss => {
-                if let Some(p) = gnss.as_mut() {
-                    p.publish(wire.gnss[i])?;
-                    stats.gnss += 1;
-                }
-                if in_outage {
-                    in_outage = false;
+                if self.in_outage {
+                    self.in_outage = false;
                     tracing::info!(
                         "bridge: t = {:.1} s: GNSS back after {:.1} s",
                         t_ns as f64 * 1e-9,
-                        last_gnss_ns.map_or(0.0, |l| (t_ns - l) as f64 * 1e-9)
+                        self.last_gnss_ns.map_or(0.0, |l| (t_ns - l) as f64 * 1e-9)
                     );
                 }
-                last_gnss_ns = Some(t_ns);
+                self.last_gnss_ns = Some(t_ns);
+            }
+            Stream::Imu | Stream::Heading => {}
+        }
+    }
+}
+
+/// The replay's publishers, one per stream the drive has.
+struct Publishers {
+    wheels: TopicPublisher<WheelRotations>,
+    gnss: Option<TopicPublisher<interfaces::wire::GnssFix>>,
+    imu: Option<TopicPublisher<interfaces::wire::Imu>>,
+    heading: Option<TopicPublisher<interfaces::wire::Heading>>,
+}
+
+impl Publishers {
+    /// Paced, the streams are live: a reader whose buffer is full is
+    /// already seconds late and must not hold the others back beyond a few
+    /// milliseconds (`Bus::live_publisher`). At `--max` nothing is lost: the
+    /// publishers wait on the slowest reader up to the stall timeout.
+    fn open(bus: &Bus, wire: &WireDrive, pacing: Pacing) -> Result<Publishers, BusError> {
+        let live = matches!(pacing, Pacing::Speed(_));
+        Ok(Publishers {
+            wheels: open(bus, live)?,
+            gnss: open_if(bus, !wire.gnss.is_empty(), live)?,
+            imu: open_if(bus, !wire.imu.is_empty(), live)?,
+            heading: open_if(bus, !wire.heading.is_empty(), live)?,
+        })
+    }
+
+    /// Wait until every topic counts `want` subscribers (or `timeout`).
+    fn wait_for(&self, want: usize, timeout: Option<Duration>) -> Result<(), BusError> {
+        tracing::info!("waiting for {want} subscriber(s) on every published topic");
+        bus::wait_until(
+            || {
+                let mut v = vec![(
+                    self.wheels.service_name(),
+                    self.wheels.subscriber_count(),
+                    want,
+                )];
+                let mut add = |name: &'static str, count: Option<usize>| {
+                    if let Some(c) = count {
+                        v.push((name, c, want));
+                    }
+                };
+                add(
+                    interfaces::wire::GNSS_SERVICE,
+                    self.gnss.as_ref().map(|p| p.subscriber_count()),
+                );
+                add(
+                    interfaces::wire::IMU_SERVICE,
+                    self.imu.as_ref().map(|p| p.subscriber_count()),
+                );
+                add(
+                    interfaces::wire::HEADING_SERVICE,
+                    self.heading.as_ref().map(|p| p.subscriber_count()),
+                );
+                v
+            },
+            timeout,
+        )
+    }
+
+    /// Let the subscribers attach (see `interfaces::bus`).
+    fn announce(&self) -> Result<(), BusError> {
+        self.wheels.announce()?;
+        for r in [
+            self.gnss.as_ref().map(|p| p.announce()),
+            self.imu.as_ref().map(|p| p.announce()),
+            self.heading.as_ref().map(|p| p.announce()),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            r?;
+        }
+        Ok(())
+    }
+
+    /// Publish sample `i` of `stream`, counted in `stats`.
+    fn publish(
+        &mut self,
+        wire: &WireDrive,
+        stream: Stream,
+        i: usize,
+        stats: &mut ReplayStats,
+    ) -> Result<(), BusError> {
+        match stream {
+            Stream::Wheels => {
+                self.wheels.publish(wire.wheels[i])?;
+                stats.wheels += 1;
+            }
+            Stream::Gnss => {
+                if let Some(p) = self.gnss.as_mut() {
+                    p.publish(wire.gnss[i])?;
+                    stats.gnss += 1;
+                }
             }
             Stream::Imu => {
-                if let Some(p) = imu.as_mut() {
+                if let Some(p) = self.imu.as_mut() {
                     p.publish(wire.imu[i])?;
                     stats.imu += 1;
                 }
             }
             Stream::Heading => {
-                if let Some(p) = heading.as_mut() {
+                if let Some(p) = self.heading.as_mut() {
                     p.publish(wire.heading[i])?;
                     stats.heading += 1;
                 }
             }
         }
-        if opts.progress_every_s > 0.0 && drive_elapsed_s >= next_progress_s {
-            next_progress_s += opts.progress_every_s;
-            tracing::info!(
-                "bridge: t = {:.0} s of {:.0} s, {} samples published, {} subscriber(s) on wheels",
-                drive_elapsed_s,
-                stats.drive_s,
-                stats.total(),
-                wheels.subscriber_count()
-            );
-        }
+        Ok(())
     }
-    stats.wall_s = start.elapsed().as_secs_f64();
-    let stalls = [
-        Some((wheels.service_name(), wheels.stalls())),
-        gnss.as_ref().map(|p| (p.service_name(), p.stalls())),
-        imu.as_ref().map(|p| (p.service_name(), p.stalls())),
-        heading.as_ref().map(|p| (p.service_name(), p.stalls())),
-    ];
-    for (name, (timed_out, at_once)) in stalls.into_iter().flatten() {
-        if timed_out + at_once > 0 {
-            tracing::warn!(
-                "bridge: a reader of {name} stopped taking samples: {} sample(s) not delivered \
-                 to it ({timed_out} after a full wait, {at_once} at once); other readers lost nothing",
-                timed_out + at_once
-            );
-            stats.stalled.push((name, timed_out, at_once));
+
+    /// The topics with a reader that stopped taking samples, warned about.
+    fn stalled(&self) -> Vec<(&'static str, u64, u64)> {
+        let stalls = [
+            Some((self.wheels.service_name(), self.wheels.stalls())),
+            self.gnss.as_ref().map(|p| (p.service_name(), p.stalls())),
+            self.imu.as_ref().map(|p| (p.service_name(), p.stalls())),
+            self.heading
+                .as_ref()
+                .map(|p| (p.service_name(), p.stalls())),
+        ];
+        let mut out = Vec::new();
+        for (name, (timed_out, at_once)) in stalls.into_iter().flatten() {
+            if timed_out + at_once > 0 {
+                tracing::warn!(
+                    "bridge: a reader of {name} stopped taking samples: {} sample(s) not \
+                     delivered to it ({timed_out} after a full wait, {at_once} at once); other \
+                     readers lost nothing",
+                    timed_out + at_once
+                );
+                out.push((name, timed_out, at_once));
+            }
         }
+        out
     }
-    if !stats.interrupted {
-        wheels.end_of_stream()?;
-        if let Some(p) = &gnss {
-            p.end_of_stream()?;
+
+    /// Tell every subscriber the streams ended.
+    fn end_of_stream(&self) -> Result<(), BusError> {
+        self.wheels.end_of_stream()?;
+        for r in [
+            self.gnss.as_ref().map(|p| p.end_of_stream()),
+            self.imu.as_ref().map(|p| p.end_of_stream()),
+            self.heading.as_ref().map(|p| p.end_of_stream()),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            r?;
         }
-        if let Some(p) = &imu {
-            p.end_of_stream()?;
-        }
-        if let Some(p) = &heading {
-            p.end_of_stream()?;
-        }
-        tracing::info!(
-            "bridge: published {} samples in {:.2} s ({:.0} samples/s); end of stream",
-            stats.total(),
-            stats.wall_s,
-            stats.total() as f64 / stats.wall_s.max(1e-9)
-        );
-        bus::sleep_unless_shutdown(opts.linger);
+        Ok(())
     }
-    Ok(stats)
 }
 
 /// Publish `drive` on the graph named by the environment (see

@@ -1,0 +1,128 @@
+#!/usr/bin/env python3
+"""Score `calibrator diagnose` on a suite written by `make_drives.py suite`.
+
+    score.py OUT_DIR [--calibrator PATH] [--rerun]
+
+Runs `nice -n 10 calibrator diagnose DRIVE --json DRIVE/diagnosis.json` on each
+drive of OUT_DIR/manifest.json, one at a time (kept when present unless
+--rerun), and prints a table per effect; also writes OUT_DIR/score.md.
+
+Scoring (as services/calibrator/benches/diagnose_suite.rs does): a drive's
+targets are its added effects plus, in the pairs, the tyre effect named in
+the pair; the model's own tyre physics (side_slip, load_transfer_radius,
+longitudinal_slip) is present on every drive and may be found anywhere
+("allowed"). Detected = the target id is among the findings; attributed =
+detected and no id found outside targets + allowed; a wrong name = an id
+outside targets + allowed; a false discovery on a null drive = the same there.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from collections import OrderedDict, defaultdict
+
+DEFAULT_CAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "target", "release", "calibrator")
+
+
+def run(cal, drive, rerun):
+    out = os.path.join(drive, "diagnosis.json")
+    tfile = os.path.join(drive, "diagnosis.time")
+    if os.path.exists(out) and os.path.exists(tfile) and not rerun:
+        return json.load(open(out)), float(open(tfile).read())
+    t0 = time.time()
+    p = subprocess.run(["nice", "-n", "10", cal, "diagnose", drive, "--json", out, "--no-progress"],
+                       capture_output=True, text=True)
+    dt = time.time() - t0
+    if p.returncode != 0:
+        print(f"{drive}: diagnose failed: {p.stderr.strip()[-400:]}", file=sys.stderr)
+        return None, dt
+    open(tfile, "w").write(f"{dt}\n")
+    return json.load(open(out)), dt
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out_dir")
+    ap.add_argument("--calibrator", default=os.path.normpath(DEFAULT_CAL))
+    ap.add_argument("--rerun", action="store_true")
+    a = ap.parse_args()
+    manifest = json.load(open(os.path.join(a.out_dir, "manifest.json")))
+    rows = OrderedDict()
+    null_n = null_false = 0
+    null_found = defaultdict(int)
+    inherent_found = defaultdict(int)
+    times = []
+    lines = []
+    for case in manifest:
+        drive = os.path.join(a.out_dir, case["drive"])
+        d, dt = run(a.calibrator, drive, a.rerun)
+        if d is None:
+            continue
+        times.append(dt)
+        found = [f["effect"] for f in d.get("findings", [])]
+        amb = [e for x in d.get("ambiguous", []) for e in x.get("effects", [])]
+        truth, allowed = case["truth"], case["allowed"]
+        extra = [e for e in found if e not in truth and e not in allowed]
+        for e in found:
+            if e in allowed:
+                inherent_found[e] += 1
+        fit = d.get("fit", {})
+        before = fit.get("before", {}).get("holdout_position_rmse_m")
+        after = fit.get("after", {}).get("holdout_position_rmse_m")
+        msg = (f"{case['drive']:<44} {case['vehicle']:<12} found [{', '.join(found)}] "
+               f"ambiguous [{', '.join(amb)}] pos RMSE {before:.3f} -> {after:.3f} m, {dt:.1f} s")
+        print(msg, flush=True)
+        lines.append(msg)
+        if not truth:
+            null_n += 1
+            null_false += bool(extra)
+            for e in found:
+                null_found[e] += 1
+            continue
+        for e in truth:
+            key = e if len(truth) == 1 else f"{e} [{case['label']}]"
+            r = rows.setdefault(key, defaultdict(list))
+            r["drives"].append(1)
+            r["detected"].append(e in found)
+            r["attributed"].append(e in found and not extra)
+            r["wrong"].append(bool(extra))
+            r["ambiguous"].append(e in amb)
+            r["before"].append(before)
+            r["after"].append(after)
+            r["others"].extend(x for x in found if x not in truth)
+            na = [n for n in d.get("not_accepted", []) if n["effect"] == e]
+            if e not in found and na and na[0].get("detectable") and na[0]["detectable"].get("smallest") is not None:
+                det = na[0]["detectable"]
+                tv = case["effects"].get(e, {}).get(det["parameter"])
+                if tv:
+                    r["needed"].append(det["smallest"] / tv)
+    out = ["", "| effect | drives | detected | attributed | wrong names | ambiguous | held-out pos. RMSE before -> after (mean) | other ids found | undetected: detectable size (median, x true) |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for k, r in rows.items():
+        n = len(r["drives"])
+        mb = sum(r["before"]) / n
+        ma = sum(r["after"]) / n
+        oth = defaultdict(int)
+        for x in r["others"]:
+            oth[x] += 1
+        nd = sorted(r["needed"])
+        need = f"{nd[len(nd) // 2]:.1f}x ({len(nd)})" if nd else ""
+        out.append(f"| {k} | {n} | {sum(r['detected'])}/{n} | {sum(r['attributed'])}/{n} | {sum(r['wrong'])} | "
+                   f"{sum(r['ambiguous'])} | {mb:.3f} -> {ma:.3f} m ({100 * (ma / mb - 1):+.0f} %) | "
+                   f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
+    out.append("")
+    out.append(f"null drives: {null_n}, with a false discovery (beyond the model's own tyre physics): {null_false}; "
+               f"ids found on null drives: {dict(null_found) or 'none'}")
+    out.append(f"tyre physics found on any drive (allowed): {dict(inherent_found) or 'none'} of {len(times)} drives")
+    if times:
+        out.append(f"diagnosis time: {sum(times) / len(times):.2f} s per drive on average (max {max(times):.2f} s), {sum(times):.0f} s in all")
+    print("\n".join(out))
+    with open(os.path.join(a.out_dir, "score.md"), "w") as f:
+        f.write("\n".join(lines + out) + "\n")
+
+
+if __name__ == "__main__":
+    main()
