@@ -568,7 +568,7 @@ def write_drive(out, sim, effects, noise_seed, label=""):
     nominal_track = p.T_r / (1 + effects["track_width"]["rel"]) if "track_width" in effects else p.T_r
     vehicle = {
         "name": f"multibody {VEHICLES[vid][0]} (commonroad MB, route seed {int(sim['route_seed'])})",
-        "track_width_m": round(nominal_track, 4) if "track_width" not in effects else nominal_track,
+        "track_width_m": float(nominal_track),
         "nominal_circumference_m": round(2 * math.pi * p.R_w, 2),
         "wheelbase_m": round(p.a + p.b, 4),
         "ticks_per_rev": float(TICKS_PER_REV),
@@ -650,10 +650,15 @@ def main():
     d.add_argument("--noise-seed", type=int, default=None)
     d.add_argument("--effect", action="append", help="ID, ID=VALUE or ID.PARAM=VALUE (repeatable)")
     d.add_argument("--cache", default=None, help="physics cache folder (default OUT/../.mb-cache)")
+    d.add_argument("--reff-load-fraction", type=float, default=REFF_LOAD_FRACTION,
+                   help="share of the tyre deflection that moves the rolling radius (default 0.1)")
     s = sub.add_parser("suite", help="the concealed-effect suite")
     s.add_argument("out_dir")
     s.add_argument("--seeds", type=int, default=5)
+    s.add_argument("--reff-load-fraction", type=float, default=REFF_LOAD_FRACTION,
+                   help="share of the tyre deflection that moves the rolling radius (default 0.1)")
     a = ap.parse_args()
+    globals()["REFF_LOAD_FRACTION"] = a.reff_load_fraction
     if a.cmd == "drive":
         cache = a.cache or os.path.join(os.path.dirname(os.path.abspath(a.out)), ".mb-cache")
         sim = cached_simulation(cache, a.vehicle, a.seed)
