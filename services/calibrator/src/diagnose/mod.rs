@@ -27,6 +27,7 @@
 
 pub mod design;
 pub mod epochs;
+pub mod information;
 pub mod locate;
 pub mod pictures;
 pub mod select;
