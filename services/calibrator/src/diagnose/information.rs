@@ -103,7 +103,10 @@ pub fn whiten(
             c.len()
         )));
     }
-    if let Some(w) = t.windows(2).find(|w| !(w[1] > w[0])) {
+    if let Some(w) = t
+        .windows(2)
+        .find(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+    {
         return Err(InformationError::BadData(format!(
             "times must increase ({} then {})",
             w[0], w[1]
