@@ -450,8 +450,8 @@ pub const PARAMS: [ParamSpec; 19] = [
         (0.0, 0.3),
     ),
     // The gain on the measured slope, 1 when the slope acts as it is (its
-    // size on a drive is the drive's slopes). The diagnosis fits its
-    // square, plausible from 0.1 to 10.
+    // size on a drive is the drive's slopes); plausible from sqrt(0.1) to
+    // sqrt(10) (the diagnosis fits its square, from 0.1 to 10).
     si(
         Param::GradeGain,
         Effect::RoadGrade,
@@ -459,7 +459,7 @@ pub const PARAMS: [ParamSpec; 19] = [
         "1",
         1.0,
         1.0,
-        (0.1, 10.0),
+        (0.316_227_766_016_837_94, 3.162_277_660_168_379_5),
     ),
     heading(Param::HeadingA, "a_deg", "a_rad", 0.0),
     heading(Param::HeadingB, "b_deg", "b_rad", 3.0),

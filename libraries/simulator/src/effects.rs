@@ -204,20 +204,7 @@ impl EffectSettings {
 
     /// Whether `effect` is on.
     pub fn is_on(&self, effect: Effect) -> bool {
-        match effect {
-            Effect::SideSlip => self.side_slip.is_some(),
-            Effect::LoadTransferRadius => self.load_transfer_radius.is_some(),
-            Effect::SpeedRadiusGrowth => self.speed_radius_growth.is_some(),
-            Effect::LongitudinalSlip => self.longitudinal_slip.is_some(),
-            Effect::TrackWidth => self.track_width.is_some(),
-            Effect::GyroBias => self.gyro_bias.is_some(),
-            Effect::GyroScale => self.gyro_scale.is_some(),
-            Effect::GnssLatency => self.gnss_latency.is_some(),
-            Effect::GnssLeverArm => self.gnss_lever_arm.is_some(),
-            Effect::RadiusDrift => self.radius_drift.is_some(),
-            Effect::RoadGrade => self.road_grade.is_some(),
-            Effect::HeadingBias => self.heading_bias.is_some(),
-        }
+        self.get(effect.main_simulated()).is_some()
     }
 
     /// Switch `effect` off.
