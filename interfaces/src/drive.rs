@@ -343,6 +343,19 @@ pub struct TruthParams {
     pub extra: BTreeMap<String, toml_value::Value>,
 }
 
+impl TruthParams {
+    /// One simulated effect parameter as `truth.toml` records it (under
+    /// its effect's id and its name; in its reported unit), if that effect
+    /// was on.
+    pub fn effect_param(&self, param: crate::effects::Param) -> Option<f64> {
+        let spec = param.spec();
+        self.effects
+            .get(spec.effect.id())
+            .and_then(|p| p.get(spec.name))
+            .copied()
+    }
+}
+
 /// A self-contained value type for the free-form keys of `truth.toml`, so
 /// this crate needs no TOML dependency.
 pub mod toml_value {

@@ -10,7 +10,7 @@
 //! is off. [`EffectSettings::none`] switches all off.
 
 use super::SimError;
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param};
 use std::collections::BTreeMap;
 
 /// `side_slip`: rear-axle side-slip angle beta = -k_beta * a_y (linear range).
@@ -164,36 +164,16 @@ impl Default for EffectSettings {
     }
 }
 
-/// The documented typical magnitude of an effect, as `(param, value)` pairs;
-/// the first pair is the one a bare `ID=VALUE` sets.
-pub fn typical(effect: Effect) -> &'static [(&'static str, f64)] {
-    match effect {
-        Effect::SideSlip => &[("k_beta", 0.004)],
-        Effect::LoadTransferRadius => &[("k_z", 5e-5)],
-        Effect::SpeedRadiusGrowth => &[("k_v", 2.5e-6)],
-        Effect::LongitudinalSlip => &[("k_s", 0.002)],
-        Effect::TrackWidth => &[("rel", 0.02)],
-        Effect::GyroBias => &[("b_deg_h", 200.0)],
-        Effect::GyroScale => &[("s", 0.005)],
-        Effect::GnssLatency => &[("tau_s", 0.08)],
-        Effect::GnssLeverArm => &[("x_m", 1.2), ("y_m", 0.0)],
-        Effect::RadiusDrift => &[("d", 0.003), ("time_constant_s", 600.0)],
-        Effect::RoadGrade => &[("grade", 0.06)],
-        Effect::HeadingBias => &[
-            ("b_deg", 3.0),
-            ("a_deg", 0.0),
-            ("c_deg", 0.0),
-            ("d_deg", 0.0),
-            ("e_deg", 0.0),
-        ],
-    }
-}
-
-fn typical_value(effect: Effect, param: &str) -> f64 {
-    typical(effect)
+/// The simulator's parameters of an effect with their defaults (the
+/// table's [`interfaces::effects::ParamSpec::simulated`], in the reported
+/// unit), the main one (what a bare `ID=VALUE` sets) first.
+pub fn typical(effect: Effect) -> Vec<(Param, f64)> {
+    effect
+        .spec()
+        .simulated
         .iter()
-        .find(|(p, _)| *p == param)
-        .map_or(0.0, |(_, v)| *v)
+        .map(|&p| (p, p.spec().simulated))
+        .collect()
 }
 
 impl EffectSettings {
@@ -224,7 +204,7 @@ impl EffectSettings {
 
     /// Whether `effect` is on.
     pub fn is_on(&self, effect: Effect) -> bool {
-        self.params(effect).is_some()
+        self.get(effect.main_simulated()).is_some()
     }
 
     /// Switch `effect` off.
@@ -251,221 +231,230 @@ impl EffectSettings {
         if self.is_on(effect) {
             return;
         }
-        let t = |p: &str| typical_value(effect, p);
         match effect {
-            Effect::SideSlip => {
-                self.side_slip = Some(SideSlip {
-                    k_beta: t("k_beta"),
-                })
-            }
+            Effect::SideSlip => self.side_slip = Some(SideSlip { k_beta: 0.0 }),
             Effect::LoadTransferRadius => {
-                self.load_transfer_radius = Some(LoadTransferRadius { k_z: t("k_z") })
+                self.load_transfer_radius = Some(LoadTransferRadius { k_z: 0.0 })
             }
             Effect::SpeedRadiusGrowth => {
-                self.speed_radius_growth = Some(SpeedRadiusGrowth { k_v: t("k_v") })
+                self.speed_radius_growth = Some(SpeedRadiusGrowth { k_v: 0.0 })
             }
             Effect::LongitudinalSlip => {
-                self.longitudinal_slip = Some(LongitudinalSlip { k_s: t("k_s") })
+                self.longitudinal_slip = Some(LongitudinalSlip { k_s: 0.0 })
             }
-            Effect::TrackWidth => self.track_width = Some(TrackWidth { rel: t("rel") }),
-            Effect::GyroBias => {
-                self.gyro_bias = Some(GyroBias {
-                    b_deg_h: t("b_deg_h"),
-                })
-            }
-            Effect::GyroScale => self.gyro_scale = Some(GyroScale { s: t("s") }),
-            Effect::GnssLatency => self.gnss_latency = Some(GnssLatency { tau_s: t("tau_s") }),
-            Effect::GnssLeverArm => {
-                self.gnss_lever_arm = Some(GnssLeverArm {
-                    x_m: t("x_m"),
-                    y_m: t("y_m"),
-                })
-            }
+            Effect::TrackWidth => self.track_width = Some(TrackWidth { rel: 0.0 }),
+            Effect::GyroBias => self.gyro_bias = Some(GyroBias { b_deg_h: 0.0 }),
+            Effect::GyroScale => self.gyro_scale = Some(GyroScale { s: 0.0 }),
+            Effect::GnssLatency => self.gnss_latency = Some(GnssLatency { tau_s: 0.0 }),
+            Effect::GnssLeverArm => self.gnss_lever_arm = Some(GnssLeverArm { x_m: 0.0, y_m: 0.0 }),
             Effect::RadiusDrift => {
                 self.radius_drift = Some(RadiusDrift {
-                    d: t("d"),
-                    time_constant_s: t("time_constant_s"),
+                    d: 0.0,
+                    time_constant_s: 0.0,
                 })
             }
-            Effect::RoadGrade => self.road_grade = Some(RoadGrade { grade: t("grade") }),
+            Effect::RoadGrade => self.road_grade = Some(RoadGrade { grade: 0.0 }),
             Effect::HeadingBias => {
                 self.heading_bias = Some(HeadingBias {
-                    a_deg: t("a_deg"),
-                    b_deg: t("b_deg"),
-                    c_deg: t("c_deg"),
-                    d_deg: t("d_deg"),
-                    e_deg: t("e_deg"),
+                    a_deg: 0.0,
+                    b_deg: 0.0,
+                    c_deg: 0.0,
+                    d_deg: 0.0,
+                    e_deg: 0.0,
                 })
             }
         }
+        for (p, v) in typical(effect) {
+            self.write(p, v);
+        }
     }
 
-    /// The parameters of `effect` by name when it is on.
-    pub fn params(&self, effect: Effect) -> Option<BTreeMap<String, f64>> {
-        let pairs: Vec<(&str, f64)> = match effect {
-            Effect::SideSlip => vec![("k_beta", self.side_slip?.k_beta)],
-            Effect::LoadTransferRadius => vec![("k_z", self.load_transfer_radius?.k_z)],
-            Effect::SpeedRadiusGrowth => vec![("k_v", self.speed_radius_growth?.k_v)],
-            Effect::LongitudinalSlip => vec![("k_s", self.longitudinal_slip?.k_s)],
-            Effect::TrackWidth => vec![("rel", self.track_width?.rel)],
-            Effect::GyroBias => vec![("b_deg_h", self.gyro_bias?.b_deg_h)],
-            Effect::GyroScale => vec![("s", self.gyro_scale?.s)],
-            Effect::GnssLatency => vec![("tau_s", self.gnss_latency?.tau_s)],
-            Effect::GnssLeverArm => {
-                let l = self.gnss_lever_arm?;
-                vec![("x_m", l.x_m), ("y_m", l.y_m)]
-            }
-            Effect::RadiusDrift => {
-                let d = self.radius_drift?;
-                vec![("d", d.d), ("time_constant_s", d.time_constant_s)]
-            }
-            Effect::RoadGrade => vec![("grade", self.road_grade?.grade)],
-            Effect::HeadingBias => {
-                let h = self.heading_bias?;
-                vec![
-                    ("a_deg", h.a_deg),
-                    ("b_deg", h.b_deg),
-                    ("c_deg", h.c_deg),
-                    ("d_deg", h.d_deg),
-                    ("e_deg", h.e_deg),
-                ]
-            }
-        };
-        Some(pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect())
+    /// One simulated parameter's slot, when its effect is on (`None` also
+    /// for a parameter the simulator does not have, such as the model's
+    /// grade gain).
+    fn slot(&mut self, param: Param) -> Option<&mut f64> {
+        Some(match param {
+            Param::SideSlipGain => &mut self.side_slip.as_mut()?.k_beta,
+            Param::LoadTransferGain => &mut self.load_transfer_radius.as_mut()?.k_z,
+            Param::SpeedGrowthGain => &mut self.speed_radius_growth.as_mut()?.k_v,
+            Param::LongitudinalSlipGain => &mut self.longitudinal_slip.as_mut()?.k_s,
+            Param::TrackRel => &mut self.track_width.as_mut()?.rel,
+            Param::GyroBias => &mut self.gyro_bias.as_mut()?.b_deg_h,
+            Param::GyroScale => &mut self.gyro_scale.as_mut()?.s,
+            Param::GnssLatency => &mut self.gnss_latency.as_mut()?.tau_s,
+            Param::LeverArmX => &mut self.gnss_lever_arm.as_mut()?.x_m,
+            Param::LeverArmY => &mut self.gnss_lever_arm.as_mut()?.y_m,
+            Param::DriftFraction => &mut self.radius_drift.as_mut()?.d,
+            Param::DriftTimeConstant => &mut self.radius_drift.as_mut()?.time_constant_s,
+            Param::Grade => &mut self.road_grade.as_mut()?.grade,
+            Param::HeadingA => &mut self.heading_bias.as_mut()?.a_deg,
+            Param::HeadingB => &mut self.heading_bias.as_mut()?.b_deg,
+            Param::HeadingC => &mut self.heading_bias.as_mut()?.c_deg,
+            Param::HeadingD => &mut self.heading_bias.as_mut()?.d_deg,
+            Param::HeadingE => &mut self.heading_bias.as_mut()?.e_deg,
+            Param::GradeGain => return None,
+        })
     }
 
-    /// Every effect that is on with its parameters, keyed by catalogue id
-    /// (the `[effects]` table of `truth.toml`).
+    fn write(&mut self, param: Param, value: f64) {
+        if let Some(slot) = self.slot(param) {
+            *slot = value;
+        }
+    }
+
+    /// One simulated parameter, in its reported unit, when its effect is on.
+    pub fn get(&self, param: Param) -> Option<f64> {
+        let mut copy = *self;
+        copy.slot(param).map(|v| *v)
+    }
+
+    /// The simulated parameters of `effect` when it is on, the main one
+    /// first.
+    pub fn params(&self, effect: Effect) -> Option<Vec<(Param, f64)>> {
+        effect
+            .spec()
+            .simulated
+            .iter()
+            .map(|&p| self.get(p).map(|v| (p, v)))
+            .collect()
+    }
+
+    /// Every effect that is on with its parameters by name, keyed by
+    /// catalogue id (the `[effects]` table of `truth.toml`).
     pub fn to_truth_map(&self) -> BTreeMap<String, BTreeMap<String, f64>> {
         Effect::ALL
             .into_iter()
-            .filter_map(|e| self.params(e).map(|p| (e.id().to_string(), p)))
+            .filter_map(|e| {
+                let params = self.params(e)?;
+                let named = params
+                    .into_iter()
+                    .map(|(p, v)| (p.spec().name.to_string(), v))
+                    .collect();
+                Some((e.id().to_string(), named))
+            })
             .collect()
     }
 
     /// Set one parameter of `effect` (switching it on at its typical values
     /// first if it was off). `param = None` sets the effect's main parameter.
-    pub fn set(&mut self, effect: Effect, param: Option<&str>, value: f64) -> Result<(), SimError> {
-        let bad = |reason: String| SimError::InvalidEffect {
+    pub fn set(
+        &mut self,
+        effect: Effect,
+        param: Option<Param>,
+        value: f64,
+    ) -> Result<(), SimError> {
+        let name = param.map(|p| p.spec().name);
+        let param = param.unwrap_or(effect.main_simulated());
+        if !effect.spec().simulated.contains(&param) {
+            return Err(self.unknown(effect, name, value, param.spec().name));
+        }
+        self.set_checked(effect, name, param, value)
+    }
+
+    fn invalid(effect: Effect, name: Option<&str>, value: f64, reason: String) -> SimError {
+        SimError::InvalidEffect {
             spec: format!(
                 "{}{}={value}",
                 effect.id(),
-                param.map(|p| format!(".{p}")).unwrap_or_default()
+                name.map(|p| format!(".{p}")).unwrap_or_default()
             ),
             reason,
+        }
+    }
+
+    fn unknown(&self, effect: Effect, name: Option<&str>, value: f64, param: &str) -> SimError {
+        let known: Vec<&str> = effect
+            .spec()
+            .simulated
+            .iter()
+            .map(|p| p.spec().name)
+            .collect();
+        if !value.is_finite() {
+            return Self::invalid(
+                effect,
+                name,
+                value,
+                "the value is not a finite number".into(),
+            );
+        }
+        Self::invalid(
+            effect,
+            name,
+            value,
+            format!("unknown parameter `{param}`; known: {}", known.join(", ")),
+        )
+    }
+
+    /// Set a parameter named on the command line (`None`: the main one).
+    fn set_named(
+        &mut self,
+        effect: Effect,
+        name: Option<&str>,
+        value: f64,
+    ) -> Result<(), SimError> {
+        let param = match name {
+            None => effect.main_simulated(),
+            Some(n) => match effect.simulated_param(n) {
+                Some(p) => p,
+                None => return Err(self.unknown(effect, name, value, n)),
+            },
         };
+        self.set_checked(effect, name, param, value)
+    }
+
+    /// Set a known simulated parameter of `effect`, within what the
+    /// simulator accepts (an effect that was off is switched on first, and
+    /// stays on if the value is refused).
+    fn set_checked(
+        &mut self,
+        effect: Effect,
+        name: Option<&str>,
+        param: Param,
+        value: f64,
+    ) -> Result<(), SimError> {
+        let bad = |reason: String| Self::invalid(effect, name, value, reason);
         if !value.is_finite() {
             return Err(bad("the value is not a finite number".into()));
         }
-        let main = typical(effect).first().map_or("", |(p, _)| *p);
-        let param = param.unwrap_or(main);
-        if !typical(effect).iter().any(|(p, _)| *p == param) {
-            let known: Vec<&str> = typical(effect).iter().map(|(p, _)| *p).collect();
-            return Err(bad(format!(
-                "unknown parameter `{param}`; known: {}",
-                known.join(", ")
-            )));
-        }
+        let pname = param.spec().name;
         let non_negative = |v: f64| -> Result<f64, SimError> {
             if v < 0.0 {
-                Err(bad(format!("`{param}` must not be negative")))
+                Err(bad(format!("`{pname}` must not be negative")))
             } else {
                 Ok(v)
             }
         };
         self.switch_on(effect);
-        match effect {
-            Effect::SideSlip => {
-                if let Some(e) = self.side_slip.as_mut() {
-                    e.k_beta = non_negative(value)?;
-                }
+        let value = match param {
+            Param::SideSlipGain | Param::LoadTransferGain | Param::LongitudinalSlipGain => {
+                non_negative(value)?
             }
-            Effect::LoadTransferRadius => {
-                if let Some(e) = self.load_transfer_radius.as_mut() {
-                    e.k_z = non_negative(value)?;
-                }
+            Param::TrackRel if value <= -0.5 || value >= 0.5 => {
+                return Err(bad(format!("`{pname}` must lie within (-0.5, 0.5)")));
             }
-            Effect::SpeedRadiusGrowth => {
-                if let Some(e) = self.speed_radius_growth.as_mut() {
-                    e.k_v = value;
-                }
+            Param::GyroScale if value <= -0.5 => {
+                return Err(bad(format!("`{pname}` must be above -0.5")));
             }
-            Effect::LongitudinalSlip => {
-                if let Some(e) = self.longitudinal_slip.as_mut() {
-                    e.k_s = non_negative(value)?;
-                }
-            }
-            Effect::TrackWidth => {
-                if value <= -0.5 || value >= 0.5 {
-                    return Err(bad("`rel` must lie within (-0.5, 0.5)".into()));
-                }
-                if let Some(e) = self.track_width.as_mut() {
-                    e.rel = value;
-                }
-            }
-            Effect::GyroBias => {
-                if let Some(e) = self.gyro_bias.as_mut() {
-                    e.b_deg_h = value;
-                }
-            }
-            Effect::GyroScale => {
-                if value <= -0.5 {
-                    return Err(bad("`s` must be above -0.5".into()));
-                }
-                if let Some(e) = self.gyro_scale.as_mut() {
-                    e.s = value;
-                }
-            }
-            Effect::GnssLatency => {
+            Param::GnssLatency => {
                 let v = non_negative(value)?;
                 if v > 5.0 {
-                    return Err(bad("`tau_s` above 5 s is not a latency".into()));
+                    return Err(bad(format!("`{pname}` above 5 s is not a latency")));
                 }
-                if let Some(e) = self.gnss_latency.as_mut() {
-                    e.tau_s = v;
-                }
+                v
             }
-            Effect::GnssLeverArm => {
-                if let Some(e) = self.gnss_lever_arm.as_mut() {
-                    if param == "x_m" {
-                        e.x_m = value;
-                    } else {
-                        e.y_m = value;
-                    }
-                }
+            Param::DriftTimeConstant if value <= 0.0 => {
+                return Err(bad(format!("`{pname}` must be positive")));
             }
-            Effect::RadiusDrift => {
-                if let Some(e) = self.radius_drift.as_mut() {
-                    if param == "d" {
-                        e.d = value;
-                    } else if value > 0.0 {
-                        e.time_constant_s = value;
-                    } else {
-                        return Err(bad("`time_constant_s` must be positive".into()));
-                    }
-                }
-            }
-            Effect::RoadGrade => {
+            Param::Grade => {
                 let v = non_negative(value)?;
                 if v > 0.3 {
-                    return Err(bad("`grade` above 0.3 (30 %) is not a road".into()));
+                    return Err(bad(format!("`{pname}` above 0.3 (30 %) is not a road")));
                 }
-                if let Some(e) = self.road_grade.as_mut() {
-                    e.grade = v;
-                }
+                v
             }
-            Effect::HeadingBias => {
-                if let Some(e) = self.heading_bias.as_mut() {
-                    match param {
-                        "a_deg" => e.a_deg = value,
-                        "b_deg" => e.b_deg = value,
-                        "c_deg" => e.c_deg = value,
-                        "d_deg" => e.d_deg = value,
-                        _ => e.e_deg = value,
-                    }
-                }
-            }
-        }
+            _ => value,
+        };
+        self.write(param, value);
         Ok(())
     }
 
@@ -509,7 +498,7 @@ impl EffectSettings {
                     self.switch_off(effect);
                     Ok(())
                 } else {
-                    self.set(effect, param, v)
+                    self.set_named(effect, param, v)
                 }
             }
         }
@@ -539,7 +528,7 @@ mod tests {
         e.apply_spec("gnss_lever_arm.y_m=0.3").unwrap();
         assert_eq!(e.gnss_lever_arm, Some(GnssLeverArm { x_m: 1.2, y_m: 0.3 }));
         e.apply_spec("gnss_latency=on").unwrap();
-        assert_eq!(e.params(Effect::GnssLatency).unwrap()["tau_s"], 0.08);
+        assert_eq!(e.get(Param::GnssLatency).unwrap(), 0.08);
         e.apply_spec("side_slip=off").unwrap();
         e.apply_spec("gnss_latency=0").unwrap();
         assert!(!e.is_on(Effect::SideSlip) && !e.is_on(Effect::GnssLatency));

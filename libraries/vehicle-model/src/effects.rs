@@ -25,7 +25,7 @@
 //!   `heading_bias` act on the sensors, not on the wheels: they are carried
 //!   here so that the model that scores a fix or a heading uses them.
 
-use interfaces::effects::Effect;
+use interfaces::effects::{Carried, Effect, Param};
 use interfaces::wire::{ModelExtension, MAX_EXTENSION_PARAMS};
 use serde::{Deserialize, Serialize};
 
@@ -151,22 +151,71 @@ impl EffectTerms {
             .collect()
     }
 
-    /// Whether `effect` has a non-zero term.
+    /// Whether `effect` acts: one of its fitted coefficients is non-zero
+    /// and every other parameter of its model (the drift's time constant)
+    /// lies in its plausible range, open at the bottom.
     pub fn is_active(&self, effect: Effect) -> bool {
-        match effect {
-            Effect::SideSlip => self.k_beta != 0.0,
-            Effect::LoadTransferRadius => self.k_z != 0.0,
-            Effect::SpeedRadiusGrowth => self.k_v != 0.0,
-            Effect::LongitudinalSlip => self.k_s != 0.0,
-            Effect::TrackWidth => self.track_rel != 0.0,
-            Effect::GyroBias => self.gyro_bias_rad_s != 0.0,
-            Effect::GyroScale => self.gyro_scale != 0.0,
-            Effect::GnssLatency => self.gnss_latency_s != 0.0,
-            Effect::GnssLeverArm => self.lever_arm_m != [0.0, 0.0],
-            Effect::RadiusDrift => self.drift_d != 0.0 && self.drift_time_constant_s > 0.0,
-            Effect::RoadGrade => self.grade_gain != 0.0,
-            Effect::HeadingBias => self.heading_bias_rad != [0.0; 3],
+        let spec = effect.spec();
+        spec.fitted.iter().any(|&p| self.get(p) != 0.0)
+            && spec
+                .model
+                .iter()
+                .filter(|p| !spec.fitted.contains(p))
+                .all(|&p| {
+                    let (lo, hi) = p.spec().plausible;
+                    let v = self.get(p);
+                    v > lo && v <= hi
+                })
+    }
+
+    /// The model value of one parameter (SI units, as
+    /// [`interfaces::effects::ParamSpec`] says); 0 for a parameter the model
+    /// does not hold (the simulated road's grade, the soft-iron terms).
+    pub fn get(&self, param: Param) -> f64 {
+        match param {
+            Param::SideSlipGain => self.k_beta,
+            Param::LoadTransferGain => self.k_z,
+            Param::SpeedGrowthGain => self.k_v,
+            Param::LongitudinalSlipGain => self.k_s,
+            Param::TrackRel => self.track_rel,
+            Param::GyroBias => self.gyro_bias_rad_s,
+            Param::GyroScale => self.gyro_scale,
+            Param::GnssLatency => self.gnss_latency_s,
+            Param::LeverArmX => self.lever_arm_m[0],
+            Param::LeverArmY => self.lever_arm_m[1],
+            Param::DriftFraction => self.drift_d,
+            Param::DriftTimeConstant => self.drift_time_constant_s,
+            Param::GradeGain => self.grade_gain,
+            Param::HeadingA => self.heading_bias_rad[0],
+            Param::HeadingB => self.heading_bias_rad[1],
+            Param::HeadingC => self.heading_bias_rad[2],
+            Param::Grade | Param::HeadingD | Param::HeadingE => 0.0,
         }
+    }
+
+    /// Set the model value of one parameter (SI units); a parameter the
+    /// model does not hold is ignored.
+    pub fn set(&mut self, param: Param, value: f64) {
+        let slot = match param {
+            Param::SideSlipGain => &mut self.k_beta,
+            Param::LoadTransferGain => &mut self.k_z,
+            Param::SpeedGrowthGain => &mut self.k_v,
+            Param::LongitudinalSlipGain => &mut self.k_s,
+            Param::TrackRel => &mut self.track_rel,
+            Param::GyroBias => &mut self.gyro_bias_rad_s,
+            Param::GyroScale => &mut self.gyro_scale,
+            Param::GnssLatency => &mut self.gnss_latency_s,
+            Param::LeverArmX => &mut self.lever_arm_m[0],
+            Param::LeverArmY => &mut self.lever_arm_m[1],
+            Param::DriftFraction => &mut self.drift_d,
+            Param::DriftTimeConstant => &mut self.drift_time_constant_s,
+            Param::GradeGain => &mut self.grade_gain,
+            Param::HeadingA => &mut self.heading_bias_rad[0],
+            Param::HeadingB => &mut self.heading_bias_rad[1],
+            Param::HeadingC => &mut self.heading_bias_rad[2],
+            Param::Grade | Param::HeadingD | Param::HeadingE => return,
+        };
+        *slot = value;
     }
 
     /// The relative change of both rear circumferences common to the
@@ -203,48 +252,35 @@ impl EffectTerms {
         (horizontal, (d_rr - d_rl) / track, beta)
     }
 
-    /// The wheel-side terms as wire model extensions (the catalogue code
-    /// and its parameters: side-slip k_beta; load transfer k_z; speed growth
-    /// k_v; longitudinal slip k_s; track width rel; radius drift d, T). The
-    /// antenna travels as its own extension, the gyro terms in the
-    /// estimate's own fields, GNSS latency and grade stay with the diagnosis.
+    /// The wheel-side terms as wire model extensions: every active effect
+    /// the table carries as [`Carried::Extension`] (side-slip k_beta; load
+    /// transfer k_z; speed growth k_v; longitudinal slip k_s; track width
+    /// rel; radius drift d, T), with its code and its model parameters in
+    /// order. The antenna travels as its own extension, the gyro terms in
+    /// the estimate's own fields, GNSS latency and grade stay with the
+    /// diagnosis.
     pub fn to_extensions(&self) -> Vec<ModelExtension> {
-        let one = |e: Effect, p: &[f64]| {
-            let mut params = [0.0; MAX_EXTENSION_PARAMS];
-            params[..p.len()].copy_from_slice(p);
-            ModelExtension {
-                effect_code: e.code(),
-                param_count: p.len() as u32,
-                params,
-            }
-        };
-        let mut out = Vec::new();
-        if self.k_beta != 0.0 {
-            out.push(one(Effect::SideSlip, &[self.k_beta]));
-        }
-        if self.k_z != 0.0 {
-            out.push(one(Effect::LoadTransferRadius, &[self.k_z]));
-        }
-        if self.k_v != 0.0 {
-            out.push(one(Effect::SpeedRadiusGrowth, &[self.k_v]));
-        }
-        if self.k_s != 0.0 {
-            out.push(one(Effect::LongitudinalSlip, &[self.k_s]));
-        }
-        if self.track_rel != 0.0 {
-            out.push(one(Effect::TrackWidth, &[self.track_rel]));
-        }
-        if self.drift_d != 0.0 && self.drift_time_constant_s > 0.0 {
-            out.push(one(
-                Effect::RadiusDrift,
-                &[self.drift_d, self.drift_time_constant_s],
-            ));
-        }
-        out
+        Effect::ALL
+            .into_iter()
+            .filter(|&e| e.spec().carried == Carried::Extension && self.is_active(e))
+            .map(|e| {
+                let model = e.spec().model;
+                let mut params = [0.0; MAX_EXTENSION_PARAMS];
+                for (slot, &p) in params.iter_mut().zip(model) {
+                    *slot = self.get(p);
+                }
+                ModelExtension {
+                    effect_code: e.code(),
+                    param_count: model.len().min(MAX_EXTENSION_PARAMS) as u32,
+                    params,
+                }
+            })
+            .collect()
     }
 
     /// The wheel-side terms of wire model extensions (others are ignored;
-    /// a non-finite parameter leaves its term at zero).
+    /// an extension with a non-finite parameter or fewer parameters than
+    /// its model has leaves its terms at zero).
     pub fn from_extensions(xs: &[ModelExtension]) -> EffectTerms {
         let mut t = EffectTerms::default();
         for x in xs {
@@ -253,17 +289,14 @@ impl EffectTerms {
             if p.iter().any(|v| !v.is_finite()) || p.is_empty() {
                 continue;
             }
-            match Effect::from_code(x.effect_code) {
-                Some(Effect::SideSlip) => t.k_beta = p[0],
-                Some(Effect::LoadTransferRadius) => t.k_z = p[0],
-                Some(Effect::SpeedRadiusGrowth) => t.k_v = p[0],
-                Some(Effect::LongitudinalSlip) => t.k_s = p[0],
-                Some(Effect::TrackWidth) => t.track_rel = p[0],
-                Some(Effect::RadiusDrift) if n >= 2 => {
-                    t.drift_d = p[0];
-                    t.drift_time_constant_s = p[1];
-                }
-                _ => {}
+            let Some(spec) = Effect::from_code(x.effect_code).map(Effect::spec) else {
+                continue;
+            };
+            if spec.carried != Carried::Extension || n < spec.model.len() {
+                continue;
+            }
+            for (&param, &v) in spec.model.iter().zip(p) {
+                t.set(param, v);
             }
         }
         t

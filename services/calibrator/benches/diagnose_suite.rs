@@ -25,7 +25,7 @@
 //! and the time per drive.
 
 use calibrator::diagnose::{diagnose, DiagnoseConfig, Diagnosis};
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param};
 use simulator::{simulate, EffectSettings, Scenario, SimConfig, VehicleKind};
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -63,21 +63,17 @@ struct Tally {
     needed: Vec<Option<f64>>,
 }
 
-/// The main parameter of an effect in the diagnosis and in the truth.
-fn main_param(e: Effect) -> (&'static str, &'static str) {
-    match e {
-        Effect::SideSlip => ("k_beta", "k_beta"),
-        Effect::LoadTransferRadius => ("k_z", "k_z"),
-        Effect::SpeedRadiusGrowth => ("k_v", "k_v"),
-        Effect::LongitudinalSlip => ("k_s", "k_s"),
-        Effect::TrackWidth => ("rel", "rel"),
-        Effect::GyroBias => ("b_deg_h", "b_deg_h"),
-        Effect::GyroScale => ("s", "s"),
-        Effect::GnssLatency => ("tau_s", "tau_s"),
-        Effect::GnssLeverArm => ("x_m", "x_m"),
-        Effect::RadiusDrift => ("d", "d"),
-        Effect::RoadGrade => ("gain", "grade"),
-        Effect::HeadingBias => ("b_deg", "b_deg"),
+/// The parameter an effect is scored by, in the diagnosis and in the
+/// truth: the simulator's main parameter when the diagnosis reports it too,
+/// else the diagnosis's main one (road grade: the gain on the measured
+/// slope, 1 being the slope as simulated), and whether the diagnosis's
+/// value is such a gain on the truth's.
+fn main_param(e: Effect) -> (Param, Param, bool) {
+    let truth = e.main_simulated();
+    if e.spec().fitted.contains(&truth) {
+        (truth, truth, false)
+    } else {
+        (e.main_fitted(), truth, true)
     }
 }
 
@@ -114,12 +110,10 @@ fn cases(seeds: u64, quick: bool, scale: f64, only: bool) -> Vec<Case> {
                 EffectSettings::none(),
             );
             if scale != 1.0 {
-                let (p, v) = simulator::typical_effect(*e)
-                    .first()
-                    .copied()
-                    .unwrap_or(("", 0.0));
+                let p = e.main_simulated();
+                let v = p.spec().simulated;
                 if case.effects.set(*e, Some(p), v * scale).is_err() {
-                    println!("{}: cannot scale {p} by {scale}", e.id());
+                    println!("{}: cannot scale {} by {scale}", e.id(), p.spec().name);
                     continue;
                 }
                 case.label = format!("{} x{scale}", e.id());
@@ -174,8 +168,8 @@ fn cases(seeds: u64, quick: bool, scale: f64, only: bool) -> Vec<Case> {
     out
 }
 
-fn truth_value(case: &Case, e: Effect, param: &str) -> Option<f64> {
-    case.effects.params(e).and_then(|p| p.get(param).copied())
+fn truth_value(case: &Case, param: Param) -> Option<f64> {
+    case.effects.get(param)
 }
 
 fn main() {
@@ -260,8 +254,8 @@ fn main() {
             t.drives += 1;
             if !found.contains(e) {
                 // How much of it this drive would have needed.
-                let (_, tp) = main_param(*e);
-                let sim = truth_value(case, *e, tp);
+                let (_, tp, relative) = main_param(*e);
+                let sim = truth_value(case, tp);
                 let need = d
                     .not_accepted
                     .iter()
@@ -269,7 +263,7 @@ fn main() {
                     .and_then(|n| n.detectable.clone());
                 if let (Some(sim), Some(need)) = (sim, need) {
                     t.needed.push(need.smallest.map(|v| {
-                        if *e == Effect::RoadGrade {
+                        if relative {
                             // The gain on the slope: 1 is the simulated slope.
                             v
                         } else {
@@ -286,13 +280,9 @@ fn main() {
                 if extra.is_empty() {
                     t.attributed += 1;
                 }
-                let (dp, tp) = main_param(*e);
-                if let (Some(v), Some(truth)) = (f.parameters.get(dp), truth_value(case, *e, tp)) {
-                    let est = if *e == Effect::RoadGrade {
-                        v * truth
-                    } else {
-                        *v
-                    };
+                let (dp, tp, relative) = main_param(*e);
+                if let (Some(v), Some(truth)) = (f.parameter(dp), truth_value(case, tp)) {
+                    let est = if relative { v * truth } else { v };
                     t.coef_err.push(if truth != 0.0 {
                         (est - truth) / truth
                     } else {

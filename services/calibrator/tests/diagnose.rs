@@ -4,7 +4,7 @@
 //! real drives, and the command line.
 
 use calibrator::diagnose::{diagnose, DiagnoseConfig, DiagnoseError};
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param};
 use simulator::{simulate, EffectSettings, Scenario, SimConfig, VehicleKind};
 
 fn drive_with(effect: Option<Effect>, seed: u64, vehicle: VehicleKind) -> interfaces::drive::Drive {
@@ -22,9 +22,7 @@ fn track_rel_truth(drive: &interfaces::drive::Drive) -> f64 {
     drive
         .truth_params
         .as_ref()
-        .and_then(|t| t.effects.get("track_width"))
-        .and_then(|p| p.get("rel"))
-        .copied()
+        .and_then(|t| t.effect_param(Param::TrackRel))
         .expect("truth")
 }
 
@@ -64,8 +62,8 @@ fn a_concealed_track_width_is_found_named_and_sized_and_the_fit_improves() {
     let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
     assert_eq!(ids, vec![Effect::TrackWidth], "{d:#?}");
     let f = &d.findings[0];
-    let rel = f.parameters["rel"];
-    let sigma = f.sigmas["rel"];
+    let rel = f.parameter(Param::TrackRel).expect("rel");
+    let sigma = f.sigma(Param::TrackRel).expect("rel sigma");
     assert!(
         (rel - truth).abs() < 0.25 * truth,
         "rel {rel} against {truth}"
@@ -107,7 +105,10 @@ fn a_gnss_antenna_away_from_the_axle_is_found() {
         .find(|f| f.effect == Effect::GnssLeverArm)
         .unwrap_or_else(|| panic!("{d:#?}"));
     // Truth: 1.2 m forward.
-    assert!((f.parameters["x_m"] - 1.2).abs() < 0.3, "{f:?}");
+    assert!(
+        (f.parameter(Param::LeverArmX).expect("x_m") - 1.2).abs() < 0.3,
+        "{f:?}"
+    );
 }
 
 #[test]
@@ -131,7 +132,7 @@ fn the_papers_future_work_effect_is_named_or_called_ambiguous_never_mistaken() {
     );
     match d.findings.first() {
         Some(f) => {
-            let k = f.parameters["k_z"];
+            let k = f.parameter(Param::LoadTransferGain).expect("k_z");
             assert!((k - 5e-4).abs() < 0.3 * 5e-4, "k_z {k}");
             assert!(f.holdout_rmse_after_m < 0.8 * f.holdout_rmse_before_m);
         }

@@ -16,7 +16,7 @@
 
 use super::epochs::{mad_sigma, Epoch, Epochs};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param as EffectParam};
 
 /// A residual channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -79,18 +79,94 @@ impl Channel {
     ];
 }
 
-/// One physical parameter of an effect, `value = scale * coefficient`.
+/// One physical parameter of an effect: the coefficient of a column.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Param {
-    /// Name, as in the catalogue (`k_beta`).
+    /// The effect table's parameter (its name, unit, display scale and
+    /// typical size).
+    pub param: EffectParam,
+    /// The coefficient's name in messages (the table's model name, or
+    /// `gain_squared`).
     pub name: &'static str,
-    /// Unit.
+    /// The coefficient's unit.
     pub unit: &'static str,
+    /// The column fits the square of the parameter (road grade's gain:
+    /// small grades act through cos(g x) ~ 1 - g^2 x^2 / 2).
+    pub squared: bool,
     /// Which column's coefficient it is.
     pub column: usize,
-    /// The smallest and largest value a passenger car plausibly has (the
-    /// catalogue's typical size with a wide margin: other cars differ).
+    /// The smallest and largest coefficient a passenger car plausibly has
+    /// (the table's plausible range).
     pub range: (f64, f64),
+}
+
+impl Param {
+    /// The parameter fitted by `column`, as the table says.
+    fn of(param: EffectParam, column: usize) -> Param {
+        let spec = param.spec();
+        Param {
+            param,
+            name: spec.model_name,
+            unit: spec.model_unit,
+            squared: false,
+            column,
+            range: spec.plausible,
+        }
+    }
+
+    /// The model (SI) value of the parameter from the column's coefficient.
+    pub fn model_value(&self, coefficient: f64) -> f64 {
+        if self.squared {
+            coefficient.max(0.0).sqrt()
+        } else {
+            coefficient
+        }
+    }
+
+    /// A coefficient and its sigma as reported (the table's unit; the
+    /// square root of a squared one, its sigma by the delta method).
+    pub fn reported(&self, coefficient: f64, sigma: f64) -> (f64, f64) {
+        if self.squared {
+            let g = coefficient.max(0.0).sqrt();
+            (g, if g > 0.0 { sigma / (2.0 * g) } else { sigma })
+        } else {
+            (
+                self.param.to_display(coefficient),
+                self.param.to_display(sigma),
+            )
+        }
+    }
+}
+
+/// What moving a column's coefficient does to the dead-reckoning model
+/// (the position channels' columns are finite differences of it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kick {
+    /// Nothing (the column does not act on the dead-reckoning).
+    None,
+    /// Both circumferences' common scale.
+    Scale,
+    /// Their left/right difference.
+    LeftRight,
+    /// One term by a step, with another term set alongside (the drift's
+    /// time constant) and the longitudinal slip's side.
+    Term {
+        param: EffectParam,
+        step: f64,
+        with: Option<(EffectParam, f64)>,
+        slip_side: i8,
+    },
+}
+
+impl Kick {
+    fn term(param: EffectParam, step: f64) -> Kick {
+        Kick::Term {
+            param,
+            step,
+            with: None,
+            slip_side: 0,
+        }
+    }
 }
 
 /// A candidate effect: its columns in the design and what they mean.
@@ -206,18 +282,20 @@ pub fn build(
     }
     let mut columns: Vec<Vec<f64>> = Vec::new();
     let mut names: Vec<String> = Vec::new();
-    let mut add = |name: String, f: &dyn Fn(Channel, &Epoch) -> f64| -> usize {
+    let mut kicks: Vec<Kick> = Vec::new();
+    let mut add = |name: String, kick: Kick, f: &dyn Fn(Channel, &Epoch) -> f64| -> usize {
         let col: Vec<f64> = rows.iter().map(|&(c, i, _)| f(c, &e[i])).collect();
         columns.push(col);
         names.push(name);
+        kicks.push(kick);
         columns.len() - 1
     };
     // Nuisance: the common scale (speed) and the left/right difference
     // (a heading that grows with distance).
-    let scale = add("common_scale".into(), &|c, _| {
+    let scale = add("common_scale".into(), Kick::None, &|c, _| {
         f64::from(c == Channel::Speed)
     });
-    let lr = add("left_right".into(), &|c, x| {
+    let lr = add("left_right".into(), Kick::None, &|c, x| {
         if c == Channel::CourseWheel {
             x.s_m
         } else {
@@ -230,143 +308,155 @@ pub fn build(
     let course = |c: Channel| matches!(c, Channel::CourseWheel | Channel::CourseGyro);
 
     // side_slip: course = heading + beta, beta = -k a_y.
-    let col = add("side_slip".into(), &|c, x| {
-        if course(c) {
-            -x.a_y
-        } else if c == Channel::Heading {
-            x.a_y
-        } else {
-            0.0
-        }
-    });
-    candidates.push(single(
-        Effect::SideSlip,
-        col,
-        "k_beta",
-        "rad/(m/s^2)",
-        (0.0, 0.02),
-    ));
-    // load_transfer_radius: heading error -(2 k_z / t) int a_y ds.
-    let col = add("load_transfer_radius".into(), &|c, x| {
-        if c == Channel::CourseWheel {
-            -2.0 / track * x.int_ay_ds
-        } else {
-            0.0
-        }
-    });
-    candidates.push(single(
-        Effect::LoadTransferRadius,
-        col,
-        "k_z",
-        "1/(m/s^2)",
-        (0.0, 5e-3),
-    ));
-    // speed_radius_growth: relative speed k_v v^2.
-    let col = add("speed_radius_growth".into(), &|c, x| {
-        if c == Channel::Speed {
-            x.v_odo * x.v_odo
-        } else {
-            0.0
-        }
-    });
-    candidates.push(single(
-        Effect::SpeedRadiusGrowth,
-        col,
-        "k_v",
-        "1/(m/s)^2",
-        (0.0, 2e-5),
-    ));
-    // longitudinal_slip: wheels turn as if v (1 + k_s a_x); both signs, or
-    // one (an axle that is not driven slips when braking only).
-    for (variant, f) in [
-        ("", (|a: f64| a) as fn(f64) -> f64),
-        ("braking only", |a: f64| a.min(0.0)),
-        ("driving only", |a: f64| a.max(0.0)),
-    ] {
-        let col = add(format!("longitudinal_slip {variant}"), &|c, x| {
-            if c == Channel::Speed {
-                -f(x.a_x)
+    let col = add(
+        Effect::SideSlip.id().into(),
+        Kick::term(EffectParam::SideSlipGain, 0.004),
+        &|c, x| {
+            if course(c) {
+                -x.a_y
+            } else if c == Channel::Heading {
+                x.a_y
             } else {
                 0.0
             }
-        });
-        let mut cand = single(
-            Effect::LongitudinalSlip,
-            col,
-            "k_s",
-            "1/(m/s^2)",
-            (0.0, 0.05),
+        },
+    );
+    candidates.push(single(Effect::SideSlip, col));
+    // load_transfer_radius: heading error -(2 k_z / t) int a_y ds.
+    let col = add(
+        Effect::LoadTransferRadius.id().into(),
+        Kick::term(EffectParam::LoadTransferGain, 1e-4),
+        &|c, x| {
+            if c == Channel::CourseWheel {
+                -2.0 / track * x.int_ay_ds
+            } else {
+                0.0
+            }
+        },
+    );
+    candidates.push(single(Effect::LoadTransferRadius, col));
+    // speed_radius_growth: relative speed k_v v^2.
+    let col = add(
+        Effect::SpeedRadiusGrowth.id().into(),
+        Kick::term(EffectParam::SpeedGrowthGain, 2.5e-6),
+        &|c, x| {
+            if c == Channel::Speed {
+                x.v_odo * x.v_odo
+            } else {
+                0.0
+            }
+        },
+    );
+    candidates.push(single(Effect::SpeedRadiusGrowth, col));
+    // longitudinal_slip: wheels turn as if v (1 + k_s a_x); both signs, or
+    // one (an axle that is not driven slips when braking only).
+    for (variant, slip_side, f) in [
+        ("", 0, (|a: f64| a) as fn(f64) -> f64),
+        ("braking only", -1, |a: f64| a.min(0.0)),
+        ("driving only", 1, |a: f64| a.max(0.0)),
+    ] {
+        let kick = Kick::Term {
+            param: EffectParam::LongitudinalSlipGain,
+            step: 0.002,
+            with: None,
+            slip_side,
+        };
+        let col = add(
+            format!("{} {variant}", Effect::LongitudinalSlip),
+            kick,
+            &|c, x| {
+                if c == Channel::Speed {
+                    -f(x.a_x)
+                } else {
+                    0.0
+                }
+            },
         );
+        let mut cand = single(Effect::LongitudinalSlip, col);
         cand.variant = variant.to_string();
         candidates.push(cand);
     }
     // track_width: true heading = 2W heading / (1 + rel).
-    let col = add("track_width".into(), &|c, x| {
-        if c == Channel::CourseWheel {
-            -x.psi_odo
-        } else {
-            0.0
-        }
-    });
-    candidates.push(single(Effect::TrackWidth, col, "rel", "1", (-0.15, 0.15)));
-    if ep.has_gyro {
-        // gyro_bias: gyro heading gains b t; at standstill the rate is b.
-        let col = add("gyro_bias".into(), &|c, x| match c {
-            Channel::CourseGyro => -x.t_rel_s,
-            Channel::StandstillGyro => 1.0,
-            _ => 0.0,
-        });
-        candidates.push(single(Effect::GyroBias, col, "b", "rad/s", (-0.05, 0.05)));
-        let col = add("gyro_scale".into(), &|c, x| {
-            if c == Channel::CourseGyro {
-                -x.psi_gyro
+    let col = add(
+        Effect::TrackWidth.id().into(),
+        Kick::term(EffectParam::TrackRel, 0.02),
+        &|c, x| {
+            if c == Channel::CourseWheel {
+                -x.psi_odo
             } else {
                 0.0
             }
-        });
-        candidates.push(single(Effect::GyroScale, col, "s", "1", (-0.05, 0.05)));
+        },
+    );
+    candidates.push(single(Effect::TrackWidth, col));
+    if ep.has_gyro {
+        // gyro_bias: gyro heading gains b t; at standstill the rate is b.
+        let col = add(
+            Effect::GyroBias.id().into(),
+            Kick::term(EffectParam::GyroBias, 1e-4),
+            &|c, x| match c {
+                Channel::CourseGyro => -x.t_rel_s,
+                Channel::StandstillGyro => 1.0,
+                _ => 0.0,
+            },
+        );
+        candidates.push(single(Effect::GyroBias, col));
+        let col = add(
+            Effect::GyroScale.id().into(),
+            Kick::term(EffectParam::GyroScale, 0.005),
+            &|c, x| {
+                if c == Channel::CourseGyro {
+                    -x.psi_gyro
+                } else {
+                    0.0
+                }
+            },
+        );
+        candidates.push(single(Effect::GyroScale, col));
     } else {
         untestable.push((Effect::GyroBias, "a yaw-rate gyro (imu.csv)".to_string()));
         untestable.push((Effect::GyroScale, "a yaw-rate gyro (imu.csv)".to_string()));
     }
     // gnss_latency: GNSS describes t - tau: speed -tau a_x / v, course -tau w.
-    let col = add("gnss_latency".into(), &|c, x| match c {
-        Channel::Speed => -x.a_x / x.v_odo,
-        Channel::CourseWheel | Channel::CourseGyro => -x.w_odo,
-        Channel::Heading => x.w_odo,
-        _ => 0.0,
-    });
-    candidates.push(single(Effect::GnssLatency, col, "tau_s", "s", (0.0, 1.0)));
+    let col = add(
+        Effect::GnssLatency.id().into(),
+        Kick::term(EffectParam::GnssLatency, 0.08),
+        &|c, x| match c {
+            Channel::Speed => -x.a_x / x.v_odo,
+            Channel::CourseWheel | Channel::CourseGyro => -x.w_odo,
+            Channel::Heading => x.w_odo,
+            _ => 0.0,
+        },
+    );
+    candidates.push(single(Effect::GnssLatency, col));
     // gnss_lever_arm: antenna velocity (v - w l_y, w l_x).
-    let lx = add("gnss_lever_arm x".into(), &|c, x| match c {
-        Channel::CourseWheel | Channel::CourseGyro => x.w_odo / x.v_odo,
-        Channel::Heading => -x.w_odo / x.v_odo,
-        _ => 0.0,
-    });
-    let ly = add("gnss_lever_arm y".into(), &|c, x| {
-        if c == Channel::Speed {
-            -x.w_odo / x.v_odo
-        } else {
-            0.0
-        }
-    });
+    let lx = add(
+        format!("{} x", Effect::GnssLeverArm),
+        Kick::term(EffectParam::LeverArmX, 1.0),
+        &|c, x| match c {
+            Channel::CourseWheel | Channel::CourseGyro => x.w_odo / x.v_odo,
+            Channel::Heading => -x.w_odo / x.v_odo,
+            _ => 0.0,
+        },
+    );
+    let ly = add(
+        format!("{} y", Effect::GnssLeverArm),
+        Kick::term(EffectParam::LeverArmY, 1.0),
+        &|c, x| {
+            if c == Channel::Speed {
+                -x.w_odo / x.v_odo
+            } else {
+                0.0
+            }
+        },
+    );
     candidates.push(Candidate {
         effect: Effect::GnssLeverArm,
         variant: String::new(),
         columns: vec![lx, ly],
         params: vec![
-            Param {
-                name: "x_m",
-                unit: "m",
-                column: lx,
-                range: (-5.0, 5.0),
-            },
-            Param {
-                name: "y_m",
-                unit: "m",
-                column: ly,
-                range: (-3.0, 3.0),
-            },
+            Param::of(EffectParam::LeverArmX, lx),
+            Param::of(EffectParam::LeverArmY, ly),
         ],
     });
     // radius_drift: relative speed d (1 - exp(-t/T)); T from a grid, only
@@ -376,15 +466,21 @@ pub fn build(
         if t_c > 2.0 * duration {
             continue;
         }
-        let col = add(format!("radius_drift T={t_c}"), &|c, x| {
+        let kick = Kick::Term {
+            param: EffectParam::DriftFraction,
+            step: 0.003,
+            with: Some((EffectParam::DriftTimeConstant, t_c)),
+            slip_side: 0,
+        };
+        let col = add(format!("{} T={t_c}", Effect::RadiusDrift), kick, &|c, x| {
             if c == Channel::Speed {
                 1.0 - (-x.t_rel_s / t_c).exp()
             } else {
                 0.0
             }
         });
-        let mut cand = single(Effect::RadiusDrift, col, "d", "1", (-0.03, 0.03));
-        cand.variant = format!("time_constant_s={t_c}");
+        let mut cand = single(Effect::RadiusDrift, col);
+        cand.variant = format!("{}={t_c}", EffectParam::DriftTimeConstant.spec().name);
         candidates.push(cand);
     }
     if duration < 150.0 {
@@ -395,20 +491,28 @@ pub fn build(
     }
     if ep.has_grade {
         // road_grade: horizontal speed = wheel speed cos(gamma) ~ 1 - gamma^2 / 2.
-        let col = add("road_grade".into(), &|c, x| {
-            if c == Channel::Speed && x.grade.is_finite() {
-                -0.5 * x.grade * x.grade
-            } else {
-                0.0
-            }
-        });
-        candidates.push(single(
-            Effect::RoadGrade,
-            col,
-            "gain_squared",
-            "1",
-            (0.1, 10.0),
-        ));
+        let col = add(
+            Effect::RoadGrade.id().into(),
+            // The column is per unit of gain^2 (small grades: cos(g x) ~ 1 - g^2 x^2 / 2).
+            Kick::term(EffectParam::GradeGain, 1.0),
+            &|c, x| {
+                if c == Channel::Speed && x.grade.is_finite() {
+                    -0.5 * x.grade * x.grade
+                } else {
+                    0.0
+                }
+            },
+        );
+        let mut cand = single(Effect::RoadGrade, col);
+        // The column fits gain^2: plausible from 0.1 to 10 (the table's
+        // range of the gain, squared).
+        cand.params[0] = Param {
+            name: "gain_squared",
+            squared: true,
+            range: (0.1, 10.0),
+            ..Param::of(EffectParam::GradeGain, col)
+        };
+        candidates.push(cand);
     } else {
         untestable.push((
             Effect::RoadGrade,
@@ -417,34 +521,32 @@ pub fn build(
         ));
     }
     if ep.has_heading {
-        let a = add("heading_bias A".into(), &|c, _| {
+        let a = add(format!("{} A", Effect::HeadingBias), Kick::None, &|c, _| {
             f64::from(c == Channel::Heading)
         });
-        let b = add("heading_bias B".into(), &|c, x| {
+        let b = add(format!("{} B", Effect::HeadingBias), Kick::None, &|c, x| {
             if c == Channel::Heading {
                 x.course_gnss.sin()
             } else {
                 0.0
             }
         });
-        let cc = add("heading_bias C".into(), &|c, x| {
+        let cc = add(format!("{} C", Effect::HeadingBias), Kick::None, &|c, x| {
             if c == Channel::Heading {
                 x.course_gnss.cos()
             } else {
                 0.0
             }
         });
-        let p = |name, column| Param {
-            name,
-            unit: "rad",
-            column,
-            range: (-0.5, 0.5),
-        };
         candidates.push(Candidate {
             effect: Effect::HeadingBias,
             variant: String::new(),
             columns: vec![a, b, cc],
-            params: vec![p("a_rad", a), p("b_rad", b), p("c_rad", cc)],
+            params: vec![
+                Param::of(EffectParam::HeadingA, a),
+                Param::of(EffectParam::HeadingB, b),
+                Param::of(EffectParam::HeadingC, cc),
+            ],
         });
     } else {
         untestable.push((
@@ -457,14 +559,10 @@ pub fn build(
     // onto its fixes by the best rigid motion; the columns are the change of
     // the laid model points per unit of each coefficient (finite differences
     // of the dead-reckoning), with the block's rigid motion projected out.
-    let scale_col = add("position_scale".into(), &|_, _| 0.0);
-    let lr_col = add("position_left_right".into(), &|_, _| 0.0);
+    let scale_col = add("position_scale".into(), Kick::Scale, &|_, _| 0.0);
+    let lr_col = add("position_left_right".into(), Kick::LeftRight, &|_, _| 0.0);
     let nuisance = vec![scale, lr, scale_col, lr_col];
-    let perturb: Vec<Option<(Model, f64)>> = names
-        .iter()
-        .enumerate()
-        .map(|(c, name)| perturbation(name, c == scale_col, c == lr_col, base))
-        .collect();
+    let perturb: Vec<Option<(Model, f64)>> = kicks.iter().map(|k| perturbation(*k, base)).collect();
     let mut sources = vec![(Channel::Position, HeadingSource::Wheels)];
     if ep.has_gyro {
         sources.push((Channel::PositionGyro, HeadingSource::Gyro));
@@ -657,7 +755,7 @@ pub fn build(
             .fold(f64::INFINITY, f64::min);
         let ok = energy.is_finite() && energy > 1e-9;
         if !ok && !untestable.iter().any(|(e, _)| *e == cand.effect) {
-            untestable.push((cand.effect, needs(cand.effect).to_string()));
+            untestable.push((cand.effect, cand.effect.spec().needs.to_string()));
         }
         ok
     });
@@ -677,23 +775,13 @@ pub fn build(
     }
 }
 
-fn single(
-    effect: Effect,
-    column: usize,
-    name: &'static str,
-    unit: &'static str,
-    range: (f64, f64),
-) -> Candidate {
+/// A candidate with one column: the effect's main fitted parameter.
+fn single(effect: Effect, column: usize) -> Candidate {
     Candidate {
         effect,
         variant: String::new(),
         columns: vec![column],
-        params: vec![Param {
-            name,
-            unit,
-            column,
-            range,
-        }],
+        params: vec![Param::of(effect.main_fitted(), column)],
     }
 }
 
@@ -705,153 +793,39 @@ fn unwrap_near(a: f64, prev: Option<f64>) -> f64 {
     }
 }
 
-/// The catalogue's typical size of an effect's main parameter (the first of
-/// its parameters), in the design's units: what the detectable size a drive
-/// reports is compared with. Road grade's coefficient is the gain on the
-/// measured slope, 1 when the slope acts as it is; its size on a drive is
-/// the drive's slopes.
-pub fn typical_size(effect: Effect) -> f64 {
-    match effect {
-        Effect::SideSlip => 0.004,
-        // The catalogue gives "up to ~1e-3".
-        Effect::LoadTransferRadius => 2e-4,
-        // 0.2 % at 30 m/s.
-        Effect::SpeedRadiusGrowth => 0.002 / 900.0,
-        // 0.75 % at 3 m/s^2.
-        Effect::LongitudinalSlip => 0.0025,
-        Effect::TrackWidth => 0.02,
-        // 100 deg/h.
-        Effect::GyroBias => 100.0_f64.to_radians() / 3600.0,
-        Effect::GyroScale => 0.005,
-        Effect::GnssLatency => 0.08,
-        Effect::GnssLeverArm => 0.5,
-        Effect::RadiusDrift => 0.003,
-        Effect::RoadGrade => 1.0,
-        // 2 degrees.
-        Effect::HeadingBias => 2.0_f64.to_radians(),
-    }
-}
-
-/// What a drive needs to show an effect.
-pub fn needs(effect: Effect) -> &'static str {
-    match effect {
-        Effect::SideSlip => "corners at several speeds (lateral acceleration of 2 m/s^2 or more)",
-        Effect::LoadTransferRadius => "corners at several speeds",
-        Effect::SpeedRadiusGrowth => "driving at several speeds, up to 25 m/s or more",
-        Effect::LongitudinalSlip => "hard acceleration and braking",
-        Effect::TrackWidth => "turns, a few hundred degrees of heading change",
-        Effect::GyroBias => "a standstill, or a long drive with GNSS course",
-        Effect::GyroScale => "turns, a few hundred degrees of heading change",
-        Effect::GnssLatency => "acceleration and braking, and corners",
-        Effect::GnssLeverArm => "corners at several speeds",
-        Effect::RadiusDrift => "a drive of 20 minutes or more",
-        Effect::RoadGrade => "slopes and a forward accelerometer",
-        Effect::HeadingBias => "an absolute heading sensor and full heading coverage",
-    }
-}
-
-/// How to tell two effects apart (the catalogue's last column).
-pub fn separate_by(a: Effect, b: Effect) -> String {
-    use Effect::*;
-    let pair = |x: Effect, y: Effect| (a == x && b == y) || (a == y && b == x);
-    if pair(SideSlip, GnssLeverArm) {
-        "corners taken at clearly different speeds: side-slip grows with v w, the lever arm's course offset with w / v".into()
-    } else if pair(SideSlip, GnssLatency) || pair(GnssLeverArm, GnssLatency) {
-        "corners at several speeds and hard acceleration or braking on a straight: only latency shows in the speed then".into()
-    } else if pair(LoadTransferRadius, TrackWidth) {
-        "the same corners driven slowly and fast: load transfer grows with v^2 w, the track error with w only".into()
-    } else if pair(SpeedRadiusGrowth, RadiusDrift) {
-        "a drive whose speed does not follow the time: high and low speed both early and late"
-            .into()
-    } else if pair(LongitudinalSlip, GnssLatency) {
-        "corners (latency moves the course, slip does not) and acceleration at several speeds"
-            .into()
-    } else if pair(TrackWidth, GyroScale) {
-        "full loops with GNSS course (absolute heading)".into()
-    } else if pair(SpeedRadiusGrowth, RoadGrade) {
-        "slopes driven at several speeds".into()
-    } else {
-        format!("a drive with more of: {}; and {}", needs(a), needs(b))
-    }
-}
-
 /// The model with one coefficient moved by a small step, and the step; `None`
 /// for columns that do not act on the dead-reckoning.
-fn perturbation(name: &str, scale: bool, left_right: bool, base: &Model) -> Option<(Model, f64)> {
+fn perturbation(kick: Kick, base: &Model) -> Option<(Model, f64)> {
     let mut m = *base;
     let d = 1e-3;
-    if scale {
-        m.c_rl *= 1.0 + d;
-        m.c_rr *= 1.0 + d;
-        return Some((m, d));
+    match kick {
+        Kick::None => None,
+        Kick::Scale => {
+            m.c_rl *= 1.0 + d;
+            m.c_rr *= 1.0 + d;
+            Some((m, d))
+        }
+        Kick::LeftRight => {
+            m.c_rl *= 1.0 - d;
+            m.c_rr *= 1.0 + d;
+            Some((m, d))
+        }
+        Kick::Term {
+            param,
+            step,
+            with,
+            slip_side,
+        } => {
+            m.terms.set(param, step);
+            if let Some((other, v)) = with {
+                m.terms.set(other, v);
+            }
+            if slip_side != 0 {
+                m.slip_side = slip_side;
+            }
+            Some((m, step))
+        }
     }
-    if left_right {
-        m.c_rl *= 1.0 - d;
-        m.c_rr *= 1.0 + d;
-        return Some((m, d));
-    }
-    let t = &mut m.terms;
-    let delta = match name {
-        "side_slip" => {
-            t.k_beta = 0.004;
-            0.004
-        }
-        "load_transfer_radius" => {
-            t.k_z = 1e-4;
-            1e-4
-        }
-        "speed_radius_growth" => {
-            t.k_v = 2.5e-6;
-            2.5e-6
-        }
-        "longitudinal_slip "
-        | "longitudinal_slip braking only"
-        | "longitudinal_slip driving only" => {
-            t.k_s = 0.002;
-            m.slip_side = match name {
-                "longitudinal_slip braking only" => -1,
-                "longitudinal_slip driving only" => 1,
-                _ => 0,
-            };
-            0.002
-        }
-        "track_width" => {
-            t.track_rel = 0.02;
-            0.02
-        }
-        "gyro_bias" => {
-            t.gyro_bias_rad_s = 1e-4;
-            1e-4
-        }
-        "gyro_scale" => {
-            t.gyro_scale = 0.005;
-            0.005
-        }
-        "gnss_latency" => {
-            t.gnss_latency_s = 0.08;
-            0.08
-        }
-        "gnss_lever_arm x" => {
-            t.lever_arm_m = [1.0, 0.0];
-            1.0
-        }
-        "gnss_lever_arm y" => {
-            t.lever_arm_m = [0.0, 1.0];
-            1.0
-        }
-        "road_grade" => {
-            // The column is per unit of gain^2 (small grades: cos(g x) ~ 1 - g^2 x^2 / 2).
-            t.grade_gain = 1.0;
-            1.0
-        }
-        other => {
-            let tc: f64 = other.strip_prefix("radius_drift T=")?.parse().ok()?;
-            t.drift_d = 0.003;
-            t.drift_time_constant_s = tc;
-            0.003
-        }
-    };
-    Some((m, delta))
 }
 
 /// Gram-Schmidt: make the vectors orthonormal (dropping dependent ones).

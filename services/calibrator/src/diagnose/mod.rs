@@ -36,7 +36,7 @@ use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, Trac
 use design::{Candidate, Channel, Design, DesignSettings};
 use epochs::{correlation, mad_sigma, median, Epoch, Epochs};
 use interfaces::drive::{Drive, WheelConversionError};
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param};
 use locate::{block_track, manoeuvre, Model};
 use nalgebra::DVector;
 use select::{columns_of, gain, normal_quantile, BlockStats, ALPHA, VIF_AMBIGUOUS};
@@ -120,6 +120,19 @@ pub struct Finding {
     pub holdout_gain_z: f64,
     /// Why it is believed, in words.
     pub evidence: String,
+}
+
+impl Finding {
+    /// A parameter's reported value (in the table's unit), if the finding
+    /// has it.
+    pub fn parameter(&self, param: Param) -> Option<f64> {
+        self.parameters.get(param.spec().name).copied()
+    }
+
+    /// Its 1-sigma, if the finding has it.
+    pub fn sigma(&self, param: Param) -> Option<f64> {
+        self.sigmas.get(param.spec().name).copied()
+    }
 }
 
 /// Effects this drive cannot tell apart.
@@ -572,21 +585,16 @@ pub fn diagnose_with_progress(
         let mut sigmas = BTreeMap::new();
         let mut units = BTreeMap::new();
         for p in &cand.params {
-            let (v, s) = param_value(cand.effect, p.name, coef(p.column), coef_sigma(p.column));
-            parameters.insert(param_name(cand.effect, p.name).to_string(), v);
-            sigmas.insert(param_name(cand.effect, p.name).to_string(), s);
-            units.insert(
-                param_name(cand.effect, p.name).to_string(),
-                param_unit(cand.effect, p.name).to_string(),
-            );
+            let (v, s) = p.reported(coef(p.column), coef_sigma(p.column));
+            let spec = p.param.spec();
+            parameters.insert(spec.name.to_string(), v);
+            sigmas.insert(spec.name.to_string(), s);
+            units.insert(spec.name.to_string(), spec.unit.to_string());
         }
-        if cand.effect == Effect::RadiusDrift {
-            if let Some(t) = cand.variant.strip_prefix("time_constant_s=") {
-                if let Ok(t) = t.parse::<f64>() {
-                    parameters.insert("time_constant_s".into(), t);
-                    units.insert("time_constant_s".into(), "s".into());
-                }
-            }
+        for (param, t) in variant_params(cand) {
+            let spec = param.spec();
+            parameters.insert(spec.name.to_string(), t);
+            units.insert(spec.name.to_string(), spec.unit.to_string());
         }
         let g = sel.gains[k];
         let evidence = format!(
@@ -599,7 +607,7 @@ pub fn diagnose_with_progress(
             used.len(),
             block_s,
             sel.thresholds[k],
-            fingerprint(cand.effect)
+            cand.effect.spec().fingerprint
         );
         findings.push(Finding {
             effect: cand.effect,
@@ -719,7 +727,7 @@ pub fn diagnose_with_progress(
                 needs: format!(
                     "{} (on this drive it is collinear with the circumferences' own scale and \
                      left/right difference: VIF {vif:.0})",
-                    design::needs(*e)
+                    e.spec().needs
                 ),
             }))
             .collect(),
@@ -924,7 +932,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
             effects.extend(twins.iter().map(|t| t.0));
             let separate_by = effects[1..]
                 .iter()
-                .map(|e| design::separate_by(effect, *e))
+                .map(|e| effect.separate_from(*e))
                 .collect::<Vec<_>>()
                 .join("; ");
             for e in &effects {
@@ -966,15 +974,28 @@ fn detectable(
     z_crit: f64,
 ) -> Option<Detectable> {
     let p = cand.params.first()?;
-    let typical = design::typical_size(cand.effect);
+    let spec = p.param.spec();
+    let typical = spec.typical;
     let smallest = select::detectable_size(stats, base, &cand.columns, p.column, typical, z_crit);
-    let (typical_r, _) = param_value(cand.effect, p.name, typical, 0.0);
     Some(Detectable {
-        parameter: param_name(cand.effect, p.name),
-        unit: param_unit(cand.effect, p.name),
-        typical: typical_r,
-        smallest: smallest.map(|v| param_value(cand.effect, p.name, v, 0.0).0),
+        parameter: spec.name,
+        unit: spec.unit,
+        typical: p.reported(typical, 0.0).0,
+        smallest: smallest.map(|v| p.reported(v, 0.0).0),
     })
+}
+
+/// The model parameters a candidate's variant fixes (the drift's time
+/// constant: `time_constant_s=600`).
+fn variant_params(cand: &Candidate) -> Vec<(Param, f64)> {
+    let (name, value) = cand.variant.split_once('=').unwrap_or_default();
+    cand.effect
+        .spec()
+        .model
+        .iter()
+        .filter(|p| p.spec().name == name)
+        .filter_map(|&p| value.parse().ok().map(|v| (p, v)))
+        .collect()
 }
 
 /// Effect terms from fitted coefficients.
@@ -982,80 +1003,26 @@ fn terms_of(cands: &[&Candidate], coef: &dyn Fn(usize) -> f64) -> (EffectTerms, 
     let mut t = EffectTerms::default();
     let mut slip_side = 0;
     for c in cands {
-        let v = |k: usize| coef(c.columns[k]);
-        match c.effect {
-            Effect::SideSlip => t.k_beta = v(0),
-            Effect::LoadTransferRadius => t.k_z = v(0),
-            Effect::SpeedRadiusGrowth => t.k_v = v(0),
-            Effect::LongitudinalSlip => {
-                t.k_s = v(0);
-                slip_side = match c.variant.as_str() {
-                    "braking only" => -1,
-                    "driving only" => 1,
-                    _ => 0,
-                };
+        for p in &c.params {
+            t.set(p.param, p.model_value(coef(p.column)));
+        }
+        // Model parameters the fit does not choose: from the variant, or
+        // the table's typical value.
+        for &p in c.effect.spec().model {
+            if !c.params.iter().any(|q| q.param == p) {
+                let fixed = variant_params(c).into_iter().find(|(q, _)| *q == p);
+                t.set(p, fixed.map_or(p.spec().typical, |(_, v)| v));
             }
-            Effect::TrackWidth => t.track_rel = v(0),
-            Effect::GyroBias => t.gyro_bias_rad_s = v(0),
-            Effect::GyroScale => t.gyro_scale = v(0),
-            Effect::GnssLatency => t.gnss_latency_s = v(0),
-            Effect::GnssLeverArm => t.lever_arm_m = [v(0), v(1)],
-            Effect::RadiusDrift => {
-                t.drift_d = v(0);
-                t.drift_time_constant_s = c
-                    .variant
-                    .strip_prefix("time_constant_s=")
-                    .and_then(|s| s.parse().ok())
-                    .unwrap_or(600.0);
-            }
-            Effect::RoadGrade => t.grade_gain = v(0).max(0.0).sqrt(),
-            Effect::HeadingBias => t.heading_bias_rad = [v(0), v(1), v(2)],
+        }
+        if c.effect == Effect::LongitudinalSlip {
+            slip_side = match c.variant.as_str() {
+                "braking only" => -1,
+                "driving only" => 1,
+                _ => 0,
+            };
         }
     }
     (t, slip_side)
-}
-
-/// The reported name of a parameter.
-fn param_name(effect: Effect, name: &'static str) -> &'static str {
-    match (effect, name) {
-        (Effect::GyroBias, _) => "b_deg_h",
-        (Effect::RoadGrade, _) => "gain",
-        (Effect::HeadingBias, "a_rad") => "a_deg",
-        (Effect::HeadingBias, "b_rad") => "b_deg",
-        (Effect::HeadingBias, "c_rad") => "c_deg",
-        _ => name,
-    }
-}
-
-fn param_unit(effect: Effect, name: &'static str) -> &'static str {
-    match (effect, name) {
-        (Effect::GyroBias, _) => "deg/h",
-        (Effect::RoadGrade, _) => "1",
-        (Effect::HeadingBias, _) => "deg",
-        (Effect::SideSlip, _) => "rad/(m/s^2)",
-        (Effect::LoadTransferRadius, _) | (Effect::LongitudinalSlip, _) => "1/(m/s^2)",
-        (Effect::SpeedRadiusGrowth, _) => "1/(m/s)^2",
-        (Effect::GnssLatency, _) => "s",
-        (Effect::GnssLeverArm, _) => "m",
-        _ => "1",
-    }
-}
-
-/// A coefficient and its sigma in the reported unit.
-fn param_value(effect: Effect, _name: &'static str, v: f64, s: f64) -> (f64, f64) {
-    match effect {
-        Effect::GyroBias => {
-            let k = 180.0 / std::f64::consts::PI * 3600.0;
-            (v * k, s * k)
-        }
-        Effect::RoadGrade => {
-            // Fitted: gain^2; sigma by the delta method.
-            let g = v.max(0.0).sqrt();
-            (g, if g > 0.0 { s / (2.0 * g) } else { s })
-        }
-        Effect::HeadingBias => (v.to_degrees(), s.to_degrees()),
-        _ => (v, s),
-    }
 }
 
 fn channels_of(design: &Design, cand: &Candidate) -> String {
@@ -1068,24 +1035,6 @@ fn channels_of(design: &Design, cand: &Candidate) -> String {
         }
     }
     chans.join(", ")
-}
-
-/// The catalogue's "gives itself away by", briefly.
-fn fingerprint(effect: Effect) -> &'static str {
-    match effect {
-        Effect::SideSlip => "course offset proportional to v w, outward of the turn",
-        Effect::LoadTransferRadius => "heading error growing with v^2 w",
-        Effect::SpeedRadiusGrowth => "speed ratio growing with v^2, on straights too",
-        Effect::LongitudinalSlip => "speed ratio proportional to a_x",
-        Effect::TrackWidth => "heading error proportional to the heading change",
-        Effect::GyroBias => "gyro heading drifting with time; rate at standstill",
-        Effect::GyroScale => "gyro heading error proportional to the heading change",
-        Effect::GnssLatency => "speed error ~ tau a_x and course lag ~ tau w at once",
-        Effect::GnssLeverArm => "course offset ~ l_x w / v, speed ~ l_y w / v",
-        Effect::RadiusDrift => "speed ratio trending with time since the start",
-        Effect::RoadGrade => "speed ratio following the squared IMU grade",
-        Effect::HeadingBias => "heading residual periodic in heading",
-    }
 }
 
 /// Residual per row with coefficients fitted on the other blocks.
