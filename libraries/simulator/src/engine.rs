@@ -12,7 +12,6 @@ use interfaces::drive::{
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::collections::BTreeMap;
-use std::f64::consts::{PI, TAU};
 
 /// The driver acts at 100 Hz.
 const DRIVER_RATE_HZ: f64 = 100.0;
@@ -413,15 +412,6 @@ fn rng_stream(seed: u64, stream: u64) -> ChaCha8Rng {
     rng
 }
 
-fn wrap(a: f64) -> f64 {
-    let w = a.rem_euclid(TAU);
-    if w > PI {
-        w - TAU
-    } else {
-        w
-    }
-}
-
 /// Which stop comes next (counting over laps) and the standstill at it.
 struct Stops {
     next: usize,
@@ -631,7 +621,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 t_s: t,
                 x_m: st.x,
                 y_m: st.y,
-                yaw_rad: Some(wrap(st.psi)),
+                yaw_rad: Some(stats::wrap_angle(st.psi)),
             });
             done = match end_step {
                 Some(end) => k >= end,
@@ -698,7 +688,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
             let bias = e.heading_bias.map_or(0.0, |h| h.error_rad(st.psi));
             heading.push(HeadingSample {
                 t_s: t,
-                yaw_rad: wrap(st.psi + bias + sigma * gauss(&mut heading_rng)),
+                yaw_rad: stats::wrap_angle(st.psi + bias + sigma * gauss(&mut heading_rng)),
                 sigma_rad: (sigma > 0.0).then_some(sigma),
             });
         }

@@ -14,9 +14,10 @@
 //! Nuisance columns (the common scale of the circumferences and their
 //! left/right difference) are always in the model: the calibration fits them.
 
-use super::epochs::{mad_sigma, Epoch, Epochs};
+use super::epochs::{Epoch, Epochs};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
 use interfaces::effects::{Effect, Param as EffectParam};
+use stats::mad_sigma;
 
 /// A residual channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]

@@ -100,28 +100,6 @@ pub fn interp(ts: &[f64], vs: &[f64], t: f64) -> Option<f64> {
     Some(vs[i - 1] + f * (vs[i] - vs[i - 1]))
 }
 
-/// Median of a slice (NaN when empty).
-pub fn median(values: &[f64]) -> f64 {
-    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Robust scale (1.4826 MAD) of a slice.
-pub fn mad_sigma(values: &[f64]) -> f64 {
-    let m = median(values);
-    let dev: Vec<f64> = values.iter().map(|x| (x - m).abs()).collect();
-    1.4826 * median(&dev)
-}
-
 /// The GNSS noise from the fixes themselves: the scatter of second
 /// differences of position over fixes at regular spacing (a smooth track's
 /// second difference is nearly zero at 5-10 Hz), 1 sigma per axis.
@@ -137,7 +115,7 @@ fn gnss_noise(gnss: &[GnssSample]) -> f64 {
         d2.push(a.y_m - 2.0 * b.y_m + c.y_m);
     }
     // Var(second difference of white noise) = 6 sigma^2.
-    mad_sigma(&d2) / 6f64.sqrt()
+    stats::mad_sigma(&d2) / 6f64.sqrt()
 }
 
 /// Build the epochs. `c_rl`, `c_rr`, `track` are the calibrated 2W model's.
@@ -152,7 +130,7 @@ pub fn build(
     let gnss: &[GnssSample] = drive.gnss.as_deref().unwrap_or(&[]);
     let white = gnss_noise(gnss);
     let mut sigma = white;
-    let col = median(&gnss.iter().filter_map(|g| g.sigma_m).collect::<Vec<_>>());
+    let col = stats::median_of_finite(&gnss.iter().filter_map(|g| g.sigma_m).collect::<Vec<_>>());
     if col.is_finite() && col > sigma {
         sigma = col;
     }
@@ -213,7 +191,7 @@ pub fn build(
 
     let median_dt = {
         let d: Vec<f64> = gnss.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
-        median(&d)
+        stats::median_of_finite(&d)
     };
     let max_gap = if median_dt.is_finite() {
         2.5 * median_dt
@@ -325,7 +303,7 @@ pub fn build(
     // The accelerometer must follow the wheels' acceleration, else its axis
     // is not the car's forward one and the grade cannot be read from it.
     let has_grade = ax_pairs.len() > 20 && correlation(&ax_pairs) > 0.7;
-    let m = median(&grade_raw);
+    let m = stats::median_of_finite(&grade_raw);
     for (e, g) in epochs.iter_mut().zip(&grade_raw) {
         e.grade = if has_grade { g - m } else { f64::NAN };
     }

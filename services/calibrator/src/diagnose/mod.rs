@@ -34,13 +34,14 @@ pub mod select;
 
 use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
 use design::{Candidate, Channel, Design, DesignSettings};
-use epochs::{correlation, mad_sigma, median, Epoch, Epochs};
+use epochs::{correlation, Epoch, Epochs};
 use interfaces::drive::{Drive, WheelConversionError};
 use interfaces::effects::{Effect, Param};
 use locate::{block_track, manoeuvre, Model};
 use nalgebra::DVector;
 use select::{columns_of, gain, normal_quantile, BlockStats, ALPHA, VIF_AMBIGUOUS};
 use serde::Serialize;
+use stats::{mad_sigma, median_of_finite as median};
 use std::collections::BTreeMap;
 use vehicle_model::effects::EffectTerms;
 

@@ -74,23 +74,9 @@ fn with_sigma(v: f64, sigma: f64) -> String {
     }
 }
 
-/// Linear-interpolated quantile `q` of sorted values.
+/// Linear-interpolated quantile `q` of sorted values (NaN when empty).
 fn percentile(sorted: &[f64], q: f64) -> f64 {
-    match sorted.len() {
-        0 => f64::NAN,
-        1 => sorted[0],
-        n => {
-            let pos = q.clamp(0.0, 1.0) * (n - 1) as f64;
-            let i = (pos.floor() as usize).min(n - 2);
-            let u = pos - i as f64;
-            sorted[i] + u * (sorted[i + 1] - sorted[i])
-        }
-    }
-}
-
-fn median_of(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    percentile(v, 0.5)
+    stats::percentile_sorted(sorted, q).unwrap_or(f64::NAN)
 }
 
 /// A range that is finite and not empty.
@@ -181,7 +167,12 @@ pub fn residual_svg(p: &ResidualPlot) -> Result<String, FigureError> {
             .iter_mut()
             .enumerate()
             .filter(|(_, v)| v.len() >= 5)
-            .map(|(b, v)| [x_lo + (b as f64 + 0.5) * width, median_of(v)])
+            .map(|(b, v)| {
+                [
+                    x_lo + (b as f64 + 0.5) * width,
+                    stats::median(v).unwrap_or(f64::NAN),
+                ]
+            })
             .collect()
     };
     let mut subsampled = false;
