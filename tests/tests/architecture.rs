@@ -384,7 +384,16 @@ fn normal_dependencies(package: &str, extra: &[&str]) -> BTreeSet<String> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
     let out = Command::new(cargo)
         .current_dir(root())
-        .args(["tree", "--offline", "-p", package, "-e", "normal", "--prefix", "none"])
+        .args([
+            "tree",
+            "--offline",
+            "-p",
+            package,
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+        ])
         .args(["--format", "{p}"])
         .args(extra)
         .output()
@@ -432,7 +441,11 @@ fn the_pure_libraries_do_not_build_the_bus_or_the_command_line() {
     ] {
         let side = process_side(&normal_dependencies(package, extra));
         if !side.is_empty() {
-            found.push(format!("{package} {}: {}", extra.join(" "), side.join(", ")));
+            found.push(format!(
+                "{package} {}: {}",
+                extra.join(" "),
+                side.join(", ")
+            ));
         }
     }
     assert!(
@@ -452,5 +465,8 @@ fn the_process_side_is_seen_where_it_is() {
         "interfaces with `bus`: {bus:?}"
     );
     let cli = process_side(&normal_dependencies("drive-io", &["--features", "cli"]));
-    assert!(cli.iter().any(|n| n == "clap"), "drive-io with `cli`: {cli:?}");
+    assert!(
+        cli.iter().any(|n| n == "clap"),
+        "drive-io with `cli`: {cli:?}"
+    );
 }
