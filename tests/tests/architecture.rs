@@ -13,7 +13,8 @@
 //!   (normal dependencies, default features) holds no iceoryx2, tracing
 //!   subscriber, command-line parser or `anyhow` (the bus is behind the
 //!   `bus` feature of `interfaces`, the drive reader's options behind the
-//!   `cli` feature of `drive-io`, the odometry's binary behind its `cli`).
+//!   `cli` feature of `drive-io`, the calibrator's and the odometry's binaries
+//!   behind their `cli`).
 //!
 //! Run alone: `cargo test --release -p integration-tests --test architecture`.
 
@@ -438,6 +439,7 @@ fn the_pure_libraries_do_not_build_the_bus_or_the_command_line() {
         ("report", &[]),
         ("interfaces", &["--no-default-features"]),
         ("odometry", &["--no-default-features"]),
+        ("calibrator", &["--no-default-features"]),
     ] {
         let side = process_side(&normal_dependencies(package, extra));
         if !side.is_empty() {
