@@ -6,16 +6,23 @@
 //!   parameters) that every tool reads, writes, simulates and calibrates.
 //! - [`collect`]: wire samples collected into a drive.
 //! - [`effects`]: the stable ids of the physics catalogue.
-//! - [`bus`]: the iceoryx2 helpers every service uses to open topics the same way.
-//! - [`sensors`]: the four sensor subscribers, opened and drained together.
 //! - [`latency_trace`]: the latency trace file the latency bench reads.
-//! - [`logging`]: the one tracing setup every binary uses.
+//!
+//! With the `bus` feature (on by default, off for the workspace's pure
+//! libraries), the process side:
+//!
+//! - `bus`: the iceoryx2 helpers every service uses to open topics the same way.
+//! - `sensors`: the four sensor subscribers, opened and drained together.
+//! - `logging`: the one tracing setup every binary uses.
 
+#[cfg(feature = "bus")]
 pub mod bus;
 pub mod collect;
 pub mod drive;
 pub mod effects;
 pub mod latency_trace;
+#[cfg(feature = "bus")]
 pub mod logging;
+#[cfg(feature = "bus")]
 pub mod sensors;
 pub mod wire;

@@ -15,9 +15,10 @@
 //! Wakeups: each publish-subscribe service `NAME` below has an iceoryx2 event
 //! service with the same `NAME`, which its publishers notify after every
 //! sample, so that subscribers block in a WaitSet instead of polling
-//! (event ids and details in [`crate::bus`]).
+//! (event ids and details in `crate::bus`, with the `bus` feature).
 
 use bytemuck::{Pod, Zeroable};
+#[cfg(feature = "bus")]
 use iceoryx2::prelude::ZeroCopySend;
 
 /// Service carrying [`WheelRotations`].
@@ -37,9 +38,10 @@ pub const POSE_SERVICE: &str = "wheelcal/odometry/pose";
 pub const SENSOR_SERVICES: [&str; 4] = [WHEELS_SERVICE, GNSS_SERVICE, IMU_SERVICE, HEADING_SERVICE];
 
 /// Common header of every sample.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/Header/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/Header/v1"))]
 pub struct Header {
     /// Timestamp on the vehicle clock, nanoseconds (may be negative).
     pub t_ns: i64,
@@ -71,9 +73,10 @@ pub fn seconds_to_ns(t_s: f64) -> i64 {
 ///
 /// Revolutions (not ticks) keep the type independent of the encoder: a
 /// `f64` holds a million revolutions to better than 1e-9 rev.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/WheelRotations/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/WheelRotations/v1"))]
 pub struct WheelRotations {
     /// Time and sequence.
     pub header: Header,
@@ -97,9 +100,10 @@ impl WheelRotations {
 }
 
 /// GNSS fix in local ENU metres.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/GnssFix/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/GnssFix/v1"))]
 pub struct GnssFix {
     /// Time and sequence.
     pub header: Header,
@@ -116,9 +120,10 @@ pub struct GnssFix {
 }
 
 /// IMU sample in the body frame (x forward, y left, z up).
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/Imu/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/Imu/v1"))]
 pub struct Imu {
     /// Time and sequence.
     pub header: Header,
@@ -148,9 +153,10 @@ impl Imu {
 }
 
 /// Absolute heading (magnetometer or other source).
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/Heading/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/Heading/v1"))]
 pub struct Heading {
     /// Time and sequence.
     pub header: Header,
@@ -166,9 +172,10 @@ pub const MAX_EXTENSIONS: usize = 8;
 pub const MAX_EXTENSION_PARAMS: usize = 4;
 
 /// One extension of the 2W model found by the diagnosis.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/ModelExtension/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/ModelExtension/v1"))]
 pub struct ModelExtension {
     /// Catalogue effect code ([`crate::effects::Effect::code`]); 0 = unused slot.
     pub effect_code: u32,
@@ -179,9 +186,10 @@ pub struct ModelExtension {
 }
 
 /// A calibration of the rear wheels, published when it passes the quality gate.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/CircumferenceEstimate/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/CircumferenceEstimate/v1"))]
 pub struct CircumferenceEstimate {
     /// Time (of the last sample the estimate used) and sequence.
     pub header: Header,
@@ -242,9 +250,10 @@ impl PoseMode {
 }
 
 /// The odometry's pose of the rear-axle centre.
-#[derive(Debug, Clone, Copy, PartialEq, Default, ZeroCopySend, Pod, Zeroable)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Pod, Zeroable)]
+#[cfg_attr(feature = "bus", derive(ZeroCopySend))]
 #[repr(C)]
-#[type_name("wheelcal/Pose/v1")]
+#[cfg_attr(feature = "bus", type_name("wheelcal/Pose/v1"))]
 pub struct Pose {
     /// Time of the wheel sample the pose belongs to, and sequence.
     pub header: Header,

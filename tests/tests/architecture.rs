@@ -8,12 +8,19 @@
 //!   the files of a crate, linked by the `crate::` and `super::` paths they
 //!   name, form no cycle;
 //! - the algorithm libraries are pure: outside their tests they name no file
-//!   system, thread, wall clock or command-line parsing.
+//!   system, thread, wall clock or command-line parsing;
+//! - the pure libraries do not build the process side: `cargo tree` of each
+//!   (normal dependencies, default features) holds no iceoryx2, tracing
+//!   subscriber, command-line parser or `anyhow` (the bus is behind the
+//!   `bus` feature of `interfaces`, the drive reader's options behind the
+//!   `cli` feature of `drive-io`, the calibrator's and the odometry's binaries
+//!   behind their `cli`).
 //!
 //! Run alone: `cargo test --release -p integration-tests --test architecture`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 const SERVICES: [&str; 4] = ["sensor-bridge", "calibrator", "odometry", "gateway"];
 
@@ -366,5 +373,102 @@ fn the_algorithm_libraries_touch_no_files_threads_clock_or_cli() {
         found.is_empty(),
         "impure library code:\n{}",
         found.join("\n")
+    );
+}
+
+/// The packages `package` builds with its default features, its normal
+/// dependencies only (no dev or build dependencies), as `cargo tree` resolves
+/// them for that package alone (a workspace build unifies features across
+/// members; this is what the package builds by itself). `extra` are further
+/// `cargo tree` arguments (`--no-default-features`).
+fn normal_dependencies(package: &str, extra: &[&str]) -> BTreeSet<String> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string());
+    let out = Command::new(cargo)
+        .current_dir(root())
+        .args([
+            "tree",
+            "--offline",
+            "-p",
+            package,
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+        ])
+        .args(["--format", "{p}"])
+        .args(extra)
+        .output()
+        .unwrap_or_else(|e| panic!("cargo tree -p {package}: {e}"));
+    assert!(
+        out.status.success(),
+        "cargo tree -p {package} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let names: BTreeSet<String> = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .map(str::to_string)
+        .collect();
+    assert!(
+        names.contains(package),
+        "cargo tree -p {package} did not list the package itself: {names:?}"
+    );
+    names
+}
+
+/// What a pure library must not build: the bus, the process's log
+/// subscriber, the command line and the binaries' error type.
+fn process_side(names: &BTreeSet<String>) -> Vec<String> {
+    names
+        .iter()
+        .filter(|n| {
+            n.starts_with("iceoryx2")
+                || ["tracing-subscriber", "clap", "anyhow", "zenoh"].contains(&n.as_str())
+        })
+        .cloned()
+        .collect()
+}
+
+#[test]
+fn the_pure_libraries_do_not_build_the_bus_or_the_command_line() {
+    let mut found = Vec::new();
+    for (package, extra) in [
+        ("vehicle-model", &[][..]),
+        ("simulator", &[]),
+        ("drive-io", &[]),
+        ("report", &[]),
+        ("interfaces", &["--no-default-features"]),
+        ("odometry", &["--no-default-features"]),
+        ("calibrator", &["--no-default-features"]),
+    ] {
+        let side = process_side(&normal_dependencies(package, extra));
+        if !side.is_empty() {
+            found.push(format!(
+                "{package} {}: {}",
+                extra.join(" "),
+                side.join(", ")
+            ));
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "pure libraries that build the process side:\n{}",
+        found.join("\n")
+    );
+}
+
+/// The check above sees the process side where it is: `interfaces` with
+/// its default `bus` feature and `drive-io` with `cli`.
+#[test]
+fn the_process_side_is_seen_where_it_is() {
+    let bus = process_side(&normal_dependencies("interfaces", &[]));
+    assert!(
+        bus.iter().any(|n| n == "iceoryx2") && bus.iter().any(|n| n == "tracing-subscriber"),
+        "interfaces with `bus`: {bus:?}"
+    );
+    let cli = process_side(&normal_dependencies("drive-io", &["--features", "cli"]));
+    assert!(
+        cli.iter().any(|n| n == "clap"),
+        "drive-io with `cli`: {cli:?}"
     );
 }

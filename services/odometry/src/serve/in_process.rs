@@ -560,7 +560,7 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
     assert_eq!(mode(&outside[0]), PoseMode::NoFix);
     let last = outside.last().expect("poses");
     assert_eq!(mode(last), PoseMode::Fused);
-    let saved = crate::pose_state::load(&kept)
+    let saved = crate::serve::pose_state::load(&kept)
         .expect("state file")
         .expect("a kept pose");
     assert_eq!(saved.mode, "Fused");
@@ -593,7 +593,7 @@ fn a_car_that_powers_on_in_a_garage_dead_reckons_from_the_kept_pose() {
     assert!((end.y_m - saved.y_m).abs() < 0.05, "{end:?}");
     // The garage run keeps its own last pose for the next power-on: taken
     // while moving, so a new drive that starts over does not use it.
-    let again = crate::pose_state::load(&kept)
+    let again = crate::serve::pose_state::load(&kept)
         .expect("state")
         .expect("kept");
     assert_eq!(again.mode, "DeadReckoning");
@@ -620,7 +620,7 @@ fn a_restart_while_driving_carries_the_kept_pose_over_the_gap() {
     let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
     // Up to 3 s with GNSS; the file then holds a pose of that run.
     drive_east_over(root.path(), &kept, (0, 300), true, f64::INFINITY);
-    let mut saved = crate::pose_state::load(&kept)
+    let mut saved = crate::serve::pose_state::load(&kept)
         .expect("state")
         .expect("kept");
     assert_eq!(saved.speed_m_s, Some(V));
@@ -629,7 +629,7 @@ fn a_restart_while_driving_carries_the_kept_pose_over_the_gap() {
     saved.x_m -= V;
     saved.wheel_rev = Some([V * 2.0 / C; 2]);
     saved.last_word = false;
-    crate::pose_state::save(&kept, &saved).expect("save");
+    crate::serve::pose_state::save(&kept, &saved).expect("save");
     // The new service sees the stream from 5 s on, without GNSS.
     let after = drive_east_over(root.path(), &kept, (500, 700), false, f64::INFINITY);
     assert!(after.iter().all(|p| mode(p) == PoseMode::DeadReckoning));
@@ -654,14 +654,14 @@ fn a_power_on_somewhere_else_with_gnss_is_corrected_by_the_fixes() {
     let kept = root.path().join("pose.json");
     let mode = |p: &Pose| PoseMode::from_code(p.mode).expect("valid mode");
     drive_east_over(root.path(), &kept, (0, 200), true, 1.0);
-    let mut saved = crate::pose_state::load(&kept)
+    let mut saved = crate::serve::pose_state::load(&kept)
         .expect("state")
         .expect("kept");
     assert!(saved.last_word && saved.speed_m_s == Some(0.0));
     saved.x_m += 1500.0;
     saved.y_m -= 800.0;
     saved.yaw_rad = 3.0;
-    crate::pose_state::save(&kept, &saved).expect("save");
+    crate::serve::pose_state::save(&kept, &saved).expect("save");
     let poses = drive_east(root.path(), &kept, 5.0, true);
     assert_eq!(mode(&poses[0]), PoseMode::DeadReckoning);
     for p in &poses {
