@@ -346,6 +346,7 @@ fn the_algorithm_libraries_touch_no_files_threads_clock_or_cli() {
         "libraries/vehicle-model/src/lib.rs",
         "libraries/simulator/src/lib.rs",
         "libraries/report/src/lib.rs",
+        "libraries/stats/src/lib.rs",
         "services/calibrator/src/lib.rs",
         "services/odometry/src/lib.rs",
     ];
@@ -437,6 +438,7 @@ fn the_pure_libraries_do_not_build_the_bus_or_the_command_line() {
         ("simulator", &[]),
         ("drive-io", &[]),
         ("report", &[]),
+        ("stats", &[]),
         ("interfaces", &["--no-default-features"]),
         ("odometry", &["--no-default-features"]),
         ("calibrator", &["--no-default-features"]),
