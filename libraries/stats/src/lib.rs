@@ -160,6 +160,11 @@ mod tests {
         assert_eq!(percentile_sorted(&v, 2.0), Some(40.0));
         assert_eq!(percentile(&[40.0, 0.0, 20.0, 10.0, 30.0], 0.25), Some(10.0));
         assert_eq!(percentile_sorted(&[], 0.5), None);
+        // (moved here with the function from the odometry's evaluation)
+        assert_eq!(percentile(&[3.0, 1.0, 2.0, 4.0], 0.5), Some(2.5));
+        let p90 = percentile(&(1..=11).map(f64::from).collect::<Vec<_>>(), 0.9).unwrap();
+        assert!((p90 - 10.0).abs() < 1e-12);
+        assert_eq!(percentile(&[], 0.5), None);
         assert_eq!(percentile_sorted(&[7.0], 0.3), Some(7.0));
         assert_eq!(nearest_rank(&v, 0.9), 40.0);
         assert_eq!(nearest_rank(&v, 0.5), 20.0);

@@ -33,13 +33,6 @@ fn best_of(mut run: impl FnMut() -> Duration) -> Duration {
     (0..RUNS).map(|_| run()).min().unwrap_or_default()
 }
 
-fn quantile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * p).round() as usize]
-}
-
 fn main() -> anyhow::Result<()> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/real");
     if !root.is_dir() {
@@ -97,8 +90,8 @@ fn main() -> anyhow::Result<()> {
             per_input(in_order),
             per_input(t100),
             per_input(t200),
-            quantile(&went_back, 0.5),
-            quantile(&went_back, 0.99),
+            stats::nearest_rank(&went_back, 0.5),
+            stats::nearest_rank(&went_back, 0.99),
             went_back.last().copied().unwrap_or(f64::NAN),
             went_back.len()
         );

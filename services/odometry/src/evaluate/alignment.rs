@@ -4,10 +4,10 @@
 
 use super::config::EvaluateConfig;
 use super::dead_reckon::{dead_reckon_span, track_position_at, Snapshot};
-use super::percentile::percentile;
 use super::truth_track::TruthTrack;
 use crate::inputs::Input;
 use interfaces::drive::WheelRevs;
+use stats::percentile;
 use vehicle_model::two_wheel::{wrap_angle, Pose2};
 
 /// The alignment window `(ta, tb)` for an outage starting at `t0`: the last

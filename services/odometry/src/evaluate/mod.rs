@@ -68,7 +68,7 @@
 //!   truth;
 //! - `outage`: where the outages go, and one outage from its start pose to
 //!   its score;
-//! - `percentile`: the median and the 90th percentile;
+//! - `percentile` (from `stats`): the median and the 90th percentile;
 //! - `run`: [`evaluate`], a drive from its checks to its report.
 
 mod alignment;
@@ -76,7 +76,6 @@ mod config;
 mod dead_reckon;
 mod error;
 mod outage;
-mod percentile;
 mod report;
 mod run;
 #[cfg(test)]
@@ -87,9 +86,9 @@ mod wheel_clock;
 
 pub use config::EvaluateConfig;
 pub use error::EvaluateError;
-pub use percentile::percentile;
 pub use report::{EvaluationReport, OutageResult, ParamsReport, TrackPoint};
 pub use run::evaluate;
+pub use stats::percentile;
 pub use truth_point::{
     choose_truth_point, truth_gnss_coincidence, truth_is_the_gnss_track, TruthPoint,
     TruthPointChoice, TruthPointSource,

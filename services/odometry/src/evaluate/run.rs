@@ -7,7 +7,6 @@ use super::config::EvaluateConfig;
 use super::dead_reckon::{snapshots, Snapshot};
 use super::error::EvaluateError;
 use super::outage::{place_outages, run_outage};
-use super::percentile::percentile;
 use super::report::{EvaluationReport, ParamsReport};
 use super::truth_point::truth_is_the_gnss_track;
 use super::truth_track::{
@@ -18,6 +17,7 @@ use crate::dead_reckoning::HeadingMode;
 use crate::inputs::drive_inputs;
 use drive_io::plausibility::{self, Finding};
 use interfaces::drive::{Drive, WheelRevs};
+use stats::percentile;
 use std::borrow::Cow;
 use vehicle_model::estimate::OdometryParams;
 

@@ -2,9 +2,9 @@
 //! (interpolated, not across long gaps), its dead-banded arc length, its
 //! course from a cubic fit, and the check that its yaw is the vehicle's.
 
-use super::percentile::percentile;
 use interfaces::drive::TruthSample;
 use nalgebra::{Matrix4, Vector4};
+use stats::percentile;
 use vehicle_model::two_wheel::wrap_angle;
 
 /// Track movement below this does not add to the arc length, m.
