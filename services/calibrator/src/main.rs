@@ -2,7 +2,7 @@
 //! `calibrator` library (files, clock, threads, the bus, arguments).
 //!
 //! Each subcommand is one variant of [`Command`] dispatching to one function:
-//! - [`cli`]: `calibrate`, read a drive, print the report, write the JSON and
+//! - [`calibrate_cmd`]: `calibrate`, read a drive, print the report, write the JSON and
 //!   the pictures;
 //! - [`diagnose_cmd`]: `diagnose`, read a drive, print the findings, write
 //!   the JSON, the pictures and their index page;
@@ -12,7 +12,7 @@
 //!   [`serve::ServeConfig`];
 //! - [`serve`]: the live loop over the bus, with its state file.
 
-mod cli;
+mod calibrate_cmd;
 mod diagnose_cmd;
 mod drive_input;
 mod info_cmd;
@@ -34,7 +34,7 @@ struct Cli {
 enum Command {
     /// Estimate the rear wheel circumferences (and track width, gyro bias and
     /// scale) of a drive folder or MCAP recording; print the report.
-    Calibrate(cli::CalibrateArgs),
+    Calibrate(calibrate_cmd::CalibrateArgs),
     /// Find the physics the calibrated 2W model leaves out: where the model
     /// and the drive part ways, which catalogue effects explain it (tested on
     /// held-out blocks), the extended model and the fit before and after.
@@ -53,7 +53,7 @@ fn main() -> Result<()> {
     let cli = Cli::parse();
     interfaces::logging::init();
     match cli.command {
-        Command::Calibrate(args) => cli::run_calibrate(&args),
+        Command::Calibrate(args) => calibrate_cmd::run_calibrate(&args),
         Command::Diagnose(args) => diagnose_cmd::run_diagnose(&args),
         Command::Info(args) => info_cmd::run_info(&args),
         Command::Serve(args) => serve_cmd::run_serve(&args),
