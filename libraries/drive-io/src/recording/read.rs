@@ -11,6 +11,7 @@ use crate::streams::{wheel_column_names, Stream};
 use crate::{DriveError, LoadedDrive, ReadOptions};
 use interfaces::drive::{
     Drive, GnssSample, HeadingSample, ImuSample, TruthSample, Wheel, WheelSeries, WheelUnit,
+    WheelUnits,
 };
 use serde::de::DeserializeSeed;
 use std::collections::BTreeMap;
@@ -125,41 +126,8 @@ fn assemble(
     scan: &Scan<'_>,
     mut warnings: Vec<String>,
 ) -> Result<LoadedDrive, DriveError> {
-    let merr = |location: &str, message: String| DriveError::Mcap {
-        path: path.to_path_buf(),
-        location: location.to_string(),
-        message,
-    };
-    let Some(meta) = scan.metadata.get(DRIVE_METADATA) else {
-        return Err(merr(
-            "metadata",
-            format!("no `{DRIVE_METADATA}` metadata record: not a drive recording written by sensor-bridge"),
-        ));
-    };
-    if meta.get("format").map(String::as_str) != Some(FORMAT_MAGIC) {
-        return Err(merr(
-            &format!("metadata {DRIVE_METADATA}"),
-            format!(
-                "`format` is {:?}, expected {FORMAT_MAGIC:?}",
-                meta.get("format")
-            ),
-        ));
-    }
-    let version = meta
-        .get("format_version")
-        .and_then(|v| v.parse::<u32>().ok());
-    match version {
-        Some(v) if v <= FORMAT_VERSION => {}
-        _ => {
-            return Err(merr(
-                &format!("metadata {DRIVE_METADATA}"),
-                format!(
-                    "format_version {:?} is not supported (this tool reads up to {FORMAT_VERSION})",
-                    meta.get("format_version")
-                ),
-            ))
-        }
-    }
+    let merr = |location: &str, message: String| mcap_error(path, location, message);
+    let meta = drive_metadata(path, scan)?;
     let vehicle_text = scan
         .metadata
         .get(VEHICLE_METADATA)
@@ -186,110 +154,22 @@ fn assemble(
         )?),
         None => None,
     };
-
-    // Channels by topic; others are reported.
-    let mut by_topic: BTreeMap<&str, u16> = BTreeMap::new();
-    let known = [
-        WHEELS_TOPIC,
-        GnssSample::TOPIC,
-        ImuSample::TOPIC,
-        HeadingSample::TOPIC,
-        TruthSample::TOPIC,
-    ];
-    for (id, c) in &scan.channels {
-        if known.contains(&c.topic.as_str()) {
-            if c.encoding != "json" {
-                return Err(merr(
-                    &format!("channel {}", c.topic),
-                    format!("message encoding `{}`, expected `json`", c.encoding),
-                ));
-            }
-            if by_topic.insert(c.topic.as_str(), *id).is_some() {
-                return Err(merr(
-                    &format!("channel {}", c.topic),
-                    "appears twice".to_string(),
-                ));
-            }
-        }
-    }
-    // Channels in Foxglove's schemas are derived from the drive's own
-    // (written with `WriteOptions::foxglove`), and the served ones are not
-    // the drive's (`WriteOptions::poses`, `estimates`): left out without a
-    // word.
-    let derived = |c: &ChannelInfo| {
-        !known.contains(&c.topic.as_str())
-            && scan.schemas.get(&c.schema_id).is_some_and(|s| {
-                s.name.starts_with(FOXGLOVE_SCHEMA_PREFIX)
-                    || s.name.starts_with(super::served::SERVED_SCHEMA_PREFIX)
-            })
-    };
-    let mut per_channel: BTreeMap<u16, Vec<&RawMessage<'_>>> = BTreeMap::new();
-    let mut unknown_channel_messages = 0usize;
-    for m in &scan.messages {
-        match scan.channels.get(&m.channel_id) {
-            Some(c) if by_topic.get(c.topic.as_str()) == Some(&m.channel_id) => {
-                per_channel.entry(m.channel_id).or_default().push(m)
-            }
-            Some(c) if known.contains(&c.topic.as_str()) || derived(c) => {}
-            _ => unknown_channel_messages += 1,
-        }
-    }
-    let others: Vec<&str> = scan
-        .channels
-        .values()
-        .filter(|c| !derived(c))
-        .map(|c| c.topic.as_str())
-        .filter(|t| !known.contains(t))
-        .collect();
-    if !others.is_empty() || unknown_channel_messages > 0 {
-        warnings.push(format!(
-            "{}: ignored {unknown_channel_messages} message(s) on channel(s) that are not drive streams: {}",
-            path.display(),
-            if others.is_empty() { "(unknown channel ids)".to_string() } else { others.join(", ") }
-        ));
-    }
-
-    let empty = Vec::new();
-    let messages = |topic: &str| {
-        by_topic
-            .get(topic)
-            .map(|id| per_channel.get(id).unwrap_or(&empty))
-    };
-
-    let Some(wheel_msgs) = messages(WHEELS_TOPIC) else {
+    let streams = Streams::sort(path, scan, &mut warnings)?;
+    let Some(wheel_msgs) = streams.messages(WHEELS_TOPIC) else {
         return Err(merr(
             "channels",
             format!("no `{WHEELS_TOPIC}` channel (wheels are required)"),
         ));
     };
-    let wheels_channel = by_topic
-        .get(WHEELS_TOPIC)
-        .and_then(|id| scan.channels.get(id));
-    let units_text = wheels_channel
-        .and_then(|c| c.metadata.get(WHEEL_UNITS_KEY))
-        .or_else(|| meta.get(WHEEL_UNITS_KEY))
-        .ok_or_else(|| {
-            merr(
-                &format!("channel {WHEELS_TOPIC}"),
-                format!("no `{WHEEL_UNITS_KEY}` metadata"),
-            )
-        })?;
-    let units = parse_wheel_units(units_text).ok_or_else(|| {
-        merr(
-            &format!("channel {WHEELS_TOPIC}"),
-            format!("cannot parse wheel_units `{units_text}` (expected e.g. rl=rad_s,rr=rad_s)"),
-        )
-    })?;
+    let units = wheel_units(path, scan, &streams, meta)?;
     let has_ticks = Wheel::ALL
         .iter()
         .any(|&w| units.of(w) == Some(WheelUnit::Ticks));
     if has_ticks && vehicle.ticks_per_rev.is_none() {
-        {
-            return Err(merr(
-                &format!("channel {WHEELS_TOPIC}"),
-                "wheels in ticks but vehicle.toml has no ticks_per_rev".to_string(),
-            ));
-        }
+        return Err(merr(
+            &format!("channel {WHEELS_TOPIC}"),
+            "wheels in ticks but vehicle.toml has no ticks_per_rev".to_string(),
+        ));
     }
     let columns = wheel_column_names(&units);
     let wheel_samples = decode(path, WHEELS_TOPIC, wheel_msgs, |data| {
@@ -302,10 +182,10 @@ fn assemble(
             .all(f64::is_finite);
         Ok((s.t_s, s, finite))
     })?;
-    let gnss = decode_stream::<GnssSample>(path, messages(GnssSample::TOPIC))?;
-    let imu = decode_stream::<ImuSample>(path, messages(ImuSample::TOPIC))?;
-    let heading = decode_stream::<HeadingSample>(path, messages(HeadingSample::TOPIC))?;
-    let truth = decode_stream::<TruthSample>(path, messages(TruthSample::TOPIC))?;
+    let gnss = decode_stream::<GnssSample>(path, streams.messages(GnssSample::TOPIC))?;
+    let imu = decode_stream::<ImuSample>(path, streams.messages(ImuSample::TOPIC))?;
+    let heading = decode_stream::<HeadingSample>(path, streams.messages(HeadingSample::TOPIC))?;
+    let truth = decode_stream::<TruthSample>(path, streams.messages(TruthSample::TOPIC))?;
 
     Ok(LoadedDrive {
         drive: Drive {
@@ -321,6 +201,174 @@ fn assemble(
             truth_params,
         },
         warnings,
+    })
+}
+
+/// An error in the recording at `path`, at `location`.
+fn mcap_error(path: &Path, location: &str, message: String) -> DriveError {
+    DriveError::Mcap {
+        path: path.to_path_buf(),
+        location: location.to_string(),
+        message,
+    }
+}
+
+/// The drive metadata record, checked: our format, a version we read.
+fn drive_metadata<'s>(
+    path: &Path,
+    scan: &'s Scan<'_>,
+) -> Result<&'s BTreeMap<String, String>, DriveError> {
+    let merr = |location: &str, message: String| mcap_error(path, location, message);
+    let Some(meta) = scan.metadata.get(DRIVE_METADATA) else {
+        return Err(merr(
+            "metadata",
+            format!("no `{DRIVE_METADATA}` metadata record: not a drive recording written by sensor-bridge"),
+        ));
+    };
+    if meta.get("format").map(String::as_str) != Some(FORMAT_MAGIC) {
+        return Err(merr(
+            &format!("metadata {DRIVE_METADATA}"),
+            format!(
+                "`format` is {:?}, expected {FORMAT_MAGIC:?}",
+                meta.get("format")
+            ),
+        ));
+    }
+    let version = meta
+        .get("format_version")
+        .and_then(|v| v.parse::<u32>().ok());
+    match version {
+        Some(v) if v <= FORMAT_VERSION => Ok(meta),
+        _ => Err(merr(
+            &format!("metadata {DRIVE_METADATA}"),
+            format!(
+                "format_version {:?} is not supported (this tool reads up to {FORMAT_VERSION})",
+                meta.get("format_version")
+            ),
+        )),
+    }
+}
+
+/// The drive streams' topics.
+const KNOWN_TOPICS: [&str; 5] = [
+    WHEELS_TOPIC,
+    GnssSample::TOPIC,
+    ImuSample::TOPIC,
+    HeadingSample::TOPIC,
+    TruthSample::TOPIC,
+];
+
+/// The messages of the drive's own channels, by topic; what else the
+/// recording holds is reported in the warnings.
+struct Streams<'a, 's> {
+    by_topic: BTreeMap<&'s str, u16>,
+    per_channel: BTreeMap<u16, Vec<&'s RawMessage<'a>>>,
+    empty: Vec<&'s RawMessage<'a>>,
+}
+
+impl<'a, 's> Streams<'a, 's> {
+    fn sort(
+        path: &Path,
+        scan: &'s Scan<'a>,
+        warnings: &mut Vec<String>,
+    ) -> Result<Streams<'a, 's>, DriveError> {
+        let merr = |location: &str, message: String| mcap_error(path, location, message);
+        let known = KNOWN_TOPICS;
+        // Channels by topic; others are reported.
+        let mut by_topic: BTreeMap<&str, u16> = BTreeMap::new();
+        for (id, c) in &scan.channels {
+            if known.contains(&c.topic.as_str()) {
+                if c.encoding != "json" {
+                    return Err(merr(
+                        &format!("channel {}", c.topic),
+                        format!("message encoding `{}`, expected `json`", c.encoding),
+                    ));
+                }
+                if by_topic.insert(c.topic.as_str(), *id).is_some() {
+                    return Err(merr(
+                        &format!("channel {}", c.topic),
+                        "appears twice".to_string(),
+                    ));
+                }
+            }
+        }
+        // Channels in Foxglove's schemas are derived from the drive's own
+        // (written with `WriteOptions::foxglove`), and the served ones are not
+        // the drive's (`WriteOptions::poses`, `estimates`): left out without a
+        // word.
+        let derived = |c: &ChannelInfo| {
+            !known.contains(&c.topic.as_str())
+                && scan.schemas.get(&c.schema_id).is_some_and(|s| {
+                    s.name.starts_with(FOXGLOVE_SCHEMA_PREFIX)
+                        || s.name.starts_with(super::served::SERVED_SCHEMA_PREFIX)
+                })
+        };
+        let mut per_channel: BTreeMap<u16, Vec<&RawMessage<'_>>> = BTreeMap::new();
+        let mut unknown_channel_messages = 0usize;
+        for m in &scan.messages {
+            match scan.channels.get(&m.channel_id) {
+                Some(c) if by_topic.get(c.topic.as_str()) == Some(&m.channel_id) => {
+                    per_channel.entry(m.channel_id).or_default().push(m)
+                }
+                Some(c) if known.contains(&c.topic.as_str()) || derived(c) => {}
+                _ => unknown_channel_messages += 1,
+            }
+        }
+        let others: Vec<&str> = scan
+            .channels
+            .values()
+            .filter(|c| !derived(c))
+            .map(|c| c.topic.as_str())
+            .filter(|t| !known.contains(t))
+            .collect();
+        if !others.is_empty() || unknown_channel_messages > 0 {
+            warnings.push(format!(
+                "{}: ignored {unknown_channel_messages} message(s) on channel(s) that are not drive streams: {}",
+                path.display(),
+                if others.is_empty() { "(unknown channel ids)".to_string() } else { others.join(", ") }
+            ));
+        }
+        Ok(Streams {
+            by_topic,
+            per_channel,
+            empty: Vec::new(),
+        })
+    }
+
+    /// The messages of `topic`, `None` when the recording has no such channel.
+    fn messages(&self, topic: &str) -> Option<&Vec<&'s RawMessage<'a>>> {
+        self.by_topic
+            .get(topic)
+            .map(|id| self.per_channel.get(id).unwrap_or(&self.empty))
+    }
+}
+
+/// The wheel channel's units: from its own metadata, else the drive's.
+fn wheel_units(
+    path: &Path,
+    scan: &Scan<'_>,
+    streams: &Streams<'_, '_>,
+    meta: &BTreeMap<String, String>,
+) -> Result<WheelUnits, DriveError> {
+    let merr = |location: &str, message: String| mcap_error(path, location, message);
+    let wheels_channel = streams
+        .by_topic
+        .get(WHEELS_TOPIC)
+        .and_then(|id| scan.channels.get(id));
+    let units_text = wheels_channel
+        .and_then(|c| c.metadata.get(WHEEL_UNITS_KEY))
+        .or_else(|| meta.get(WHEEL_UNITS_KEY))
+        .ok_or_else(|| {
+            merr(
+                &format!("channel {WHEELS_TOPIC}"),
+                format!("no `{WHEEL_UNITS_KEY}` metadata"),
+            )
+        })?;
+    parse_wheel_units(units_text).ok_or_else(|| {
+        merr(
+            &format!("channel {WHEELS_TOPIC}"),
+            format!("cannot parse wheel_units `{units_text}` (expected e.g. rl=rad_s,rr=rad_s)"),
+        )
     })
 }
 
