@@ -261,5 +261,60 @@ pub fn render_text(d: &Diagnosis) -> String {
         b.residual_lag1_autocorr,
         a.residual_lag1_autocorr
     );
+    information_text(&mut s, d);
     s
+}
+
+/// What the drive could show of each effect (the information limit),
+/// beside the size the held-out test needs where it said one.
+fn information_text(s: &mut String, d: &Diagnosis) {
+    let Some(l) = &d.information_limit else {
+        if let Some(why) = &d.information_limit_missing {
+            let _ = writeln!(s, "information limit: not known ({why})");
+        }
+        return;
+    };
+    let noise = |n: &[f64; 3]| format!("{:.2} m white + {:.2} m over {:.0} s", n[0], n[1], n[2]);
+    let _ = writeln!(
+        s,
+        "what this drive could show (90 % power at a family-wise level of {:.0} %; GNSS error with every \
+         effect in: east {}, north {}; {} segments of {:.0} s):",
+        100.0 * l.family_alpha,
+        noise(&l.noise_east),
+        noise(&l.noise_north),
+        l.segments,
+        l.segment_s
+    );
+    for e in &l.effects {
+        let shows = match (e.smallest, e.relative_to_typical) {
+            (Some(v), Some(r)) => format!(
+                "from {} = {v:.2e} {} ({r:.2}x typical)",
+                e.parameter, e.unit
+            ),
+            _ => "nothing: the drive holds no information about it".to_string(),
+        };
+        let joint = e
+            .joint
+            .as_ref()
+            .and_then(|j| j.smallest)
+            .map(|v| format!("; with every other effect free {:.2}x", v / e.typical))
+            .unwrap_or_default();
+        let test = d
+            .not_accepted
+            .iter()
+            .find(|n| n.effect == e.effect)
+            .and_then(|n| n.detectable.as_ref())
+            .map(|det| match det.smallest {
+                Some(v) => format!("; the held-out test needs {:.2}x", v / det.typical),
+                None => "; the held-out test does not show it at 64x".to_string(),
+            })
+            .unwrap_or_default();
+        let alone = match (e.estimate, e.sigma, e.wald_z) {
+            (Some(v), Some(sg), Some(z)) => {
+                format!(" [{}: {v:.2e} ± {sg:.1e}, z {z:.1}]", e.source.describe())
+            }
+            _ => format!(" [{}]", e.source.describe()),
+        };
+        let _ = writeln!(s, "  {}: {shows}{joint}{test}{alone}", e.effect);
+    }
 }

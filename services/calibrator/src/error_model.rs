@@ -295,13 +295,13 @@ pub fn variogram(series: &[Vec<(f64, f64)>], dt: f64) -> Vec<(f64, f64, usize)> 
 /// A small deterministic generator of standard normal numbers (splitmix64
 /// and Box-Muller): the simulated errors must not make two runs on the same
 /// drive differ.
-struct Normal {
+pub(crate) struct Normal {
     state: u64,
     spare: Option<f64>,
 }
 
 impl Normal {
-    fn new(seed: u64) -> Normal {
+    pub(crate) fn new(seed: u64) -> Normal {
         Normal {
             state: seed,
             spare: None,
@@ -318,7 +318,7 @@ impl Normal {
         ((z >> 11) as f64 + 1.0) / (1u64 << 53) as f64
     }
 
-    fn next(&mut self) -> f64 {
+    pub(crate) fn next(&mut self) -> f64 {
         if let Some(v) = self.spare.take() {
             return v;
         }
@@ -474,7 +474,11 @@ fn plausible(mut c: Vec<Candidate>) -> Option<Vec<ErrorModel>> {
 
 /// Non-negative least squares of `observed = w * white + g * gm` in
 /// relative error: `(sse, w, g)`.
-fn nnls2(observed: &[(f64, f64, usize)], white: &[f64], gm: &[f64]) -> Option<(f64, f64, f64)> {
+pub(crate) fn nnls2(
+    observed: &[(f64, f64, usize)],
+    white: &[f64],
+    gm: &[f64],
+) -> Option<(f64, f64, f64)> {
     let rows: Vec<(f64, f64)> = observed
         .iter()
         .zip(white.iter().zip(gm))

@@ -178,6 +178,45 @@ pub fn profiled_information(
     Ok((tt - explained).max(0.0))
 }
 
+/// The profiled information of `target` (as [`profiled_information`]) and
+/// the coefficient's estimate from the whitened data `y`, the nuisances
+/// fitted alongside: `t_perp' y / t_perp' t_perp`, where `t_perp` is the
+/// target's part that no nuisance explains. The estimate is 0 without
+/// information.
+pub fn profiled_estimate(
+    target: &[f64],
+    nuisances: &[Vec<f64>],
+    y: &[f64],
+) -> Result<(f64, f64), InformationError> {
+    let n = target.len();
+    if y.len() != n {
+        return Err(InformationError::BadData(format!(
+            "data of {} values for a target of {n}",
+            y.len()
+        )));
+    }
+    if let Some(c) = nuisances.iter().find(|c| c.len() != n) {
+        return Err(InformationError::BadData(format!(
+            "a nuisance of {} values for a target of {n}",
+            c.len()
+        )));
+    }
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let (tt, ty) = (dot(target, target), dot(target, y));
+    if nuisances.is_empty() {
+        return Ok((tt, if tt > 0.0 { ty / tt } else { 0.0 }));
+    }
+    let m = nuisances.len();
+    let nn = DMatrix::from_fn(m, m, |i, j| dot(&nuisances[i], &nuisances[j]));
+    let nt = DVector::from_fn(m, |i, _| dot(&nuisances[i], target));
+    let ny = DVector::from_fn(m, |i, _| dot(&nuisances[i], y));
+    let chol = nn.cholesky().ok_or(InformationError::SingularNuisances)?;
+    let nn_inv_nt = chol.solve(&nt);
+    let info = (tt - nt.dot(&nn_inv_nt)).max(0.0);
+    let cross = ty - ny.dot(&nn_inv_nt);
+    Ok((info, if info > 0.0 { cross / info } else { 0.0 }))
+}
+
 /// The smallest size of a coefficient with profiled information `info`
 /// that a two-sided test at level `alpha` finds with probability `power`:
 /// `(z(1 - alpha / 2) + z(power)) / sqrt(info)` (infinite without

@@ -28,6 +28,7 @@
 pub mod design;
 pub mod epochs;
 pub mod information;
+pub mod limit;
 pub mod locate;
 pub mod pictures;
 pub mod select;
@@ -381,6 +382,16 @@ pub struct Diagnosis {
     pub not_accepted: Vec<NotAccepted>,
     /// The noise the thresholds came from.
     pub noise: NoiseLevels,
+    /// What this drive could show of each effect: the smallest size its
+    /// GNSS positions (or heading sensor) reveal with 90 % power, from the
+    /// Fisher information under the drive's own error model, beside the
+    /// estimate and Wald statistic there. Absent with the reason in
+    /// `information_limit_missing`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub information_limit: Option<limit::InformationLimit>,
+    /// Why there is no information limit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub information_limit_missing: Option<String>,
     /// What the plain model's calibration warned of (values set aside, a
     /// dead sensor, ...): the diagnosis reads the drive as it did.
     #[serde(default)]
@@ -500,6 +511,11 @@ pub fn diagnose_with_progress(
         )));
     }
     progress(DiagnoseStage::Select, 0.4);
+    let (information_limit, information_limit_missing) =
+        match drive_limit(&cal, &cx, &base, &design, &used, block_s, &ep) {
+            Ok(l) => (Some(l), None),
+            Err(why) => (None, Some(why)),
+        };
     let sel = forward_select(&design, &stats);
     progress(DiagnoseStage::Fit, 0.6);
 
@@ -748,11 +764,68 @@ pub fn diagnose_with_progress(
                 .collect(),
             gnss_jumps: excluded.iter().filter(|x| **x).count(),
         },
+        information_limit,
+        information_limit_missing,
         base_model: base,
         terms,
         residual_plots,
         tracks,
     })
+}
+
+/// The drive's information limit, under the GNSS error model the plain
+/// calibration fitted to its residuals; the reason when there is none.
+fn drive_limit(
+    cal: &crate::Calibration,
+    cx: &locate::Context<'_>,
+    base: &BaseModel,
+    design: &Design,
+    used: &[usize],
+    block_s: f64,
+    ep: &Epochs,
+) -> Result<limit::InformationLimit, String> {
+    let noise = cal
+        .diagnostics
+        .sigma_basis
+        .as_ref()
+        .and_then(|b| b.error_model)
+        .map(|axes| {
+            axes.map(|a| information::PositionNoise {
+                // A fit that put all of the error into the wander (white 0)
+                // cannot be whitened: a white floor of 5 % of the total
+                // sigma costs a little information, never adds any.
+                white_sigma_m: a
+                    .white_sigma_m
+                    .max(0.05 * a.white_sigma_m.hypot(a.correlated_sigma_m)),
+                gm_sigma_m: a.correlated_sigma_m,
+                gm_tau_s: a.correlation_time_s,
+            })
+        });
+    let t_first = ep.epochs.first().map_or(0.0, |e| e.t_s);
+    let spans: Vec<(f64, f64)> = used
+        .iter()
+        .map(|&b| {
+            (
+                t_first + b as f64 * block_s,
+                t_first + (b + 1) as f64 * block_s,
+            )
+        })
+        .collect();
+    let model = Model {
+        c_rl: base.c_rl_m,
+        c_rr: base.c_rr_m,
+        track_m: base.track_width_m,
+        terms: EffectTerms::default(),
+        slip_side: 0,
+    };
+    limit::information_limit(&limit::LimitInput {
+        cx,
+        base: &model,
+        spans: &spans,
+        noise,
+        design,
+    })
+    .map_err(|e| format!("the information could not be computed: {e}"))
 }
 
 /// Fixes that jump: the step residual far beyond the drive's own spread.

@@ -1047,6 +1047,8 @@ mod tests {
             ambiguous: Vec::new(),
             unexplained: Vec::new(),
             mismatch_segments: Vec::new(),
+            information_limit: None,
+            information_limit_missing: None,
             fit: Fit {
                 before: metrics(3.2),
                 after: metrics(1.1),

@@ -1,0 +1,1077 @@
+//! What a drive could show: for every effect of the table, the smallest
+//! size the recording reveals with 90 % power at the family's level, from
+//! the Fisher information of its GNSS positions under the drive's own
+//! error model (issue 37, the information limit), and the Wald statistic of
+//! the effect at that limit.
+//!
+//! The fingerprint of an effect is the derivative of the dead-reckoned
+//! antenna positions at the fix times with respect to its main parameter
+//! (central differences of the effect-aware model, [`super::locate::dr_points`]),
+//! turned into the GNSS frame by each segment's placement. The nuisances are
+//! what a fit re-estimates anyway: each segment's pose (the dead-reckoning
+//! starts afresh in every segment), the circumferences' common scale and
+//! left/right difference, and for the gyro's scale the gyro's bias. The GNSS
+//! error of each axis is white plus Gauss-Markov, with the numbers the
+//! calibration fitted to this drive's residuals; [`super::information`]
+//! whitens exactly and profiles the nuisances out.
+//!
+//! The heading sensor's bias does not move a position: its information comes
+//! from the heading channel (heading sensor against the GNSS course), whose
+//! serial correlation is taken into account by the effective number of
+//! independent rows of an AR(1) series.
+//!
+//! Pure: the drive's data in, numbers out.
+
+use super::design::{Channel, Design};
+use super::information::{
+    detectable_size, profiled_estimate, whiten, InformationError, PositionNoise,
+};
+use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
+use interfaces::effects::{Effect, Param};
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// The family-wise level the limit is given at (two-sided, shared by the
+/// twelve effects by Bonferroni).
+pub const FAMILY_ALPHA: f64 = 0.05;
+/// The power the limit is given at.
+pub const POWER: f64 = 0.9;
+
+/// Where the information about an effect comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum InformationSource {
+    /// The GNSS positions against the wheels' dead-reckoning.
+    PositionsWheelHeading,
+    /// The GNSS positions against the dead-reckoning with the gyro's heading.
+    PositionsGyroHeading,
+    /// The heading sensor against the GNSS course.
+    HeadingChannel,
+}
+
+impl InformationSource {
+    /// In words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            InformationSource::PositionsWheelHeading => "GNSS positions, wheel heading",
+            InformationSource::PositionsGyroHeading => "GNSS positions, gyro heading",
+            InformationSource::HeadingChannel => "heading sensor against GNSS course",
+        }
+    }
+}
+
+/// One effect's information limit on this drive.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectLimit {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// Its main parameter's name (the table's).
+    pub parameter: &'static str,
+    /// Its unit (as reported).
+    pub unit: &'static str,
+    /// The catalogue's typical size, reported unit.
+    pub typical: f64,
+    /// The smallest size this drive shows with 90 % power at the family's
+    /// level, reported unit; absent when the drive holds no information
+    /// about it (no such manoeuvre).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smallest: Option<f64>,
+    /// `smallest / typical`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub relative_to_typical: Option<f64>,
+    /// Where the information comes from.
+    pub source: InformationSource,
+    /// What `estimate` and `sigma` are of: the parameter, or its square
+    /// for a term that acts through its square (road grade's gain).
+    pub estimate_of: String,
+    /// The parameter's estimate from this drive alone (linearised at the
+    /// plain model, the nuisances profiled out), reported unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimate: Option<f64>,
+    /// Its sigma, reported unit: the larger of `sigma_fisher` and
+    /// `sigma_jackknife`. The smallest size shown is computed from it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+    /// The sigma the Fisher information under the error model gives.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_fisher: Option<f64>,
+    /// The delete-one-segment jackknife's sigma (the drive's own scatter).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_jackknife: Option<f64>,
+    /// The Wald statistic `estimate / sigma`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wald_z: Option<f64>,
+    /// The same with every other effect of its source free too.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<Joint>,
+}
+
+/// An effect's limit, estimate and Wald statistic with every other effect
+/// of its source fitted alongside.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Joint {
+    /// The smallest size shown with 90 % power, reported unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smallest: Option<f64>,
+    /// The estimate, reported unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimate: Option<f64>,
+    /// Its sigma, reported unit (as [`EffectLimit::sigma`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+    /// The Fisher information's sigma.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_fisher: Option<f64>,
+    /// The jackknife's sigma.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_jackknife: Option<f64>,
+    /// `estimate / sigma`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wald_z: Option<f64>,
+}
+
+impl Joint {
+    fn of(effect: Effect, fit: CoefFit, alpha: f64) -> Joint {
+        let l = limit_of(
+            effect,
+            Some(fit),
+            alpha,
+            InformationSource::PositionsWheelHeading,
+        );
+        Joint {
+            smallest: l.smallest,
+            estimate: l.estimate,
+            sigma: l.sigma,
+            sigma_fisher: l.sigma_fisher,
+            sigma_jackknife: l.sigma_jackknife,
+            wald_z: l.wald_z,
+        }
+    }
+}
+
+/// The information limit of a drive.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InformationLimit {
+    /// The family-wise level (two-sided), shared by the effects.
+    pub family_alpha: f64,
+    /// The per-effect level (`family_alpha / effects`).
+    pub alpha_per_effect: f64,
+    /// The power.
+    pub power: f64,
+    /// The |Wald z| a single effect needs at the per-effect level.
+    pub z_critical: f64,
+    /// Segments the dead-reckoning restarts in, and their length, s.
+    pub segments: usize,
+    /// Segment length, s.
+    pub segment_s: f64,
+    /// Fixes used.
+    pub fixes: usize,
+    /// Whether the error model was refitted to the residual with every
+    /// effect in (else the calibration's, fitted with none, is used).
+    pub noise_refitted: bool,
+    /// The GNSS error model of the east axis the information is computed
+    /// under: white sigma (m), Gauss-Markov sigma (m), its time (s).
+    pub noise_east: [f64; 3],
+    /// North axis, as `noise_east`.
+    pub noise_north: [f64; 3],
+    /// The error model (east, north) under the gyro's heading, whose
+    /// dead-reckoning errors differ from the wheels'.
+    pub noise_gyro_heading: [[f64; 3]; 2],
+    /// The calibration's error model of the east axis (plain model's
+    /// residuals), as `noise_east`, when it fitted one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration_noise_east: Option<[f64; 3]>,
+    /// North axis, as `calibration_noise_east`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration_noise_north: Option<[f64; 3]>,
+    /// Per effect, in catalogue order.
+    pub effects: Vec<EffectLimit>,
+}
+
+/// What the limit is computed from.
+#[derive(Debug, Clone, Copy)]
+pub struct LimitInput<'a> {
+    /// The drive's wheels, fixes and epochs.
+    pub cx: &'a Context<'a>,
+    /// The plain calibrated model.
+    pub base: &'a Model,
+    /// Segments, [t0, t1) s, in time order.
+    pub spans: &'a [(f64, f64)],
+    /// The GNSS error of the east and north axes the calibration fitted to
+    /// the plain model's residuals, if it did (used when the residual with
+    /// every effect in shows too few lags for a model of its own).
+    pub noise: Option<[PositionNoise; 2]>,
+    /// The diagnosis's design (for the heading channel).
+    pub design: &'a Design,
+}
+
+/// One stacked column: per fix, east and north.
+type Col = Vec<[f64; 2]>;
+
+/// A perturbation of the plain model.
+#[derive(Debug, Clone, Copy)]
+enum Kick {
+    /// Both circumferences by a relative step.
+    Scale,
+    /// Their left/right difference by a relative step.
+    LeftRight,
+    /// One effect parameter (with another set alongside).
+    Term(Param, Option<(Param, f64)>),
+    /// One effect parameter that acts through its square (road grade's
+    /// gain: cos(g x) ~ 1 - g^2 x^2 / 2): the step is in the square.
+    Squared(Param),
+}
+
+impl Kick {
+    fn param(self) -> Option<Param> {
+        match self {
+            Kick::Term(p, _) | Kick::Squared(p) => Some(p),
+            Kick::Scale | Kick::LeftRight => None,
+        }
+    }
+}
+
+fn perturbed(base: &Model, kick: Kick, h: f64) -> Model {
+    let mut m = *base;
+    match kick {
+        Kick::Scale => {
+            m.c_rl *= 1.0 + h;
+            m.c_rr *= 1.0 + h;
+        }
+        Kick::LeftRight => {
+            m.c_rl *= 1.0 - h;
+            m.c_rr *= 1.0 + h;
+        }
+        Kick::Term(p, with) => {
+            m.terms.set(p, m.terms.get(p) + h);
+            if let Some((q, v)) = with {
+                m.terms.set(q, v);
+            }
+        }
+        Kick::Squared(p) => {
+            let square = m.terms.get(p).powi(2) + h;
+            m.terms.set(p, square.max(0.0).sqrt());
+        }
+    }
+    m
+}
+
+/// The dead-reckoning of one heading source over every segment, and the
+/// fingerprints of perturbations in the GNSS frame.
+struct Source<'a> {
+    input: &'a LimitInput<'a>,
+    heading: HeadingSource,
+    /// Per segment: fix times kept, the placement angle, the model points.
+    segments: Vec<(Vec<f64>, f64, Vec<[f64; 2]>)>,
+}
+
+impl<'a> Source<'a> {
+    fn new(input: &'a LimitInput<'a>, heading: HeadingSource, times: &[Vec<f64>]) -> Source<'a> {
+        let mut segments = Vec::new();
+        for (&(t0, t1), keep) in input.spans.iter().zip(times) {
+            let Some(p) = dr_points(input.base, heading, input.cx, t0, t1) else {
+                segments.push((Vec::new(), 0.0, Vec::new()));
+                continue;
+            };
+            let (model, gnss) = pick(&p.t, &p.model, &p.gnss, keep);
+            let (_, _, angle) = align_with_angle(&model, &gnss);
+            segments.push((keep.clone(), angle, model));
+        }
+        Source {
+            input,
+            heading,
+            segments,
+        }
+    }
+
+    /// The derivative of the placed positions with respect to `kick`.
+    fn fingerprint(&self, kick: Kick, h: f64) -> Col {
+        let mut out = Vec::new();
+        for (&(t0, t1), (keep, angle, _)) in self.input.spans.iter().zip(&self.segments) {
+            if keep.is_empty() {
+                continue;
+            }
+            let at = |sign: f64| {
+                let m = perturbed(self.input.base, kick, sign * h);
+                dr_points(&m, self.heading, self.input.cx, t0, t1)
+                    .map(|p| pick(&p.t, &p.model, &p.gnss, keep).0)
+            };
+            let (s, c) = angle.sin_cos();
+            // A squared term is stepped one way from the plain model (its
+            // square cannot go below zero there).
+            let (plus, minus, span) = if matches!(kick, Kick::Squared(_)) {
+                (at(1.0), at(0.0), h)
+            } else {
+                (at(1.0), at(-1.0), 2.0 * h)
+            };
+            match (plus, minus) {
+                (Some(a), Some(b)) if a.len() == keep.len() && b.len() == keep.len() => {
+                    for (p, q) in a.iter().zip(&b) {
+                        let (dx, dy) = ((p[0] - q[0]) / span, (p[1] - q[1]) / span);
+                        out.push([c * dx - s * dy, s * dx + c * dy]);
+                    }
+                }
+                _ => out.extend(std::iter::repeat_n([0.0, 0.0], keep.len())),
+            }
+        }
+        out
+    }
+
+    /// Each segment's pose (east, north, rotation) as columns, with the
+    /// index of the segment (among those with fixes) each belongs to.
+    fn poses(&self, total: usize) -> Vec<(usize, Col)> {
+        let mut cols = Vec::new();
+        let mut at = 0;
+        for (seg, (_, angle, model)) in self
+            .segments
+            .iter()
+            .filter(|(keep, _, _)| !keep.is_empty())
+            .enumerate()
+        {
+            let (s, c) = angle.sin_cos();
+            let mut east = vec![[0.0; 2]; total];
+            let mut north = vec![[0.0; 2]; total];
+            let mut rot = vec![[0.0; 2]; total];
+            for (k, m) in model.iter().enumerate() {
+                east[at + k] = [1.0, 0.0];
+                north[at + k] = [0.0, 1.0];
+                // d/d(angle) of R(angle) m.
+                rot[at + k] = [-s * m[0] - c * m[1], c * m[0] - s * m[1]];
+            }
+            at += model.len();
+            cols.extend([(seg, east), (seg, north)]);
+            // A segment that hardly moves has no rotation to speak of (and
+            // its column would be a translation's).
+            if spread(model) >= MIN_SPREAD_M {
+                cols.push((seg, rot));
+            }
+        }
+        cols
+    }
+
+    /// The fixes' residual after each segment's placement, stacked.
+    fn residual(&self) -> Col {
+        let mut out = Vec::new();
+        for (&(t0, t1), (keep, _, _)) in self.input.spans.iter().zip(&self.segments) {
+            if keep.is_empty() {
+                continue;
+            }
+            if let Some(p) = dr_points(self.input.base, self.heading, self.input.cx, t0, t1) {
+                let (model, gnss) = pick(&p.t, &p.model, &p.gnss, keep);
+                let (moved, _, _) = align_with_angle(&model, &gnss);
+                out.extend(
+                    moved
+                        .iter()
+                        .zip(&gnss)
+                        .map(|(m, g)| [g[0] - m[0], g[1] - m[1]]),
+                );
+            }
+        }
+        out
+    }
+}
+
+/// The smallest spread of a segment's points for its rotation to be a
+/// nuisance of its own, m.
+const MIN_SPREAD_M: f64 = 1.0;
+
+/// The largest distance of the points from their mean, m.
+fn spread(points: &[[f64; 2]]) -> f64 {
+    let n = points.len().max(1) as f64;
+    let (mx, my) = points
+        .iter()
+        .fold((0.0, 0.0), |(x, y), p| (x + p[0] / n, y + p[1] / n));
+    points
+        .iter()
+        .map(|p| (p[0] - mx).hypot(p[1] - my))
+        .fold(0.0, f64::max)
+}
+
+/// The points of `t` that are in `keep` (both sorted), model and fix.
+fn pick(
+    t: &[f64],
+    model: &[[f64; 2]],
+    gnss: &[[f64; 2]],
+    keep: &[f64],
+) -> (Vec<[f64; 2]>, Vec<[f64; 2]>) {
+    let mut m = Vec::with_capacity(keep.len());
+    let mut g = Vec::with_capacity(keep.len());
+    let mut j = 0;
+    for (i, &ti) in t.iter().enumerate() {
+        while j < keep.len() && keep[j] < ti {
+            j += 1;
+        }
+        if j < keep.len() && keep[j] == ti {
+            m.push(model[i]);
+            g.push(gnss[i]);
+        }
+    }
+    (m, g)
+}
+
+/// The fix times every perturbation sees: those of the segment's span
+/// [t0, t1) that the plain model and the latency's steps all reach.
+fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
+    input
+        .spans
+        .iter()
+        .map(|&(t0, t1)| {
+            let times =
+                |m: &Model, src| dr_points(m, src, input.cx, t0, t1).map_or_else(Vec::new, |p| p.t);
+            let mut keep: Vec<f64> = times(input.base, HeadingSource::Wheels)
+                .into_iter()
+                .filter(|t| *t < t1)
+                .collect();
+            let kick = Kick::Term(Param::GnssLatency, None);
+            for sign in [1.0, -1.0] {
+                let m = perturbed(input.base, kick, sign * h_latency);
+                for src in [HeadingSource::Wheels, HeadingSource::Gyro] {
+                    let other = times(&m, src);
+                    keep.retain(|t| other.binary_search_by(|x| x.total_cmp(t)).is_ok());
+                }
+            }
+            let gyro = times(input.base, HeadingSource::Gyro);
+            keep.retain(|t| gyro.binary_search_by(|x| x.total_cmp(t)).is_ok());
+            if keep.len() < 3 {
+                keep.clear();
+            }
+            keep
+        })
+        .collect()
+}
+
+/// Whiten stacked columns per axis (east with `noise[0]`, north with
+/// `noise[1]`) and flatten: east values, then north values.
+fn whitened(
+    times: &[f64],
+    noise: &[PositionNoise; 2],
+    cols: &[Col],
+) -> Result<Vec<Vec<f64>>, InformationError> {
+    let n = times.len();
+    let mut axes: [Vec<Vec<f64>>; 2] = [Vec::new(), Vec::new()];
+    for (axis, out) in axes.iter_mut().enumerate() {
+        *out = cols
+            .iter()
+            .map(|c| c.iter().map(|v| v[axis]).collect())
+            .collect();
+        let mut refs: Vec<&mut [f64]> = out.iter_mut().map(|v| v.as_mut_slice()).collect();
+        whiten(times, &noise[axis], &mut refs)?;
+    }
+    let [east, north] = axes;
+    Ok(east
+        .into_iter()
+        .zip(north)
+        .map(|(mut e, nn)| {
+            debug_assert_eq!(e.len(), n);
+            e.extend(nn);
+            e
+        })
+        .collect())
+}
+
+/// The effect's main parameter and what is set alongside it.
+fn main_kick(effect: Effect) -> Kick {
+    let p = effect.main_fitted();
+    match effect {
+        // The drift's form needs its time constant: the catalogue's typical.
+        Effect::RadiusDrift => Kick::Term(
+            p,
+            Some((
+                Param::DriftTimeConstant,
+                Param::DriftTimeConstant.spec().typical,
+            )),
+        ),
+        Effect::RoadGrade => Kick::Squared(p),
+        _ => Kick::Term(p, None),
+    }
+}
+
+/// One heading source's columns, before whitening: the residual, the
+/// circumferences' scale (and left/right difference under the wheels'
+/// heading), its effects' fingerprints, the segments' poses (and the gyro's
+/// bias under the gyro's heading).
+struct Columns {
+    heading: HeadingSource,
+    effects: Vec<Effect>,
+    cols: Vec<Col>,
+    first_effect: usize,
+    /// The segment of each pose column (they follow the effects).
+    pose_segment: Vec<usize>,
+    gyro_bias: bool,
+}
+
+impl Columns {
+    fn build(input: &LimitInput<'_>, heading: HeadingSource, times: &[Vec<f64>]) -> Columns {
+        let total: usize = times.iter().map(Vec::len).sum();
+        let src = Source::new(input, heading, times);
+        let wheels = matches!(heading, HeadingSource::Wheels);
+        let effects: Vec<Effect> = Effect::ALL
+            .into_iter()
+            .filter(|e| {
+                let gyro = matches!(e, Effect::GyroBias | Effect::GyroScale);
+                if wheels {
+                    !gyro && *e != Effect::HeadingBias
+                } else {
+                    gyro
+                }
+            })
+            .collect();
+        let mut cols: Vec<Col> = vec![src.residual()];
+        cols.push(src.fingerprint(Kick::Scale, 1e-4));
+        // The left/right difference turns the wheels' heading; under the
+        // gyro's heading it moves nothing to first order.
+        if wheels {
+            cols.push(src.fingerprint(Kick::LeftRight, 1e-4));
+        }
+        let first_effect = cols.len();
+        for e in &effects {
+            let kick = main_kick(*e);
+            let h = match kick {
+                // The square's step: the typical size's square.
+                Kick::Squared(p) => p.spec().typical.powi(2),
+                _ => kick.param().map_or(1e-4, step_of),
+            };
+            cols.push(src.fingerprint(kick, h));
+        }
+        let poses = src.poses(total);
+        let pose_segment = poses.iter().map(|(seg, _)| *seg).collect();
+        cols.extend(poses.into_iter().map(|(_, c)| c));
+        if !wheels {
+            let p = Param::GyroBias;
+            cols.push(src.fingerprint(Kick::Term(p, None), step_of(p)));
+        }
+        Columns {
+            heading,
+            effects,
+            cols,
+            first_effect,
+            pose_segment,
+            gyro_bias: !wheels,
+        }
+    }
+
+    /// The effects' limits under `noise`: each effect alone with the
+    /// nuisances, and with every other effect of the source free too. The
+    /// sigma is the larger of the Fisher information's and a delete-one-
+    /// segment jackknife's (the error model is a model: where the drive's
+    /// own scatter of the estimate is larger, that is the honest one).
+    fn limits(
+        &self,
+        times: &[f64],
+        segment_sizes: &[usize],
+        noise: &[PositionNoise; 2],
+        alpha: f64,
+    ) -> Result<Vec<EffectLimit>, InformationError> {
+        if self.cols.iter().any(|c| c.len() != times.len()) {
+            return Err(InformationError::BadData(
+                "the segments' fixes and fingerprints disagree in number".into(),
+            ));
+        }
+        let w = whitened(times, noise, &self.cols)?;
+        let gram = SegmentGram::new(&w, segment_sizes);
+        let n_eff = self.effects.len();
+        let first_pose = self.first_effect + n_eff;
+        let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
+        nuisances.extend(first_pose..first_pose + self.pose_segment.len());
+        let pose_of = |c: usize| {
+            c.checked_sub(first_pose)
+                .and_then(|i| self.pose_segment.get(i).copied())
+        };
+        let source = match self.heading {
+            HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
+            HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
+        };
+        let mut out = Vec::new();
+        for (k, e) in self.effects.iter().enumerate() {
+            let target = self.first_effect + k;
+            let mut cols = vec![target];
+            cols.extend(&nuisances);
+            if *e == Effect::GyroScale && self.gyro_bias {
+                cols.push(w.len() - 1);
+            }
+            let alone = gram.fit(&cols, &pose_of);
+            // Every other effect of this source free as well (those the
+            // drive holds no information about left out: they are singular).
+            for j in self.first_effect..first_pose {
+                let duplicate =
+                    self.gyro_bias && w[j] == w[w.len() - 1] && cols.contains(&(w.len() - 1));
+                if j != target && !duplicate && gram.total[(j, j)] > 0.0 {
+                    cols.push(j);
+                }
+            }
+            let joint = gram.fit(&cols, &pose_of);
+            let mut l = limit_of(*e, alone, alpha, source);
+            l.joint = joint.map(|fit| Joint::of(*e, fit, alpha));
+            out.push(l);
+        }
+        Ok(out)
+    }
+}
+
+/// A model's fit of one coefficient: its estimate, its Fisher sigma and the
+/// jackknife's (model units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CoefFit {
+    estimate: f64,
+    sigma_fisher: f64,
+    sigma_jackknife: Option<f64>,
+}
+
+impl CoefFit {
+    /// The honest sigma: the larger of the two.
+    fn sigma(&self) -> f64 {
+        self.sigma_fisher.max(self.sigma_jackknife.unwrap_or(0.0))
+    }
+}
+
+/// The Gram matrix of whitened columns (the data first), per segment and
+/// in total: every sub-model's least squares and its jackknife over
+/// segments come from it without touching the rows again.
+struct SegmentGram {
+    per_segment: Vec<DMatrix<f64>>,
+    total: DMatrix<f64>,
+}
+
+impl SegmentGram {
+    fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
+        let m = w.len();
+        let n: usize = segment_sizes.iter().sum();
+        let mut per_segment = vec![DMatrix::zeros(m, m); segment_sizes.len()];
+        // Rows: the east values of every fix, then the north values.
+        let mut row = 0;
+        for _axis in 0..2 {
+            for (seg, size) in segment_sizes.iter().enumerate() {
+                let g = &mut per_segment[seg];
+                let rows = row..row + size;
+                for a in 0..m {
+                    let wa = &w[a][rows.clone()];
+                    if wa.iter().all(|v| *v == 0.0) {
+                        continue;
+                    }
+                    for b in a..m {
+                        g[(a, b)] += wa
+                            .iter()
+                            .zip(&w[b][rows.clone()])
+                            .map(|(x, y)| x * y)
+                            .sum::<f64>();
+                    }
+                }
+                row += size;
+            }
+        }
+        debug_assert_eq!(row, 2 * n);
+        let mut total = DMatrix::zeros(m, m);
+        for g in &mut per_segment {
+            g.fill_lower_triangle_with_upper_triangle();
+            total += &*g;
+        }
+        SegmentGram { per_segment, total }
+    }
+
+    /// Least squares of the data on `cols` (the first the coefficient
+    /// wanted) from the Gram matrix `g`: its estimate and `(A^-1)_00`.
+    fn solve(g: &DMatrix<f64>, cols: &[usize]) -> Option<(f64, f64)> {
+        let a = DMatrix::from_fn(cols.len(), cols.len(), |i, j| g[(cols[i], cols[j])]);
+        let b = DVector::from_fn(cols.len(), |i, _| g[(cols[i], 0)]);
+        let chol = a.cholesky()?;
+        let theta = chol.solve(&b);
+        let mut e0 = DVector::zeros(cols.len());
+        e0[0] = 1.0;
+        let inv00 = chol.solve(&e0)[0];
+        (inv00 > 0.0 && theta[0].is_finite()).then_some((theta[0], inv00))
+    }
+
+    /// The fit of the first of `cols`, with its jackknife over segments
+    /// (`pose_of` names the segment a pose column belongs to: left out
+    /// with its segment).
+    fn fit(&self, cols: &[usize], pose_of: &dyn Fn(usize) -> Option<usize>) -> Option<CoefFit> {
+        let (estimate, inv00) = Self::solve(&self.total, cols)?;
+        let segments = self.per_segment.len();
+        let mut replicates = Vec::with_capacity(segments);
+        for (s, g_s) in self.per_segment.iter().enumerate() {
+            let g = &self.total - g_s;
+            let kept: Vec<usize> = cols
+                .iter()
+                .copied()
+                .filter(|c| pose_of(*c) != Some(s))
+                .collect();
+            if let Some((theta, _)) = Self::solve(&g, &kept) {
+                replicates.push(theta);
+            }
+        }
+        let sigma_jackknife = (replicates.len() == segments && segments >= 4).then(|| {
+            let k = segments as f64;
+            let mean = replicates.iter().sum::<f64>() / k;
+            ((k - 1.0) / k * replicates.iter().map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
+        });
+        Some(CoefFit {
+            estimate,
+            sigma_fisher: inv00.sqrt(),
+            sigma_jackknife,
+        })
+    }
+}
+
+/// The finite-difference step of a parameter: 5 % of its typical size.
+fn step_of(p: Param) -> f64 {
+    0.05 * p.spec().typical.abs().max(1e-9)
+}
+
+/// The information limit of every effect on this drive.
+pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, InformationError> {
+    let alpha = FAMILY_ALPHA / Effect::ALL.len() as f64;
+    let times = common_times(input, step_of(Param::GnssLatency));
+    let all_t: Vec<f64> = times.iter().flatten().copied().collect();
+    if all_t.len() < 10 {
+        return Err(InformationError::BadData(format!(
+            "{} fixes in segments the dead-reckoning reaches; at least 10",
+            all_t.len()
+        )));
+    }
+    let segment_sizes: Vec<usize> = times.iter().map(Vec::len).filter(|n| *n > 0).collect();
+    let mut limits = BTreeMap::new();
+    let mut noises = Vec::new();
+    for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
+        let src = Columns::build(input, heading, &times);
+        // The calibration's error model was fitted to the plain model's
+        // residuals, which hold every effect the plain model leaves out:
+        // refit it to what is left once every effect of this source is in
+        // (the dead-reckoning's own errors, wheel or gyro, included).
+        let refit = refit_noise(&times, &src.cols);
+        let noise = refit.or(input.noise).ok_or_else(|| {
+            InformationError::BadNoise(
+                "the residuals show too few lags for a GNSS error model, and the calibration fitted none"
+                    .into(),
+            )
+        })?;
+        for l in src.limits(&all_t, &segment_sizes, &noise, alpha)? {
+            limits.insert(l.effect, l);
+        }
+        noises.push((noise, refit.is_some()));
+    }
+    let (noise, refitted) = noises[0];
+    if let Some(fit) = heading_channel(input.design) {
+        limits.insert(
+            Effect::HeadingBias,
+            limit_of(
+                Effect::HeadingBias,
+                Some(fit),
+                alpha,
+                InformationSource::HeadingChannel,
+            ),
+        );
+    }
+    let arr = |n: &PositionNoise| [n.white_sigma_m, n.gm_sigma_m, n.gm_tau_s];
+    let z = super::select::normal_quantile;
+    Ok(InformationLimit {
+        family_alpha: FAMILY_ALPHA,
+        alpha_per_effect: alpha,
+        power: POWER,
+        z_critical: z(1.0 - 0.5 * alpha),
+        segments: times.iter().filter(|t| !t.is_empty()).count(),
+        segment_s: input.spans.first().map_or(0.0, |(a, b)| b - a),
+        fixes: all_t.len(),
+        noise_refitted: refitted,
+        noise_east: arr(&noise[0]),
+        noise_north: arr(&noise[1]),
+        noise_gyro_heading: [arr(&noises[1].0[0]), arr(&noises[1].0[1])],
+        calibration_noise_east: input.noise.map(|n| arr(&n[0])),
+        calibration_noise_north: input.noise.map(|n| arr(&n[1])),
+        effects: Effect::ALL
+            .iter()
+            .filter_map(|e| limits.remove(e))
+            .collect(),
+    })
+}
+
+/// Realisations of simulated errors per candidate model.
+const REALISATIONS: usize = 4;
+
+/// The GNSS error model (white plus Gauss-Markov per axis) of the residual
+/// left when every effect and nuisance of `cols` (the first column the
+/// residual, the rest regressors) is fitted jointly by least squares. The
+/// joint fit hides part of the error (each segment's pose absorbs its
+/// offset and rotation), so the observed semivariogram is matched to the
+/// expected residual semivariogram of unit white and unit Gauss-Markov
+/// errors passed through the same fit, for a grid of correlation times; the
+/// best match wins. `None` when the residual shows fewer than three lags.
+fn refit_noise(times: &[Vec<f64>], cols: &[Col]) -> Option<[PositionNoise; 2]> {
+    use crate::error_model::{nnls2, variogram, Normal};
+    let n = cols.first()?.len();
+    let p = cols.len() - 1;
+    let stacked = |c: &Col, i: usize| if i < n { c[i][0] } else { c[i - n][1] };
+    let x = DMatrix::from_fn(2 * n, p, |i, j| stacked(&cols[j + 1], i));
+    let q = x.qr().q();
+    let residual = |e: &DVector<f64>| e - &q * (q.transpose() * e);
+    let series = |v: &DVector<f64>, axis: usize| -> Vec<Vec<(f64, f64)>> {
+        let mut at = axis * n;
+        times
+            .iter()
+            .filter(|s| !s.is_empty())
+            .map(|s| {
+                let out = s.iter().enumerate().map(|(k, t)| (*t, v[at + k])).collect();
+                at += s.len();
+                out
+            })
+            .collect()
+    };
+    let mut gaps: Vec<f64> = times
+        .iter()
+        .flat_map(|s| s.windows(2).map(|w| w[1] - w[0]))
+        .collect();
+    let dt = stats::median(&mut gaps).filter(|d| *d > 0.0)?;
+    let r = DVector::from_fn(2 * n, |i, _| stacked(&cols[0], i));
+    let e = residual(&r);
+    let observed = [variogram(&series(&e, 0), dt), variogram(&series(&e, 1), dt)];
+    if observed.iter().any(|g| g.len() < 3) {
+        return None;
+    }
+    let max_lag = observed[0].iter().map(|g| g.0).fold(0.0, f64::max);
+    let all_t: Vec<f64> = times.iter().flatten().copied().collect();
+    // The mean residual semivariogram of simulated errors, per axis, at the
+    // observed lags.
+    let simulate = |make: &dyn Fn(&mut Normal) -> DVector<f64>| -> [Vec<f64>; 2] {
+        let mut rng = Normal::new(0x5EED_0037);
+        let mut out = [vec![0.0; observed[0].len()], vec![0.0; observed[1].len()]];
+        for _ in 0..REALISATIONS {
+            let res = residual(&make(&mut rng));
+            for (axis, row) in out.iter_mut().enumerate() {
+                let g = variogram(&series(&res, axis), dt);
+                for (o, obs) in row.iter_mut().zip(&observed[axis]) {
+                    *o += g
+                        .iter()
+                        .find(|x| (x.0 - obs.0).abs() <= (0.25 * dt).max(0.1 * obs.0))
+                        .map_or(0.0, |v| v.1)
+                        / REALISATIONS as f64;
+                }
+            }
+        }
+        out
+    };
+    let white = simulate(&|rng| DVector::from_fn(2 * n, |_, _| rng.next()));
+    let mut best: [Option<(f64, PositionNoise)>; 2] = [None, None];
+    let mut tau = 2.0 * dt;
+    while tau <= 30.0 * max_lag {
+        let gm = simulate(&|rng| {
+            let mut v = DVector::zeros(2 * n);
+            for axis in 0..2 {
+                let mut x = rng.next();
+                let mut prev = all_t[0];
+                for (k, t) in all_t.iter().enumerate() {
+                    let rho = (-(t - prev).abs() / tau).exp();
+                    x = rho * x + (1.0 - rho * rho).max(0.0).sqrt() * rng.next();
+                    prev = *t;
+                    v[axis * n + k] = x;
+                }
+            }
+            v
+        });
+        for axis in 0..2 {
+            if let Some((sse, w, g)) = nnls2(&observed[axis], &white[axis], &gm[axis]) {
+                if best[axis].is_none_or(|(b, _)| sse < b) {
+                    let total = (w + g).sqrt();
+                    best[axis] = Some((
+                        sse,
+                        PositionNoise {
+                            // A white floor of 5 % of the total keeps the
+                            // model whitenable (a little less information,
+                            // never more).
+                            white_sigma_m: w.sqrt().max(0.05 * total),
+                            gm_sigma_m: g.sqrt(),
+                            gm_tau_s: tau,
+                        },
+                    ));
+                }
+            }
+        }
+        tau *= 2.0;
+    }
+    let [e, nn] = best;
+    Some([e?.1, nn?.1])
+}
+
+/// The limit of one effect from its profiled information and estimate
+/// (model units).
+fn limit_of(
+    effect: Effect,
+    fit: Option<CoefFit>,
+    alpha: f64,
+    source: InformationSource,
+) -> EffectLimit {
+    let p = effect.main_fitted();
+    let spec = p.spec();
+    let squared = matches!(main_kick(effect), Kick::Squared(_));
+    let shown = |v: f64| p.to_display(v).abs();
+    // The information is about the square of a squared term: its smallest
+    // size is the root of the square's.
+    let size_fit = fit.map_or(f64::INFINITY, |f| {
+        detectable_size(f.sigma().powi(-2), alpha, POWER)
+    });
+    let size = if squared { size_fit.sqrt() } else { size_fit };
+    // An information below what the numbers resolve is none.
+    let fit = fit.filter(|_| size.is_finite() && size < 1e6 * spec.typical.abs());
+    EffectLimit {
+        effect,
+        parameter: spec.name,
+        unit: spec.unit,
+        typical: shown(spec.typical),
+        smallest: fit.map(|_| shown(size)),
+        relative_to_typical: fit.map(|_| size / spec.typical.abs()),
+        source,
+        estimate_of: if squared {
+            format!("{}^2", spec.name)
+        } else {
+            spec.name.to_string()
+        },
+        estimate: fit.map(|f| p.to_display(f.estimate)),
+        sigma: fit.map(|f| shown(f.sigma())),
+        sigma_fisher: fit.map(|f| shown(f.sigma_fisher)),
+        sigma_jackknife: fit.and_then(|f| f.sigma_jackknife.map(shown)),
+        wald_z: fit.map(|f| f.estimate / f.sigma()),
+        joint: None,
+    }
+}
+
+/// The heading bias's constant term from the heading channel: its profiled
+/// information (the sin and cos terms out) with the rows' serial correlation
+/// counted by the AR(1) effective sample size, and its estimate.
+fn heading_channel(d: &Design) -> Option<CoefFit> {
+    let cand = d
+        .candidates
+        .iter()
+        .find(|c| c.effect == Effect::HeadingBias && c.params.len() >= 3)?;
+    let rows: Vec<usize> = (0..d.rows.len())
+        .filter(|&i| d.rows[i].0 == Channel::Heading && d.w[i] > 0.0)
+        .collect();
+    if rows.len() < 10 {
+        return None;
+    }
+    let col = |c: usize| -> Vec<f64> {
+        rows.iter()
+            .map(|&i| d.columns[c][i] * d.w[i].sqrt())
+            .collect()
+    };
+    let target = col(cand.params[0].column);
+    let nuisances: Vec<Vec<f64>> = cand.params[1..].iter().map(|p| col(p.column)).collect();
+    let y: Vec<f64> = rows.iter().map(|&i| d.y[i] * d.w[i].sqrt()).collect();
+    let (info, estimate) = profiled_estimate(&target, &nuisances, &y).ok()?;
+    // The residual after the three terms, and its lag-1 correlation.
+    let a = cand.params[0].column;
+    let resid: Vec<f64> = rows
+        .iter()
+        .map(|&i| d.y[i] - estimate * d.columns[a][i])
+        .collect();
+    let rho = lag1(&resid).clamp(0.0, 0.99);
+    let factor = (1.0 - rho) / (1.0 + rho);
+    let info = info * factor;
+    (info > 0.0).then(|| CoefFit {
+        estimate,
+        sigma_fisher: info.powf(-0.5),
+        sigma_jackknife: None,
+    })
+}
+
+fn lag1(x: &[f64]) -> f64 {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var: f64 = x.iter().map(|v| (v - mean).powi(2)).sum();
+    if var <= 0.0 {
+        return 0.0;
+    }
+    let cov: f64 = x.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
+    cov / var
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::information::profiled_estimate;
+
+    /// A small deterministic sequence of standard normal numbers.
+    fn normals(n: usize, seed: u64) -> Vec<f64> {
+        let mut rng = crate::error_model::Normal::new(seed);
+        (0..n).map(|_| rng.next()).collect()
+    }
+
+    #[test]
+    fn the_gram_fit_is_the_profiled_least_squares() {
+        // Columns: data, target, two nuisances; 4 segments of 50 rows per
+        // axis.
+        let n = 200;
+        let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.37).sin()).collect();
+        let a: Vec<f64> = (0..2 * n).map(|i| 1.0 + (i % 7) as f64).collect();
+        let b: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.05).cos()).collect();
+        let e = normals(2 * n, 7);
+        let y: Vec<f64> = (0..2 * n)
+            .map(|i| 0.3 * x[i] + 2.0 * a[i] - b[i] + 0.1 * e[i])
+            .collect();
+        let w = vec![y.clone(), x.clone(), a.clone(), b.clone()];
+        let gram = SegmentGram::new(&w, &[50, 50, 50, 50]);
+        let fit = gram.fit(&[1, 2, 3], &|_| None).expect("fit");
+        let (info, est) = profiled_estimate(&x, &[a, b], &y).expect("profiled");
+        assert!((fit.estimate - est).abs() < 1e-9, "{} {est}", fit.estimate);
+        assert!((fit.sigma_fisher - info.powf(-0.5)).abs() < 1e-9);
+        assert!((fit.estimate - 0.3).abs() < 5.0 * fit.sigma_fisher);
+    }
+
+    #[test]
+    fn the_jackknife_agrees_with_the_fisher_sigma_on_white_noise_and_sees_more_when_there_is_more()
+    {
+        // Unit white noise: the Fisher sigma is right, and a jackknife over
+        // 12 segments lands near it (its own spread is about 20 %).
+        let segments = 12;
+        let per = 100;
+        let n = segments * per;
+        let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.11).sin()).collect();
+        let ones = vec![1.0; 2 * n];
+        let mut ratios = Vec::new();
+        for seed in 1..=20 {
+            let y = normals(2 * n, seed);
+            let w = vec![y, x.clone(), ones.clone()];
+            let gram = SegmentGram::new(&w, &vec![per; segments]);
+            let fit = gram.fit(&[1, 2], &|_| None).expect("fit");
+            ratios.push(fit.sigma_jackknife.expect("jackknife") / fit.sigma_fisher);
+        }
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        assert!((0.8..1.2).contains(&mean), "{ratios:?}");
+        // Noise 3x what the whitening assumed: the jackknife sees it, the
+        // Fisher sigma cannot, and the reported sigma is the larger.
+        let y: Vec<f64> = normals(2 * n, 99).iter().map(|v| 3.0 * v).collect();
+        let w = vec![y, x, ones];
+        let fit = SegmentGram::new(&w, &vec![per; segments])
+            .fit(&[1, 2], &|_| None)
+            .expect("fit");
+        let j = fit.sigma_jackknife.expect("jackknife");
+        assert!(j > 2.0 * fit.sigma_fisher, "{fit:?}");
+        assert_eq!(fit.sigma(), j);
+    }
+
+    #[test]
+    fn a_squared_term_reports_the_root_of_its_limit() {
+        let fit = CoefFit {
+            estimate: 0.0,
+            sigma_fisher: 0.01,
+            sigma_jackknife: None,
+        };
+        let alpha = FAMILY_ALPHA / 12.0;
+        let l = limit_of(
+            Effect::RoadGrade,
+            Some(fit),
+            alpha,
+            InformationSource::PositionsWheelHeading,
+        );
+        let size_of_square = detectable_size(1e4, alpha, POWER);
+        let smallest = l.smallest.expect("a limit");
+        assert!((smallest - size_of_square.sqrt()).abs() < 1e-12, "{l:?}");
+        assert_eq!(l.estimate_of, "gain^2");
+        // No information: no limit, no estimate.
+        let none = limit_of(
+            Effect::TrackWidth,
+            None,
+            alpha,
+            InformationSource::PositionsWheelHeading,
+        );
+        assert!(none.smallest.is_none() && none.estimate.is_none());
+    }
+}
