@@ -486,14 +486,12 @@ const SHARED: [&str; 6] = ["config", "error", "method", "series", "streams", "wa
 /// Arrows from a stage to a later one that the code still has (file,
 /// module named): the fits compute their sigmas per iteration and return
 /// the result's per-method type. The list may only shrink.
-const KNOWN_BACKWARDS: [(&str, &str); 7] = [
+const KNOWN_BACKWARDS: [(&str, &str); 5] = [
     ("fit/lm.rs", "sigmas"),
     ("fit/paper.rs", "sigmas"),
     ("fit/paper.rs", "result"),
     ("fit/batch.rs", "result"),
     ("fit/track_width.rs", "sigmas"),
-    ("fit/gyro.rs", "sigmas"),
-    ("sigmas/uncertainty.rs", "result"),
 ];
 
 /// Every (file relative to `src`, module it names) of the calibrator's
