@@ -53,9 +53,10 @@ fn as_estimate(cal: &Calibration, name: &str) -> Result<Estimate> {
 /// Common scale only: GNSS reference distance over mean rear wheel revolutions.
 fn scale_only(drive: &Drive) -> Result<f64> {
     let config = CalibrationConfig::default();
-    let mut w = Vec::new();
-    let p = calibrator::prep::prepare(drive, &config, &mut w)?;
-    let r = calibrator::reference::build(&p, drive, &config, &mut w)?;
+    let a = calibrator::clocks::align_offsets(calibrator::check::drive(drive, &config)?, &config)?;
+    let mut w = a.warnings.clone();
+    let r = calibrator::reference::build(&a, &config, &mut w)?;
+    let p = &a.series;
     let (mut dist, mut revs) = (0.0, 0.0);
     for k in 1..p.len() {
         if r.valid[k] && r.valid[k - 1] && !p.is_piece_start(k) {

@@ -474,3 +474,107 @@ fn the_process_side_is_seen_where_it_is() {
         "drive-io with `cli`: {cli:?}"
     );
 }
+
+/// The calibration's stages in the order they run
+/// (`docs/design/calibration-stages.md`): each a folder of
+/// `services/calibrator/src` with one entry point taking the product of
+/// the stage before.
+const STAGES: [&str; 6] = ["check", "clocks", "reference", "fit", "sigmas", "result"];
+/// The modules beside the stages, which any stage may use and which use
+/// no stage.
+const SHARED: [&str; 6] = ["config", "error", "method", "series", "streams", "warnings"];
+/// Arrows from a stage to a later one that the code still has (file,
+/// module named): the fits compute their sigmas per iteration and return
+/// the result's per-method type. The list may only shrink.
+const KNOWN_BACKWARDS: [(&str, &str); 5] = [
+    ("fit/lm.rs", "sigmas"),
+    ("fit/paper.rs", "sigmas"),
+    ("fit/paper.rs", "result"),
+    ("fit/batch.rs", "result"),
+    ("fit/track_width.rs", "sigmas"),
+];
+
+/// Every (file relative to `src`, module it names) of the calibrator's
+/// library whose first path segment is a stage or a shared module.
+fn calibrator_arrows() -> Vec<(String, String, String)> {
+    let src = root().join("services/calibrator/src");
+    let mut out = Vec::new();
+    for f in crate_files(&src.join("lib.rs")) {
+        let Some(from) = f.module.first().cloned() else {
+            continue;
+        };
+        let rel = f
+            .path
+            .strip_prefix(&src)
+            .expect("a file of the crate")
+            .display()
+            .to_string();
+        for m in referenced_modules(&f) {
+            if let Some(to) = m.first() {
+                out.push((rel.clone(), from.clone(), to.clone()));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn each_calibration_stage_uses_only_the_stages_above_it() {
+    let rank = |m: &str| STAGES.iter().position(|s| *s == m);
+    let arrows = calibrator_arrows();
+    for stage in STAGES {
+        assert!(
+            arrows.iter().any(|(_, from, _)| from == stage),
+            "the stage `{stage}` has no file (or names no module)"
+        );
+    }
+    let mut wrong = BTreeSet::new();
+    let mut known_seen = BTreeSet::new();
+    for (file, from, to) in &arrows {
+        let shared_from = SHARED.contains(&from.as_str());
+        let bad = match (rank(from), rank(to)) {
+            // A stage naming a later stage.
+            (Some(a), Some(b)) => b > a,
+            // A shared module naming a stage.
+            (None, Some(_)) => shared_from,
+            _ => false,
+        };
+        if !bad {
+            continue;
+        }
+        if KNOWN_BACKWARDS.contains(&(file.as_str(), to.as_str())) {
+            known_seen.insert((file.clone(), to.clone()));
+        } else {
+            wrong.insert(format!("{file} names `{to}`"));
+        }
+    }
+    assert!(
+        wrong.is_empty(),
+        "a stage names a later stage, or a shared module a stage:\n{}",
+        wrong.into_iter().collect::<Vec<_>>().join("\n")
+    );
+    for (file, to) in KNOWN_BACKWARDS {
+        assert!(
+            known_seen.contains(&(file.to_string(), to.to_string())),
+            "{file} no longer names `{to}`: take it off KNOWN_BACKWARDS"
+        );
+    }
+}
+
+#[test]
+fn the_calibration_driver_runs_the_stages_top_to_bottom() {
+    let text = strip_comments(&read(&root().join("services/calibrator/src/pipeline.rs")));
+    let at = |call: &str| {
+        text.find(call)
+            .unwrap_or_else(|| panic!("pipeline.rs does not call `{call}`"))
+    };
+    let order = [
+        at("check::drive("),
+        at("clocks::align("),
+        at("reference::build("),
+    ];
+    assert!(
+        order.windows(2).all(|w| w[0] < w[1]),
+        "pipeline.rs calls the stages out of order: {order:?}"
+    );
+}

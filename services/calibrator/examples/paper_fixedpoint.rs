@@ -10,7 +10,8 @@
 //! 10 Hz the bias is a millimetre or two.
 
 use anyhow::{anyhow, Result};
-use calibrator::{ekf, prep, reference, CalibrationConfig, TimeOffsetMode};
+use calibrator::fit::ekf;
+use calibrator::{check, clocks, reference, CalibrationConfig, TimeOffsetMode};
 use simulator::{simulate, Scenario, SimConfig};
 use vehicle_model::two_wheel::wrap_angle;
 
@@ -24,9 +25,10 @@ fn main() -> Result<()> {
         time_offset: TimeOffsetMode::Off,
         ..CalibrationConfig::default()
     };
-    let mut warnings = Vec::new();
-    let p = prep::prepare(&drive, &config, &mut warnings)?;
-    let mut r = reference::build(&p, &drive, &config, &mut warnings)?;
+    let a = clocks::align_offsets(check::drive(&drive, &config)?, &config)?;
+    let mut warnings = a.warnings.clone();
+    let mut r = reference::build(&a, &config, &mut warnings)?;
+    let p = &a.series;
     let truth = drive
         .truth
         .as_ref()

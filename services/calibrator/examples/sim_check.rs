@@ -64,7 +64,7 @@ fn main() -> anyhow::Result<()> {
         }
     }
     let cal = calibrate(&drive, &config)?;
-    print!("{}", calibrator::report::render_text(&cal));
+    print!("{}", calibrator::result::report::render_text(&cal));
     let tc = truth.circumference_m;
     println!(
         "truth: c_RL {:.5} c_RR {:.5} track {:.4} effects {:?}",

@@ -2,9 +2,9 @@
 //! the report, write the JSON and the pictures.
 
 use anyhow::{Context, Result};
+use calibrator::result::{export, page, plots, report};
 use calibrator::{
-    calibrate_with_progress, export, page, plots, report, CalibrationConfig, Method, Progress,
-    TimeOffsetMode, TrackWidthMode,
+    calibrate_with_progress, CalibrationConfig, Method, Progress, TimeOffsetMode, TrackWidthMode,
 };
 use clap::{Args, ValueEnum};
 use std::io::{IsTerminal as _, Write as _};

@@ -31,10 +31,10 @@ pub struct InfoArgs {
 struct InfoJson<'a> {
     drive: &'a DriveSummary,
     clock_offsets: Option<&'a ClockOffsets>,
-    gnss_jumps: Option<&'a [calibrator::gnss_jumps::Jump]>,
+    gnss_jumps: Option<&'a [calibrator::reference::gnss_jumps::Jump]>,
     fit_quality: Option<&'a FitQuality>,
     /// What the sigmas rest on (the GNSS error model fitted to the drive).
-    sigma_basis: Option<&'a calibrator::uncertainty::SigmaBasis>,
+    sigma_basis: Option<&'a calibrator::sigmas::uncertainty::SigmaBasis>,
     /// Why a calibration would be refused (`None`: it would be published).
     refused: Option<String>,
 }

@@ -63,34 +63,28 @@
 //! # Ok(()) }
 //! ```
 
-pub mod batch;
-pub mod clock_drift;
-pub mod clocks;
+// The shared modules, beside the stages.
 pub mod config;
-pub mod diagnose;
-pub mod ekf;
 pub mod error;
-pub mod error_model;
-pub mod export;
-pub mod gnss_jumps;
-pub mod gyro;
-pub mod holdout;
-pub mod live;
-pub mod lm;
 pub mod method;
-pub mod page;
-pub mod paper;
-pub mod pipeline;
-pub mod plots;
-pub mod prep;
-pub mod reference;
-pub mod report;
-pub mod result;
-pub mod track_width;
-pub mod uncertainty;
+pub mod series;
+pub mod streams;
 pub mod warnings;
 
-pub use clocks::{ClockOffsets, ClockStream, OffsetStatus, PairOffset, StreamOffset};
+// The stages, in the order they run; each uses only those above it.
+pub mod check;
+pub mod clocks;
+pub mod fit;
+pub mod reference;
+pub mod result;
+pub mod sigmas;
+
+// The driver, and what stays beside the stages.
+pub mod diagnose;
+pub mod live;
+pub mod pipeline;
+
+pub use clocks::offsets::{ClockOffsets, ClockStream, OffsetStatus, PairOffset, StreamOffset};
 pub use config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};
 pub use error::CalibrationError;
 pub use method::Method;

@@ -5,7 +5,7 @@
 //! enough distance and turning ([`Coverage`]), makes an [`attempt`]: it
 //! calibrates on all but the last part of what was collected and scores the
 //! result, and the estimate in use, on that held-out tail
-//! ([`crate::holdout`]). The quality gate ([`gate`]) then accepts the result
+//! ([`crate::fit::holdout`]). The quality gate ([`gate`]) then accepts the result
 //! only when
 //!
 //! 1. both circumference sigmas are at most a limit;
@@ -22,7 +22,7 @@
 use crate::config::CalibrationConfig;
 use crate::diagnose::DiagnoseConfig;
 use crate::error::CalibrationError;
-use crate::holdout::{holdout_errors, split_drive};
+use crate::fit::holdout::{holdout_errors, split_drive};
 use crate::pipeline::calibrate;
 use crate::result::RearPair;
 use interfaces::collect::DriveBuilder;
@@ -163,8 +163,8 @@ pub struct LiveDrift {
     pub applied: bool,
 }
 
-impl From<&crate::clocks::StreamOffset> for LiveClock {
-    fn from(o: &crate::clocks::StreamOffset) -> LiveClock {
+impl From<&crate::clocks::offsets::StreamOffset> for LiveClock {
+    fn from(o: &crate::clocks::offsets::StreamOffset) -> LiveClock {
         LiveClock {
             offset_s: o.offset_s,
             applied: o.applied,

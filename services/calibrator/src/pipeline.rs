@@ -2,19 +2,19 @@
 //! (prepare, reference, the methods, gyro, uncertainty) and puts their
 //! results together into a [`Calibration`].
 
-use crate::clocks::{self, ClockDrift, OffsetStatus};
-use crate::config::{CalibrationConfig, TimeOffsetMode};
+use crate::config::CalibrationConfig;
 use crate::error::CalibrationError;
+use crate::fit::{batch, lm, paper};
 use crate::method::Method;
-use crate::prep::Prepared;
 use crate::reference::Reference;
 use crate::result::{
     Calibration, Diagnostics, MethodResult, MethodSummary, Nominal, RearPair, RearSigma, Tracks,
     TRACK_POINTS,
 };
-use crate::uncertainty::observability;
+use crate::series::Series;
+use crate::sigmas::uncertainty::observability;
 use crate::warnings::{Warning, WarningCode};
-use crate::{batch, clock_drift, lm, paper, prep, reference};
+use crate::{check, clocks, reference};
 use interfaces::drive::Drive;
 use serde::{Deserialize, Serialize};
 
@@ -66,28 +66,16 @@ pub fn calibrate_with_progress(
         stage: Stage::Prepare,
         fraction: 0.0,
     });
-    let mut warnings = Vec::new();
-    let mut prepared = prep::prepare(drive, config, &mut warnings)?;
-    // The streams' slow clock drift: where it is significant (and the
-    // offsets are compensated), the streams are put on the wheels' clock
-    // rate and the drive is prepared again (its constant offsets are then
-    // those at the drift's reference time).
-    let drifts = clock_drifts(&prepared, drive, config);
-    let restamped = restamp(drive, &drifts);
-    let drive = match &restamped {
-        Some(d) => {
-            warnings.clear();
-            prepared = prep::prepare(d, config, &mut warnings)?;
-            d
-        }
-        None => drive,
-    };
-    drift_warnings(&drifts, &mut warnings);
+    let checked = check::drive(drive, config)?;
+    let mut aligned = clocks::align(checked, config)?;
+    let mut warnings = std::mem::take(&mut aligned.warnings);
     progress(Progress {
         stage: Stage::Reference,
         fraction: 0.1,
     });
-    let reference = reference::build(&prepared, drive, config, &mut warnings)?;
+    let reference = reference::build(&aligned, config, &mut warnings)?;
+    let prepared = &aligned.series;
+    let drifts = &aligned.drifts;
     let (paper_share, batch_share) = match (config.method, config.compare) {
         (_, true) => (0.35, 0.35),
         (Method::Paper, false) => (0.7, 0.0),
@@ -97,7 +85,7 @@ pub fn calibrate_with_progress(
     let mut paper_result = None;
     if config.method == Method::Paper || config.compare {
         let start = done;
-        let r = paper::run(&prepared, &reference, config, &mut warnings, &mut |f| {
+        let r = paper::run(prepared, &reference, config, &mut warnings, &mut |f| {
             progress(Progress {
                 stage: Stage::Paper,
                 fraction: start + paper_share * f,
@@ -109,7 +97,7 @@ pub fn calibrate_with_progress(
     let mut batch_result = None;
     if config.method == Method::Batch || config.compare {
         let start = done;
-        let r = batch::run(&prepared, &reference, config, &mut warnings, &mut |f| {
+        let r = batch::run(prepared, &reference, config, &mut warnings, &mut |f| {
             progress(Progress {
                 stage: Stage::Batch,
                 fraction: start + batch_share * f,
@@ -122,7 +110,8 @@ pub fn calibrate_with_progress(
         fraction: 0.9,
     });
     let mut cal = assemble(
-        &prepared,
+        prepared,
+        &aligned.imu_clock,
         &reference,
         config,
         paper_result,
@@ -130,8 +119,8 @@ pub fn calibrate_with_progress(
         warnings,
     )?;
     cal.vehicle = Some(drive.vehicle.clone());
-    cal.clock_offsets.gnss_s.drift = drifts.gnss;
-    cal.clock_offsets.imu_s.drift = drifts.imu;
+    cal.clock_offsets.gnss_s.drift = drifts.gnss.clone();
+    cal.clock_offsets.imu_s.drift = drifts.imu.clone();
     if let Some(q) = cal
         .fit_quality
         .as_ref()
@@ -160,147 +149,16 @@ pub fn calibrate_with_progress(
     Ok(cal)
 }
 
-/// The GNSS and IMU clock drifts against the wheels.
-struct Drifts {
-    gnss: ClockDrift,
-    imu: ClockDrift,
-}
-
-/// A clock drift that could not be looked for, because `reason`.
-fn drift_not_determined(reason: String) -> ClockDrift {
-    ClockDrift {
-        status: OffsetStatus::NotDetermined,
-        reason: Some(reason),
-        ..ClockDrift::default()
-    }
-}
-
-/// Every stream's drift ([`clock_drift`]), marked applied where it is
-/// significant and `config` compensates the clocks.
-fn clock_drifts(p: &Prepared, drive: &Drive, config: &CalibrationConfig) -> Drifts {
-    if config.time_offset == TimeOffsetMode::Off {
-        let off = ClockDrift::not_checked("time offset check switched off");
-        return Drifts {
-            gnss: off.clone(),
-            imu: off,
-        };
-    }
-    let (Some(&t0), Some(&t1)) = (p.t.first(), p.t.last()) else {
-        let none = ClockDrift::not_checked("no wheel samples");
-        return Drifts {
-            gnss: none.clone(),
-            imu: none,
-        };
-    };
-    let t_ref = 0.5 * (t0 + t1);
-    let spans = clock_drift::windows(t0, t1);
-    let wheels = clocks::WheelTrack {
-        t: &p.t,
-        dn_rl: &p.dn_rl,
-        dn_rr: &p.dn_rr,
-        circumference_m: p.nominal_c,
-        track_m: p.track,
-    };
-    let apply = |mut d: ClockDrift| {
-        d.applied =
-            clock_drift::significant(&d) && config.time_offset == TimeOffsetMode::Compensate;
-        d
-    };
-    let gnss = if p.fixes.is_empty() {
-        ClockDrift::not_checked("the drive has no GNSS")
-    } else {
-        let fixes: Vec<(f64, f64, f64)> = p.fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
-        let mut given: Vec<f64> = p.fixes.iter().filter_map(|f| f.sigma).collect();
-        let motion = clock_drift::gnss_motion(&fixes, stats::upper_median(&mut given));
-        let (whole, tries) = clock_drift::gnss_windows(&wheels, &motion, &spans);
-        if whole.status == OffsetStatus::Determined {
-            apply(clock_drift::judge(tries, (t0, t1), t_ref, &whole))
-        } else {
-            drift_not_determined(format!(
-                "the offset is not determined over the whole drive ({})",
-                whole.reason.as_deref().unwrap_or("no reason")
-            ))
-        }
-    };
-    let imu = match (drive.imu.as_deref(), &p.imu_clock) {
-        (None | Some([]), _) => ClockDrift::not_checked("the drive has no IMU"),
-        (Some(rows), whole) => match (whole.status, whole.offset_s) {
-            (OffsetStatus::Determined, Some(centre)) => {
-                // One copy, the rows with a finite time (imu_windows
-                // takes them so).
-                let rows: Vec<clocks::ImuRow> = rows
-                    .iter()
-                    .filter(|r| r.t_s.is_finite())
-                    .map(|r| (r.t_s, r.gz_rad_s, r.ax_m_s2))
-                    .collect();
-                let tries = clock_drift::imu_windows(&wheels, &rows, &spans, centre);
-                apply(clock_drift::judge(tries, (t0, t1), t_ref, whole))
-            }
-            _ => drift_not_determined(
-                "the IMU offset is not determined over the whole drive".to_string(),
-            ),
-        },
-    };
-    Drifts { gnss, imu }
-}
-
-/// The drive with every stream whose drift is applied put on the wheels'
-/// clock rate (GNSS and heading by the GNSS's drift, the IMU by its own);
-/// `None` when no drift is applied.
-fn restamp(drive: &Drive, d: &Drifts) -> Option<Drive> {
-    let (g, i) = (d.gnss.applied_rate(), d.imu.applied_rate());
-    if g.is_none() && i.is_none() {
-        return None;
-    }
-    let mut out = drive.clone();
-    if let (Some(r), Some(t_ref)) = (g, d.gnss.ref_t_s) {
-        for s in out.gnss.iter_mut().flatten() {
-            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
-        }
-        for s in out.heading.iter_mut().flatten() {
-            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
-        }
-    }
-    if let (Some(r), Some(t_ref)) = (i, d.imu.ref_t_s) {
-        for s in out.imu.iter_mut().flatten() {
-            s.t_s = clock_drift::undrift(s.t_s, r, t_ref);
-        }
-    }
-    Some(out)
-}
-
-/// A warning per significant drift.
-fn drift_warnings(d: &Drifts, warnings: &mut Vec<Warning>) {
-    for (name, x) in [("gnss", &d.gnss), ("imu", &d.imu)] {
-        if let (true, Some(ppm), Some(sigma)) =
-            (clock_drift::significant(x), x.drift_ppm, x.sigma_ppm)
-        {
-            warnings.push(Warning::new(
-                WarningCode::TimeOffset,
-                format!(
-                    "the {name} clock drifts {ppm:+.0} ppm against the wheels' (sigma {sigma:.0} ppm, from {} windows){}",
-                    x.windows.len(),
-                    if x.applied {
-                        "; its times were corrected for it, the offset is the one at the middle of the drive"
-                    } else {
-                        "; not compensated"
-                    }
-                ),
-            ));
-        }
-    }
-}
-
 /// The fit quality of the model the estimate came from: the wheel + gyro
 /// model where its scale was taken, else the batch (2W) fit.
 fn fit_quality(
     two_wheel_rms: Option<f64>,
-    gyro: Option<&crate::gyro::GyroEstimate>,
+    gyro: Option<&crate::fit::gyro::GyroEstimate>,
     r: &crate::reference::Reference,
     config: &CalibrationConfig,
 ) -> Option<crate::result::FitQuality> {
     let (rms, model) = match gyro {
-        Some(g) if crate::gyro::prefer_distance_factor(g, two_wheel_rms) => {
+        Some(g) if crate::fit::gyro::prefer_distance_factor(g, two_wheel_rms) => {
             (g.residual_rms_m, "wheel + gyro")
         }
         _ => (two_wheel_rms?, "2W"),
@@ -362,7 +220,7 @@ fn thin<T>(v: impl Iterator<Item = T>, n: usize, keep: usize) -> Vec<T> {
 /// change of the reference and the revolutions of each rear wheel, for the
 /// report's wheel-speed ratio against turn rate (at most
 /// [`TRACK_POINTS`] of them, spread over the drive).
-fn wheel_windows(p: &Prepared, r: &Reference) -> Vec<[f64; 3]> {
+fn wheel_windows(p: &Series, r: &Reference) -> Vec<[f64; 3]> {
     let mut out = Vec::new();
     let Some(&t_first) = p.t.first() else {
         return out;
@@ -391,7 +249,8 @@ fn wheel_windows(p: &Prepared, r: &Reference) -> Vec<[f64; 3]> {
 
 /// Put the result together: primary method, gyro, warnings, diagnostics.
 fn assemble(
-    p: &Prepared,
+    p: &Series,
+    imu_clock: &crate::clocks::offsets::StreamOffset,
     r: &Reference,
     config: &CalibrationConfig,
     mut paper: Option<MethodResult>,
@@ -449,7 +308,7 @@ fn assemble(
         ));
     }
     let gyro = if config.estimate_gyro {
-        crate::gyro::estimate(
+        crate::fit::gyro::estimate(
             p,
             r,
             primary.c,
@@ -464,7 +323,8 @@ fn assemble(
     // its common distance factor is the better measure of the scale.
     let mut c = primary.c;
     let mut sigma_m = RearSigma::from(&primary.sigmas);
-    if let Some(g) = gyro.filter(|g| crate::gyro::prefer_distance_factor(g, primary.residual_rms_m))
+    if let Some(g) =
+        gyro.filter(|g| crate::fit::gyro::prefer_distance_factor(g, primary.residual_rms_m))
     {
         c = [c[0] * g.distance_factor, c[1] * g.distance_factor];
         let mean = 0.5 * (c[0] + c[1]);
@@ -572,9 +432,9 @@ fn assemble(
             sigma_basis: primary.sigma_basis.clone(),
         },
         fit_quality: fit_quality(primary.residual_rms_m, gyro.as_ref(), r, config),
-        clock_offsets: crate::clocks::ClockOffsets {
+        clock_offsets: crate::clocks::offsets::ClockOffsets {
             gnss_s: r.gnss_clock.clone(),
-            imu_s: p.imu_clock.clone(),
+            imu_s: imu_clock.clone(),
             pairs: r.clock_pairs.clone(),
         },
         comparison,

@@ -89,7 +89,7 @@ fn the_gnss_offset_is_found_through_the_imu_on_a_short_drive_at_constant_speed()
     // Reported in the JSON beside the offsets, and in the text report.
     let json = serde_json::to_value(&cal).unwrap();
     assert_eq!(json["clock_offsets"]["pairs"].as_array().unwrap().len(), 3);
-    assert!(calibrator::report::render_text(&cal).contains("clock pair"));
+    assert!(calibrator::result::report::render_text(&cal).contains("clock pair"));
 }
 
 #[test]

@@ -77,7 +77,7 @@ fn imu_clock_shifts_are_found_and_compensated() {
         assert_eq!(imu["status"], "determined");
         assert!(imu["sigma_s"].as_f64().unwrap() > 0.0);
         assert!(json["clock_offsets"]["gnss_s"]["status"].is_string());
-        let text = calibrator::report::render_text(&cal);
+        let text = calibrator::result::report::render_text(&cal);
         assert!(text.contains("clock offset: IMU") && text.contains("clock offset: GNSS"));
     }
 }

@@ -245,7 +245,7 @@ fn compare_runs_both_methods_side_by_side() {
     .unwrap();
     let methods: Vec<Method> = cal.comparison.iter().map(|m| m.method).collect();
     assert_eq!(methods, vec![Method::Paper, Method::Batch]);
-    let text = calibrator::report::render_text(&cal);
+    let text = calibrator::result::report::render_text(&cal);
     assert!(
         text.contains("comparison:") && text.contains("paper") && text.contains("batch"),
         "{text}"

@@ -19,7 +19,7 @@
 //! start) and lengthens them to the configured length, each stage starting
 //! from the last ([`stages`]).
 //!
-//! Uncertainty: an error model of the residuals ([`crate::error_model`]:
+//! Uncertainty: an error model of the residuals ([`crate::sigmas::error_model`]:
 //! white + Gauss-Markov per axis, fitted through the linearised fit, the
 //! exact covariance over every pair of fixes), with the formal covariance
 //! (residual variance and its lag-1 autocorrelation) as a floor. Where the
@@ -27,12 +27,12 @@
 //! blocks of fixes and over whole segments takes its place.
 
 use crate::error::CalibrationError;
-use crate::error_model::{
+use crate::reference::{RefFix, Reference};
+use crate::series::Series;
+use crate::sigmas::error_model::{
     conservative_covariance, fit_error_model, ErrorModel, FixLin, Linearisation, SegmentLin,
 };
-use crate::prep::Prepared;
-use crate::reference::{RefFix, Reference};
-use crate::uncertainty::{jackknife_covariance, SigmaBasis, Sigmas};
+use crate::sigmas::uncertainty::{jackknife_covariance, SigmaBasis, Sigmas};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use vehicle_model::two_wheel::Pose2;
 
@@ -43,7 +43,7 @@ const EARLY_STAGE_S: f64 = 600.0;
 pub const REPORT_POINTS: usize = 3000;
 
 /// Largest number of global parameters of any model.
-pub const MAX_GLOBAL: usize = crate::error_model::MAX_PARAMS;
+pub const MAX_GLOBAL: usize = crate::sigmas::error_model::MAX_PARAMS;
 
 /// One step of a dead-reckoning model with its parameter derivatives.
 pub trait StepModel {
@@ -100,7 +100,7 @@ pub struct Segment {
 /// share their boundary sample. Segments with fewer than 8 fixes or under
 /// 20 m are dropped (counted in the return value).
 pub fn make_segments(
-    p: &Prepared,
+    p: &Series,
     fixes: &[RefFix],
     length_s: f64,
     breaks: &dyn Fn(usize) -> bool,
@@ -243,7 +243,7 @@ fn eval_segment(
     pose0: [f64; 3],
     fixes: &[RefFix],
     s: &EvalSettings,
-    p: &Prepared,
+    p: &Series,
 ) -> SegEval {
     let ng = model.n_global();
     let mut acc = s.jacobian.then(|| Acc::new(ng));
@@ -494,7 +494,7 @@ pub struct Fit {
     /// Block-jackknife covariance, when there were enough blocks.
     pub jackknife: Option<DMatrix<f64>>,
     /// Covariance from the error model fitted to the residuals
-    /// ([`crate::uncertainty::correlated_covariance`]), when it could be fitted.
+    /// ([`crate::sigmas::uncertainty::correlated_covariance`]), when it could be fitted.
     pub correlated: Option<DMatrix<f64>>,
     /// The error model (east, north) fitted to the residuals.
     pub error_model: Option<[ErrorModel; 2]>,
@@ -552,7 +552,7 @@ impl ModelTrack {
 pub fn anchored_track(
     model: &dyn StepModel,
     g: &[f64],
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     length_s: f64,
 ) -> ModelTrack {
@@ -582,7 +582,7 @@ type StageEnd = (Vec<Segment>, Vec<[f64; 3]>, usize, f64);
 /// Fit `model` to the accepted fixes: stages of segment lengths, LM in each.
 pub fn fit(
     model: &dyn StepModel,
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     g0: &[f64],
     stage_lengths: &[f64],
@@ -733,7 +733,7 @@ fn robust_scale(evals: &[SegEval]) -> f64 {
 #[allow(clippy::too_many_arguments)]
 fn covariance(
     model: &dyn StepModel,
-    p: &Prepared,
+    p: &Series,
     fixes: &[RefFix],
     segs: &[Segment],
     poses: &[[f64; 3]],
@@ -879,7 +879,7 @@ fn covariance(
 }
 
 /// The covariance of the global parameters from an error model of the
-/// residuals ([`crate::error_model`]): the fit linearised at its solution,
+/// residuals ([`crate::sigmas::error_model`]): the fit linearised at its solution,
 /// the model fitted through it, the covariance under the least favourable
 /// plausible model. Takes the evaluations' recorded rows.
 fn error_model_covariance(

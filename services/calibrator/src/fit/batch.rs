@@ -1,4 +1,4 @@
-//! The batch method: a Levenberg-Marquardt fit ([`crate::lm`]) of the 2W
+//! The batch method: a Levenberg-Marquardt fit ([`crate::fit::lm`]) of the 2W
 //! model to the GNSS fixes over the whole drive.
 //!
 //! The drive is cut into segments (default 120 s, and at every break of the
@@ -16,21 +16,21 @@
 //! the 2W dead-reckoning from the reference.
 
 use crate::config::{CalibrationConfig, TrackWidthMode};
-use crate::ekf::{dr_deviation, Slip};
 use crate::error::CalibrationError;
-use crate::lm::{fit, stages, SlipGain, StepModel, MAX_GLOBAL};
+use crate::fit::ekf::{dr_deviation, Slip};
+use crate::fit::lm::{fit, stages, SlipGain, StepModel, MAX_GLOBAL};
+use crate::fit::track_width::{decide_track, implausible_track};
 use crate::method::Method;
-use crate::prep::Prepared;
 use crate::reference::Reference;
 use crate::result::{IterationRecord, MethodResult, RearPair, TRACK_POINTS};
-use crate::track_width::{decide_track, implausible_track};
+use crate::series::Series;
 use crate::warnings::{Warning, WarningCode};
 use vehicle_model::two_wheel::TwoWheelParams;
 
 /// The 2W model with `c_RL`, `c_RR` and optionally the track width, the
 /// side-slip gain and the GNSS antenna position; parameters in that order.
 pub struct TwoWheelModel<'a> {
-    p: &'a Prepared,
+    p: &'a Series,
     /// Index of the track width in the parameters, or the fixed value.
     track: Result<usize, f64>,
     slip: SlipGain,
@@ -41,7 +41,7 @@ pub struct TwoWheelModel<'a> {
 impl<'a> TwoWheelModel<'a> {
     /// The model over `p`; `track` `None` estimates it, `Some(t)` keeps `t`.
     pub fn new(
-        p: &'a Prepared,
+        p: &'a Series,
         track: Option<f64>,
         slip_gain: bool,
         lever_arm: bool,
@@ -120,7 +120,7 @@ impl StepModel for TwoWheelModel<'_> {
 
 /// Run the batch method.
 pub fn run(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,

@@ -6,7 +6,7 @@
 //!
 //! The model is the one the odometry runs through a GNSS outage: distance
 //! from the calibrated wheels, heading from the gyro. It is fitted to the GNSS
-//! fixes by the Levenberg-Marquardt fitter ([`crate::lm::fit`]) with the ratio of the
+//! fixes by the Levenberg-Marquardt fitter ([`crate::fit::lm::fit`]) with the ratio of the
 //! circumferences held at their estimate. Beside the bias and scale it fits
 //! - a common distance factor `k` on both circumferences: where the wheel
 //!   difference is a poor heading source (wheel-rate sensors whose difference
@@ -25,9 +25,9 @@
 //! warning says so).
 
 use crate::error::CalibrationError;
-use crate::lm::{fit, SlipGain, StepModel, MAX_GLOBAL};
-use crate::prep::Prepared;
+use crate::fit::lm::{fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::reference::{standstill_gyro_bias, Reference};
+use crate::series::Series;
 use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
 
@@ -103,7 +103,7 @@ pub fn prefer_distance_factor(gyro: &GyroEstimate, two_wheel_residual_rms_m: Opt
 }
 
 struct GyroModel<'a> {
-    p: &'a Prepared,
+    p: &'a Series,
     gyro: &'a [f64],
     c: [f64; 2],
     slip: SlipGain,
@@ -179,7 +179,7 @@ impl StepModel for GyroModel<'_> {
 /// Fit the gyro bias and scale (with the distance factor and the antenna
 /// position) on the circumferences `c` (and side-slip gain, if any).
 pub fn estimate(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     c: [f64; 2],
     side_slip_gain: Option<f64>,

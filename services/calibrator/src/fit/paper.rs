@@ -14,17 +14,17 @@
 //!
 //! With the track width estimated (beyond the paper), eq. (8)-(9) get a third
 //! column for `t_R` (the heading row linearised at the current values, see
-//! [`crate::ekf::run_pass`]) and eq. (11) steps it like the circumferences.
+//! [`crate::fit::ekf::run_pass`]) and eq. (11) steps it like the circumferences.
 
 use crate::config::{CalibrationConfig, TrackWidthMode};
-use crate::ekf::{dr_deviation, grid, run_pass, schedule, Slip};
 use crate::error::CalibrationError;
+use crate::fit::ekf::{dr_deviation, grid, run_pass, schedule, Slip};
+use crate::fit::track_width::{decide_track, implausible_track};
 use crate::method::Method;
-use crate::prep::Prepared;
 use crate::reference::Reference;
 use crate::result::{IterationRecord, MethodResult, RearPair, TRACK_POINTS};
-use crate::track_width::{decide_track, implausible_track};
-use crate::uncertainty::{jackknife_ls, Sigmas};
+use crate::series::Series;
+use crate::sigmas::uncertainty::{jackknife_ls, Sigmas};
 use crate::warnings::Warning;
 use vehicle_model::two_wheel::TwoWheelParams;
 
@@ -33,7 +33,7 @@ const JACKKNIFE_BLOCKS: usize = 20;
 
 /// Run the paper's loop. `progress` gets the fraction done (0..=1).
 pub fn run(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
@@ -53,7 +53,7 @@ pub fn run(
 }
 
 fn run_once(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     config: &CalibrationConfig,
     estimate_track: bool,
@@ -152,7 +152,7 @@ fn run_once(
         selected_iteration: selected,
         residual_rms_m: None,
         segments: 0,
-        sigma_basis: Some(crate::uncertainty::SigmaBasis {
+        sigma_basis: Some(crate::sigmas::uncertainty::SigmaBasis {
             method: "block jackknife over time blocks of the paper's least squares".to_string(),
             error_model: None,
         }),

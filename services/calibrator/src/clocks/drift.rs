@@ -21,9 +21,9 @@
 //!
 //! Pure: arrays in, estimates out.
 
-use crate::clocks::{
-    self, ClockDrift, ImuRow, OffsetStatus, Sampled, StreamOffset, WheelTrack, WindowOffset,
-    CLOCK_SEARCH_S,
+use crate::clocks::offsets::{
+    self as clocks, ClockDrift, ImuRow, OffsetStatus, Sampled, StreamOffset, WheelTrack,
+    WindowOffset, CLOCK_SEARCH_S,
 };
 
 /// Shortest window, s: enough speed changes and turns for an offset.
@@ -276,7 +276,7 @@ fn smooth_velocity(t: &[f64], p: &[f64], r: f64, q: f64) -> Vec<f64> {
 /// faster than 1 m/s, and the course rates, rad/s, where faster than 2 m/s.
 pub fn gnss_motion(fixes: &[(f64, f64, f64)], sigma_m: Option<f64>) -> GnssMotion {
     let mut out = GnssMotion::default();
-    let measured = crate::prep::gnss_scatter_sigma(fixes);
+    let measured = crate::series::gnss_scatter_sigma(fixes);
     let Some(sigma) = measured.or(sigma_m).map(|s| s.max(0.005)) else {
         return out;
     };

@@ -80,7 +80,7 @@ pub struct StreamOffset {
     /// Why not determined / not checked.
     pub reason: Option<String>,
     /// The slow drift of the stream's clock against the wheels'
-    /// (`crate::clock_drift`). When it is applied, `offset_s` is the offset
+    /// (`crate::clocks::drift`). When it is applied, `offset_s` is the offset
     /// at [`ClockDrift::ref_t_s`].
     #[serde(default)]
     pub drift: ClockDrift,

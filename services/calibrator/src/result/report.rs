@@ -2,7 +2,7 @@
 //! per-iteration table, the result with sigmas, the comparison and the
 //! warnings.
 
-use crate::clocks::{OffsetStatus, StreamOffset};
+use crate::clocks::offsets::{OffsetStatus, StreamOffset};
 use crate::result::Calibration;
 use std::fmt::Write as _;
 

@@ -27,8 +27,8 @@
 //! restarts on the reference where it comes back (no row at that sample).
 
 use crate::error::CalibrationError;
-use crate::prep::Prepared;
 use crate::reference::Reference;
+use crate::series::Series;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use vehicle_model::two_wheel::{step, wrap_angle, Pose2, TwoWheelParams};
 
@@ -147,7 +147,7 @@ pub fn solve2(a: &Matrix2<f64>, b: &Vector2<f64>) -> Option<Vector2<f64>> {
 /// `n_{i,k}` are the revolutions between consecutive grid samples.
 #[allow(clippy::too_many_arguments)]
 pub fn run_pass(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     grid: &[usize],
     c: [f64; 2],
@@ -308,7 +308,7 @@ pub fn run_pass(
 /// errors-in-variables regression that shrinks both circumferences by
 /// several percent. At 10 Hz that noise is 100 times smaller relative to the
 /// increments.
-pub fn grid(p: &Prepared, rate_hz: f64) -> Vec<usize> {
+pub fn grid(p: &Series, rate_hz: f64) -> Vec<usize> {
     let stride = ((1.0 / rate_hz) / p.wheel_dt).round().max(1.0) as usize;
     let mut out = Vec::with_capacity(p.len() / stride + p.piece_starts.len() * 2 + 1);
     let mut last: Option<usize> = None;
@@ -334,7 +334,7 @@ pub enum Slip<'a> {
     /// beta_k given per wheel sample (the layer-1 estimate).
     Series(&'a [f64]),
     /// beta = -k a_y with a_y = v omega from the wheels
-    /// ([`Prepared::lateral_accel`]).
+    /// ([`Series::lateral_accel`]).
     Gain(f64, &'a [f32]),
 }
 
@@ -367,7 +367,7 @@ pub struct DrDeviation {
 /// break of the wheel data), and measure its deviation from the reference
 /// (section 4 of the paper).
 pub fn dr_deviation(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     params: &TwoWheelParams,
     slip: Slip,

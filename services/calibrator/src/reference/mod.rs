@@ -23,12 +23,17 @@
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
-use crate::clocks::{self, ClockStream, PairOffset, StreamOffset, CLOCK_SEARCH_S};
+pub mod gnss_jumps;
+
+use crate::clocks::offsets::{
+    self as clocks, ClockStream, PairOffset, StreamOffset, CLOCK_SEARCH_S,
+};
+use crate::clocks::Aligned;
 use crate::config::{CalibrationConfig, TimeOffsetMode};
 use crate::error::CalibrationError;
-use crate::gnss_jumps::{self, JumpSearch};
-use crate::prep::{Fix, Prepared};
+use crate::series::{Fix, Series};
 use crate::warnings::{Warning, WarningCode};
+use gnss_jumps::JumpSearch;
 use interfaces::drive::{Drive, ImuSample};
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -204,7 +209,7 @@ const SMOOTHER_REWEIGHTS: usize = 3;
 /// weights settle. Heavy-tailed GNSS errors (multipath, a receiver's
 /// wander) pull the track by a bounded amount instead of quadratically;
 /// the gate still keeps gross outliers out, and the jump detection
-/// (`crate::gnss_jumps`) sets whole offset stretches aside.
+/// (`crate::reference::gnss_jumps`) sets whole offset stretches aside.
 fn smooth_positions(
     fixes: &[RefFix],
     z: &[[f64; 2]],
@@ -305,7 +310,7 @@ fn smooth_pass(
         };
         pp.push(pred);
         if set_aside.is_some_and(|a| a[j]) {
-            // Inside a jump (`crate::gnss_jumps`): not a measurement, and
+            // Inside a jump (`crate::reference::gnss_jumps`): not a measurement, and
             // not a rejection that could restart the filter on the jump.
             xf.push(xp);
             pf.push(pred);
@@ -437,14 +442,14 @@ fn smooth_pass(
     })
 }
 
-/// GNSS noise from the fixes ([`crate::prep::gnss_scatter_sigma`]).
+/// GNSS noise from the fixes ([`crate::series::gnss_scatter_sigma`]).
 fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
     let points: Vec<(f64, f64, f64)> = fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
-    crate::prep::gnss_scatter_sigma(&points)
+    crate::series::gnss_scatter_sigma(&points)
 }
 
 /// A claimed GNSS sigma is refuted when the fixes scatter more than this
-/// many times the claim: the measured scatter ([`crate::prep::gnss_scatter_sigma_robust`])
+/// many times the claim: the measured scatter ([`crate::series::gnss_scatter_sigma_robust`])
 /// is a lower bound of the error, and with at least
 /// [`CLAIM_MIN_DIFFERENCES`] differences its MAD is known to about 15 %
 /// (1.1 / sqrt(n)), so twice the claim is 6 of its sigmas away.
@@ -472,7 +477,7 @@ fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<Sig
         .filter(|f| f.sigma.is_some())
         .map(|f| (f.t, f.x, f.y))
         .collect();
-    let (measured_m, n) = crate::prep::gnss_scatter_sigma_robust(&points)?;
+    let (measured_m, n) = crate::series::gnss_scatter_sigma_robust(&points)?;
     if n < CLAIM_MIN_DIFFERENCES || measured_m <= CLAIM_FACTOR * claimed_m {
         return None;
     }
@@ -498,7 +503,7 @@ fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<Sig
 /// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
 /// determined (with the reason and the manoeuvre that would determine it)
 /// when neither does.
-fn estimate_time_offset(p: &Prepared, track: &PosTrack, rates: &CourseRates) -> StreamOffset {
+fn estimate_time_offset(p: &Series, track: &PosTrack, rates: &CourseRates) -> StreamOffset {
     let h = 0.25;
     let n = p.len();
     if n < 3 {
@@ -605,7 +610,7 @@ fn course_rates(track: &PosTrack) -> CourseRates {
 /// that closes the chain wheels-IMU-GNSS when the GNSS's speed and course
 /// do not determine its offset against the wheels directly (a drive at
 /// near-constant speed whose wheel yaw rate is too coarse).
-fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
+fn gnss_imu_pair(p: &Series, rates: &CourseRates) -> StreamOffset {
     let h = 0.25;
     let Some(gyro) = p.gyro.as_ref() else {
         return StreamOffset::not_checked("the drive has no usable gyro");
@@ -648,11 +653,15 @@ fn gnss_imu_pair(p: &Prepared, rates: &CourseRates) -> StreamOffset {
 
 /// The pairs of streams compared (wheels-GNSS, wheels-IMU, IMU-GNSS), the
 /// wheels-IMU pair's sigma widened by the lag the car itself puts between
-/// the wheels' and the gyro's yaw rates ([`crate::prep::IMU_PHYSICAL_LAG_S`]).
-fn clock_pairs(p: &Prepared, direct: &StreamOffset, gnss_imu: StreamOffset) -> Vec<PairOffset> {
-    let mut imu = p.imu_clock.clone();
+/// the wheels' and the gyro's yaw rates ([`crate::clocks::IMU_PHYSICAL_LAG_S`]).
+fn clock_pairs(
+    imu_clock: &StreamOffset,
+    direct: &StreamOffset,
+    gnss_imu: StreamOffset,
+) -> Vec<PairOffset> {
+    let mut imu = imu_clock.clone();
     if let Some(s) = imu.sigma_s.as_mut() {
-        *s = s.hypot(crate::prep::IMU_PHYSICAL_LAG_S);
+        *s = s.hypot(crate::clocks::IMU_PHYSICAL_LAG_S);
     }
     vec![
         PairOffset {
@@ -753,7 +762,7 @@ fn heading_step(x: &Vector3<f64>, dg: Option<f64>, tt: f64) -> (Vector3<f64>, Ma
 /// driven by the gyro, corrected by the heading measurements.
 fn heading_filter(
     meas: &[HeadingMeas],
-    p: &Prepared,
+    p: &Series,
     bias0: f64,
 ) -> Result<HeadingTrack, CalibrationError> {
     let n = meas.len();
@@ -892,7 +901,7 @@ impl HeadingTrack {
 /// and the heading filter run on them (plus any absolute heading).
 #[allow(clippy::type_complexity)]
 fn course_and_heading(
-    p: &Prepared,
+    p: &Series,
     pass1: &PosTrack,
 ) -> Result<(Vec<(HeadingMeas, f64)>, HeadingTrack), CalibrationError> {
     let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
@@ -972,7 +981,7 @@ fn course_and_heading(
 }
 
 /// True when the wheels turn backwards around `t` (+-0.1 s).
-fn reversing(p: &Prepared, t: f64) -> bool {
+fn reversing(p: &Series, t: f64) -> bool {
     let (a, b) = (
         p.t.partition_point(|&s| s < t - 0.1),
         p.t.partition_point(|&s| s <= t + 0.1),
@@ -986,7 +995,7 @@ fn reversing(p: &Prepared, t: f64) -> bool {
 
 /// [`gnss_jumps::find`] on the fixes against the wheels' dead-reckoning
 /// (nominal circumference, the reference heading, the lever arm).
-fn find_jumps(p: &Prepared, fixes: &[RefFix], heading: &HeadingTrack) -> JumpSearch {
+fn find_jumps(p: &Series, fixes: &[RefFix], heading: &HeadingTrack) -> JumpSearch {
     let n = p.len();
     if n < 2 {
         return JumpSearch::default();
@@ -1036,14 +1045,15 @@ fn find_jumps(p: &Prepared, fixes: &[RefFix], heading: &HeadingTrack) -> JumpSea
     gnss_jumps::find(&t, &xy, &dr_at)
 }
 
-/// Build the reference for the prepared drive (`drive` is read only for
+/// Build the reference for the aligned drive (its drive is read only for
 /// the IMU accelerations, which are not copied).
 pub fn build(
-    p: &Prepared,
-    drive: &Drive,
+    a: &Aligned<'_>,
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
 ) -> Result<Reference, CalibrationError> {
+    let p = &a.series;
+    let drive: &Drive = &a.drive;
     let (gnss_sigma_m, estimated) = match config.gnss_sigma_m {
         Some(s) => (s, false),
         None => {
@@ -1100,7 +1110,7 @@ pub fn build(
     if config.time_offset != TimeOffsetMode::Off {
         let rates = course_rates(&pass1);
         let direct = estimate_time_offset(p, &pass1, &rates);
-        clock_pairs_found = clock_pairs(p, &direct, gnss_imu_pair(p, &rates));
+        clock_pairs_found = clock_pairs(&a.imu_clock, &direct, gnss_imu_pair(p, &rates));
         clock = joint_gnss_offset(&direct, &clock_pairs_found);
         if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
             let significant = clock.significant(0.015).is_some();
@@ -1178,7 +1188,7 @@ pub fn build(
                 jumps.jumps.len(),
                 first.t_start,
                 first.t_end,
-                crate::gnss_jumps::EDGE_SIGMAS,
+                crate::reference::gnss_jumps::EDGE_SIGMAS,
                 jumps.sigma_e_m.unwrap_or(f64::NAN),
             ),
         ));
@@ -1408,7 +1418,7 @@ pub fn build(
 
 /// Distance and absolute turning where the reference is valid (heading
 /// sampled once per second so that noise does not add up).
-fn motion_summary(p: &Prepared, yaw: &[f64], valid: &[bool]) -> (f64, f64) {
+fn motion_summary(p: &Series, yaw: &[f64], valid: &[bool]) -> (f64, f64) {
     let mut dist = 0.0;
     let mut turn = 0.0;
     let mut last: Option<(f64, f64)> = None;
@@ -1431,7 +1441,7 @@ fn motion_summary(p: &Prepared, yaw: &[f64], valid: &[bool]) -> (f64, f64) {
 }
 
 /// Mean gyro rate over the standstill intervals: (bias, standard error, seconds).
-pub fn standstill_gyro_bias(p: &Prepared) -> Option<(f64, f64, f64)> {
+pub fn standstill_gyro_bias(p: &Series) -> Option<(f64, f64, f64)> {
     p.gyro.as_ref()?;
     let (mut sum_angle, mut sum_t) = (0.0, 0.0);
     let mut rates = Vec::new();
@@ -1543,12 +1553,7 @@ fn smooth_side_slip(t: &[f64], z: &[f64], var: &[f64]) -> Option<SlipTrack> {
 /// Position/velocity change from the IMU accelerations rotated by the
 /// heading, for each interval ending at fix j (entry 0 unused). The IMU rows
 /// are read from the drive (rows without finite accelerations skipped).
-fn accel_inputs(
-    fixes: &[RefFix],
-    p: &Prepared,
-    drive: &Drive,
-    heading: &HeadingTrack,
-) -> Vec<Input> {
+fn accel_inputs(fixes: &[RefFix], p: &Series, drive: &Drive, heading: &HeadingTrack) -> Vec<Input> {
     let mut out = vec![[0.0; 4]; fixes.len()];
     let Some(rows) = drive.imu.as_deref() else {
         return out;
@@ -1577,7 +1582,7 @@ fn accel_inputs(
                 continue;
             }
             let (ax, ay) = (s.ax_m_s2.unwrap_or(0.0), s.ay_m_s2.unwrap_or(0.0));
-            let g_t = gyro_at_cursor(p, st, &mut gc);
+            let g_t = p.gyro_at_cursor(st, &mut gc);
             let th = heading.at(st, g_t, &mut hc);
             let (sn, cs) = th.sin_cos();
             let a = [cs * ax - sn * ay, sn * ax + cs * ay];
@@ -1605,28 +1610,6 @@ fn accel_inputs(
         out[j] = [dpx, dpy, dvx, dvy];
     }
     out
-}
-
-/// The gyro integral at `t` (increasing between calls), by a forward cursor.
-fn gyro_at_cursor(p: &Prepared, t: f64, cursor: &mut usize) -> f64 {
-    let Some(g) = p.gyro.as_ref() else {
-        return f64::NAN;
-    };
-    let n = p.t.len();
-    if n < 2 || !(t >= p.t[0] && t <= p.t[n - 1]) {
-        return f64::NAN;
-    }
-    while *cursor + 2 < n && p.t[*cursor + 1] <= t {
-        *cursor += 1;
-    }
-    let i = *cursor;
-    let (t0, t1) = (p.t[i], p.t[i + 1]);
-    let f = if t1 > t0 {
-        ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    g[i] + f * (g[i + 1] - g[i])
 }
 
 #[cfg(test)]

@@ -1,9 +1,9 @@
 //! The calibration page: one self-contained HTML document (the
 //! [`report`] library's [`Page`]) with the result, the warnings in plain
-//! words, the numbers, the iterations and the figures of [`crate::plots`].
+//! words, the numbers, the iterations and the figures of [`crate::result::plots`].
 //! Pure: returns the text; the binary writes `index.html`.
 
-use crate::plots::NamedFigure;
+use crate::result::plots::NamedFigure;
 use crate::result::Calibration;
 use report::{Cell, Page};
 

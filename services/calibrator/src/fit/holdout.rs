@@ -9,7 +9,6 @@
 
 use crate::config::CalibrationConfig;
 use crate::error::CalibrationError;
-use crate::prep::prepare;
 use crate::reference::{build as build_reference, Reference};
 use interfaces::drive::Drive;
 use vehicle_model::two_wheel::{step, Pose2, TwoWheelParams};
@@ -62,9 +61,10 @@ pub fn holdout_errors(
     config: &CalibrationConfig,
     window_s: f64,
 ) -> Result<HoldoutScore, CalibrationError> {
-    let mut warnings = Vec::new();
-    let p = prepare(held, config, &mut warnings)?;
-    let r = build_reference(&p, held, config, &mut warnings)?;
+    let a = crate::clocks::align_offsets(crate::check::drive(held, config)?, config)?;
+    let mut warnings = a.warnings.clone();
+    let r = build_reference(&a, config, &mut warnings)?;
+    let p = &a.series;
     let track = RefTrack::of(&r);
     Ok(score_windows(
         &p.t,

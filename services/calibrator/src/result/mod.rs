@@ -5,12 +5,17 @@
 //! `circumference_m.rl/.rr`, `sigma_m`, `track_width_m`, `gyro_bias_rad_s`,
 //! `gyro_scale`, `method`, `selected_iteration`, `iterations`, `warnings`.
 
-use crate::clocks::ClockOffsets;
-use crate::gyro::GyroEstimate;
-use crate::lm::ModelTrack;
+pub mod export;
+pub mod page;
+pub mod plots;
+pub mod report;
+
+use crate::clocks::offsets::ClockOffsets;
+use crate::fit::gyro::GyroEstimate;
+use crate::fit::lm::ModelTrack;
 use crate::method::Method;
 use crate::reference::TimeOffset;
-use crate::uncertainty::Sigmas;
+use crate::sigmas::uncertainty::Sigmas;
 use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
 
@@ -95,7 +100,7 @@ pub struct MethodResult {
     /// Segments (batch).
     pub segments: usize,
     /// What the sigmas rest on.
-    pub sigma_basis: Option<crate::uncertainty::SigmaBasis>,
+    pub sigma_basis: Option<crate::sigmas::uncertainty::SigmaBasis>,
     /// Dead-reckoned track with the nominal values (thinned).
     pub track_before: Vec<[f64; 2]>,
     /// Dead-reckoned track with the estimate (thinned).
@@ -164,7 +169,7 @@ pub struct Diagnostics {
     /// GNSS jumps found against the wheels and set aside (their fixes are
     /// not used).
     #[serde(default)]
-    pub gnss_jumps: Vec<crate::gnss_jumps::Jump>,
+    pub gnss_jumps: Vec<crate::reference::gnss_jumps::Jump>,
     /// GNSS outages bridged.
     pub gnss_outages: usize,
     /// GNSS 1-sigma used, m.
@@ -189,7 +194,7 @@ pub struct Diagnostics {
     /// What the sigmas rest on: the GNSS error model fitted to this drive's
     /// residuals (white and correlated part per axis), or a jackknife.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sigma_basis: Option<crate::uncertainty::SigmaBasis>,
+    pub sigma_basis: Option<crate::sigmas::uncertainty::SigmaBasis>,
 }
 
 /// The nominal values the calibration started from.

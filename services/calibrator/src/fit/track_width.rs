@@ -4,15 +4,15 @@
 
 use crate::config::{CalibrationConfig, TrackWidthMode};
 use crate::error::CalibrationError;
-use crate::prep::Prepared;
 use crate::reference::Reference;
-use crate::uncertainty::NO_TURN_DEG;
+use crate::series::Series;
+use crate::sigmas::uncertainty::NO_TURN_DEG;
 use crate::warnings::{Warning, WarningCode};
 
 /// Whether the track width is estimated on this drive (per the
 /// configuration and the turning); an `Auto` decision to keep it is a warning.
 pub fn decide_track(
-    p: &Prepared,
+    p: &Series,
     r: &Reference,
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
