@@ -797,7 +797,7 @@ const REALISATIONS: usize = 4;
 /// errors passed through the same fit, for a grid of correlation times; the
 /// best match wins. `None` when the residual shows fewer than three lags.
 fn refit_noise(times: &[Vec<f64>], cols: &[Col]) -> Option<[PositionNoise; 2]> {
-    use crate::error_model::{nnls2, variogram, Normal};
+    use crate::sigmas::error_model::{nnls2, variogram, Normal};
     let n = cols.first()?.len();
     let p = cols.len() - 1;
     let stacked = |c: &Col, i: usize| if i < n { c[i][0] } else { c[i - n][1] };
@@ -990,7 +990,7 @@ mod tests {
 
     /// A small deterministic sequence of standard normal numbers.
     fn normals(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = crate::error_model::Normal::new(seed);
+        let mut rng = crate::sigmas::error_model::Normal::new(seed);
         (0..n).map(|_| rng.next()).collect()
     }
 
