@@ -43,6 +43,43 @@ def run(cal, drive, rerun):
     return json.load(open(out)), dt
 
 
+def median(xs):
+    xs = sorted(xs)
+    return xs[len(xs) // 2] if xs else None
+
+
+def fmt_x(v):
+    return "-" if v is None else f"{v:.2f}x"
+
+
+def limit_table(limits, null_limit):
+    """The information limit (issue 37) per target effect, from the JSON's
+    `information_limit`: the smallest size the drive shows (alone and with
+    every other effect free) against the true size, the held-out test's
+    detectable size where it reported one, and the joint Wald rule
+    (|z| beyond the family's critical z) as a detector, with its estimate
+    against the truth."""
+    out = ["", "The information limit (`information_limit` of the JSON): medians over the drives, sizes as multiples of the true size.", "",
+           "| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | wrong names | estimate / truth | abs(estimate - truth) / sigma |",
+           "|---|---|---|---|---|---|---|---|---|"]
+    for k, r in limits.items():
+        n = len(r["found"])
+        ratio = median(r["ratio"])
+        pull = median(r["pull"])
+        out.append(f"| {k} | {n} | {fmt_x(median(r['alone']))} | {fmt_x(median(r['joint']))} | "
+                   f"{fmt_x(median(r['test']))} ({len(r['test'])}) | {sum(r['found'])}/{n} | {sum(r['wrong'])} | "
+                   f"{'-' if ratio is None else f'{ratio:.2f}'} | {'-' if pull is None else f'{pull:.2f}'} |")
+    fd = sum(bool(x) for x in null_limit)
+    ids = defaultdict(int)
+    for x in null_limit:
+        for e in x:
+            ids[e] += 1
+    out.append("")
+    out.append(f"joint Wald rule on null drives: {fd} of {len(null_limit)} with an effect beyond the critical z "
+               f"(tyre physics aside): {dict(ids) or 'none'}")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out_dir")
@@ -56,6 +93,8 @@ def main():
     inherent_found = defaultdict(int)
     times = []
     lines = []
+    limits = OrderedDict()
+    null_limit = []
     for case in manifest:
         drive = os.path.join(a.out_dir, case["drive"])
         d, dt = run(a.calibrator, drive, a.rerun)
@@ -76,6 +115,38 @@ def main():
                f"ambiguous [{', '.join(amb)}] pos RMSE {before:.3f} -> {after:.3f} m, {dt:.1f} s")
         print(msg, flush=True)
         lines.append(msg)
+        lim = d.get("information_limit")
+        if lim and not truth:
+            # The joint Wald rule on a null drive: effects beyond the
+            # family's critical z other than the model's own tyre physics.
+            null_limit.append([x["effect"] for x in lim["effects"]
+                               if x["effect"] not in allowed
+                               and abs(x.get("joint", {}).get("wald_z", 0.0)) >= lim["z_critical"]])
+        if lim:
+            by_id = {x["effect"]: x for x in lim["effects"]}
+            beyond = [e for e, x in by_id.items()
+                      if abs(x.get("joint", {}).get("wald_z", 0.0)) >= lim["z_critical"]]
+            for e in truth:
+                x = by_id.get(e)
+                if x is None:
+                    continue
+                key = e if len(truth) == 1 else f"{e} [{case['label']}]"
+                r = limits.setdefault(key, defaultdict(list))
+                tv = case["effects"].get(e, {}).get(x["parameter"])
+                j = x.get("joint", {})
+                r["found"].append(e in beyond)
+                r["wrong"].append(any(b not in truth and b not in allowed for b in beyond))
+                if tv:
+                    if x.get("smallest") is not None:
+                        r["alone"].append(x["smallest"] / abs(tv))
+                    if j.get("smallest") is not None:
+                        r["joint"].append(j["smallest"] / abs(tv))
+                    if j.get("estimate") is not None and j.get("sigma"):
+                        r["ratio"].append(j["estimate"] / tv)
+                        r["pull"].append(abs(j["estimate"] - tv) / j["sigma"])
+                na = [n for n in d.get("not_accepted", []) if n["effect"] == e]
+                if tv and na and na[0].get("detectable") and na[0]["detectable"].get("smallest") is not None:
+                    r["test"].append(na[0]["detectable"]["smallest"] / abs(tv))
         if not truth:
             null_n += 1
             null_false += bool(extra)
@@ -113,6 +184,7 @@ def main():
         out.append(f"| {k} | {n} | {sum(r['detected'])}/{n} | {sum(r['attributed'])}/{n} | {sum(r['wrong'])} | "
                    f"{sum(r['ambiguous'])} | {mb:.3f} -> {ma:.3f} m ({100 * (ma / mb - 1):+.0f} %) | "
                    f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
+    out.extend(limit_table(limits, null_limit))
     out.append("")
     out.append(f"null drives: {null_n}, with a false discovery (beyond the model's own tyre physics): {null_false}; "
                f"ids found on null drives: {dict(null_found) or 'none'}")

@@ -63,6 +63,32 @@ struct Tally {
     needed: Vec<Option<f64>>,
 }
 
+/// The information limit of the drives of one effect (the diagnosis's
+/// `information_limit`), sizes as multiples of the simulated one.
+#[derive(Default)]
+struct LimitTally {
+    drives: usize,
+    /// The smallest size shown, the effect alone with the nuisances.
+    alone: Vec<f64>,
+    /// The same with every other effect of its source free.
+    joint: Vec<f64>,
+    /// The held-out test's detectable size, where it reported one.
+    test: Vec<f64>,
+    /// Drives where the joint Wald statistic is beyond the critical z.
+    found: usize,
+    /// Drives where another effect (not simulated, not allowed) is.
+    wrong: usize,
+    /// Joint estimate / truth, and |estimate - truth| / sigma.
+    ratio: Vec<f64>,
+    pull: Vec<f64>,
+}
+
+fn median_of(v: &[f64]) -> Option<f64> {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied()
+}
+
 /// The parameter an effect is scored by, in the diagnosis and in the
 /// truth: the simulator's main parameter when the diagnosis reports it too,
 /// else the diagnosis's main one (road grade: the gain on the measured
@@ -200,6 +226,10 @@ fn main() {
     let mut null_drives = 0usize;
     let mut null_false = 0usize;
     let mut times = Vec::new();
+    let mut limit_tallies: BTreeMap<String, LimitTally> = BTreeMap::new();
+    // Null drives with the information limit, and those where the joint
+    // Wald rule names an effect beyond the allowed ones.
+    let mut limit_null = (0usize, 0usize);
     for case in &cases {
         let mut cfg = SimConfig::new(case.scenario, case.seed);
         cfg.vehicle = case.vehicle;
@@ -237,6 +267,68 @@ fn main() {
             d.fit.before.holdout_position_rmse_m,
             d.fit.after.holdout_position_rmse_m
         );
+        if let Some(l) = &d.information_limit {
+            let beyond: Vec<Effect> = l
+                .effects
+                .iter()
+                .filter(|x| {
+                    x.joint
+                        .as_ref()
+                        .and_then(|j| j.wald_z)
+                        .is_some_and(|z| z.abs() >= l.z_critical)
+                })
+                .map(|x| x.effect)
+                .collect();
+            let wrong = beyond
+                .iter()
+                .any(|e| !case.truth.contains(e) && !case.allowed.contains(e));
+            if case.truth.is_empty() {
+                limit_null.0 += 1;
+                limit_null.1 += usize::from(wrong);
+            }
+            for e in &case.truth {
+                let Some(x) = l.effects.iter().find(|x| x.effect == *e) else {
+                    continue;
+                };
+                let key = if case.truth.len() > 1 || case.scenario != Scenario::Mixed {
+                    format!("{} [{}]", e.id(), case.label)
+                } else {
+                    e.id().to_string()
+                };
+                let t = limit_tallies.entry(key).or_default();
+                t.drives += 1;
+                t.found += usize::from(beyond.contains(e));
+                t.wrong += usize::from(wrong);
+                let (dp, tp, relative) = main_param(*e);
+                // Sizes against the simulated one (a relative parameter's 1
+                // is the simulated size); none where the limit is of another
+                // parameter than the simulated one.
+                let Some(sim) = truth_value(case, tp).filter(|v| *v != 0.0) else {
+                    continue;
+                };
+                if dp != e.main_fitted() {
+                    continue;
+                }
+                let rel = |v: f64| if relative { v } else { v / sim.abs() };
+                t.alone.extend(x.smallest.map(rel));
+                let j = x.joint.as_ref();
+                t.joint.extend(j.and_then(|j| j.smallest).map(rel));
+                if let Some((v, sg)) = j.and_then(|j| Some((j.estimate?, j.sigma?))) {
+                    if !relative {
+                        t.ratio.push(v / sim);
+                        t.pull.push((v - sim).abs() / sg);
+                    }
+                }
+                if let Some(v) = d
+                    .not_accepted
+                    .iter()
+                    .find(|n| n.effect == *e)
+                    .and_then(|n| n.detectable.as_ref()?.smallest)
+                {
+                    t.test.push(rel(v));
+                }
+            }
+        }
         if case.truth.is_empty() {
             null_drives += 1;
             if !extra.is_empty() {
@@ -351,6 +443,33 @@ fn main() {
     println!(
         "null drives: {null_drives}, with a false discovery: {null_false} ({:.0} %)",
         100.0 * null_false as f64 / null_drives.max(1) as f64
+    );
+    println!();
+    println!("The information limit (`information_limit` of the diagnosis): medians over the drives, sizes as multiples of the simulated one.");
+    println!();
+    println!("| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | wrong names | estimate / truth | abs(estimate - truth) / sigma |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let x = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}x"));
+    let plain = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for (k, t) in &limit_tallies {
+        println!(
+            "| {k} | {} | {} | {} | {} ({}) | {}/{} | {} | {} | {} |",
+            t.drives,
+            x(median_of(&t.alone)),
+            x(median_of(&t.joint)),
+            x(median_of(&t.test)),
+            t.test.len(),
+            t.found,
+            t.drives,
+            t.wrong,
+            plain(median_of(&t.ratio)),
+            plain(median_of(&t.pull))
+        );
+    }
+    println!();
+    println!(
+        "joint Wald rule on null drives: {} of {} with an effect beyond the critical z (allowed physics aside)",
+        limit_null.1, limit_null.0
     );
     let per_min: Vec<f64> = times.iter().map(|(s, d)| s / (d / 60.0)).collect();
     let total: f64 = times.iter().map(|t| t.0).sum();

@@ -274,7 +274,7 @@ fn information_text(s: &mut String, d: &Diagnosis) {
         }
         return;
     };
-    let noise = |n: &[f64; 3]| format!("{:.2} m white + {:.2} m over {:.0} s", n[0], n[1], n[2]);
+    let noise = |n: &[f64; 3]| format!("{:.2} m white + {:.2} m over {:.1} s", n[0], n[1], n[2]);
     let _ = writeln!(
         s,
         "what this drive could show (90 % power at a family-wise level of {:.0} %; GNSS error with every \

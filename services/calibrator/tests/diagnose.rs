@@ -220,8 +220,19 @@ fn the_command_writes_json_pictures_and_an_index_page() {
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
     assert_eq!(v["findings"][0]["effect"], "track_width");
+    // What the drive could show of every effect: in the JSON, the text and
+    // the page.
+    let limit = &v["information_limit"]["effects"];
+    assert_eq!(
+        limit.as_array().map(Vec::len),
+        Some(Effect::ALL.len()),
+        "{limit}"
+    );
+    assert!(limit[4]["effect"] == "track_width" && limit[4]["smallest"].is_number());
+    assert!(stdout.contains("what this drive could show"), "{stdout}");
     let index = std::fs::read_to_string(plots.join("index.html")).expect("index");
     assert!(index.contains("track_width") && index.contains("<svg"));
+    assert!(index.contains("the information limit"));
     assert!(plots.join("residual_track_width.svg").is_file());
     assert!(plots.join("tracks.svg").is_file());
 }

@@ -1,6 +1,6 @@
 //! The drive's information limit (issue 37): what each effect's Fisher
 //! information under the drive's own error model (and the drive's own
-//! scatter, by a jackknife over segments) says the drive could show,
+//! scatter over segments) says the drive could show,
 //! checked against simulated drives whose truth is known.
 
 use calibrator::diagnose::limit::{EffectLimit, InformationLimit};

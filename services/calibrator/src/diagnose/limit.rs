@@ -23,9 +23,7 @@
 //! Pure: the drive's data in, numbers out.
 
 use super::design::{Channel, Design};
-use super::information::{
-    detectable_size, profiled_estimate, whiten, InformationError, PositionNoise,
-};
+use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
 use interfaces::effects::{Effect, Param};
 use nalgebra::{DMatrix, DVector};
@@ -90,15 +88,17 @@ pub struct EffectLimit {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub estimate: Option<f64>,
     /// Its sigma, reported unit: the larger of `sigma_fisher` and
-    /// `sigma_jackknife`. The smallest size shown is computed from it.
+    /// `sigma_segments`. The smallest size shown is computed from it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<f64>,
     /// The sigma the Fisher information under the error model gives.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_fisher: Option<f64>,
-    /// The delete-one-segment jackknife's sigma (the drive's own scatter).
+    /// The sigma the segments' own scatter gives (a cluster-robust
+    /// sandwich over segments): where the error model is wrong, this one
+    /// is.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub sigma_jackknife: Option<f64>,
+    pub sigma_segments: Option<f64>,
     /// The Wald statistic `estimate / sigma`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wald_z: Option<f64>,
@@ -123,20 +123,20 @@ pub struct Joint {
     /// The Fisher information's sigma.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_fisher: Option<f64>,
-    /// The jackknife's sigma.
+    /// The segments' scatter's sigma.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub sigma_jackknife: Option<f64>,
+    pub sigma_segments: Option<f64>,
     /// `estimate / sigma`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wald_z: Option<f64>,
 }
 
 impl Joint {
-    fn of(effect: Effect, fit: CoefFit, alpha: f64) -> Joint {
+    fn of(effect: Effect, fit: CoefFit, z_critical: f64) -> Joint {
         let l = limit_of(
             effect,
             Some(fit),
-            alpha,
+            z_critical,
             InformationSource::PositionsWheelHeading,
         );
         Joint {
@@ -144,7 +144,7 @@ impl Joint {
             estimate: l.estimate,
             sigma: l.sigma,
             sigma_fisher: l.sigma_fisher,
-            sigma_jackknife: l.sigma_jackknife,
+            sigma_segments: l.sigma_segments,
             wald_z: l.wald_z,
         }
     }
@@ -159,7 +159,10 @@ pub struct InformationLimit {
     pub alpha_per_effect: f64,
     /// The power.
     pub power: f64,
-    /// The |Wald z| a single effect needs at the per-effect level.
+    /// The |Wald z| a single effect needs at the per-effect level: the
+    /// Student t quantile with one degree of freedom fewer than segments
+    /// (the sigma leans on the segments' own scatter, which a handful of
+    /// segments knows only roughly).
     pub z_critical: f64,
     /// Segments the dead-reckoning restarts in, and their length, s.
     pub segments: usize,
@@ -554,14 +557,14 @@ impl Columns {
     /// The effects' limits under `noise`: each effect alone with the
     /// nuisances, and with every other effect of the source free too. The
     /// sigma is the larger of the Fisher information's and a delete-one-
-    /// segment jackknife's (the error model is a model: where the drive's
+    /// segment sandwich's (the error model is a model: where the drive's
     /// own scatter of the estimate is larger, that is the honest one).
     fn limits(
         &self,
         times: &[f64],
         segment_sizes: &[usize],
         noise: &[PositionNoise; 2],
-        alpha: f64,
+        z_critical: f64,
     ) -> Result<Vec<EffectLimit>, InformationError> {
         if self.cols.iter().any(|c| c.len() != times.len()) {
             return Err(InformationError::BadData(
@@ -574,10 +577,6 @@ impl Columns {
         let first_pose = self.first_effect + n_eff;
         let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
         nuisances.extend(first_pose..first_pose + self.pose_segment.len());
-        let pose_of = |c: usize| {
-            c.checked_sub(first_pose)
-                .and_then(|i| self.pose_segment.get(i).copied())
-        };
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
@@ -590,7 +589,7 @@ impl Columns {
             if *e == Effect::GyroScale && self.gyro_bias {
                 cols.push(w.len() - 1);
             }
-            let alone = gram.fit(&cols, &pose_of);
+            let alone = gram.fit(&cols);
             // Every other effect of this source free as well (those the
             // drive holds no information about left out: they are singular).
             for j in self.first_effect..first_pose {
@@ -600,9 +599,9 @@ impl Columns {
                     cols.push(j);
                 }
             }
-            let joint = gram.fit(&cols, &pose_of);
-            let mut l = limit_of(*e, alone, alpha, source);
-            l.joint = joint.map(|fit| Joint::of(*e, fit, alpha));
+            let joint = gram.fit(&cols);
+            let mut l = limit_of(*e, alone, z_critical, source);
+            l.joint = joint.map(|fit| Joint::of(*e, fit, z_critical));
             out.push(l);
         }
         Ok(out)
@@ -610,23 +609,23 @@ impl Columns {
 }
 
 /// A model's fit of one coefficient: its estimate, its Fisher sigma and the
-/// jackknife's (model units).
+/// segments' scatter's (model units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct CoefFit {
     estimate: f64,
     sigma_fisher: f64,
-    sigma_jackknife: Option<f64>,
+    sigma_segments: Option<f64>,
 }
 
 impl CoefFit {
     /// The honest sigma: the larger of the two.
     fn sigma(&self) -> f64 {
-        self.sigma_fisher.max(self.sigma_jackknife.unwrap_or(0.0))
+        self.sigma_fisher.max(self.sigma_segments.unwrap_or(0.0))
     }
 }
 
 /// The Gram matrix of whitened columns (the data first), per segment and
-/// in total: every sub-model's least squares and its jackknife over
+/// in total: every sub-model's least squares and its sandwich over
 /// segments come from it without touching the rows again.
 struct SegmentGram {
     per_segment: Vec<DMatrix<f64>>,
@@ -669,46 +668,48 @@ impl SegmentGram {
         SegmentGram { per_segment, total }
     }
 
-    /// Least squares of the data on `cols` (the first the coefficient
-    /// wanted) from the Gram matrix `g`: its estimate and `(A^-1)_00`.
-    fn solve(g: &DMatrix<f64>, cols: &[usize]) -> Option<(f64, f64)> {
-        let a = DMatrix::from_fn(cols.len(), cols.len(), |i, j| g[(cols[i], cols[j])]);
-        let b = DVector::from_fn(cols.len(), |i, _| g[(cols[i], 0)]);
+    /// The fit of the first of `cols`, with the segments' own scatter of
+    /// it: the cluster-robust (sandwich) variance over segments,
+    /// `k / (k - 1) sum_s (v' g_s)^2` with `v` the first row of the
+    /// inverse normal matrix and `g_s` the segment's score at the fit.
+    fn fit(&self, cols: &[usize]) -> Option<CoefFit> {
+        let a = DMatrix::from_fn(cols.len(), cols.len(), |i, j| {
+            self.total[(cols[i], cols[j])]
+        });
+        let b = DVector::from_fn(cols.len(), |i, _| self.total[(cols[i], 0)]);
         let chol = a.cholesky()?;
         let theta = chol.solve(&b);
         let mut e0 = DVector::zeros(cols.len());
         e0[0] = 1.0;
-        let inv00 = chol.solve(&e0)[0];
-        (inv00 > 0.0 && theta[0].is_finite()).then_some((theta[0], inv00))
-    }
-
-    /// The fit of the first of `cols`, with its jackknife over segments
-    /// (`pose_of` names the segment a pose column belongs to: left out
-    /// with its segment).
-    fn fit(&self, cols: &[usize], pose_of: &dyn Fn(usize) -> Option<usize>) -> Option<CoefFit> {
-        let (estimate, inv00) = Self::solve(&self.total, cols)?;
-        let segments = self.per_segment.len();
-        let mut replicates = Vec::with_capacity(segments);
-        for (s, g_s) in self.per_segment.iter().enumerate() {
-            let g = &self.total - g_s;
-            let kept: Vec<usize> = cols
-                .iter()
-                .copied()
-                .filter(|c| pose_of(*c) != Some(s))
-                .collect();
-            if let Some((theta, _)) = Self::solve(&g, &kept) {
-                replicates.push(theta);
-            }
+        let v = chol.solve(&e0);
+        let (estimate, inv00) = (theta[0], v[0]);
+        if !(inv00 > 0.0 && estimate.is_finite()) {
+            return None;
         }
-        let sigma_jackknife = (replicates.len() == segments && segments >= 4).then(|| {
-            let k = segments as f64;
-            let mean = replicates.iter().sum::<f64>() / k;
-            ((k - 1.0) / k * replicates.iter().map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
+        let k = self.per_segment.len();
+        let sigma_segments = (k >= 4).then(|| {
+            let sum: f64 = self
+                .per_segment
+                .iter()
+                .map(|g| {
+                    // The segment's score at the fit: X_s' y_s - X_s' X_s theta.
+                    let score = DVector::from_fn(cols.len(), |i, _| {
+                        g[(cols[i], 0)]
+                            - cols
+                                .iter()
+                                .enumerate()
+                                .map(|(j, c)| g[(cols[i], *c)] * theta[j])
+                                .sum::<f64>()
+                    });
+                    v.dot(&score).powi(2)
+                })
+                .sum();
+            (k as f64 / (k as f64 - 1.0) * sum).sqrt()
         });
         Some(CoefFit {
             estimate,
             sigma_fisher: inv00.sqrt(),
-            sigma_jackknife,
+            sigma_segments,
         })
     }
 }
@@ -730,6 +731,7 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
         )));
     }
     let segment_sizes: Vec<usize> = times.iter().map(Vec::len).filter(|n| *n > 0).collect();
+    let z_critical = t_quantile(1.0 - 0.5 * alpha, segment_sizes.len().saturating_sub(1));
     let mut limits = BTreeMap::new();
     let mut noises = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
@@ -745,30 +747,28 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
                     .into(),
             )
         })?;
-        for l in src.limits(&all_t, &segment_sizes, &noise, alpha)? {
+        for l in src.limits(&all_t, &segment_sizes, &noise, z_critical)? {
             limits.insert(l.effect, l);
         }
         noises.push((noise, refit.is_some()));
     }
     let (noise, refitted) = noises[0];
-    if let Some(fit) = heading_channel(input.design) {
-        limits.insert(
+    // Without a heading sensor the drive holds nothing about its bias.
+    limits.insert(
+        Effect::HeadingBias,
+        limit_of(
             Effect::HeadingBias,
-            limit_of(
-                Effect::HeadingBias,
-                Some(fit),
-                alpha,
-                InformationSource::HeadingChannel,
-            ),
-        );
-    }
+            heading_channel(input.design),
+            z_critical,
+            InformationSource::HeadingChannel,
+        ),
+    );
     let arr = |n: &PositionNoise| [n.white_sigma_m, n.gm_sigma_m, n.gm_tau_s];
-    let z = super::select::normal_quantile;
     Ok(InformationLimit {
         family_alpha: FAMILY_ALPHA,
         alpha_per_effect: alpha,
         power: POWER,
-        z_critical: z(1.0 - 0.5 * alpha),
+        z_critical,
         segments: times.iter().filter(|t| !t.is_empty()).count(),
         segment_s: input.spans.first().map_or(0.0, |(a, b)| b - a),
         fixes: all_t.len(),
@@ -891,12 +891,30 @@ fn refit_noise(times: &[Vec<f64>], cols: &[Col]) -> Option<[PositionNoise; 2]> {
     Some([e?.1, nn?.1])
 }
 
+/// The quantile `p` of Student's t with `dof` degrees of freedom (the
+/// Cornish-Fisher expansion about the normal quantile: within 1 % from 3
+/// degrees of freedom at the tails used here); the normal quantile with
+/// none given.
+pub fn t_quantile(p: f64, dof: usize) -> f64 {
+    let z = super::select::normal_quantile(p);
+    if dof == 0 {
+        return z;
+    }
+    let n = dof as f64;
+    let (z2, z3) = (z * z, z * z * z);
+    let z5 = z3 * z2;
+    let z7 = z5 * z2;
+    z + (z3 + z) / (4.0 * n)
+        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * n * n)
+        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * n * n * n)
+}
+
 /// The limit of one effect from its profiled information and estimate
 /// (model units).
 fn limit_of(
     effect: Effect,
     fit: Option<CoefFit>,
-    alpha: f64,
+    z_critical: f64,
     source: InformationSource,
 ) -> EffectLimit {
     let p = effect.main_fitted();
@@ -905,9 +923,8 @@ fn limit_of(
     let shown = |v: f64| p.to_display(v).abs();
     // The information is about the square of a squared term: its smallest
     // size is the root of the square's.
-    let size_fit = fit.map_or(f64::INFINITY, |f| {
-        detectable_size(f.sigma().powi(-2), alpha, POWER)
-    });
+    let z_power = super::select::normal_quantile(POWER);
+    let size_fit = fit.map_or(f64::INFINITY, |f| (z_critical + z_power) * f.sigma());
     let size = if squared { size_fit.sqrt() } else { size_fit };
     // An information below what the numbers resolve is none.
     let fit = fit.filter(|_| size.is_finite() && size < 1e6 * spec.typical.abs());
@@ -927,7 +944,7 @@ fn limit_of(
         estimate: fit.map(|f| p.to_display(f.estimate)),
         sigma: fit.map(|f| shown(f.sigma())),
         sigma_fisher: fit.map(|f| shown(f.sigma_fisher)),
-        sigma_jackknife: fit.and_then(|f| f.sigma_jackknife.map(shown)),
+        sigma_segments: fit.and_then(|f| f.sigma_segments.map(shown)),
         wald_z: fit.map(|f| f.estimate / f.sigma()),
         joint: None,
     }
@@ -968,7 +985,7 @@ fn heading_channel(d: &Design) -> Option<CoefFit> {
     (info > 0.0).then(|| CoefFit {
         estimate,
         sigma_fisher: info.powf(-0.5),
-        sigma_jackknife: None,
+        sigma_segments: None,
     })
 }
 
@@ -986,7 +1003,7 @@ fn lag1(x: &[f64]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::information::profiled_estimate;
+    use crate::diagnose::information::{detectable_size, profiled_estimate};
 
     /// A small deterministic sequence of standard normal numbers.
     fn normals(n: usize, seed: u64) -> Vec<f64> {
@@ -1008,7 +1025,7 @@ mod tests {
             .collect();
         let w = vec![y.clone(), x.clone(), a.clone(), b.clone()];
         let gram = SegmentGram::new(&w, &[50, 50, 50, 50]);
-        let fit = gram.fit(&[1, 2, 3], &|_| None).expect("fit");
+        let fit = gram.fit(&[1, 2, 3]).expect("fit");
         let (info, est) = profiled_estimate(&x, &[a, b], &y).expect("profiled");
         assert!((fit.estimate - est).abs() < 1e-9, "{} {est}", fit.estimate);
         assert!((fit.sigma_fisher - info.powf(-0.5)).abs() < 1e-9);
@@ -1016,9 +1033,9 @@ mod tests {
     }
 
     #[test]
-    fn the_jackknife_agrees_with_the_fisher_sigma_on_white_noise_and_sees_more_when_there_is_more()
-    {
-        // Unit white noise: the Fisher sigma is right, and a jackknife over
+    fn the_segments_sigma_agrees_with_the_fisher_sigma_on_white_noise_and_sees_more_when_there_is_more(
+    ) {
+        // Unit white noise: the Fisher sigma is right, and the sandwich over
         // 12 segments lands near it (its own spread is about 20 %).
         let segments = 12;
         let per = 100;
@@ -1030,19 +1047,19 @@ mod tests {
             let y = normals(2 * n, seed);
             let w = vec![y, x.clone(), ones.clone()];
             let gram = SegmentGram::new(&w, &vec![per; segments]);
-            let fit = gram.fit(&[1, 2], &|_| None).expect("fit");
-            ratios.push(fit.sigma_jackknife.expect("jackknife") / fit.sigma_fisher);
+            let fit = gram.fit(&[1, 2]).expect("fit");
+            ratios.push(fit.sigma_segments.expect("segments") / fit.sigma_fisher);
         }
         let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
         assert!((0.8..1.2).contains(&mean), "{ratios:?}");
-        // Noise 3x what the whitening assumed: the jackknife sees it, the
+        // Noise 3x what the whitening assumed: the sandwich sees it, the
         // Fisher sigma cannot, and the reported sigma is the larger.
         let y: Vec<f64> = normals(2 * n, 99).iter().map(|v| 3.0 * v).collect();
         let w = vec![y, x, ones];
         let fit = SegmentGram::new(&w, &vec![per; segments])
-            .fit(&[1, 2], &|_| None)
+            .fit(&[1, 2])
             .expect("fit");
-        let j = fit.sigma_jackknife.expect("jackknife");
+        let j = fit.sigma_segments.expect("segments");
         assert!(j > 2.0 * fit.sigma_fisher, "{fit:?}");
         assert_eq!(fit.sigma(), j);
     }
@@ -1052,13 +1069,14 @@ mod tests {
         let fit = CoefFit {
             estimate: 0.0,
             sigma_fisher: 0.01,
-            sigma_jackknife: None,
+            sigma_segments: None,
         };
         let alpha = FAMILY_ALPHA / 12.0;
+        let z_critical = super::super::select::normal_quantile(1.0 - 0.5 * alpha);
         let l = limit_of(
             Effect::RoadGrade,
             Some(fit),
-            alpha,
+            z_critical,
             InformationSource::PositionsWheelHeading,
         );
         let size_of_square = detectable_size(1e4, alpha, POWER);
@@ -1069,9 +1087,28 @@ mod tests {
         let none = limit_of(
             Effect::TrackWidth,
             None,
-            alpha,
+            z_critical,
             InformationSource::PositionsWheelHeading,
         );
         assert!(none.smallest.is_none() && none.estimate.is_none());
+    }
+
+    #[test]
+    fn the_t_quantile_matches_its_table() {
+        // Two-sided 5 % and 1 %, and the family's 0.42 %, against the
+        // published values of Student's t.
+        for (p, dof, t) in [
+            (0.975, 11, 2.201),
+            (0.995, 11, 3.106),
+            (0.975, 4, 2.776),
+            (0.99792, 11, 3.6),
+            (0.975, 1000, 1.962),
+        ] {
+            let q = t_quantile(p, dof);
+            assert!(
+                (q - t).abs() < 0.015 * t,
+                "p {p} dof {dof}: {q} against {t}"
+            );
+        }
     }
 }

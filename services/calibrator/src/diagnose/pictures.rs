@@ -420,6 +420,84 @@ fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
+/// What the drive could show of each effect: the information limit beside
+/// what the held-out test needs.
+fn information_section(s: &mut Page, d: &Diagnosis) {
+    s.heading("What this drive could show (the information limit)");
+    let Some(l) = &d.information_limit else {
+        none_para(
+            s,
+            &format!(
+                "Not known: {}",
+                d.information_limit_missing
+                    .as_deref()
+                    .unwrap_or("not computed")
+            ),
+        );
+        return;
+    };
+    let noise = |n: &[f64; 3]| format!("{:.2} m white + {:.2} m over {:.1} s", n[0], n[1], n[2]);
+    let _ = writeln!(
+        s,
+        "<p>The smallest size of each effect this drive shows with {:.0} % power at a family-wise \
+         level of {:.0} % (|z| &gt; {:.2} each), from the Fisher information of its GNSS positions \
+         (the heading sensor's for its bias) under the error model refitted with every effect in \
+         (east {}, north {}), the sigma raised to the scatter over the {} segments of {:.0} s where \
+         that is larger. Sizes are multiples of the catalogue's typical size; the estimate and z \
+         are with every other effect of its source free.</p>",
+        100.0 * l.power,
+        100.0 * l.family_alpha,
+        l.z_critical,
+        escape(&noise(&l.noise_east)),
+        escape(&noise(&l.noise_north)),
+        l.segments,
+        l.segment_s
+    );
+    let times = |v: Option<f64>, typical: f64| {
+        v.map_or("-".to_string(), |v| format!("{:.2}x", v / typical))
+    };
+    let rows: Vec<Vec<(bool, String)>> = l
+        .effects
+        .iter()
+        .map(|e| {
+            let joint = e.joint.as_ref();
+            let test = d
+                .not_accepted
+                .iter()
+                .find(|n| n.effect == e.effect)
+                .and_then(|n| n.detectable.as_ref())
+                .map_or("-".to_string(), |det| match det.smallest {
+                    Some(v) => format!("{:.2}x", v / det.typical),
+                    None => "&gt; 64x".to_string(),
+                });
+            let estimate = match joint.and_then(|j| Some((j.estimate?, j.sigma?, j.wald_z?))) {
+                Some((v, sg, z)) => format!("{} {} (z {z:.1})", with_sigma(v, sg), e.unit),
+                None => "-".to_string(),
+            };
+            vec![
+                (false, format!("<code>{}</code>", escape(e.effect.id()))),
+                (true, times(e.smallest, e.typical)),
+                (true, times(joint.and_then(|j| j.smallest), e.typical)),
+                (true, test),
+                (false, escape(&estimate)),
+                (false, escape(e.source.describe())),
+            ]
+        })
+        .collect();
+    table(
+        s,
+        &[
+            "effect",
+            "shows from (alone)",
+            "with every other effect free",
+            "the held-out test needs",
+            "estimate ± sigma",
+            "from",
+        ],
+        &rows,
+    );
+}
+
 fn table(s: &mut Page, head: &[&str], rows: &[Vec<(bool, String)>]) {
     // Cells are already escaped HTML.
     let rows: Vec<Vec<Cell>> = rows
@@ -783,6 +861,8 @@ pub fn index_html(d: &Diagnosis, pictures: &[(String, String)]) -> String {
         }
         s.html("</ul>\n");
     }
+
+    information_section(&mut s, d);
 
     // Noise.
     s.heading("Noise levels (the thresholds come from these)");
