@@ -740,7 +740,7 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
         // residuals, which hold every effect the plain model leaves out:
         // refit it to what is left once every effect of this source is in
         // (the dead-reckoning's own errors, wheel or gyro, included).
-        let refit = refit_noise(&times, &src.cols);
+        let refit = refit_noise(&times, &src);
         let noise = refit.or(input.noise).ok_or_else(|| {
             InformationError::BadNoise(
                 "the residuals show too few lags for a GNSS error model, and the calibration fitted none"
@@ -796,14 +796,58 @@ const REALISATIONS: usize = 4;
 /// expected residual semivariogram of unit white and unit Gauss-Markov
 /// errors passed through the same fit, for a grid of correlation times; the
 /// best match wins. `None` when the residual shows fewer than three lags.
-fn refit_noise(times: &[Vec<f64>], cols: &[Col]) -> Option<[PositionNoise; 2]> {
+///
+/// The segments' poses are local to their segment, so they are projected
+/// out segment by segment (three columns each) and only the few global
+/// columns go through a QR decomposition: linear in the drive's length.
+fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
     use crate::sigmas::error_model::{nnls2, variogram, Normal};
+    let cols = &src.cols;
     let n = cols.first()?.len();
-    let p = cols.len() - 1;
     let stacked = |c: &Col, i: usize| if i < n { c[i][0] } else { c[i - n][1] };
-    let x = DMatrix::from_fn(2 * n, p, |i, j| stacked(&cols[j + 1], i));
-    let q = x.qr().q();
-    let residual = |e: &DVector<f64>| e - &q * (q.transpose() * e);
+    let first_pose = src.first_effect + src.effects.len();
+    let pose_end = first_pose + src.pose_segment.len();
+    let global: Vec<usize> = (1..first_pose).chain(pose_end..cols.len()).collect();
+    // Rows of each segment (east; north is the same plus n) and its poses.
+    let mut segments: Vec<(std::ops::Range<usize>, Vec<usize>)> = Vec::new();
+    let mut at = 0;
+    for (k, size) in times.iter().map(Vec::len).filter(|l| *l > 0).enumerate() {
+        let poses = (first_pose..pose_end)
+            .filter(|c| src.pose_segment[c - first_pose] == k)
+            .collect();
+        segments.push((at..at + size, poses));
+        at += size;
+    }
+    // v less its least-squares fit on each segment's own poses.
+    let without_poses = |v: &mut DVector<f64>| {
+        for (rows, poses) in &segments {
+            let idx: Vec<usize> = rows.clone().chain(rows.start + n..rows.end + n).collect();
+            let p = DMatrix::from_fn(idx.len(), poses.len(), |i, j| {
+                stacked(&cols[poses[j]], idx[i])
+            });
+            let y = DVector::from_fn(idx.len(), |i, _| v[idx[i]]);
+            let Some(chol) = (p.transpose() * &p).cholesky() else {
+                continue;
+            };
+            let fitted = &p * chol.solve(&(p.transpose() * &y));
+            for (i, r) in idx.iter().enumerate() {
+                v[*r] -= fitted[i];
+            }
+        }
+    };
+    let mut g = DMatrix::from_fn(2 * n, global.len(), |i, j| stacked(&cols[global[j]], i));
+    for mut c in g.column_iter_mut() {
+        let mut v = DVector::from_column_slice(c.as_slice());
+        without_poses(&mut v);
+        c.copy_from(&v);
+    }
+    let q = g.qr().q();
+    let residual = |e: &DVector<f64>| {
+        let mut v = e.clone();
+        without_poses(&mut v);
+        let proj = &q * (q.transpose() * &v);
+        v - proj
+    };
     let series = |v: &DVector<f64>, axis: usize| -> Vec<Vec<(f64, f64)>> {
         let mut at = axis * n;
         times
