@@ -116,28 +116,56 @@ impl Model {
 
     /// One integration step of `dt` with steering and force commands.
     fn step(&self, st: &mut State, t: f64, delta_cmd: f64, force_cmd: f64, grade: f64, dt: f64) {
+        self.actuate(st, delta_cmd, force_cmd, dt);
+        let loads = self.loads(st);
+        let fx = self.axle_forces(st.force, &loads.fz);
+        let sec = (1.0 + grade * grade).sqrt();
+        let sin_g = grade / sec;
+        let resist = self.spec.resistance_n(st.vx) + self.m * G * sin_g;
+        let (vx0, vy0) = (st.vx, st.vy);
+        self.integrate_velocities(st, &loads.fz, fx, resist, dt);
+        // Body accelerations of the CG.
+        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
+        st.ay = (st.vy - vy0) / dt + st.vx * st.r;
+        st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
+        st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
+        self.roll_wheels(st, t, dt, sec, &loads, fx);
+        self.move_rear_axle(st, dt);
+    }
+
+    /// Actuators: steering rate limit, force lag.
+    fn actuate(&self, st: &mut State, delta_cmd: f64, force_cmd: f64, dt: f64) {
         let spec = &self.spec;
-        // Actuators: steering rate limit, force lag.
         let max_d = spec.max_steer_rate_rad_s * dt;
         st.delta = (st.delta + (delta_cmd - st.delta).clamp(-max_d, max_d))
             .clamp(-spec.max_steer_rad, spec.max_steer_rad);
         st.force += (force_cmd - st.force) * dt / FORCE_LAG_S;
+    }
 
-        // Vertical loads: static, longitudinal and lateral transfer.
+    /// Vertical loads: static, longitudinal and lateral transfer.
+    fn loads(&self, st: &State) -> Loads {
+        let spec = &self.spec;
         let h = spec.cg_height_m;
         let d_long = self.m * st.ax_f * h / self.l / 2.0;
         let d_lat_f = self.m * st.ay_f * h * (1.0 - spec.rear_roll_share) / spec.track_front_m;
         let d_lat_r = self.m * st.ay_f * h * spec.rear_roll_share / spec.track_rear_m;
-        let fz = [
-            (self.fz0_rear + d_long - d_lat_r).max(0.0),
-            (self.fz0_rear + d_long + d_lat_r).max(0.0),
-            (self.fz0_front - d_long - d_lat_f).max(0.0),
-            (self.fz0_front - d_long + d_lat_f).max(0.0),
-        ];
+        Loads {
+            fz: [
+                (self.fz0_rear + d_long - d_lat_r).max(0.0),
+                (self.fz0_rear + d_long + d_lat_r).max(0.0),
+                (self.fz0_front - d_long - d_lat_f).max(0.0),
+                (self.fz0_front - d_long + d_lat_f).max(0.0),
+            ],
+            d_lat_f,
+            d_lat_r,
+        }
+    }
 
-        // Longitudinal force: traction on the driven axle, braking split.
-        let f = st.force;
-        let (mut fx_front, mut fx_rear) = if f >= 0.0 {
+    /// Longitudinal force `f` on the axles (front, rear): traction on the
+    /// driven axle, braking split, each within its grip.
+    fn axle_forces(&self, f: f64, fz: &[f64; 4]) -> (f64, f64) {
+        let spec = &self.spec;
+        let (fx_front, fx_rear) = if f >= 0.0 {
             if spec.rear_wheel_drive {
                 (0.0, f)
             } else {
@@ -148,75 +176,99 @@ impl Model {
         };
         let cap_f = 0.9 * spec.mu * (fz[FL] + fz[FR]);
         let cap_r = 0.9 * spec.mu * (fz[RL] + fz[RR]);
-        fx_front = fx_front.clamp(-cap_f, cap_f);
-        fx_rear = fx_rear.clamp(-cap_r, cap_r);
+        (fx_front.clamp(-cap_f, cap_f), fx_rear.clamp(-cap_r, cap_r))
+    }
 
-        let sec = (1.0 + grade * grade).sqrt();
-        let sin_g = grade / sec;
-        let resist = spec.resistance_n(st.vx) + self.m * G * sin_g;
-        let (sd, cd) = st.delta.sin_cos();
+    /// Speeds and yaw rate after `dt`: the kinematic single-track model
+    /// (the rear axle rolls without side-slip), blended into the dynamic
+    /// one with tyre forces above walking pace when the tyres slip.
+    fn integrate_velocities(
+        &self,
+        st: &mut State,
+        fz: &[f64; 4],
+        (fx_front, fx_rear): (f64, f64),
+        resist: f64,
+        dt: f64,
+    ) {
+        let (_, cd) = st.delta.sin_cos();
         let (vx0, vy0, r0) = (st.vx, st.vy, st.r);
-
         // Kinematic single-track derivatives (rear axle rolls without side-slip).
         let dvx_kin = (fx_front * cd + fx_rear - resist) / self.m;
-        match self.cornering {
-            None => {
-                st.vx = (vx0 + dvx_kin * dt).max(0.0);
-                st.r = st.vx * st.delta.tan() / self.l;
-                st.vy = self.b * st.r;
-            }
-            Some((cf, cr)) => {
-                let r_kin = vx0 * st.delta.tan() / self.l;
-                let dvy_kin = (self.b * r_kin - vy0) / KINEMATIC_RELAXATION_S;
-                let dr_kin = (r_kin - r0) / KINEMATIC_RELAXATION_S;
-                let w = ((vx0 - BLEND_LOW_M_S) / (BLEND_HIGH_M_S - BLEND_LOW_M_S)).clamp(0.0, 1.0);
-                let lambda = w * w * (3.0 - 2.0 * w);
-                let (dvx, dvy, dr) = if lambda > 0.0 {
-                    let vx_eff = vx0.max(0.5);
-                    let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
-                    let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
-                    let mu = spec.mu;
-                    let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
-                        vehicle::lateral_force(
-                            alpha,
-                            fz,
-                            mu,
-                            vehicle::cornering_stiffness(c, fz, fz0),
-                        )
-                    };
-                    let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front)
-                        + fy(alpha_f, fz[FR], cf, self.fz0_front);
-                    let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear)
-                        + fy(alpha_r, fz[RR], cr, self.fz0_rear);
-                    let front_lat = fyf * cd + fx_front * sd;
-                    let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
-                    let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
-                    let dr_dyn = (self.a * front_lat - self.b * fyr) / spec.yaw_inertia_kg_m2;
-                    (
-                        lambda * dvx_dyn + (1.0 - lambda) * dvx_kin,
-                        lambda * dvy_dyn + (1.0 - lambda) * dvy_kin,
-                        lambda * dr_dyn + (1.0 - lambda) * dr_kin,
-                    )
-                } else {
-                    (dvx_kin, dvy_kin, dr_kin)
-                };
-                st.vx = vx0 + dvx * dt;
-                st.vy = vy0 + dvy * dt;
-                st.r = r0 + dr * dt;
-                if st.vx <= 0.0 {
-                    st.vx = 0.0;
-                    st.vy = 0.0;
-                    st.r = 0.0;
-                }
-            }
+        let Some(cornering) = self.cornering else {
+            st.vx = (vx0 + dvx_kin * dt).max(0.0);
+            st.r = st.vx * st.delta.tan() / self.l;
+            st.vy = self.b * st.r;
+            return;
+        };
+        let r_kin = vx0 * st.delta.tan() / self.l;
+        let dvy_kin = (self.b * r_kin - vy0) / KINEMATIC_RELAXATION_S;
+        let dr_kin = (r_kin - r0) / KINEMATIC_RELAXATION_S;
+        let w = ((vx0 - BLEND_LOW_M_S) / (BLEND_HIGH_M_S - BLEND_LOW_M_S)).clamp(0.0, 1.0);
+        let lambda = w * w * (3.0 - 2.0 * w);
+        let (dvx, dvy, dr) = if lambda > 0.0 {
+            let (dvx_dyn, dvy_dyn, dr_dyn) =
+                self.dynamic_derivatives(st, fz, (fx_front, fx_rear), resist, cornering);
+            (
+                lambda * dvx_dyn + (1.0 - lambda) * dvx_kin,
+                lambda * dvy_dyn + (1.0 - lambda) * dvy_kin,
+                lambda * dr_dyn + (1.0 - lambda) * dr_kin,
+            )
+        } else {
+            (dvx_kin, dvy_kin, dr_kin)
+        };
+        st.vx = vx0 + dvx * dt;
+        st.vy = vy0 + dvy * dt;
+        st.r = r0 + dr * dt;
+        if st.vx <= 0.0 {
+            st.vx = 0.0;
+            st.vy = 0.0;
+            st.r = 0.0;
         }
-        // Body accelerations of the CG.
-        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
-        st.ay = (st.vy - vy0) / dt + st.vx * st.r;
-        st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
-        st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
+    }
 
-        // Wheels: longitudinal speed of each contact point along its wheel.
+    /// The dynamic single-track model's derivatives of (vx, vy, r) with
+    /// the tyres' lateral forces (`(cf, cr)`: cornering stiffnesses).
+    fn dynamic_derivatives(
+        &self,
+        st: &State,
+        fz: &[f64; 4],
+        (fx_front, fx_rear): (f64, f64),
+        resist: f64,
+        (cf, cr): (f64, f64),
+    ) -> (f64, f64, f64) {
+        let spec = &self.spec;
+        let (sd, cd) = st.delta.sin_cos();
+        let (vx0, vy0, r0) = (st.vx, st.vy, st.r);
+        let vx_eff = vx0.max(0.5);
+        let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
+        let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
+        let mu = spec.mu;
+        let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
+            vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+        };
+        let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front) + fy(alpha_f, fz[FR], cf, self.fz0_front);
+        let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear) + fy(alpha_r, fz[RR], cr, self.fz0_rear);
+        let front_lat = fyf * cd + fx_front * sd;
+        let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
+        let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
+        let dr_dyn = (self.a * front_lat - self.b * fyr) / spec.yaw_inertia_kg_m2;
+        (dvx_dyn, dvy_dyn, dr_dyn)
+    }
+
+    /// Wheels: the revolutions of each over `dt`, from the longitudinal
+    /// speed of its contact point along it, rolling along the slope (`sec`
+    /// of the grade), with the tyre's growth with speed and warm-up, its
+    /// slip under `fx` (front, rear) and its radius under its load.
+    fn roll_wheels(
+        &self,
+        st: &mut State,
+        t: f64,
+        dt: f64,
+        sec: f64,
+        loads: &Loads,
+        (fx_front, fx_rear): (f64, f64),
+    ) {
+        let spec = &self.spec;
         let (vx, vy, r) = (st.vx, st.vy, st.r);
         let half_r = 0.5 * self.track_rear_true;
         let half_f = 0.5 * spec.track_front_m;
@@ -244,6 +296,7 @@ impl Model {
         }
         let common = sec / growth;
         // Lateral load change of each wheel relative to its static load.
+        let (d_lat_f, d_lat_r) = (loads.d_lat_f, loads.d_lat_r);
         let q = [
             -d_lat_r / self.fz0_rear,
             d_lat_r / self.fz0_rear,
@@ -254,15 +307,18 @@ impl Model {
             let slip = match self.slip_stiffness {
                 Some(cx) if v_long[i] > 0.0 => {
                     let fx_wheel = 0.5 * if i < 2 { fx_rear } else { fx_front };
-                    vehicle::longitudinal_slip_for_force(fx_wheel, fz[i], spec.mu, cx)
+                    vehicle::longitudinal_slip_for_force(fx_wheel, loads.fz[i], spec.mu, cx)
                 }
                 _ => 0.0,
             };
             let c = self.c_static[i] * (1.0 - self.radius_load_coeff * q[i]);
             st.revs[i] += v_long[i] * (1.0 + slip) * common / c * dt;
         }
+    }
 
-        // Rear-axle pose (midpoint heading, as eq. (1)).
+    /// Rear-axle pose (midpoint heading, as eq. (1)).
+    fn move_rear_axle(&self, st: &mut State, dt: f64) {
+        let (vx, vy, r) = (st.vx, st.vy, st.r);
         let v_rear_lat = vy - self.b * r;
         let psi_mid = st.psi + 0.5 * r * dt;
         let (s, c) = psi_mid.sin_cos();
@@ -270,6 +326,14 @@ impl Model {
         st.y += (vx * s + v_rear_lat * c) * dt;
         st.psi += r * dt;
     }
+}
+
+/// The wheels' vertical loads (rl, rr, fl, fr), N, and the lateral load
+/// transfer on each axle.
+struct Loads {
+    fz: [f64; 4],
+    d_lat_f: f64,
+    d_lat_r: f64,
 }
 
 /// Steps between samples of a sensor at `rate_hz`.
