@@ -1,12 +1,13 @@
 //! The estimate file that `calibrator calibrate --json` writes, read from
-//! disk; the parsing is the estimate contract's
-//! ([`Estimate::from_json_str`]).
+//! disk; the parsing is the estimate contract's ([`EstimateFile`], one
+//! serde type for the calibrator's writer and this reader).
 
 use crate::files::{read_text_limited, MAX_TEXT_FILE_BYTES};
 use crate::DriveError;
 use std::io::{Error, ErrorKind};
 use std::path::Path;
 use vehicle_model::estimate::{Estimate, ParamsError};
+use vehicle_model::estimate_file::EstimateFile;
 use vehicle_model::estimate_vehicle::EstimateVehicle;
 
 /// Read and parse an estimate file written by `calibrator calibrate --json`.
@@ -28,10 +29,8 @@ pub fn read_estimate_with_vehicle(
 ) -> Result<(Estimate, Option<EstimateVehicle>), ParamsError> {
     let text = read_text(path)?;
     let source = path.display().to_string();
-    Ok((
-        Estimate::from_json_str(&text, &source)?,
-        EstimateVehicle::from_json_str(&text, &source)?,
-    ))
+    let file = EstimateFile::from_json_str(&text, &source)?;
+    Ok((file.estimate(&source)?, file.made_for()))
 }
 
 fn read_text(path: &Path) -> Result<String, ParamsError> {

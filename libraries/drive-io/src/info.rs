@@ -153,131 +153,33 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
         .gnss
         .as_ref()
         .map(|g| g.iter().map(|s| s.t_s).collect());
-    let imu_t: Option<Vec<f64>> = drive
-        .imu
-        .as_ref()
-        .map(|g| g.iter().map(|s| s.t_s).collect());
-    let heading_t: Option<Vec<f64>> = drive
-        .heading
-        .as_ref()
-        .map(|g| g.iter().map(|s| s.t_s).collect());
-    let truth_t: Option<Vec<f64>> = drive
-        .truth
-        .as_ref()
-        .map(|g| g.iter().map(|s| s.t_s).collect());
-
-    let mut streams = vec![stream("wheels", &wheel_t)];
-    for (name, t) in [
-        ("gnss", &gnss_t),
-        ("imu", &imu_t),
-        ("heading", &heading_t),
-        ("truth", &truth_t),
-    ] {
-        if let Some(t) = t {
-            streams.push(stream(name, t));
-        }
-    }
-    let sensor = streams.iter().filter(|s| s.name != "truth");
-    let start_s = sensor
-        .clone()
-        .filter_map(|s| s.first_s)
-        .reduce(f64::min)
-        .unwrap_or(0.0);
-    let end_s = sensor
-        .filter_map(|s| s.last_s)
-        .reduce(f64::max)
-        .unwrap_or(0.0);
-
-    let distance_gnss_m = drive
-        .gnss
-        .as_ref()
-        .map(|g| path_length(g.iter().map(|s| (s.x_m, s.y_m))));
-    let distance_truth_m = drive
-        .truth
-        .as_ref()
-        .map(|g| path_length(g.iter().map(|s| (s.x_m, s.y_m))));
-    // The wheels as the calibrator reads them (glitches set aside), and no
-    // distance from a circumference that is not positive.
+    let streams = stream_summaries(drive, &wheel_t, gnss_t.as_deref());
+    let (start_s, end_s) = sensor_span(&streams);
+    // The wheels as the calibrator reads them (glitches set aside).
     let vehicle = drive.vehicle.check_plausible();
     let (repaired, repairs) = plausibility::repaired(drive);
-    let c = drive.vehicle.nominal_circumference_m;
-    let wheel_revs = (c.is_finite() && c > 0.0)
-        .then(|| repaired.wheel_revolutions().ok())
-        .flatten();
-    let distance_wheels_m = wheel_revs.map(|revs| {
-        let mut total = 0.0;
-        let mut previous: Option<f64> = None;
-        for r in revs {
-            let mean = 0.5 * (r.rl + r.rr);
-            if let Some(p) = previous {
-                total += (mean - p).abs();
-            }
-            previous = Some(mean);
+    let (gnss_outages, gnss_outage_threshold_s) = match &gnss_t {
+        Some(t) => {
+            let (outages, threshold) = gnss_outages(t, &wheel_t);
+            (outages, Some(threshold))
         }
-        total * drive.vehicle.nominal_circumference_m
-    });
-
-    let mut gnss_outages = Vec::new();
-    let mut gnss_outage_threshold_s = None;
-    if let Some(t) = &gnss_t {
-        let gnss_summary = stream("gnss", t);
-        let threshold = gnss_summary
-            .median_interval_s
-            .map_or(GNSS_OUTAGE_MIN_S, |m| {
-                (GAP_FACTOR * m).max(GNSS_OUTAGE_MIN_S)
-            });
-        gnss_outage_threshold_s = Some(threshold);
-        let mut push = |a: f64, b: f64| {
-            if b - a > threshold {
-                gnss_outages.push(GapSummary {
-                    start_s: a,
-                    end_s: b,
-                    duration_s: b - a,
-                });
-            }
-        };
-        match (t.first(), t.last(), wheel_t.first(), wheel_t.last()) {
-            (Some(&f), Some(&l), Some(&ws), Some(&we)) => {
-                push(ws, f);
-                for w in t.windows(2) {
-                    push(w[0], w[1]);
-                }
-                push(l, we);
-            }
-            (Some(_), Some(_), _, _) => t.windows(2).for_each(|w| push(w[0], w[1])),
-            // No fix at all: the whole drive is one outage.
-            _ => {
-                if let (Some(&ws), Some(&we)) = (wheel_t.first(), wheel_t.last()) {
-                    gnss_outages.push(GapSummary {
-                        start_s: ws,
-                        end_s: we,
-                        duration_s: we - ws,
-                    });
-                }
-            }
-        }
-    }
-
-    let wheel_columns = Wheel::ALL
-        .iter()
-        .filter_map(|&w| {
-            drive
-                .wheels
-                .units
-                .of(w)
-                .map(|u| format!("{}_{}", w.prefix(), u.suffix()))
-        })
-        .collect();
-
+        None => (Vec::new(), None),
+    };
     DriveSummary {
         name: drive.vehicle.name.clone(),
         start_s,
         end_s,
         duration_s: end_s - start_s,
-        distance_gnss_m,
-        distance_wheels_m,
-        distance_truth_m,
-        wheel_columns,
+        distance_gnss_m: drive
+            .gnss
+            .as_ref()
+            .map(|g| path_length(g.iter().map(|s| (s.x_m, s.y_m)))),
+        distance_wheels_m: wheel_distance(drive, &repaired),
+        distance_truth_m: drive
+            .truth
+            .as_ref()
+            .map(|g| path_length(g.iter().map(|s| (s.x_m, s.y_m)))),
+        wheel_columns: wheel_columns(drive),
         track_width_m: drive.vehicle.track_width_m,
         nominal_circumference_m: drive.vehicle.nominal_circumference_m,
         streams,
@@ -301,6 +203,130 @@ pub fn summarize(drive: &Drive) -> DriveSummary {
             .collect(),
         warnings: Vec::new(),
     }
+}
+
+/// One summary per stream the drive has: the wheels (times `wheel_t`),
+/// GNSS (`gnss_t`), IMU, heading and truth.
+fn stream_summaries(drive: &Drive, wheel_t: &[f64], gnss_t: Option<&[f64]>) -> Vec<StreamSummary> {
+    let imu_t: Option<Vec<f64>> = drive
+        .imu
+        .as_ref()
+        .map(|g| g.iter().map(|s| s.t_s).collect());
+    let heading_t: Option<Vec<f64>> = drive
+        .heading
+        .as_ref()
+        .map(|g| g.iter().map(|s| s.t_s).collect());
+    let truth_t: Option<Vec<f64>> = drive
+        .truth
+        .as_ref()
+        .map(|g| g.iter().map(|s| s.t_s).collect());
+    let mut streams = vec![stream("wheels", wheel_t)];
+    for (name, t) in [
+        ("gnss", gnss_t),
+        ("imu", imu_t.as_deref()),
+        ("heading", heading_t.as_deref()),
+        ("truth", truth_t.as_deref()),
+    ] {
+        if let Some(t) = t {
+            streams.push(stream(name, t));
+        }
+    }
+    streams
+}
+
+/// The first and last time of any sensor stream (the truth is none), s.
+fn sensor_span(streams: &[StreamSummary]) -> (f64, f64) {
+    let sensor = streams.iter().filter(|s| s.name != "truth");
+    let start_s = sensor
+        .clone()
+        .filter_map(|s| s.first_s)
+        .reduce(f64::min)
+        .unwrap_or(0.0);
+    let end_s = sensor
+        .filter_map(|s| s.last_s)
+        .reduce(f64::max)
+        .unwrap_or(0.0);
+    (start_s, end_s)
+}
+
+/// The distance of the rear wheels' mean of the `repaired` drive at the
+/// nominal circumference, m; none from a circumference that is not
+/// positive.
+fn wheel_distance(drive: &Drive, repaired: &Drive) -> Option<f64> {
+    let c = drive.vehicle.nominal_circumference_m;
+    let wheel_revs = (c.is_finite() && c > 0.0)
+        .then(|| repaired.wheel_revolutions().ok())
+        .flatten();
+    wheel_revs.map(|revs| {
+        let mut total = 0.0;
+        let mut previous: Option<f64> = None;
+        for r in revs {
+            let mean = 0.5 * (r.rl + r.rr);
+            if let Some(p) = previous {
+                total += (mean - p).abs();
+            }
+            previous = Some(mean);
+        }
+        total * drive.vehicle.nominal_circumference_m
+    })
+}
+
+/// The GNSS outages of fixes at times `t` over the wheels' span (`wheel_t`):
+/// gaps longer than the threshold (a multiple of the median interval, at
+/// least [`GNSS_OUTAGE_MIN_S`]), also before the first fix and after the
+/// last; and the threshold, s.
+fn gnss_outages(t: &[f64], wheel_t: &[f64]) -> (Vec<GapSummary>, f64) {
+    let gnss_summary = stream("gnss", t);
+    let threshold = gnss_summary
+        .median_interval_s
+        .map_or(GNSS_OUTAGE_MIN_S, |m| {
+            (GAP_FACTOR * m).max(GNSS_OUTAGE_MIN_S)
+        });
+    let mut gnss_outages = Vec::new();
+    let mut push = |a: f64, b: f64| {
+        if b - a > threshold {
+            gnss_outages.push(GapSummary {
+                start_s: a,
+                end_s: b,
+                duration_s: b - a,
+            });
+        }
+    };
+    match (t.first(), t.last(), wheel_t.first(), wheel_t.last()) {
+        (Some(&f), Some(&l), Some(&ws), Some(&we)) => {
+            push(ws, f);
+            for w in t.windows(2) {
+                push(w[0], w[1]);
+            }
+            push(l, we);
+        }
+        (Some(_), Some(_), _, _) => t.windows(2).for_each(|w| push(w[0], w[1])),
+        // No fix at all: the whole drive is one outage.
+        _ => {
+            if let (Some(&ws), Some(&we)) = (wheel_t.first(), wheel_t.last()) {
+                gnss_outages.push(GapSummary {
+                    start_s: ws,
+                    end_s: we,
+                    duration_s: we - ws,
+                });
+            }
+        }
+    }
+    (gnss_outages, threshold)
+}
+
+/// The wheel columns, as `wheels.csv` names them.
+fn wheel_columns(drive: &Drive) -> Vec<String> {
+    Wheel::ALL
+        .iter()
+        .filter_map(|&w| {
+            drive
+                .wheels
+                .units
+                .of(w)
+                .map(|u| format!("{}_{}", w.prefix(), u.suffix()))
+        })
+        .collect()
 }
 
 fn opt(v: Option<f64>, decimals: usize) -> String {

@@ -70,14 +70,80 @@ struct Sentence {
 
 /// Parse an NMEA 0183 log's bytes (`path` names it in errors).
 pub fn parse_nmea(path: &Path, bytes: &[u8]) -> Result<NmeaLog, DriveError> {
-    let err = |line: usize, message: String| DriveError::Nmea {
+    let read = read_sentences(path, bytes)?;
+    let mut warnings = read.warnings(path);
+    let (epochs, date0) = epochs(path, read.sentences)?;
+    if date0.is_none() && !epochs.is_empty() {
+        warnings.push(format!(
+            "{}: no RMC sentence gives the date: t_s is seconds since 00:00 UTC of the log's first day",
+            path.display()
+        ));
+    }
+    let base = date0.map_or(0, |(d, _)| d);
+    let fixes = epochs
+        .into_iter()
+        .filter_map(|e| {
+            let (lat_deg, lon_deg) = e.position?;
+            Some(NmeaFix {
+                t_s: ((base + e.day) * 86_400) as f64 + e.tod,
+                lat_deg,
+                lon_deg,
+            })
+        })
+        .collect();
+    Ok(NmeaLog {
+        fixes,
+        dated: date0.is_some(),
+        warnings,
+    })
+}
+
+/// An NMEA error at `line` of `path`.
+fn nmea_error(path: &Path, line: usize, message: String) -> DriveError {
+    DriveError::Nmea {
         path: path.to_path_buf(),
         line,
         message,
+    }
+}
+
+/// The GGA and RMC sentences of a log, and what was left out.
+struct ReadSentences {
+    sentences: Vec<Sentence>,
+    /// Sentences other than GGA and RMC.
+    other: usize,
+    /// Sentences that say there is no fix.
+    no_fix: usize,
+}
+
+impl ReadSentences {
+    /// What the reading says about the sentences left out.
+    fn warnings(&self, path: &Path) -> Vec<String> {
+        let mut warnings = Vec::new();
+        let p = path.display();
+        let (other, no_fix) = (self.other, self.no_fix);
+        if other > 0 {
+            warnings.push(format!(
+                "{p}: ignored {other} sentence(s) other than GGA and RMC"
+            ));
+        }
+        if no_fix > 0 {
+            warnings.push(format!(
+                "{p}: {no_fix} sentence(s) say there is no fix (GGA quality 0, RMC status V): no fix taken from them"
+            ));
+        }
+        warnings
+    }
+}
+
+/// Every line of the log checked and its GGA and RMC sentences parsed.
+fn read_sentences(path: &Path, bytes: &[u8]) -> Result<ReadSentences, DriveError> {
+    let err = |line: usize, message: String| nmea_error(path, line, message);
+    let mut read = ReadSentences {
+        sentences: Vec::new(),
+        other: 0,
+        no_fix: 0,
     };
-    let mut sentences = Vec::new();
-    let mut other = 0usize;
-    let mut no_fix = 0usize;
     for (k, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = k + 1;
         let text = std::str::from_utf8(raw)
@@ -89,14 +155,14 @@ pub fn parse_nmea(path: &Path, bytes: &[u8]) -> Result<NmeaLog, DriveError> {
         let fields = checked_fields(text).map_err(|m| err(line, m))?;
         let kind = fields[0];
         if kind.starts_with('P') || kind.len() != 5 {
-            other += 1;
+            read.other += 1;
             continue;
         }
         let s = match &kind[2..] {
             "GGA" => gga(&fields),
             "RMC" => rmc(&fields),
             _ => {
-                other += 1;
+                read.other += 1;
                 continue;
             }
         }
@@ -106,33 +172,34 @@ pub fn parse_nmea(path: &Path, bytes: &[u8]) -> Result<NmeaLog, DriveError> {
         };
         s.line = line;
         if s.position.is_none() {
-            no_fix += 1;
+            read.no_fix += 1;
         }
-        sentences.push(s);
+        read.sentences.push(s);
     }
-    let mut warnings = Vec::new();
-    let p = path.display();
-    if other > 0 {
-        warnings.push(format!(
-            "{p}: ignored {other} sentence(s) other than GGA and RMC"
-        ));
-    }
-    if no_fix > 0 {
-        warnings.push(format!(
-            "{p}: {no_fix} sentence(s) say there is no fix (GGA quality 0, RMC status V): no fix taken from them"
-        ));
-    }
+    Ok(read)
+}
 
-    // Group by time of day; count days across midnight.
-    struct Epoch {
-        line: usize,
-        day: i64,
-        tod: f64,
-        position: Option<(f64, f64)>,
-        from_gga: bool,
-    }
+/// The sentences of one time of day.
+struct Epoch {
+    line: usize,
+    day: i64,
+    tod: f64,
+    position: Option<(f64, f64)>,
+    from_gga: bool,
+}
+
+/// The log's first day (days since the UNIX epoch) and the line of the
+/// RMC that gave it, when one does.
+type FirstDay = Option<(i64, usize)>;
+
+/// The sentences grouped by time of day, with the days counted across
+/// midnight (a GGA's position preferred), and the log's first day (days
+/// since the UNIX epoch) with the line that gave it, when an RMC dates it.
+/// An error when the time of day goes back, or the dates disagree.
+fn epochs(path: &Path, sentences: Vec<Sentence>) -> Result<(Vec<Epoch>, FirstDay), DriveError> {
+    let err = |line: usize, message: String| nmea_error(path, line, message);
     let mut epochs: Vec<Epoch> = Vec::new();
-    let mut date0: Option<(i64, usize)> = None;
+    let mut date0: FirstDay = None;
     for s in sentences {
         let day = match epochs.last_mut() {
             Some(e) if e.tod == s.tod => {
@@ -185,28 +252,7 @@ pub fn parse_nmea(path: &Path, bytes: &[u8]) -> Result<NmeaLog, DriveError> {
             }
         }
     }
-    if date0.is_none() && !epochs.is_empty() {
-        warnings.push(format!(
-            "{p}: no RMC sentence gives the date: t_s is seconds since 00:00 UTC of the log's first day"
-        ));
-    }
-    let base = date0.map_or(0, |(d, _)| d);
-    let fixes = epochs
-        .into_iter()
-        .filter_map(|e| {
-            let (lat_deg, lon_deg) = e.position?;
-            Some(NmeaFix {
-                t_s: ((base + e.day) * 86_400) as f64 + e.tod,
-                lat_deg,
-                lon_deg,
-            })
-        })
-        .collect();
-    Ok(NmeaLog {
-        fixes,
-        dated: date0.is_some(),
-        warnings,
-    })
+    Ok((epochs, date0))
 }
 
 /// The fields of a `$...*hh` sentence whose checksum matches (the first

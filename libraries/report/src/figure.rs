@@ -393,14 +393,54 @@ impl Figure {
         X::CoordDescType: ValueFormatter<f64>,
         Y::CoordDescType: ValueFormatter<f64>,
     {
-        let err = |e: DrawingAreaErrorKind<std::io::Error>| e.to_string();
+        let mut chart = self.chart(root, x, y)?;
+        let Some((vx, vy)) = view else {
+            return no_data(root);
+        };
+        let (px, py) = chart.plotting_area().get_pixel_range();
+        let view = View {
+            vx,
+            vy,
+            xlog: self.x.log,
+            ylog: self.y.log,
+            px,
+            py,
+        };
+        let bands_labelled = self.draw_bands(&mut chart, &view)?;
+        let series_labelled = self.draw_series(&mut chart, &view)?;
+        if bands_labelled || series_labelled {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.6))
+                .border_style(RGBColor(0x99, 0x99, 0x99))
+                .label_font((FONT, 16))
+                .draw()
+                .map_err(draw_error)?;
+        }
+        Ok(())
+    }
+
+    /// The chart on `root`: the caption, the axes and the mesh.
+    fn chart<'a, 'b, X, Y>(
+        &self,
+        root: &'a DrawingArea<SVGBackend<'b>, Shift>,
+        x: X,
+        y: Y,
+    ) -> Result<Chart<'a, 'b, X::CoordDescType, Y::CoordDescType>, String>
+    where
+        X: AsRangedCoord<Value = f64>,
+        Y: AsRangedCoord<Value = f64>,
+        X::CoordDescType: ValueFormatter<f64>,
+        Y::CoordDescType: ValueFormatter<f64>,
+    {
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, (FONT, 22))
             .margin(MARGIN)
             .x_label_area_size(X_LABEL_AREA)
             .y_label_area_size(Y_LABEL_AREA)
             .build_cartesian_2d(x, y)
-            .map_err(err)?;
+            .map_err(draw_error)?;
         let (xr, yr) = (chart.x_range(), chart.y_range());
         let x_fmt = formatter(xr.start, xr.end, self.x.log);
         let y_fmt = formatter(yr.start, yr.end, self.y.log);
@@ -417,53 +457,35 @@ impl Figure {
             .light_line_style(RGBColor(0xee, 0xee, 0xee))
             .bold_line_style(RGBColor(0xd8, 0xd8, 0xd8))
             .draw()
-            .map_err(err)?;
-        let Some((vx, vy)) = view else {
-            let (w, h) = root.dim_in_pixel();
-            let style = TextStyle::from((FONT, 18).into_font())
-                .color(&RGBColor(0x66, 0x66, 0x66))
-                .pos(Pos::new(HPos::Center, VPos::Center));
-            root.draw_text("no data", &style, ((w / 2) as i32, (h / 2) as i32))
-                .map_err(err)?;
-            return Ok(());
-        };
-        // Drawn: finite points inside the view (a fixed range clips: a line
-        // is broken where it leaves it).
-        let within = |v: f64, r: (f64, f64)| v >= r.0.min(r.1) && v <= r.0.max(r.1);
-        let ok = |p: &[f64; 2]| {
-            p[0].is_finite()
-                && p[1].is_finite()
-                && (!self.x.log || p[0] > 0.0)
-                && (!self.y.log || p[1] > 0.0)
-                && within(p[0], vx)
-                && within(p[1], vy)
-        };
-        // The pixel a point lands on: points on the same pixel draw nothing new.
-        let (px_range, py_range) = chart.plotting_area().get_pixel_range();
-        let (xlog, ylog) = (self.x.log, self.y.log);
-        let axis_px = move |v: f64, r: (f64, f64), log: bool, a: i32, b: i32| -> i32 {
-            let f = |v: f64| if log { v.ln() } else { v };
-            let u = (f(v) - f(r.0)) / (f(r.1) - f(r.0));
-            (f64::from(a) + u * f64::from(b - a)).round() as i32
-        };
-        let pixel = move |p: (f64, f64)| {
-            (
-                axis_px(p.0, vx, xlog, px_range.start, px_range.end),
-                axis_px(p.1, vy, ylog, py_range.end, py_range.start),
-            )
-        };
+            .map_err(draw_error)?;
+        Ok(chart)
+    }
+
+    /// The bands, filled; whether one went into the legend.
+    fn draw_bands<'a, 'b: 'a, XC, YC>(
+        &self,
+        chart: &mut Chart<'a, 'b, XC, YC>,
+        view: &View,
+    ) -> Result<bool, String>
+    where
+        XC: Ranged<ValueType = f64>,
+        YC: Ranged<ValueType = f64>,
+    {
         let mut labelled = false;
         for b in &self.bands {
             let colour = b.colour.rgb().mix(0.18);
             let lower = b.points.iter().map(|p| (p[0], p[1]));
             let upper = b.points.iter().rev().map(|p| (p[0], p[2]));
-            let outline: Vec<(f64, f64)> = lower.chain(upper).filter(|p| ok(&[p.0, p.1])).collect();
+            let outline: Vec<(f64, f64)> = lower
+                .chain(upper)
+                .filter(|p| view.shows(&[p.0, p.1]))
+                .collect();
             if outline.len() < 3 {
                 continue;
             }
             let anno = chart
                 .draw_series(std::iter::once(Polygon::new(outline, colour.filled())))
-                .map_err(err)?;
+                .map_err(draw_error)?;
             if !b.label.is_empty() {
                 labelled = true;
                 anno.label(b.label.as_str()).legend(move |(x, y)| {
@@ -471,6 +493,22 @@ impl Figure {
                 });
             }
         }
+        Ok(labelled)
+    }
+
+    /// The series, as lines and dots, one point per pixel; whether one
+    /// went into the legend.
+    fn draw_series<'a, 'b: 'a, XC, YC>(
+        &self,
+        chart: &mut Chart<'a, 'b, XC, YC>,
+        view: &View,
+    ) -> Result<bool, String>
+    where
+        XC: Ranged<ValueType = f64>,
+        YC: Ranged<ValueType = f64>,
+    {
+        let pixel = |p: (f64, f64)| view.pixel(p);
+        let mut labelled = false;
         for s in &self.series {
             let colour = s.colour.rgb().mix(s.opacity.clamp(0.0, 1.0));
             let (width, radius) = match s.mark {
@@ -479,21 +517,7 @@ impl Figure {
                 Mark::LineAndDots { width, radius } => (Some(width), Some(radius)),
             };
             let mut first = true;
-            let mut runs: Vec<Vec<(f64, f64)>> = Vec::new();
-            for part in &s.parts {
-                let mut run = Vec::new();
-                for p in part {
-                    if ok(p) {
-                        run.push((p[0], p[1]));
-                    } else if !run.is_empty() {
-                        runs.push(std::mem::take(&mut run));
-                    }
-                }
-                if !run.is_empty() {
-                    runs.push(run);
-                }
-            }
-            for pts in runs {
+            for pts in view.runs(&s.parts) {
                 let label_here = first && !s.label.is_empty();
                 let legend_w = width.unwrap_or(0);
                 let dot = radius.unwrap_or(0).max(3);
@@ -512,7 +536,7 @@ impl Figure {
                     let line = thin(&one_per_pixel(pts.clone(), &pixel, true), MAX_LINE_POINTS);
                     let anno = chart
                         .draw_series(LineSeries::new(line, colour.stroke_width(w)))
-                        .map_err(err)?;
+                        .map_err(draw_error)?;
                     if label_here && radius.is_none() {
                         labelled = true;
                         anno.label(s.label.as_str()).legend(legend);
@@ -522,7 +546,7 @@ impl Figure {
                     let dots = thin(&one_per_pixel(pts.clone(), &pixel, false), MAX_DOTS);
                     let anno = chart
                         .draw_series(dots.into_iter().map(|p| Circle::new(p, r, colour.filled())))
-                        .map_err(err)?;
+                        .map_err(draw_error)?;
                     if label_here {
                         labelled = true;
                         anno.label(s.label.as_str()).legend(legend);
@@ -531,17 +555,82 @@ impl Figure {
                 first = false;
             }
         }
-        if labelled {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.6))
-                .border_style(RGBColor(0x99, 0x99, 0x99))
-                .label_font((FONT, 16))
-                .draw()
-                .map_err(err)?;
+        Ok(labelled)
+    }
+}
+
+/// A chart of the SVG backend on two f64 axes.
+type Chart<'a, 'b, XC, YC> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<XC, YC>>;
+
+/// A drawing error as text.
+fn draw_error(e: DrawingAreaErrorKind<std::io::Error>) -> String {
+    e.to_string()
+}
+
+/// "no data" in the middle of `root` (a figure without a finite point).
+fn no_data(root: &DrawingArea<SVGBackend, Shift>) -> Result<(), String> {
+    let (w, h) = root.dim_in_pixel();
+    let style = TextStyle::from((FONT, 18).into_font())
+        .color(&RGBColor(0x66, 0x66, 0x66))
+        .pos(Pos::new(HPos::Center, VPos::Center));
+    root.draw_text("no data", &style, ((w / 2) as i32, (h / 2) as i32))
+        .map_err(draw_error)
+}
+
+/// The visible ranges of a chart and where they land in pixels.
+struct View {
+    vx: (f64, f64),
+    vy: (f64, f64),
+    xlog: bool,
+    ylog: bool,
+    px: std::ops::Range<i32>,
+    py: std::ops::Range<i32>,
+}
+
+impl View {
+    /// Drawn: finite points inside the view (a fixed range clips: a line
+    /// is broken where it leaves it).
+    fn shows(&self, p: &[f64; 2]) -> bool {
+        let within = |v: f64, r: (f64, f64)| v >= r.0.min(r.1) && v <= r.0.max(r.1);
+        p[0].is_finite()
+            && p[1].is_finite()
+            && (!self.xlog || p[0] > 0.0)
+            && (!self.ylog || p[1] > 0.0)
+            && within(p[0], self.vx)
+            && within(p[1], self.vy)
+    }
+
+    /// The pixel a point lands on: points on the same pixel draw nothing new.
+    fn pixel(&self, p: (f64, f64)) -> (i32, i32) {
+        let axis_px = |v: f64, r: (f64, f64), log: bool, a: i32, b: i32| -> i32 {
+            let f = |v: f64| if log { v.ln() } else { v };
+            let u = (f(v) - f(r.0)) / (f(r.1) - f(r.0));
+            (f64::from(a) + u * f64::from(b - a)).round() as i32
+        };
+        (
+            axis_px(p.0, self.vx, self.xlog, self.px.start, self.px.end),
+            axis_px(p.1, self.vy, self.ylog, self.py.end, self.py.start),
+        )
+    }
+
+    /// The runs of consecutive shown points of `parts`: a line is broken
+    /// where a point is not shown.
+    fn runs(&self, parts: &[Vec<[f64; 2]>]) -> Vec<Vec<(f64, f64)>> {
+        let mut runs = Vec::new();
+        for part in parts {
+            let mut run = Vec::new();
+            for p in part {
+                if self.shows(p) {
+                    run.push((p[0], p[1]));
+                } else if !run.is_empty() {
+                    runs.push(std::mem::take(&mut run));
+                }
+            }
+            if !run.is_empty() {
+                runs.push(run);
+            }
         }
-        Ok(())
+        runs
     }
 }
 

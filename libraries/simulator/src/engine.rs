@@ -4,7 +4,7 @@ use super::route::{PathPoint, Route};
 use super::scenarios::{self, ScenarioRoute};
 use super::sensors::{gauss, GaussMarkov};
 use super::vehicle::{self, VehicleSpec, G};
-use super::{SimConfig, SimError};
+use super::{EffectSettings, SensorSettings, SimConfig, SimError};
 use interfaces::drive::{
     toml_value::Value, Drive, GnssAntenna, GnssSample, HeadingSample, ImuSample, TruthParams,
     TruthSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
@@ -116,28 +116,56 @@ impl Model {
 
     /// One integration step of `dt` with steering and force commands.
     fn step(&self, st: &mut State, t: f64, delta_cmd: f64, force_cmd: f64, grade: f64, dt: f64) {
+        self.actuate(st, delta_cmd, force_cmd, dt);
+        let loads = self.loads(st);
+        let fx = self.axle_forces(st.force, &loads.fz);
+        let sec = (1.0 + grade * grade).sqrt();
+        let sin_g = grade / sec;
+        let resist = self.spec.resistance_n(st.vx) + self.m * G * sin_g;
+        let (vx0, vy0) = (st.vx, st.vy);
+        self.integrate_velocities(st, &loads.fz, fx, resist, dt);
+        // Body accelerations of the CG.
+        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
+        st.ay = (st.vy - vy0) / dt + st.vx * st.r;
+        st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
+        st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
+        self.roll_wheels(st, t, dt, sec, &loads, fx);
+        self.move_rear_axle(st, dt);
+    }
+
+    /// Actuators: steering rate limit, force lag.
+    fn actuate(&self, st: &mut State, delta_cmd: f64, force_cmd: f64, dt: f64) {
         let spec = &self.spec;
-        // Actuators: steering rate limit, force lag.
         let max_d = spec.max_steer_rate_rad_s * dt;
         st.delta = (st.delta + (delta_cmd - st.delta).clamp(-max_d, max_d))
             .clamp(-spec.max_steer_rad, spec.max_steer_rad);
         st.force += (force_cmd - st.force) * dt / FORCE_LAG_S;
+    }
 
-        // Vertical loads: static, longitudinal and lateral transfer.
+    /// Vertical loads: static, longitudinal and lateral transfer.
+    fn loads(&self, st: &State) -> Loads {
+        let spec = &self.spec;
         let h = spec.cg_height_m;
         let d_long = self.m * st.ax_f * h / self.l / 2.0;
         let d_lat_f = self.m * st.ay_f * h * (1.0 - spec.rear_roll_share) / spec.track_front_m;
         let d_lat_r = self.m * st.ay_f * h * spec.rear_roll_share / spec.track_rear_m;
-        let fz = [
-            (self.fz0_rear + d_long - d_lat_r).max(0.0),
-            (self.fz0_rear + d_long + d_lat_r).max(0.0),
-            (self.fz0_front - d_long - d_lat_f).max(0.0),
-            (self.fz0_front - d_long + d_lat_f).max(0.0),
-        ];
+        Loads {
+            fz: [
+                (self.fz0_rear + d_long - d_lat_r).max(0.0),
+                (self.fz0_rear + d_long + d_lat_r).max(0.0),
+                (self.fz0_front - d_long - d_lat_f).max(0.0),
+                (self.fz0_front - d_long + d_lat_f).max(0.0),
+            ],
+            d_lat_f,
+            d_lat_r,
+        }
+    }
 
-        // Longitudinal force: traction on the driven axle, braking split.
-        let f = st.force;
-        let (mut fx_front, mut fx_rear) = if f >= 0.0 {
+    /// Longitudinal force `f` on the axles (front, rear): traction on the
+    /// driven axle, braking split, each within its grip.
+    fn axle_forces(&self, f: f64, fz: &[f64; 4]) -> (f64, f64) {
+        let spec = &self.spec;
+        let (fx_front, fx_rear) = if f >= 0.0 {
             if spec.rear_wheel_drive {
                 (0.0, f)
             } else {
@@ -148,75 +176,99 @@ impl Model {
         };
         let cap_f = 0.9 * spec.mu * (fz[FL] + fz[FR]);
         let cap_r = 0.9 * spec.mu * (fz[RL] + fz[RR]);
-        fx_front = fx_front.clamp(-cap_f, cap_f);
-        fx_rear = fx_rear.clamp(-cap_r, cap_r);
+        (fx_front.clamp(-cap_f, cap_f), fx_rear.clamp(-cap_r, cap_r))
+    }
 
-        let sec = (1.0 + grade * grade).sqrt();
-        let sin_g = grade / sec;
-        let resist = spec.resistance_n(st.vx) + self.m * G * sin_g;
-        let (sd, cd) = st.delta.sin_cos();
+    /// Speeds and yaw rate after `dt`: the kinematic single-track model
+    /// (the rear axle rolls without side-slip), blended into the dynamic
+    /// one with tyre forces above walking pace when the tyres slip.
+    fn integrate_velocities(
+        &self,
+        st: &mut State,
+        fz: &[f64; 4],
+        (fx_front, fx_rear): (f64, f64),
+        resist: f64,
+        dt: f64,
+    ) {
+        let (_, cd) = st.delta.sin_cos();
         let (vx0, vy0, r0) = (st.vx, st.vy, st.r);
-
         // Kinematic single-track derivatives (rear axle rolls without side-slip).
         let dvx_kin = (fx_front * cd + fx_rear - resist) / self.m;
-        match self.cornering {
-            None => {
-                st.vx = (vx0 + dvx_kin * dt).max(0.0);
-                st.r = st.vx * st.delta.tan() / self.l;
-                st.vy = self.b * st.r;
-            }
-            Some((cf, cr)) => {
-                let r_kin = vx0 * st.delta.tan() / self.l;
-                let dvy_kin = (self.b * r_kin - vy0) / KINEMATIC_RELAXATION_S;
-                let dr_kin = (r_kin - r0) / KINEMATIC_RELAXATION_S;
-                let w = ((vx0 - BLEND_LOW_M_S) / (BLEND_HIGH_M_S - BLEND_LOW_M_S)).clamp(0.0, 1.0);
-                let lambda = w * w * (3.0 - 2.0 * w);
-                let (dvx, dvy, dr) = if lambda > 0.0 {
-                    let vx_eff = vx0.max(0.5);
-                    let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
-                    let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
-                    let mu = spec.mu;
-                    let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
-                        vehicle::lateral_force(
-                            alpha,
-                            fz,
-                            mu,
-                            vehicle::cornering_stiffness(c, fz, fz0),
-                        )
-                    };
-                    let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front)
-                        + fy(alpha_f, fz[FR], cf, self.fz0_front);
-                    let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear)
-                        + fy(alpha_r, fz[RR], cr, self.fz0_rear);
-                    let front_lat = fyf * cd + fx_front * sd;
-                    let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
-                    let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
-                    let dr_dyn = (self.a * front_lat - self.b * fyr) / spec.yaw_inertia_kg_m2;
-                    (
-                        lambda * dvx_dyn + (1.0 - lambda) * dvx_kin,
-                        lambda * dvy_dyn + (1.0 - lambda) * dvy_kin,
-                        lambda * dr_dyn + (1.0 - lambda) * dr_kin,
-                    )
-                } else {
-                    (dvx_kin, dvy_kin, dr_kin)
-                };
-                st.vx = vx0 + dvx * dt;
-                st.vy = vy0 + dvy * dt;
-                st.r = r0 + dr * dt;
-                if st.vx <= 0.0 {
-                    st.vx = 0.0;
-                    st.vy = 0.0;
-                    st.r = 0.0;
-                }
-            }
+        let Some(cornering) = self.cornering else {
+            st.vx = (vx0 + dvx_kin * dt).max(0.0);
+            st.r = st.vx * st.delta.tan() / self.l;
+            st.vy = self.b * st.r;
+            return;
+        };
+        let r_kin = vx0 * st.delta.tan() / self.l;
+        let dvy_kin = (self.b * r_kin - vy0) / KINEMATIC_RELAXATION_S;
+        let dr_kin = (r_kin - r0) / KINEMATIC_RELAXATION_S;
+        let w = ((vx0 - BLEND_LOW_M_S) / (BLEND_HIGH_M_S - BLEND_LOW_M_S)).clamp(0.0, 1.0);
+        let lambda = w * w * (3.0 - 2.0 * w);
+        let (dvx, dvy, dr) = if lambda > 0.0 {
+            let (dvx_dyn, dvy_dyn, dr_dyn) =
+                self.dynamic_derivatives(st, fz, (fx_front, fx_rear), resist, cornering);
+            (
+                lambda * dvx_dyn + (1.0 - lambda) * dvx_kin,
+                lambda * dvy_dyn + (1.0 - lambda) * dvy_kin,
+                lambda * dr_dyn + (1.0 - lambda) * dr_kin,
+            )
+        } else {
+            (dvx_kin, dvy_kin, dr_kin)
+        };
+        st.vx = vx0 + dvx * dt;
+        st.vy = vy0 + dvy * dt;
+        st.r = r0 + dr * dt;
+        if st.vx <= 0.0 {
+            st.vx = 0.0;
+            st.vy = 0.0;
+            st.r = 0.0;
         }
-        // Body accelerations of the CG.
-        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
-        st.ay = (st.vy - vy0) / dt + st.vx * st.r;
-        st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
-        st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
+    }
 
-        // Wheels: longitudinal speed of each contact point along its wheel.
+    /// The dynamic single-track model's derivatives of (vx, vy, r) with
+    /// the tyres' lateral forces (`(cf, cr)`: cornering stiffnesses).
+    fn dynamic_derivatives(
+        &self,
+        st: &State,
+        fz: &[f64; 4],
+        (fx_front, fx_rear): (f64, f64),
+        resist: f64,
+        (cf, cr): (f64, f64),
+    ) -> (f64, f64, f64) {
+        let spec = &self.spec;
+        let (sd, cd) = st.delta.sin_cos();
+        let (vx0, vy0, r0) = (st.vx, st.vy, st.r);
+        let vx_eff = vx0.max(0.5);
+        let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
+        let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
+        let mu = spec.mu;
+        let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
+            vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+        };
+        let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front) + fy(alpha_f, fz[FR], cf, self.fz0_front);
+        let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear) + fy(alpha_r, fz[RR], cr, self.fz0_rear);
+        let front_lat = fyf * cd + fx_front * sd;
+        let dvx_dyn = (fx_front * cd - fyf * sd + fx_rear - resist) / self.m + vy0 * r0;
+        let dvy_dyn = (front_lat + fyr) / self.m - vx0 * r0;
+        let dr_dyn = (self.a * front_lat - self.b * fyr) / spec.yaw_inertia_kg_m2;
+        (dvx_dyn, dvy_dyn, dr_dyn)
+    }
+
+    /// Wheels: the revolutions of each over `dt`, from the longitudinal
+    /// speed of its contact point along it, rolling along the slope (`sec`
+    /// of the grade), with the tyre's growth with speed and warm-up, its
+    /// slip under `fx` (front, rear) and its radius under its load.
+    fn roll_wheels(
+        &self,
+        st: &mut State,
+        t: f64,
+        dt: f64,
+        sec: f64,
+        loads: &Loads,
+        (fx_front, fx_rear): (f64, f64),
+    ) {
+        let spec = &self.spec;
         let (vx, vy, r) = (st.vx, st.vy, st.r);
         let half_r = 0.5 * self.track_rear_true;
         let half_f = 0.5 * spec.track_front_m;
@@ -244,6 +296,7 @@ impl Model {
         }
         let common = sec / growth;
         // Lateral load change of each wheel relative to its static load.
+        let (d_lat_f, d_lat_r) = (loads.d_lat_f, loads.d_lat_r);
         let q = [
             -d_lat_r / self.fz0_rear,
             d_lat_r / self.fz0_rear,
@@ -254,15 +307,18 @@ impl Model {
             let slip = match self.slip_stiffness {
                 Some(cx) if v_long[i] > 0.0 => {
                     let fx_wheel = 0.5 * if i < 2 { fx_rear } else { fx_front };
-                    vehicle::longitudinal_slip_for_force(fx_wheel, fz[i], spec.mu, cx)
+                    vehicle::longitudinal_slip_for_force(fx_wheel, loads.fz[i], spec.mu, cx)
                 }
                 _ => 0.0,
             };
             let c = self.c_static[i] * (1.0 - self.radius_load_coeff * q[i]);
             st.revs[i] += v_long[i] * (1.0 + slip) * common / c * dt;
         }
+    }
 
-        // Rear-axle pose (midpoint heading, as eq. (1)).
+    /// Rear-axle pose (midpoint heading, as eq. (1)).
+    fn move_rear_axle(&self, st: &mut State, dt: f64) {
+        let (vx, vy, r) = (st.vx, st.vy, st.r);
         let v_rear_lat = vy - self.b * r;
         let psi_mid = st.psi + 0.5 * r * dt;
         let (s, c) = psi_mid.sin_cos();
@@ -270,6 +326,14 @@ impl Model {
         st.y += (vx * s + v_rear_lat * c) * dt;
         st.psi += r * dt;
     }
+}
+
+/// The wheels' vertical loads (rl, rr, fl, fr), N, and the lateral load
+/// transfer on each axle.
+struct Loads {
+    fz: [f64; 4],
+    d_lat_f: f64,
+    d_lat_r: f64,
 }
 
 /// Steps between samples of a sensor at `rate_hz`.
@@ -523,122 +587,31 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
     } = scenarios::build(config.scenario, grade_mag)?;
     let model = Model::new(config);
     let dt = config.step_s;
-    let sensors = &config.sensors;
-    let wheel_period = period_steps("wheel", sensors.wheels.rate_hz, dt)?;
-    let gnss_period = period_steps("GNSS", sensors.gnss.rate_hz, dt)?;
-    let imu_period = period_steps("IMU", sensors.imu.rate_hz, dt)?;
-    let heading_period = period_steps("heading", sensors.heading.rate_hz, dt)?;
-    let driver_period = period_steps("driver", DRIVER_RATE_HZ, dt)?;
+    let periods = Periods::new(&config.sensors, dt)?;
     let duration = config.duration_s.or(default_duration_s);
     let end_step = duration.map(|d| (d / dt).round() as u64);
     let limit_steps = (DEFAULT_TIME_LIMIT_S / dt) as u64;
+    let mut rec = Recorder::new(config, &periods, end_step);
 
-    let mut enc_rng = rng_stream(config.seed, 1);
-    let mut gnss_rng = rng_stream(config.seed, 2);
-    let mut gm_rng = rng_stream(config.seed, 3);
-    let mut outage_rng = rng_stream(config.seed, 4);
-    let mut imu_rng = rng_stream(config.seed, 5);
-    let mut heading_rng = rng_stream(config.seed, 6);
-    let phase: [f64; 4] = std::array::from_fn(|_| enc_rng.random::<f64>());
-    let gnss_dt = 1.0 / sensors.gnss.rate_hz;
-    let mut gm = [
-        GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
-        GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
-    ];
-    let mut outages = Outages::new(
-        sensors.gnss.outage_rate_per_h,
-        sensors.gnss.outage_mean_s,
-        &mut outage_rng,
-    );
-
-    let e = &config.effects;
-    let gyro_bias = e.gyro_bias.map_or(0.0, |b| b.b_deg_h.to_radians() / 3600.0);
-    let gyro_scale = e.gyro_scale.map_or(0.0, |s| s.s);
-    let latency = e.gnss_latency.map_or(0.0, |l| l.tau_s);
-    let lever = e.gnss_lever_arm.map_or((0.0, 0.0), |l| (l.x_m, l.y_m));
-
-    let start = route.at(0.0);
-    let mut st = State {
-        x: start.x,
-        y: start.y,
-        psi: route.start_heading(),
-        ..State::default()
-    };
-    let mut driver = Driver {
-        s_along: 0.0,
-        delta_cmd: 0.0,
-        force_cmd: 0.0,
-        parked: false,
-    };
-    if start_moving {
-        st.vx = start.v_ref;
-        st.vy = 0.0;
-        st.force = model.spec.resistance_n(st.vx);
-    }
+    let (mut st, mut driver) = start(&model, &route, start_moving);
     let mut stops = Stops {
         next: 0,
         standing_s: 0.0,
     };
-
-    let capacity = |period: u64| {
-        let steps = end_step.unwrap_or(300_000);
-        (steps / period + 2) as usize
-    };
-    let mut wheels = Vec::with_capacity(capacity(wheel_period));
-    let mut truth = Vec::with_capacity(capacity(wheel_period));
-    let mut gnss = Vec::with_capacity(capacity(gnss_period));
-    let mut imu = Vec::with_capacity(capacity(imu_period));
-    let mut heading = Vec::with_capacity(capacity(heading_period));
-    let ticks = sensors.wheels.ticks_per_rev.map(f64::from);
     let mut here = route.at(0.0);
 
     let mut k: u64 = 0;
     loop {
         let t = k as f64 * dt;
         let mut done = false;
-        if k.is_multiple_of(driver_period) {
-            here = driver.act(&model, &st, &route, &mut stops, driver_period as f64 * dt);
+        if k.is_multiple_of(periods.driver) {
+            here = driver.act(&model, &st, &route, &mut stops, periods.driver as f64 * dt);
         }
-        if k.is_multiple_of(wheel_period) {
-            if !(st.x.is_finite() && st.y.is_finite() && st.psi.is_finite() && st.vx.is_finite()) {
-                return Err(SimError::Numerical {
-                    t_s: t,
-                    what: "vehicle state".into(),
-                });
-            }
-            let value = |i: usize| match ticks {
-                Some(n) => (st.revs[i] * n + phase[i]).floor(),
-                None => st.revs[i],
-            };
-            wheels.push(WheelSample {
-                t_s: t,
-                rl: value(RL),
-                rr: value(RR),
-                fl: Some(value(FL)),
-                fr: Some(value(FR)),
-            });
-            truth.push(TruthSample {
-                t_s: t,
-                x_m: st.x,
-                y_m: st.y,
-                yaw_rad: Some(stats::wrap_angle(st.psi)),
-            });
+        if k.is_multiple_of(periods.wheel) {
+            rec.wheels_and_truth(t, &st)?;
             done = match end_step {
                 Some(end) => k >= end,
-                None => {
-                    if route.is_closed()
-                        && route
-                            .stops()
-                            .last()
-                            .is_none_or(|s| s.s < route.length() - 1.0)
-                    {
-                        driver.s_along >= route.length()
-                    } else {
-                        // Ends at its final stop once the dwell is over.
-                        let n = route.stops().len();
-                        n > 0 && stops.next >= n
-                    }
-                }
+                None => route_done(&route, &driver, &stops),
             };
             if !done && end_step.is_none() && k >= limit_steps {
                 return Err(SimError::Stuck {
@@ -648,49 +621,14 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
                 });
             }
         }
-        if sensors.imu.enabled && k.is_multiple_of(imu_period) {
-            let sigma = sensors.imu.gz_sigma_rad_s;
-            let sa = sensors.imu.accel_sigma_m_s2;
-            let pitch = here.grade.atan();
-            let pitch_rate = here.dgrade_ds * st.vx / (1.0 + here.grade * here.grade);
-            imu.push(ImuSample {
-                t_s: t,
-                gz_rad_s: (1.0 + gyro_scale) * st.r + gyro_bias + sigma * gauss(&mut imu_rng),
-                ax_m_s2: Some(st.ax + G * pitch.sin() + sa * gauss(&mut imu_rng)),
-                ay_m_s2: Some(st.ay + sa * gauss(&mut imu_rng)),
-                az_m_s2: Some(G * pitch.cos() + sa * gauss(&mut imu_rng)),
-                gx_rad_s: None,
-                gy_rad_s: Some(pitch_rate + sigma * gauss(&mut imu_rng)),
-            });
+        if config.sensors.imu.enabled && k.is_multiple_of(periods.imu) {
+            rec.imu(t, &st, &here);
         }
-        if sensors.gnss.enabled && k.is_multiple_of(gnss_period) {
-            let noise = [
-                gm[0].step(gnss_dt, &mut gm_rng),
-                gm[1].step(gnss_dt, &mut gm_rng),
-            ];
-            let white = sensors.gnss.white_sigma_m;
-            let wx = white * gauss(&mut gnss_rng);
-            let wy = white * gauss(&mut gnss_rng);
-            let out = outages.active(t, &mut outage_rng);
-            if !here.attrs.gnss_denied && !out {
-                let (s, c) = st.psi.sin_cos();
-                let sigma = sensors.gnss.sigma_m();
-                gnss.push(GnssSample {
-                    t_s: t + latency,
-                    x_m: st.x + c * lever.0 - s * lever.1 + noise[0] + wx,
-                    y_m: st.y + s * lever.0 + c * lever.1 + noise[1] + wy,
-                    sigma_m: (sigma > 0.0).then_some(sigma),
-                });
-            }
+        if config.sensors.gnss.enabled && k.is_multiple_of(periods.gnss) {
+            rec.gnss(t, &st, &here);
         }
-        if sensors.heading.enabled && k.is_multiple_of(heading_period) {
-            let sigma = sensors.heading.sigma_deg.to_radians();
-            let bias = e.heading_bias.map_or(0.0, |h| h.error_rad(st.psi));
-            heading.push(HeadingSample {
-                t_s: t,
-                yaw_rad: stats::wrap_angle(st.psi + bias + sigma * gauss(&mut heading_rng)),
-                sigma_rad: (sigma > 0.0).then_some(sigma),
-            });
+        if config.sensors.heading.enabled && k.is_multiple_of(periods.heading) {
+            rec.heading(t, &st);
         }
         if done {
             // Every sensor has sampled the final instant too.
@@ -706,48 +644,282 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
         );
         k += 1;
     }
+    Ok(rec.into_drive(config, &model, &route))
+}
 
-    let t_end = wheels.last().map_or(0.0, |w| w.t_s);
-    // A late-stamped fix after the recording stopped would not be in the log.
-    gnss.retain(|g| g.t_s <= t_end + 1e-9);
-    imu.retain(|s| s.t_s <= t_end + 1e-9);
-    heading.retain(|s| s.t_s <= t_end + 1e-9);
+/// The sampling periods of the sensors and of the driver, in steps.
+struct Periods {
+    wheel: u64,
+    gnss: u64,
+    imu: u64,
+    heading: u64,
+    driver: u64,
+}
 
-    let spec = &model.spec;
-    let unit = if ticks.is_some() {
-        WheelUnit::Ticks
+impl Periods {
+    fn new(sensors: &SensorSettings, dt: f64) -> Result<Periods, SimError> {
+        Ok(Periods {
+            wheel: period_steps("wheel", sensors.wheels.rate_hz, dt)?,
+            gnss: period_steps("GNSS", sensors.gnss.rate_hz, dt)?,
+            imu: period_steps("IMU", sensors.imu.rate_hz, dt)?,
+            heading: period_steps("heading", sensors.heading.rate_hz, dt)?,
+            driver: period_steps("driver", DRIVER_RATE_HZ, dt)?,
+        })
+    }
+}
+
+/// The vehicle's state and its driver at the route's start (at rest, or
+/// at the route's speed when the scenario starts moving).
+fn start(model: &Model, route: &Route, start_moving: bool) -> (State, Driver) {
+    let start = route.at(0.0);
+    let mut st = State {
+        x: start.x,
+        y: start.y,
+        psi: route.start_heading(),
+        ..State::default()
+    };
+    let driver = Driver {
+        s_along: 0.0,
+        delta_cmd: 0.0,
+        force_cmd: 0.0,
+        parked: false,
+    };
+    if start_moving {
+        st.vx = start.v_ref;
+        st.vy = 0.0;
+        st.force = model.spec.resistance_n(st.vx);
+    }
+    (st, driver)
+}
+
+/// Whether a drive without a set duration is over: a closed route (whose
+/// last stop is not at its end) after one lap, any other once the dwell
+/// at its final stop is over.
+fn route_done(route: &Route, driver: &Driver, stops: &Stops) -> bool {
+    if route.is_closed()
+        && route
+            .stops()
+            .last()
+            .is_none_or(|s| s.s < route.length() - 1.0)
+    {
+        driver.s_along >= route.length()
     } else {
-        WheelUnit::Rev
-    };
-    let truth_params = TruthParams {
-        track_width_m: config.true_track_width(),
-        circumference_m: config.true_circumferences(),
-        effects: config.effects.to_truth_map(),
-        extra: extra_keys(config, &route, t_end),
-    };
-    Ok(Drive {
-        vehicle: VehicleParams {
-            name: Some(format!(
-                "simulated {} ({} scenario)",
-                config.vehicle.name(),
-                config.scenario.name()
-            )),
-            track_width_m: spec.track_rear_m,
-            nominal_circumference_m: config.nominal_circumference(),
-            wheelbase_m: Some(spec.wheelbase_m),
-            ticks_per_rev: ticks,
-            gnss: GnssAntenna::default(),
-        },
-        wheels: WheelSeries {
-            units: WheelUnits::all(unit),
-            samples: wheels,
-        },
-        gnss: sensors.gnss.enabled.then_some(gnss),
-        imu: sensors.imu.enabled.then_some(imu),
-        heading: sensors.heading.enabled.then_some(heading),
-        truth: Some(truth),
-        truth_params: Some(truth_params),
-    })
+        // Ends at its final stop once the dwell is over.
+        let n = route.stops().len();
+        n > 0 && stops.next >= n
+    }
+}
+
+/// The sensors: their noise sources, the effects that act on them, and
+/// the samples they have taken.
+struct Recorder<'a> {
+    sensors: &'a SensorSettings,
+    effects: &'a EffectSettings,
+    gnss_rng: ChaCha8Rng,
+    gm_rng: ChaCha8Rng,
+    outage_rng: ChaCha8Rng,
+    imu_rng: ChaCha8Rng,
+    heading_rng: ChaCha8Rng,
+    /// The encoders' tick phases.
+    phase: [f64; 4],
+    gnss_dt: f64,
+    gm: [GaussMarkov; 2],
+    outages: Outages,
+    gyro_bias: f64,
+    gyro_scale: f64,
+    latency: f64,
+    lever: (f64, f64),
+    ticks: Option<f64>,
+    wheels: Vec<WheelSample>,
+    truth: Vec<TruthSample>,
+    gnss: Vec<GnssSample>,
+    imu: Vec<ImuSample>,
+    heading: Vec<HeadingSample>,
+}
+
+impl<'a> Recorder<'a> {
+    fn new(config: &'a SimConfig, periods: &Periods, end_step: Option<u64>) -> Recorder<'a> {
+        let sensors = &config.sensors;
+        let mut enc_rng = rng_stream(config.seed, 1);
+        let gnss_rng = rng_stream(config.seed, 2);
+        let mut gm_rng = rng_stream(config.seed, 3);
+        let mut outage_rng = rng_stream(config.seed, 4);
+        let imu_rng = rng_stream(config.seed, 5);
+        let heading_rng = rng_stream(config.seed, 6);
+        let phase: [f64; 4] = std::array::from_fn(|_| enc_rng.random::<f64>());
+        let gm = [
+            GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
+            GaussMarkov::new(sensors.gnss.gm_sigma_m, sensors.gnss.gm_tau_s, &mut gm_rng),
+        ];
+        let outages = Outages::new(
+            sensors.gnss.outage_rate_per_h,
+            sensors.gnss.outage_mean_s,
+            &mut outage_rng,
+        );
+        let e = &config.effects;
+        let capacity = |period: u64| {
+            let steps = end_step.unwrap_or(300_000);
+            (steps / period + 2) as usize
+        };
+        Recorder {
+            sensors,
+            effects: e,
+            gnss_rng,
+            gm_rng,
+            outage_rng,
+            imu_rng,
+            heading_rng,
+            phase,
+            gnss_dt: 1.0 / sensors.gnss.rate_hz,
+            gm,
+            outages,
+            gyro_bias: e.gyro_bias.map_or(0.0, |b| b.b_deg_h.to_radians() / 3600.0),
+            gyro_scale: e.gyro_scale.map_or(0.0, |s| s.s),
+            latency: e.gnss_latency.map_or(0.0, |l| l.tau_s),
+            lever: e.gnss_lever_arm.map_or((0.0, 0.0), |l| (l.x_m, l.y_m)),
+            ticks: sensors.wheels.ticks_per_rev.map(f64::from),
+            wheels: Vec::with_capacity(capacity(periods.wheel)),
+            truth: Vec::with_capacity(capacity(periods.wheel)),
+            gnss: Vec::with_capacity(capacity(periods.gnss)),
+            imu: Vec::with_capacity(capacity(periods.imu)),
+            heading: Vec::with_capacity(capacity(periods.heading)),
+        }
+    }
+
+    /// The wheel encoders and the truth pose at `t`; an error when the
+    /// vehicle's state is no longer finite.
+    fn wheels_and_truth(&mut self, t: f64, st: &State) -> Result<(), SimError> {
+        if !(st.x.is_finite() && st.y.is_finite() && st.psi.is_finite() && st.vx.is_finite()) {
+            return Err(SimError::Numerical {
+                t_s: t,
+                what: "vehicle state".into(),
+            });
+        }
+        let (ticks, phase) = (self.ticks, self.phase);
+        let value = |i: usize| match ticks {
+            Some(n) => (st.revs[i] * n + phase[i]).floor(),
+            None => st.revs[i],
+        };
+        self.wheels.push(WheelSample {
+            t_s: t,
+            rl: value(RL),
+            rr: value(RR),
+            fl: Some(value(FL)),
+            fr: Some(value(FR)),
+        });
+        self.truth.push(TruthSample {
+            t_s: t,
+            x_m: st.x,
+            y_m: st.y,
+            yaw_rad: Some(stats::wrap_angle(st.psi)),
+        });
+        Ok(())
+    }
+
+    /// The IMU at `t`: yaw rate (with the gyro's scale and bias),
+    /// accelerations (with gravity along the grade), pitch rate.
+    fn imu(&mut self, t: f64, st: &State, here: &PathPoint) {
+        let sensors = self.sensors;
+        let rng = &mut self.imu_rng;
+        let sigma = sensors.imu.gz_sigma_rad_s;
+        let sa = sensors.imu.accel_sigma_m_s2;
+        let pitch = here.grade.atan();
+        let pitch_rate = here.dgrade_ds * st.vx / (1.0 + here.grade * here.grade);
+        self.imu.push(ImuSample {
+            t_s: t,
+            gz_rad_s: (1.0 + self.gyro_scale) * st.r + self.gyro_bias + sigma * gauss(rng),
+            ax_m_s2: Some(st.ax + G * pitch.sin() + sa * gauss(rng)),
+            ay_m_s2: Some(st.ay + sa * gauss(rng)),
+            az_m_s2: Some(G * pitch.cos() + sa * gauss(rng)),
+            gx_rad_s: None,
+            gy_rad_s: Some(pitch_rate + sigma * gauss(rng)),
+        });
+    }
+
+    /// A GNSS fix at `t` (stamped late by the latency, at the antenna),
+    /// unless the route denies GNSS there or a random outage is on; the
+    /// noise runs on either way.
+    fn gnss(&mut self, t: f64, st: &State, here: &PathPoint) {
+        let noise = [
+            self.gm[0].step(self.gnss_dt, &mut self.gm_rng),
+            self.gm[1].step(self.gnss_dt, &mut self.gm_rng),
+        ];
+        let white = self.sensors.gnss.white_sigma_m;
+        let wx = white * gauss(&mut self.gnss_rng);
+        let wy = white * gauss(&mut self.gnss_rng);
+        let out = self.outages.active(t, &mut self.outage_rng);
+        if !here.attrs.gnss_denied && !out {
+            let (s, c) = st.psi.sin_cos();
+            let sigma = self.sensors.gnss.sigma_m();
+            let lever = self.lever;
+            self.gnss.push(GnssSample {
+                t_s: t + self.latency,
+                x_m: st.x + c * lever.0 - s * lever.1 + noise[0] + wx,
+                y_m: st.y + s * lever.0 + c * lever.1 + noise[1] + wy,
+                sigma_m: (sigma > 0.0).then_some(sigma),
+            });
+        }
+    }
+
+    /// The absolute heading at `t`, with its bias and noise.
+    fn heading(&mut self, t: f64, st: &State) {
+        let sigma = self.sensors.heading.sigma_deg.to_radians();
+        let bias = self
+            .effects
+            .heading_bias
+            .map_or(0.0, |h| h.error_rad(st.psi));
+        self.heading.push(HeadingSample {
+            t_s: t,
+            yaw_rad: stats::wrap_angle(st.psi + bias + sigma * gauss(&mut self.heading_rng)),
+            sigma_rad: (sigma > 0.0).then_some(sigma),
+        });
+    }
+
+    /// The drive the samples make, with its vehicle.toml and truth.toml.
+    fn into_drive(mut self, config: &SimConfig, model: &Model, route: &Route) -> Drive {
+        let t_end = self.wheels.last().map_or(0.0, |w| w.t_s);
+        // A late-stamped fix after the recording stopped would not be in the log.
+        self.gnss.retain(|g| g.t_s <= t_end + 1e-9);
+        self.imu.retain(|s| s.t_s <= t_end + 1e-9);
+        self.heading.retain(|s| s.t_s <= t_end + 1e-9);
+
+        let sensors = &config.sensors;
+        let spec = &model.spec;
+        let unit = if self.ticks.is_some() {
+            WheelUnit::Ticks
+        } else {
+            WheelUnit::Rev
+        };
+        let truth_params = TruthParams {
+            track_width_m: config.true_track_width(),
+            circumference_m: config.true_circumferences(),
+            effects: config.effects.to_truth_map(),
+            extra: extra_keys(config, route, t_end),
+        };
+        Drive {
+            vehicle: VehicleParams {
+                name: Some(format!(
+                    "simulated {} ({} scenario)",
+                    config.vehicle.name(),
+                    config.scenario.name()
+                )),
+                track_width_m: spec.track_rear_m,
+                nominal_circumference_m: config.nominal_circumference(),
+                wheelbase_m: Some(spec.wheelbase_m),
+                ticks_per_rev: self.ticks,
+                gnss: GnssAntenna::default(),
+            },
+            wheels: WheelSeries {
+                units: WheelUnits::all(unit),
+                samples: self.wheels,
+            },
+            gnss: sensors.gnss.enabled.then_some(self.gnss),
+            imu: sensors.imu.enabled.then_some(self.imu),
+            heading: sensors.heading.enabled.then_some(self.heading),
+            truth: Some(self.truth),
+            truth_params: Some(truth_params),
+        }
+    }
 }
 
 fn extra_keys(config: &SimConfig, route: &Route, t_end: f64) -> BTreeMap<String, Value> {

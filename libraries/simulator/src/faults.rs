@@ -15,7 +15,7 @@
 
 use crate::SimError;
 use interfaces::drive::{
-    Drive, GnssSample, HeadingSample, ImuSample, TruthSample, WheelSample, WheelUnit,
+    Drive, GnssSample, HeadingSample, ImuSample, TruthSample, WheelRevs, WheelSample, WheelUnit,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -488,7 +488,53 @@ fn prepend(
     if revs.len() < 3 {
         return Err(invalid("the drive has too few wheel samples"));
     }
-    let c_nom = d.vehicle.nominal_circumference_m;
+    let ramped = ramp_for_a_moving_start(profile, &revs, (c_rl, c_rr));
+    let profile = ramped.as_ref().unwrap_or(profile);
+    // The other streams from the wheels' first sample on, so that every
+    // stream's prepended samples end at the same pose at the same time.
+    let t_start = d.wheels.samples[0].t_s;
+    drop_samples_before(d, t_start);
+    let lead = Lead {
+        profile,
+        t_begin: t_start - profile.duration_s,
+    };
+    let yaw0 = start_heading(d)?;
+    let dir = (yaw0.cos(), yaw0.sin());
+    prepend_wheels(d, rng, &lead, &revs, (c_rl, c_rr))?;
+    prepend_gnss(d, rng, &lead, dir)?;
+    prepend_imu(d, rng, &lead)?;
+    prepend_heading(d, rng, &lead)?;
+    prepend_truth(d, &lead, dir);
+    Ok(())
+}
+
+/// The profile as it is placed before a drive: its motion at wheel time
+/// `t` (`t_begin` is the wheel time of its start).
+struct Lead<'a> {
+    profile: &'a Profile,
+    t_begin: f64,
+}
+
+impl Lead<'_> {
+    /// `(s, v, a)` at wheel time `t`.
+    fn at(&self, t: f64) -> (f64, f64, f64) {
+        self.profile.at(t - self.t_begin)
+    }
+
+    /// The sample times, `dt` apart, of a stream whose first sample is at
+    /// `first`, over the profile's duration before it.
+    fn times(&self, first: f64, dt: f64) -> Vec<f64> {
+        sample_times(first, self.profile.duration_s, dt)
+    }
+}
+
+/// A drive that starts moving gets a straight start from rest to its first
+/// speed after the profile (`None`: it starts at rest, the profile as is).
+fn ramp_for_a_moving_start(
+    profile: &Profile,
+    revs: &[WheelRevs],
+    (c_rl, c_rr): (f64, f64),
+) -> Option<Profile> {
     // The drive must start at rest for a motion to end there.
     let k = revs.len().min(20);
     let dt0 = revs[k - 1].t_s - revs[0].t_s;
@@ -497,22 +543,17 @@ fn prepend(
     } else {
         0.0
     };
-    // A drive that starts moving gets a straight start from rest to its
-    // first speed after the profile.
-    let ramped;
-    let profile = if v0.abs() > 0.5 {
-        ramped = Profile {
+    (v0.abs() > 0.5).then(|| {
+        Profile {
             duration_s: profile.duration_s,
             step: profile.step.clone(),
         }
-        .ramped_to(v0);
-        &ramped
-    } else {
-        profile
-    };
-    // The other streams from the wheels' first sample on, so that every
-    // stream's prepended samples end at the same pose at the same time.
-    let t_start = d.wheels.samples[0].t_s;
+        .ramped_to(v0)
+    })
+}
+
+/// Drop the GNSS, IMU, heading and truth samples before `t_start`.
+fn drop_samples_before(d: &mut Drive, t_start: f64) {
     if let Some(g) = d.gnss.as_mut() {
         g.retain(|f| f.t_s >= t_start);
     }
@@ -525,17 +566,17 @@ fn prepend(
     if let Some(tr) = d.truth.as_mut() {
         tr.retain(|f| f.t_s >= t_start);
     }
-    let t_begin = t_start - profile.duration_s;
-    let at = |t: f64| profile.at(t - t_begin);
-    // Start heading: the truth's yaw, else the direction to the first point
-    // 3 m away (truth, else GNSS).
+}
+
+/// Start heading: the truth's yaw, else the direction to the first point
+/// 3 m away (truth, else GNSS).
+fn start_heading(d: &Drive) -> Result<f64, SimError> {
     let positions: Vec<(f64, f64)> = match (&d.truth, &d.gnss) {
         (Some(tr), _) if !tr.is_empty() => tr.iter().map(|s| (s.x_m, s.y_m)).collect(),
         (_, Some(g)) if !g.is_empty() => g.iter().map(|s| (s.x_m, s.y_m)).collect(),
         _ => Vec::new(),
     };
-    let yaw0 = d
-        .truth
+    d.truth
         .as_ref()
         .and_then(|t| t.first())
         .and_then(|t| t.yaw_rad)
@@ -546,15 +587,13 @@ fn prepend(
                 .find(|p| (p.0 - p0.0).hypot(p.1 - p0.1) > 3.0)
                 .map(|p| (p.1 - p0.1).atan2(p.0 - p0.0))
         })
-        .ok_or_else(|| invalid("no start heading: the drive has no truth or GNSS that moves"))?;
-    let dir = (yaw0.cos(), yaw0.sin());
+        .ok_or_else(|| invalid("no start heading: the drive has no truth or GNSS that moves"))
+}
 
-    // Wheels, in the drive's units.
-    let wheel_dt = median_dt(d.wheels.samples.iter().map(|w| w.t_s)).unwrap_or(0.01);
-    let units = d.wheels.units;
-    let first = d.wheels.samples[0];
-    // A rate sensor reads its own offset and noise, as the drive's samples
-    // at rest show them (0 where the drive never stands).
+/// The mean and standard deviation of each wheel channel (rl, rr, fl, fr)
+/// at rest, as the drive's samples show them: a rate sensor reads its own
+/// offset and noise (zeros where the drive never stands).
+fn wheel_rest_levels(d: &Drive, revs: &[WheelRevs], (c_rl, c_rr): (f64, f64)) -> [(f64, f64); 4] {
     let at_rest: Vec<&WheelSample> = d
         .wheels
         .samples
@@ -577,12 +616,28 @@ fn prepend(
         let var = v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (v.len() - 1) as f64;
         (m, var.sqrt())
     };
-    let rest = [
+    [
         rest_stats(&|s| Some(s.rl)),
         rest_stats(&|s| Some(s.rr)),
         rest_stats(&|s| s.fl),
         rest_stats(&|s| s.fr),
-    ];
+    ]
+}
+
+/// Wheels, in the drive's units, before its first wheel sample.
+fn prepend_wheels(
+    d: &mut Drive,
+    rng: &mut ChaCha8Rng,
+    lead: &Lead,
+    revs: &[WheelRevs],
+    (c_rl, c_rr): (f64, f64),
+) -> Result<(), SimError> {
+    let c_nom = d.vehicle.nominal_circumference_m;
+    let ticks_per_rev = d.vehicle.ticks_per_rev.unwrap_or(1.0);
+    let wheel_dt = median_dt(d.wheels.samples.iter().map(|w| w.t_s)).unwrap_or(0.01);
+    let units = d.wheels.units;
+    let first = d.wheels.samples[0];
+    let rest = wheel_rest_levels(d, revs, (c_rl, c_rr));
     let rest_noise = rest
         .iter()
         .map(|(_, sd)| normal(*sd))
@@ -591,9 +646,7 @@ fn prepend(
         |ch: usize, unit: WheelUnit, rev_offset: f64, rev_rate: f64, first_value: f64| -> f64 {
             match unit {
                 WheelUnit::Rev => first_value + rev_offset,
-                WheelUnit::Ticks => {
-                    first_value + rev_offset * d.vehicle.ticks_per_rev.unwrap_or(1.0)
-                }
+                WheelUnit::Ticks => first_value + rev_offset * ticks_per_rev,
                 WheelUnit::RadS => {
                     rev_rate * std::f64::consts::TAU + rest[ch].0 + rest_noise[ch].sample(rng)
                 }
@@ -601,8 +654,8 @@ fn prepend(
             }
         };
     let mut wheels = Vec::new();
-    for t in sample_times(first.t_s, profile.duration_s, wheel_dt) {
-        let (s, v, _) = at(t);
+    for t in lead.times(first.t_s, wheel_dt) {
+        let (s, v, _) = lead.at(t);
         let rl = value(0, units.rl, s / c_rl, v / c_rl, first.rl);
         let rr = value(1, units.rr, s / c_rr, v / c_rr, first.rr);
         let fl = match (units.fl, first.fl) {
@@ -623,109 +676,138 @@ fn prepend(
     }
     wheels.append(&mut d.wheels.samples);
     d.wheels.samples = wheels;
-
-    // GNSS: the first fix's position moved along the heading, with white
-    // noise of the drive's own size.
-    if let Some(g) = d.gnss.as_mut().filter(|g| g.len() >= 3) {
-        let dt = median_dt(g.iter().map(|f| f.t_s)).unwrap_or(0.1);
-        let sigma = {
-            let mut s: Vec<f64> = g.iter().filter_map(|f| f.sigma_m).collect();
-            s.sort_by(f64::total_cmp);
-            s.get(s.len() / 2).copied().unwrap_or_else(|| {
-                // Second differences of the fixes: 6 sigma^2 for white noise.
-                let mut dd: Vec<f64> = g
-                    .windows(3)
-                    .flat_map(|w| {
-                        [
-                            (w[2].x_m - 2.0 * w[1].x_m + w[0].x_m).abs(),
-                            (w[2].y_m - 2.0 * w[1].y_m + w[0].y_m).abs(),
-                        ]
-                    })
-                    .collect();
-                dd.sort_by(f64::total_cmp);
-                1.4826 * dd[dd.len() / 2] / 6f64.sqrt()
-            })
-        };
-        let noise = normal(sigma)?;
-        let f0 = g[0];
-        let mut pre: Vec<GnssSample> = sample_times(f0.t_s, profile.duration_s, dt)
-            .into_iter()
-            .map(|t| {
-                let (s, _, _) = at(t);
-                GnssSample {
-                    t_s: t,
-                    x_m: f0.x_m + s * dir.0 + noise.sample(rng),
-                    y_m: f0.y_m + s * dir.1 + noise.sample(rng),
-                    sigma_m: f0.sigma_m,
-                }
-            })
-            .collect();
-        pre.append(g);
-        *g = pre;
-    }
-
-    // IMU: no turn, the profile's acceleration, noise and bias of the drive.
-    if let Some(imu) = d.imu.as_mut().filter(|i| i.len() >= 3) {
-        let dt = median_dt(imu.iter().map(|i| i.t_s)).unwrap_or(0.01);
-        let gz_noise = normal(noise_of(imu.iter().map(|i| i.gz_rad_s)))?;
-        let ax_noise = normal(noise_of(imu.iter().filter_map(|i| i.ax_m_s2)))?;
-        let ay_noise = normal(noise_of(imu.iter().filter_map(|i| i.ay_m_s2)))?;
-        let bias = gyro_bias(imu, d.truth.as_deref());
-        let i0 = imu[0];
-        let mut pre: Vec<ImuSample> = sample_times(i0.t_s, profile.duration_s, dt)
-            .into_iter()
-            .map(|t| {
-                let (_, _, a) = at(t);
-                ImuSample {
-                    t_s: t,
-                    gz_rad_s: bias + gz_noise.sample(rng),
-                    ax_m_s2: i0.ax_m_s2.map(|_| a + ax_noise.sample(rng)),
-                    ay_m_s2: i0.ay_m_s2.map(|_| ay_noise.sample(rng)),
-                    az_m_s2: i0.az_m_s2,
-                    gx_rad_s: i0.gx_rad_s.map(|_| 0.0),
-                    gy_rad_s: i0.gy_rad_s.map(|_| 0.0),
-                }
-            })
-            .collect();
-        pre.append(imu);
-        *imu = pre;
-    }
-
-    if let Some(h) = d.heading.as_mut().filter(|h| h.len() >= 3) {
-        let dt = median_dt(h.iter().map(|s| s.t_s)).unwrap_or(0.1);
-        let h0 = h[0];
-        let noise = normal(h0.sigma_rad.unwrap_or(0.0))?;
-        let mut pre: Vec<HeadingSample> = sample_times(h0.t_s, profile.duration_s, dt)
-            .into_iter()
-            .map(|t| HeadingSample {
-                t_s: t,
-                yaw_rad: h0.yaw_rad + noise.sample(rng),
-                sigma_rad: h0.sigma_rad,
-            })
-            .collect();
-        pre.append(h);
-        *h = pre;
-    }
-
-    if let Some(tr) = d.truth.as_mut().filter(|t| !t.is_empty()) {
-        let dt = median_dt(tr.iter().map(|s| s.t_s)).unwrap_or(0.01);
-        let s0 = tr[0];
-        let mut pre: Vec<TruthSample> = sample_times(s0.t_s, profile.duration_s, dt)
-            .into_iter()
-            .map(|t| {
-                let (s, _, _) = at(t);
-                TruthSample {
-                    t_s: t,
-                    x_m: s0.x_m + s * dir.0,
-                    y_m: s0.y_m + s * dir.1,
-                    yaw_rad: s0.yaw_rad,
-                }
-            })
-            .collect();
-        pre.append(tr);
-        *tr = pre;
-    }
     Ok(())
+}
+
+/// The white-noise sigma of GNSS fixes: the median `sigma_m` they give,
+/// else from their second differences (6 sigma^2 for white noise).
+fn gnss_white_sigma(g: &[GnssSample]) -> f64 {
+    let mut s: Vec<f64> = g.iter().filter_map(|f| f.sigma_m).collect();
+    s.sort_by(f64::total_cmp);
+    s.get(s.len() / 2).copied().unwrap_or_else(|| {
+        let mut dd: Vec<f64> = g
+            .windows(3)
+            .flat_map(|w| {
+                [
+                    (w[2].x_m - 2.0 * w[1].x_m + w[0].x_m).abs(),
+                    (w[2].y_m - 2.0 * w[1].y_m + w[0].y_m).abs(),
+                ]
+            })
+            .collect();
+        dd.sort_by(f64::total_cmp);
+        1.4826 * dd[dd.len() / 2] / 6f64.sqrt()
+    })
+}
+
+/// GNSS: the first fix's position moved along the heading, with white
+/// noise of the drive's own size.
+fn prepend_gnss(
+    d: &mut Drive,
+    rng: &mut ChaCha8Rng,
+    lead: &Lead,
+    dir: (f64, f64),
+) -> Result<(), SimError> {
+    let Some(g) = d.gnss.as_mut().filter(|g| g.len() >= 3) else {
+        return Ok(());
+    };
+    let dt = median_dt(g.iter().map(|f| f.t_s)).unwrap_or(0.1);
+    let noise = normal(gnss_white_sigma(g))?;
+    let f0 = g[0];
+    let mut pre: Vec<GnssSample> = lead
+        .times(f0.t_s, dt)
+        .into_iter()
+        .map(|t| {
+            let (s, _, _) = lead.at(t);
+            GnssSample {
+                t_s: t,
+                x_m: f0.x_m + s * dir.0 + noise.sample(rng),
+                y_m: f0.y_m + s * dir.1 + noise.sample(rng),
+                sigma_m: f0.sigma_m,
+            }
+        })
+        .collect();
+    pre.append(g);
+    *g = pre;
+    Ok(())
+}
+
+/// IMU: no turn, the profile's acceleration, noise and bias of the drive.
+fn prepend_imu(d: &mut Drive, rng: &mut ChaCha8Rng, lead: &Lead) -> Result<(), SimError> {
+    let truth = d.truth.as_deref();
+    let Some(imu) = d.imu.as_mut().filter(|i| i.len() >= 3) else {
+        return Ok(());
+    };
+    let dt = median_dt(imu.iter().map(|i| i.t_s)).unwrap_or(0.01);
+    let gz_noise = normal(noise_of(imu.iter().map(|i| i.gz_rad_s)))?;
+    let ax_noise = normal(noise_of(imu.iter().filter_map(|i| i.ax_m_s2)))?;
+    let ay_noise = normal(noise_of(imu.iter().filter_map(|i| i.ay_m_s2)))?;
+    let bias = gyro_bias(imu, truth);
+    let i0 = imu[0];
+    let mut pre: Vec<ImuSample> = lead
+        .times(i0.t_s, dt)
+        .into_iter()
+        .map(|t| {
+            let (_, _, a) = lead.at(t);
+            ImuSample {
+                t_s: t,
+                gz_rad_s: bias + gz_noise.sample(rng),
+                ax_m_s2: i0.ax_m_s2.map(|_| a + ax_noise.sample(rng)),
+                ay_m_s2: i0.ay_m_s2.map(|_| ay_noise.sample(rng)),
+                az_m_s2: i0.az_m_s2,
+                gx_rad_s: i0.gx_rad_s.map(|_| 0.0),
+                gy_rad_s: i0.gy_rad_s.map(|_| 0.0),
+            }
+        })
+        .collect();
+    pre.append(imu);
+    *imu = pre;
+    Ok(())
+}
+
+/// Heading: the first reading with its own noise.
+fn prepend_heading(d: &mut Drive, rng: &mut ChaCha8Rng, lead: &Lead) -> Result<(), SimError> {
+    let Some(h) = d.heading.as_mut().filter(|h| h.len() >= 3) else {
+        return Ok(());
+    };
+    let dt = median_dt(h.iter().map(|s| s.t_s)).unwrap_or(0.1);
+    let h0 = h[0];
+    let noise = normal(h0.sigma_rad.unwrap_or(0.0))?;
+    let mut pre: Vec<HeadingSample> = lead
+        .times(h0.t_s, dt)
+        .into_iter()
+        .map(|t| HeadingSample {
+            t_s: t,
+            yaw_rad: h0.yaw_rad + noise.sample(rng),
+            sigma_rad: h0.sigma_rad,
+        })
+        .collect();
+    pre.append(h);
+    *h = pre;
+    Ok(())
+}
+
+/// Truth: the first pose moved along the heading.
+fn prepend_truth(d: &mut Drive, lead: &Lead, dir: (f64, f64)) {
+    let Some(tr) = d.truth.as_mut().filter(|t| !t.is_empty()) else {
+        return;
+    };
+    let dt = median_dt(tr.iter().map(|s| s.t_s)).unwrap_or(0.01);
+    let s0 = tr[0];
+    let mut pre: Vec<TruthSample> = lead
+        .times(s0.t_s, dt)
+        .into_iter()
+        .map(|t| {
+            let (s, _, _) = lead.at(t);
+            TruthSample {
+                t_s: t,
+                x_m: s0.x_m + s * dir.0,
+                y_m: s0.y_m + s * dir.1,
+                yaw_rad: s0.yaw_rad,
+            }
+        })
+        .collect();
+    pre.append(tr);
+    *tr = pre;
 }
 
 /// The gyro's bias as the drive shows it: the median of the yaw rate less

@@ -237,56 +237,49 @@ pub(crate) struct PathPoint {
     pub attrs: Attrs,
 }
 
-/// A sampled route.
-#[derive(Debug, Clone)]
-pub(crate) struct Route {
-    closed: bool,
-    length: f64,
-    ds: f64,
+/// The length of the pieces end to end, m.
+fn total_length(pieces: &[Piece]) -> f64 {
+    pieces
+        .iter()
+        .map(|p| match p.prim {
+            Prim::Straight { len, .. } => len,
+            Prim::Turn { angle, radius } => angle.abs() * radius,
+        })
+        .sum()
+}
+
+/// The pieces laid out on the grid: each point's position, heading,
+/// curvature and attributes, and the stops.
+struct Grid {
     x: Vec<f64>,
     y: Vec<f64>,
     heading: Vec<f64>,
-    v_ref: Vec<f64>,
-    grade: Vec<f64>,
+    kappa: Vec<f64>,
     attr_index: Vec<u16>,
     attrs: Vec<Attrs>,
     stops: Vec<Stop>,
 }
 
-impl Route {
-    fn sample(pieces: &[Piece], closed: bool, grade_mag: f64) -> Result<Route, String> {
-        let mut attrs: Vec<Attrs> = Vec::new();
-        let mut x = vec![0.0];
-        let mut y = vec![0.0];
-        let mut heading = vec![0.0];
-        let mut kappa = vec![0.0];
-        let mut attr_index: Vec<u16> = Vec::new();
-        let mut stops = Vec::new();
+impl Grid {
+    /// Lay `pieces` (`total` m long) out every `ds` m.
+    fn lay_out(pieces: &[Piece], total: f64, ds: f64) -> Result<Grid, String> {
+        let mut g = Grid {
+            x: vec![0.0],
+            y: vec![0.0],
+            heading: vec![0.0],
+            kappa: vec![0.0],
+            attr_index: Vec::new(),
+            attrs: Vec::new(),
+            stops: Vec::new(),
+        };
         let (mut px, mut py, mut ph) = (0.0f64, 0.0f64, 0.0f64);
         let mut s_end = 0.0;
-        // A grid spacing that divides the route exactly (so a loop's last
-        // point is its first).
-        let total: f64 = pieces
-            .iter()
-            .map(|p| match p.prim {
-                Prim::Straight { len, .. } => len,
-                Prim::Turn { angle, radius } => angle.abs() * radius,
-            })
-            .sum();
-        let ds = total / (total / DS).round().max(8.0);
         // Each piece is split into whole grid steps; the remainder is carried on.
         let mut carry = 0.0;
         for p in pieces {
-            let ai = match attrs.iter().position(|a| *a == p.attrs) {
-                Some(i) => i,
-                None => {
-                    attrs.push(p.attrs);
-                    attrs.len() - 1
-                }
-            };
-            let ai = u16::try_from(ai).map_err(|_| "too many distinct attributes".to_string())?;
-            if attr_index.is_empty() {
-                attr_index.push(ai);
+            let ai = g.attribute_index(p.attrs)?;
+            if g.attr_index.is_empty() {
+                g.attr_index.push(ai);
             }
             let (len, k) = match p.prim {
                 Prim::Straight { len, .. } => (len, 0.0),
@@ -308,11 +301,7 @@ impl Route {
                 advance(&mut px, &mut py, &mut ph, step, k);
                 remaining -= step;
                 carry = 0.0;
-                x.push(px);
-                y.push(py);
-                heading.push(ph);
-                kappa.push(k);
-                attr_index.push(ai);
+                g.push(px, py, ph, k, ai);
             }
             if remaining > 0.0 {
                 advance(&mut px, &mut py, &mut ph, remaining, k);
@@ -320,7 +309,7 @@ impl Route {
             }
             s_end += len;
             if let Some(dwell) = p.stop_after_s {
-                stops.push(Stop {
+                g.stops.push(Stop {
                     s: s_end,
                     dwell_s: dwell,
                 });
@@ -329,21 +318,47 @@ impl Route {
         if total < 2.0 || !total.is_finite() {
             return Err(format!("the route is {total} m long"));
         }
-        if x.len() < (total / ds).round() as usize + 1 {
+        if g.x.len() < (total / ds).round() as usize + 1 {
             // Rounding left the final grid point out: it is the route's end.
-            x.push(px);
-            y.push(py);
-            heading.push(ph);
-            kappa.push(0.0);
-            attr_index.push(attr_index.last().copied().unwrap_or(0));
+            let ai = g.attr_index.last().copied().unwrap_or(0);
+            g.push(px, py, ph, 0.0, ai);
         }
-        let n = x.len();
-        // Speed limits: attribute speed and lateral acceleration in bends (the
-        // curvature is spread over 2 m so that arcs shorter than that still count).
+        Ok(g)
+    }
+
+    /// The index of `attrs` among the distinct attributes (added when new).
+    fn attribute_index(&mut self, attrs: Attrs) -> Result<u16, String> {
+        let ai = match self.attrs.iter().position(|a| *a == attrs) {
+            Some(i) => i,
+            None => {
+                self.attrs.push(attrs);
+                self.attrs.len() - 1
+            }
+        };
+        u16::try_from(ai).map_err(|_| "too many distinct attributes".to_string())
+    }
+
+    fn push(&mut self, x: f64, y: f64, heading: f64, kappa: f64, attr_index: u16) {
+        self.x.push(x);
+        self.y.push(y);
+        self.heading.push(heading);
+        self.kappa.push(kappa);
+        self.attr_index.push(attr_index);
+    }
+
+    fn attrs_at(&self, i: usize) -> Attrs {
+        self.attrs[self.attr_index[i] as usize]
+    }
+
+    /// Speed limits: attribute speed and lateral acceleration in bends (the
+    /// curvature is spread over 2 m so that arcs shorter than that still
+    /// count), then what braking before and accelerating after allow.
+    fn speed_limits(&self, closed: bool, ds: f64) -> Vec<f64> {
+        let n = self.x.len();
         let mut v: Vec<f64> = (0..n)
             .map(|i| {
-                let a = attrs[attr_index[i] as usize];
-                let k = kappa[i.saturating_sub(4)..(i + 5).min(n)]
+                let a = self.attrs_at(i);
+                let k = self.kappa[i.saturating_sub(4)..(i + 5).min(n)]
                     .iter()
                     .fold(0.0f64, |m, k| m.max(k.abs()));
                 if k > 1e-9 {
@@ -363,7 +378,7 @@ impl Route {
                 } else {
                     continue;
                 };
-                let d = attrs[attr_index[j] as usize].decel;
+                let d = self.attrs_at(j).decel;
                 v[j] = v[j].min((next * next + 2.0 * d * ds).sqrt());
             }
         }
@@ -376,19 +391,24 @@ impl Route {
                 } else {
                     continue;
                 };
-                let a = attrs[attr_index[j] as usize].accel;
+                let a = self.attrs_at(j).accel;
                 v[j] = v[j].min((prev * prev + 2.0 * a * ds).sqrt());
             }
         }
-        // Grade: ramps where the route has them, rolling hills otherwise.
-        let has_ramps = attrs.iter().any(|a| a.ramp != 0.0);
-        let length = (n - 1) as f64 * ds;
+        v
+    }
+
+    /// Grade: ramps where the route has them, rolling hills otherwise,
+    /// smoothed over [`GRADE_SMOOTHING_M`].
+    fn grade(&self, closed: bool, ds: f64, length: f64, grade_mag: f64) -> Vec<f64> {
+        let n = self.x.len();
+        let has_ramps = self.attrs.iter().any(|a| a.ramp != 0.0);
         let raw: Vec<f64> = (0..n)
             .map(|i| {
                 if grade_mag == 0.0 {
                     0.0
                 } else if has_ramps {
-                    grade_mag * attrs[attr_index[i] as usize].ramp
+                    grade_mag * self.attrs_at(i).ramp
                 } else {
                     let wavelength = if closed {
                         length / (length / HILL_WAVELENGTH_M).round().max(1.0)
@@ -400,25 +420,55 @@ impl Route {
             })
             .collect();
         let half = (GRADE_SMOOTHING_M / ds / 2.0) as usize;
-        let grade: Vec<f64> = (0..n)
+        (0..n)
             .map(|i| {
                 let lo = i.saturating_sub(half);
                 let hi = (i + half + 1).min(n);
                 raw[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
             })
-            .collect();
+            .collect()
+    }
+}
+
+/// A sampled route.
+#[derive(Debug, Clone)]
+pub(crate) struct Route {
+    closed: bool,
+    length: f64,
+    ds: f64,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    heading: Vec<f64>,
+    v_ref: Vec<f64>,
+    grade: Vec<f64>,
+    attr_index: Vec<u16>,
+    attrs: Vec<Attrs>,
+    stops: Vec<Stop>,
+}
+
+impl Route {
+    fn sample(pieces: &[Piece], closed: bool, grade_mag: f64) -> Result<Route, String> {
+        let total = total_length(pieces);
+        // A grid spacing that divides the route exactly (so a loop's last
+        // point is its first).
+        let ds = total / (total / DS).round().max(8.0);
+        let grid = Grid::lay_out(pieces, total, ds)?;
+        let n = grid.x.len();
+        let length = (n - 1) as f64 * ds;
+        let v_ref = grid.speed_limits(closed, ds);
+        let grade = grid.grade(closed, ds, length, grade_mag);
         Ok(Route {
             closed,
             length,
             ds,
-            x,
-            y,
-            heading,
-            v_ref: v,
+            x: grid.x,
+            y: grid.y,
+            heading: grid.heading,
+            v_ref,
             grade,
-            attr_index,
-            attrs,
-            stops,
+            attr_index: grid.attr_index,
+            attrs: grid.attrs,
+            stops: grid.stops,
         })
     }
 

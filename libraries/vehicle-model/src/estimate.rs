@@ -4,10 +4,11 @@
 //! - the nominal values of `vehicle.toml` ([`OdometryParams::nominal`]): both
 //!   rear circumferences equal to `nominal_circumference_m`, the given track,
 //!   an ideal gyro;
-//! - the JSON that `calibrator calibrate --json` writes ([`Estimate::from_json_str`];
-//!   `drive_io::read_estimate` reads the file): `circumference_m.{rl,rr}`, `track_width_m`, and when
-//!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; every
-//!   other field is ignored;
+//! - the JSON that `calibrator calibrate --json` writes, the estimate file
+//!   ([`EstimateFile`], [`Estimate::from_json_str`]; `drive_io::read_estimate`
+//!   reads the file): `circumference_m.{rl,rr}`, `track_width_m`, and when
+//!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; the
+//!   fields the odometry does not use are carried, not read;
 //! - the wire type [`CircumferenceEstimate`] ([`Estimate::from_wire`],
 //!   [`Estimate::to_wire`]); the calibrated GNSS antenna position travels in
 //!   it as a `gnss_lever_arm` model extension (x, y), the sensor clocks as
@@ -18,11 +19,11 @@
 //! `w = (gz - gyro_bias_rad_s) / (1 + gyro_scale)`.
 
 use crate::effects::{EffectTerms, WheelEffects};
+use crate::estimate_file::EstimateFile;
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
 use interfaces::effects::{Effect, GNSS_CLOCK_EXTENSION, IMU_CLOCK_EXTENSION};
 use interfaces::wire::{CircumferenceEstimate, Header, ModelExtension};
-use serde::Deserialize;
 use std::path::PathBuf;
 
 /// Everything the dead-reckoner needs to turn wheel revolutions and gyro
@@ -336,149 +337,12 @@ pub enum ParamsError {
     },
 }
 
-/// A rear-wheel pair as the calibrator's JSON writes it.
-#[derive(Debug, Deserialize)]
-struct RearPair {
-    rl: f64,
-    rr: f64,
-}
-
-/// The fields of `calibrator calibrate --json` that the odometry uses.
-#[derive(Debug, Deserialize)]
-struct EstimateJson {
-    circumference_m: RearPair,
-    track_width_m: f64,
-    #[serde(default)]
-    gyro_bias_rad_s: Option<f64>,
-    #[serde(default)]
-    gyro_scale: Option<f64>,
-    #[serde(default)]
-    sigma_m: Option<RearPair>,
-    #[serde(default)]
-    gyro: Option<GyroJson>,
-    #[serde(default)]
-    gnss_antenna_m: Option<[f64; 2]>,
-    #[serde(default)]
-    sigma_gnss_antenna_m: Option<[f64; 2]>,
-    #[serde(default)]
-    effects: Option<EffectTerms>,
-    #[serde(default)]
-    clock_offsets: Option<ClockOffsetsJson>,
-}
-
-/// The calibrator's `clock_offsets` object: one entry per stream.
-#[derive(Debug, Deserialize)]
-struct ClockOffsetsJson {
-    #[serde(default)]
-    gnss_s: Option<StreamOffsetJson>,
-    #[serde(default)]
-    imu_s: Option<StreamOffsetJson>,
-}
-
-/// One stream's offset; only an offset the calibration applied is used.
-#[derive(Debug, Deserialize)]
-struct StreamOffsetJson {
-    #[serde(default)]
-    offset_s: Option<f64>,
-    #[serde(default)]
-    applied: bool,
-    #[serde(default)]
-    drift: Option<DriftJson>,
-}
-
-/// One stream's drift; only a drift the calibration applied is used.
-#[derive(Debug, Deserialize)]
-struct DriftJson {
-    #[serde(default)]
-    drift_ppm: Option<f64>,
-    #[serde(default)]
-    ref_t_s: Option<f64>,
-    #[serde(default)]
-    applied: bool,
-}
-
-impl StreamOffsetJson {
-    fn applied_offset(o: Option<&StreamOffsetJson>) -> f64 {
-        o.filter(|o| o.applied)
-            .and_then(|o| o.offset_s)
-            .filter(|v| v.is_finite())
-            .unwrap_or(0.0)
-    }
-
-    /// The applied drift (ppm) and its reference time, else zeros.
-    fn applied_drift(o: Option<&StreamOffsetJson>) -> (f64, f64) {
-        o.and_then(|o| o.drift.as_ref())
-            .filter(|d| d.applied)
-            .and_then(|d| Some((d.drift_ppm?, d.ref_t_s?)))
-            .filter(|(p, r)| p.is_finite() && r.is_finite())
-            .unwrap_or((0.0, 0.0))
-    }
-
-    fn clocks(c: &ClockOffsetsJson) -> StreamClocks {
-        let (g, i) = (c.gnss_s.as_ref(), c.imu_s.as_ref());
-        let ((gnss_drift_ppm, gnss_ref_t_s), (imu_drift_ppm, imu_ref_t_s)) =
-            (Self::applied_drift(g), Self::applied_drift(i));
-        StreamClocks {
-            gnss_late_s: Self::applied_offset(g),
-            imu_late_s: Self::applied_offset(i),
-            gnss_drift_ppm,
-            imu_drift_ppm,
-            gnss_ref_t_s,
-            imu_ref_t_s,
-        }
-    }
-}
-
-/// The part of the calibrator's `gyro` object the odometry uses.
-#[derive(Debug, Deserialize)]
-struct GyroJson {
-    #[serde(default)]
-    antenna_m: Option<[f64; 2]>,
-    #[serde(default)]
-    sigma_antenna_m: Option<[f64; 2]>,
-}
-
 impl Estimate {
-    /// Parse the calibrator's JSON; `source` names the input in errors.
-    /// A gyro bias or scale that is absent (or `null`) means an ideal gyro.
+    /// Parse the calibrator's JSON (the estimate file,
+    /// [`EstimateFile`]); `source` names the input in errors. A gyro bias
+    /// or scale that is absent (or `null`) means an ideal gyro.
     pub fn from_json_str(text: &str, source: &str) -> Result<Estimate, ParamsError> {
-        let parsed: EstimateJson = serde_json::from_str(text).map_err(|e| ParamsError::Json {
-            source_name: source.to_string(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
-        let params = OdometryParams {
-            two_wheel: TwoWheelParams {
-                c_rl: parsed.circumference_m.rl,
-                c_rr: parsed.circumference_m.rr,
-                track_width: parsed.track_width_m,
-            },
-            gyro_bias_rad_s: parsed.gyro_bias_rad_s.unwrap_or(0.0),
-            gyro_scale: parsed.gyro_scale.unwrap_or(0.0),
-        };
-        params.validate(source)?;
-        // The antenna and its sigma from the same fit: the gyro model's, else the 2W one's.
-        let (antenna_m, antenna_sigma_m) = match parsed.gyro {
-            Some(GyroJson {
-                antenna_m: Some(a),
-                sigma_antenna_m,
-            }) => (Some(a), sigma_antenna_m),
-            _ => (parsed.gnss_antenna_m, parsed.sigma_gnss_antenna_m),
-        };
-        Ok(Estimate {
-            params,
-            sigma_m: parsed.sigma_m.map(|s| (s.rl, s.rr)),
-            quality_m: None,
-            antenna_m: antenna_m.map(|a| validate_antenna(a, source)).transpose()?,
-            antenna_sigma_m,
-            effects: parsed.effects.unwrap_or_default().into(),
-            clocks: parsed
-                .clock_offsets
-                .as_ref()
-                .map(StreamOffsetJson::clocks)
-                .unwrap_or_default(),
-        })
+        EstimateFile::from_json_str(text, source)?.estimate(source)
     }
 
     /// The estimate received on the wire, validated.
@@ -580,7 +444,7 @@ pub fn antenna_extension(antenna_m: [f64; 2], sigma_m: Option<[f64; 2]>) -> Mode
 
 /// An antenna position must be finite and within 20 m of the rear axle
 /// (the calibrator's own plausibility limit for `vehicle.toml`).
-fn validate_antenna(antenna_m: [f64; 2], source: &str) -> Result<[f64; 2], ParamsError> {
+pub(crate) fn validate_antenna(antenna_m: [f64; 2], source: &str) -> Result<[f64; 2], ParamsError> {
     match antenna_m
         .iter()
         .find(|v| !(v.is_finite() && v.abs() < 20.0))

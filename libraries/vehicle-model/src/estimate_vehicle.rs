@@ -5,6 +5,7 @@
 //! vehicle is said plainly, not silently used.
 
 use crate::estimate::ParamsError;
+use crate::estimate_file::{json_error, made_for, NominalFields};
 use interfaces::drive::VehicleParams;
 use serde::Deserialize;
 
@@ -27,18 +28,16 @@ pub struct EstimateVehicle {
     pub ticks_per_rev: Option<f64>,
 }
 
+/// The part of an estimate file that says whom it was made for: the
+/// [`EstimateFile`](crate::estimate_file::EstimateFile) fields `vehicle`
+/// and `nominal`, read alone (an estimate without circumferences still
+/// says its vehicle).
 #[derive(Debug, Deserialize)]
-struct NominalJson {
-    circumference_m: f64,
-    track_width_m: f64,
-}
-
-#[derive(Debug, Deserialize)]
-struct VehicleJson {
+struct MadeForFields {
     #[serde(default)]
     vehicle: Option<VehicleParams>,
     #[serde(default)]
-    nominal: Option<NominalJson>,
+    nominal: Option<NominalFields>,
 }
 
 impl EstimateVehicle {
@@ -46,23 +45,9 @@ impl EstimateVehicle {
     /// errors): its `vehicle`, else its `nominal` values; `None` when it
     /// carries neither (a hand-written estimate).
     pub fn from_json_str(text: &str, source: &str) -> Result<Option<EstimateVehicle>, ParamsError> {
-        let parsed: VehicleJson = serde_json::from_str(text).map_err(|e| ParamsError::Json {
-            source_name: source.to_string(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
-        Ok(match (parsed.vehicle, parsed.nominal) {
-            (Some(v), _) => Some(EstimateVehicle::of(&v)),
-            (None, Some(n)) => Some(EstimateVehicle {
-                name: None,
-                nominal_circumference_m: n.circumference_m,
-                track_width_m: n.track_width_m,
-                wheelbase_m: None,
-                ticks_per_rev: None,
-            }),
-            (None, None) => None,
-        })
+        let parsed: MadeForFields =
+            serde_json::from_str(text).map_err(|e| json_error(&e, source))?;
+        Ok(made_for(parsed.vehicle.as_ref(), parsed.nominal.as_ref()))
     }
 
     /// The identity of `vehicle`.

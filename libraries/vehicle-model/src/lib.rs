@@ -12,6 +12,8 @@
 //!   (`vehicle.toml`'s nominal values, the calibrator's JSON, the wire
 //!   [`CircumferenceEstimate`](interfaces::wire::CircumferenceEstimate)),
 //!   with the model extensions the calibrator fitted.
+//! - [`estimate_file`]: the estimate file, one serde type that the
+//!   calibrator writes (`calibrate --json`) and the odometry reads.
 //! - [`estimate_vehicle`]: the vehicle an estimate was made for, and how
 //!   it differs from a drive's (the warning when one is applied to another).
 //! - [`estimate_gate`]: what an estimate from the bus must satisfy before the
@@ -22,6 +24,7 @@
 
 pub mod effects;
 pub mod estimate;
+pub mod estimate_file;
 pub mod estimate_gate;
 pub mod estimate_vehicle;
 pub mod two_wheel;

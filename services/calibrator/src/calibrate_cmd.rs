@@ -9,6 +9,8 @@ use calibrator::{
 use clap::{Args, ValueEnum};
 use std::io::{IsTerminal as _, Write as _};
 use std::path::{Path, PathBuf};
+use vehicle_model::effects::EffectTerms;
+use vehicle_model::estimate_file::EstimateFile;
 
 /// `--method`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -291,25 +293,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         None
     };
     if let Some(path) = &args.json {
-        // What reading the files said belongs with the result too.
-        let mut with_reading = cal.clone();
-        with_reading.warnings.extend(
-            reading
-                .iter()
-                .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
-        );
-        let mut value =
-            serde_json::to_value(&with_reading).context("cannot encode the calibration as JSON")?;
-        if let (Some(terms), Some(obj)) = (effects, value.as_object_mut()) {
-            obj.insert(
-                "effects".to_string(),
-                serde_json::to_value(terms).context("cannot encode the effect terms")?,
-            );
-        }
-        let text = serde_json::to_string_pretty(&value)
-            .context("cannot encode the calibration as JSON")?;
-        std::fs::write(path, text + "\n")
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        write_estimate_file(path, &estimate_file(&cal, &reading, effects)?)?;
         println!("wrote {}", path.display());
     }
     let provenance = export::Provenance {
@@ -346,6 +330,35 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The estimate file of `cal` (what `--json` writes): the calibration,
+/// what reading the drive said among its warnings, and the effect terms of
+/// the diagnosis when it ran (`effects`).
+fn estimate_file(
+    cal: &calibrator::Calibration,
+    reading: &[String],
+    effects: Option<EffectTerms>,
+) -> Result<EstimateFile> {
+    // What reading the files said belongs with the result too.
+    let mut with_reading = cal.clone();
+    with_reading.warnings.extend(
+        reading
+            .iter()
+            .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
+    );
+    let mut file = EstimateFile::from_report(&with_reading)
+        .context("cannot encode the calibration as JSON")?;
+    file.effects = effects;
+    Ok(file)
+}
+
+/// Write `file` to `path`.
+fn write_estimate_file(path: &Path, file: &EstimateFile) -> Result<()> {
+    let text = file
+        .to_json_string()
+        .context("cannot encode the calibration as JSON")?;
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))
+}
+
 fn write_plots(
     dir: &Path,
     cal: &calibrator::Calibration,
@@ -364,4 +377,119 @@ fn write_plots(
         .with_context(|| format!("cannot write {}", path.display()))?;
     println!("wrote {} and {} figures", path.display(), figures.len());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calibrator::{calibrate, Calibration};
+    use simulator::{simulate, Scenario, SimConfig};
+    use vehicle_model::effects::WheelEffects;
+    use vehicle_model::estimate::StreamClocks;
+    use vehicle_model::estimate_vehicle::EstimateVehicle;
+
+    /// The estimate file as `--json` wrote it before it had a type: the
+    /// calibration's JSON with `effects` patched in.
+    fn untyped_writer(
+        cal: &Calibration,
+        reading: &[String],
+        effects: Option<EffectTerms>,
+    ) -> String {
+        let mut with_reading = cal.clone();
+        with_reading.warnings.extend(
+            reading
+                .iter()
+                .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
+        );
+        let mut value = serde_json::to_value(&with_reading).expect("encoded");
+        if let (Some(terms), Some(obj)) = (effects, value.as_object_mut()) {
+            obj.insert(
+                "effects".to_string(),
+                serde_json::to_value(terms).expect("encoded"),
+            );
+        }
+        serde_json::to_string_pretty(&value).expect("encoded") + "\n"
+    }
+
+    /// The clocks the odometry must apply: the offsets and drifts the
+    /// calibration applied.
+    fn applied_clocks(cal: &Calibration) -> StreamClocks {
+        let offset = |o: &calibrator::StreamOffset| o.offset_s.filter(|_| o.applied).unwrap_or(0.0);
+        let drift = |o: &calibrator::StreamOffset| match (
+            o.drift.applied,
+            o.drift.drift_ppm,
+            o.drift.ref_t_s,
+        ) {
+            (true, Some(p), Some(r)) => (p, r),
+            _ => (0.0, 0.0),
+        };
+        let (g, i) = (&cal.clock_offsets.gnss_s, &cal.clock_offsets.imu_s);
+        StreamClocks {
+            gnss_late_s: offset(g),
+            imu_late_s: offset(i),
+            gnss_drift_ppm: drift(g).0,
+            imu_drift_ppm: drift(i).0,
+            gnss_ref_t_s: drift(g).1,
+            imu_ref_t_s: drift(i).1,
+        }
+    }
+
+    #[test]
+    fn the_estimate_file_written_here_is_what_the_odometry_reads() {
+        let mut sim = SimConfig::new(Scenario::Paper, 3);
+        sim.duration_s = Some(600.0);
+        let drive = simulate(&sim).expect("simulated");
+        let cal = calibrate(&drive, &CalibrationConfig::default()).expect("calibrated");
+        let reading = vec!["wheels.csv: 2 rows skipped".to_string()];
+        let terms = EffectTerms {
+            k_beta: 4e-3,
+            k_z: 5e-5,
+            track_rel: 0.02,
+            drift_d: -1e-3,
+            drift_time_constant_s: 600.0,
+            gnss_latency_s: 0.08,
+            ..EffectTerms::default()
+        };
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        for effects in [Some(terms), None] {
+            let path = dir.path().join("est.json");
+            let file = estimate_file(&cal, &reading, effects).expect("an estimate file");
+            write_estimate_file(&path, &file).expect("written");
+            // The odometry's reader (`odometry evaluate --estimate`, `serve --estimate`).
+            let (est, made_for) = drive_io::read_estimate_with_vehicle(&path).expect("read");
+            let p = est.params;
+            assert_eq!(
+                (p.two_wheel.c_rl, p.two_wheel.c_rr, p.two_wheel.track_width),
+                (
+                    cal.circumference_m.rl,
+                    cal.circumference_m.rr,
+                    cal.track_width_m
+                )
+            );
+            assert_eq!(p.gyro_bias_rad_s, cal.gyro_bias_rad_s.unwrap_or(0.0));
+            assert_eq!(p.gyro_scale, cal.gyro_scale.unwrap_or(0.0));
+            assert_eq!(est.sigma_m, cal.sigma_m.rl.zip(cal.sigma_m.rr));
+            let gyro = cal.gyro.as_ref();
+            assert_eq!(
+                est.antenna_m,
+                gyro.map(|g| g.antenna_m).or(cal.gnss_antenna_m)
+            );
+            assert_eq!(
+                est.antenna_sigma_m,
+                gyro.map(|g| g.sigma_antenna_m).or(cal.sigma_gnss_antenna_m)
+            );
+            assert_eq!(est.clocks, applied_clocks(&cal));
+            assert_eq!(
+                est.effects,
+                effects.map(WheelEffects::from).unwrap_or_default()
+            );
+            assert_eq!(made_for, Some(EstimateVehicle::of(&drive.vehicle)));
+            // The file on disk is, byte for byte, what the untyped writer wrote.
+            let text = std::fs::read_to_string(&path).expect("read back");
+            assert_eq!(text, untyped_writer(&cal, &reading, effects));
+            // And it reads back into the same type unchanged.
+            let again = EstimateFile::from_json_str(&text, "est.json").expect("parsed");
+            assert_eq!(again, file);
+        }
+    }
 }

@@ -20,6 +20,7 @@
 //! sets its window (default 1 s; 0: late fixes applied when they come).
 
 use anyhow::{bail, Result};
+use interfaces::drive::{Drive, TruthSample};
 use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
@@ -28,6 +29,7 @@ use odometry::inputs::{drive_inputs, gnss_late, sort_by_delivery};
 use odometry::rewind::{RewindConfig, RewindingFusion};
 use std::path::PathBuf;
 use vehicle_model::estimate::gnss_lever_arm;
+use vehicle_model::two_wheel::Pose2;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -42,62 +44,20 @@ fn main() -> Result<()> {
     let estimate = args
         .get(2)
         .map(|p| drive_io::read_estimate(&PathBuf::from(p)))
-        .transpose()?;
-    let config = FusionConfig {
-        odometer: OdometerConfig {
-            heading,
-            ..OdometerConfig::default()
-        },
-        ..FusionConfig::default()
-    };
-    let estimate = estimate.map(|mut e| {
-        if std::env::var("FUSION_NO_ANTENNA").is_ok_and(|v| v == "1") {
-            e.antenna_m = None;
-        }
-        e
-    });
+        .transpose()?
+        .map(|mut e| {
+            if std::env::var("FUSION_NO_ANTENNA").is_ok_and(|v| v == "1") {
+                e.antenna_m = None;
+            }
+            e
+        });
     let (lever_arm_m, measured) = gnss_lever_arm(&drive.vehicle, estimate.as_ref());
-    let config = FusionConfig {
-        lever_arm_m,
-        lever_arm_from_estimates: !measured,
-        ..config
-    };
     let at_antenna = match std::env::var("FUSION_TRUTH_POINT").as_deref() {
         Ok("antenna") => true,
         Ok("axle") | Err(_) => false,
         Ok(other) => bail!("FUSION_TRUTH_POINT={other}: expected axle or antenna"),
     };
-    // The point of a pose that the truth describes.
-    let scored = |fusion: &Fusion, pose: &vehicle_model::two_wheel::Pose2| {
-        let arm = if at_antenna {
-            fusion.lever_arm()
-        } else {
-            [0.0, 0.0]
-        };
-        pose.point_at(arm)
-    };
-    // Tuning experiments: FUSION_DS (distance white noise fraction), FUSION_MINSIG
-    // (smallest GNSS sigma, m), FUSION_GYRO (angle random walk, rad/sqrt(s)),
-    // FUSION_SCALE_SIGMA (1-sigma of the distance scale error of calibrated
-    // wheels, the filter's consider state), FUSION_WHEEL_DIFF_SIGMA (of their
-    // relative circumference error).
-    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
-    let mut config = config;
-    if let Some(v) = env("FUSION_DS") {
-        config.distance_noise_frac = v;
-    }
-    if let Some(v) = env("FUSION_MINSIG") {
-        config.min_gnss_sigma_m = v;
-    }
-    if let Some(v) = env("FUSION_GYRO") {
-        config.gyro_noise_rad_per_sqrt_s = v;
-    }
-    if let Some(v) = env("FUSION_SCALE_SIGMA") {
-        config.distance_scale_sigma = v;
-    }
-    if let Some(v) = env("FUSION_WHEEL_DIFF_SIGMA") {
-        config.wheel_difference_sigma = v;
-    }
+    let config = fusion_config(heading, lever_arm_m, measured);
     let new_fusion = || match &estimate {
         Some(e) => Fusion::new(e.params, 0, config),
         None => Fusion::nominal(&drive.vehicle, config),
@@ -121,12 +81,99 @@ fn main() -> Result<()> {
     );
     let params = *filter.fusion().params();
     let truth = drive.truth.clone().unwrap_or_default();
+    let (counts, errors) = run_filter(&mut filter, &drive, &truth, gnss_late_s, at_antenna)?;
+    let s = filter.fusion().stats();
+    println!("heading {heading}, parameters {params}");
+    if gnss_late_s > 0.0 {
+        println!(
+            "fixes delivered {gnss_late_s} s late, rewind window {} s: {:?}",
+            rewind.window_s,
+            filter.stats()
+        );
+    }
+    println!(
+        "poses: NoFix {}, Fused {}, DeadReckoning {}",
+        counts[0], counts[1], counts[2]
+    );
+    println!("{s:?}");
+    print_errors(&errors);
+    if let Some(length) = env("FUSION_OUTAGE") {
+        print_outages(&drive, &truth, &new_fusion, length, at_antenna)?;
+    }
+    Ok(())
+}
+
+/// A number from the environment variable `k`, when set and a number.
+fn env(k: &str) -> Option<f64> {
+    std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok())
+}
+
+/// The filter's configuration: `heading`, the GNSS antenna (`measured`:
+/// from `vehicle.toml`, else estimates may bring theirs), and the tuning
+/// experiments of the environment: FUSION_DS (distance white noise
+/// fraction), FUSION_MINSIG (smallest GNSS sigma, m), FUSION_GYRO (angle
+/// random walk, rad/sqrt(s)), FUSION_SCALE_SIGMA (1-sigma of the distance
+/// scale error of calibrated wheels, the filter's consider state),
+/// FUSION_WHEEL_DIFF_SIGMA (of their relative circumference error).
+fn fusion_config(heading: HeadingMode, lever_arm_m: [f64; 2], measured: bool) -> FusionConfig {
+    let mut config = FusionConfig {
+        odometer: OdometerConfig {
+            heading,
+            ..OdometerConfig::default()
+        },
+        lever_arm_m,
+        lever_arm_from_estimates: !measured,
+        ..FusionConfig::default()
+    };
+    if let Some(v) = env("FUSION_DS") {
+        config.distance_noise_frac = v;
+    }
+    if let Some(v) = env("FUSION_MINSIG") {
+        config.min_gnss_sigma_m = v;
+    }
+    if let Some(v) = env("FUSION_GYRO") {
+        config.gyro_noise_rad_per_sqrt_s = v;
+    }
+    if let Some(v) = env("FUSION_SCALE_SIGMA") {
+        config.distance_scale_sigma = v;
+    }
+    if let Some(v) = env("FUSION_WHEEL_DIFF_SIGMA") {
+        config.wheel_difference_sigma = v;
+    }
+    config
+}
+
+/// The point of a pose that the truth describes: the antenna's
+/// (`at_antenna`) or the rear axle's.
+fn scored(fusion: &Fusion, pose: &Pose2, at_antenna: bool) -> [f64; 2] {
+    let arm = if at_antenna {
+        fusion.lever_arm()
+    } else {
+        [0.0, 0.0]
+    };
+    pose.point_at(arm)
+}
+
+/// The poses of each mode and the errors at the truth rows.
+type FilterRun = ([usize; 3], Vec<(PoseMode, f64)>);
+
+/// Every input of `drive` through `filter`, in the order they are
+/// delivered (the fixes `gnss_late_s` after their time): the poses of
+/// each mode, and the error of each pose at a truth row (nearest wheel
+/// sample within 5 ms), with its mode.
+fn run_filter(
+    filter: &mut RewindingFusion,
+    drive: &Drive,
+    truth: &[TruthSample],
+    gnss_late_s: f64,
+    at_antenna: bool,
+) -> Result<FilterRun> {
     let mut counts = [0usize; 3];
     let mut errors = Vec::new();
     let mut ti = 0usize;
     let verbose = std::env::var("FUSION_VERBOSE").is_ok();
     // In the order they are delivered: the fixes `gnss_late_s` after their time.
-    let mut delivered = drive_inputs(&drive)?;
+    let mut delivered = drive_inputs(drive)?;
     sort_by_delivery(&mut delivered, gnss_late(gnss_late_s));
     for input in delivered {
         let before = filter.fusion().stats();
@@ -150,26 +197,18 @@ fn main() -> Result<()> {
             }
             if let Some(r) = truth.get(ti) {
                 if (r.t_s - pose.t_s).abs() <= 0.005 && pose.mode != PoseMode::NoFix {
-                    let [x, y] = scored(filter.fusion(), &pose.pose);
+                    let [x, y] = scored(filter.fusion(), &pose.pose, at_antenna);
                     errors.push((pose.mode, (x - r.x_m).hypot(y - r.y_m)));
                 }
             }
         }
     }
-    let s = filter.fusion().stats();
-    println!("heading {heading}, parameters {params}");
-    if gnss_late_s > 0.0 {
-        println!(
-            "fixes delivered {gnss_late_s} s late, rewind window {} s: {:?}",
-            rewind.window_s,
-            filter.stats()
-        );
-    }
-    println!(
-        "poses: NoFix {}, Fused {}, DeadReckoning {}",
-        counts[0], counts[1], counts[2]
-    );
-    println!("{s:?}");
+    Ok((counts, errors))
+}
+
+/// The median, p90 and largest error of the fused and the dead-reckoned
+/// poses.
+fn print_errors(errors: &[(PoseMode, f64)]) {
     for mode in [PoseMode::Fused, PoseMode::DeadReckoning] {
         let mut e: Vec<f64> = errors
             .iter()
@@ -187,42 +226,50 @@ fn main() -> Result<()> {
             );
         }
     }
-    if let Some(length) = env("FUSION_OUTAGE") {
-        let config = FusedOutageConfig {
-            length_s: length,
-            at_antenna,
-            ..FusedOutageConfig::default()
-        };
-        let outages = fused_outages(&drive_inputs(&drive)?, &truth, &new_fusion, &config)?;
-        for o in &outages {
-            let end = o.t_start_s + length;
-            match o.error_m {
-                Some(e) if o.counted() => println!(
-                    "outage {:.1}-{end:.1} s: error {e:.3} m at its end (chi-square {})",
-                    o.t_start_s,
-                    o.error_chi2.map_or("-".to_string(), |c| format!("{c:.2}"))
-                ),
-                Some(e) => println!(
-                    "outage {:.1}-{end:.1} s: error {e:.3} m at its end; not counted: the filter was \
-                     already dead-reckoning at its start (fixes gated out before it)",
-                    o.t_start_s
-                ),
-                None => println!(
-                    "outage {:.1}-{end:.1} s: not counted (the filter was {:?} at its start, or no truth at its end)",
-                    o.t_start_s, o.mode_at_start
-                ),
-            }
+}
+
+/// The filter run once per GNSS outage of `length` s: the error at each
+/// outage's end, their median, and how many end inside the pose's own
+/// 95 % ellipse.
+fn print_outages(
+    drive: &Drive,
+    truth: &[TruthSample],
+    new_fusion: &dyn Fn() -> Fusion,
+    length: f64,
+    at_antenna: bool,
+) -> Result<()> {
+    let config = FusedOutageConfig {
+        length_s: length,
+        at_antenna,
+        ..FusedOutageConfig::default()
+    };
+    let outages = fused_outages(&drive_inputs(drive)?, truth, new_fusion, &config)?;
+    for o in &outages {
+        let end = o.t_start_s + length;
+        match o.error_m {
+            Some(e) if o.counted() => println!(
+                "outage {:.1}-{end:.1} s: error {e:.3} m at its end (chi-square {})",
+                o.t_start_s,
+                o.error_chi2.map_or("-".to_string(), |c| format!("{c:.2}"))
+            ),
+            Some(e) => println!(
+                "outage {:.1}-{end:.1} s: error {e:.3} m at its end; not counted: the filter was \
+                 already dead-reckoning at its start (fixes gated out before it)",
+                o.t_start_s
+            ),
+            None => println!(
+                "outage {:.1}-{end:.1} s: not counted (the filter was {:?} at its start, or no truth at its end)",
+                o.t_start_s, o.mode_at_start
+            ),
         }
-        if let Some(m) = median_error(&outages) {
-            let n = outages.iter().filter(|o| o.counted()).count();
-            println!(
-                "{length} s outages in the filter: median error at the end {m:.3} m ({n} outages)"
-            );
-            let (inside, counted) = inside_95(&outages);
-            println!(
-                "{inside} of {counted} end inside the 95 % ellipse of the pose's own covariance"
-            );
-        }
+    }
+    if let Some(m) = median_error(&outages) {
+        let n = outages.iter().filter(|o| o.counted()).count();
+        println!(
+            "{length} s outages in the filter: median error at the end {m:.3} m ({n} outages)"
+        );
+        let (inside, counted) = inside_95(&outages);
+        println!("{inside} of {counted} end inside the 95 % ellipse of the pose's own covariance");
     }
     Ok(())
 }

@@ -62,24 +62,49 @@ pub fn figures(
     r: &EvaluationReport,
     truth: &[[f64; 2]],
 ) -> Result<Vec<EvaluationFigure>, FigureError> {
+    Ok(vec![
+        EvaluationFigure {
+            file: "outage_errors.svg",
+            name: "Position error through each outage".to_string(),
+            svg: outage_errors_svg(r)?,
+            caption: format!(
+                "The distance between the dead-reckoned and the true position of the scored \
+                 point inside each of the {} outages (read from the truth rows every 1/{} of the \
+                 outage), against the time since the outage's start (the pose taken from the \
+                 truth there). Black: the median \
+                 over the outages at each time; the band holds the middle 80 % of them. The \
+                 dead-reckoning gives no sigma of its own, so the band is the outages' spread, \
+                 not a predicted uncertainty.",
+                r.outages.len(),
+                SPREAD_POINTS - 1
+            ),
+        },
+        EvaluationFigure {
+            file: "outage_end_errors.svg",
+            name: "Error at each outage's end".to_string(),
+            svg: end_errors_svg(r)?,
+            caption: "The score of every outage (its position error at the end) at its start \
+                      time: a run of large errors points at a stretch of the drive the model \
+                      does not carry (slip, a wrong gyro bias, a truth jump)."
+                .to_string(),
+        },
+        EvaluationFigure {
+            file: "track.svg",
+            name: "Track".to_string(),
+            svg: track_svg(r, truth)?,
+            caption: "The truth and every outage's dead-reckoned track, at equal scale on both \
+                      axes."
+                .to_string(),
+        },
+    ])
+}
+
+/// The position error through each outage, against the time since its
+/// start: every outage, their median and their 10-90 % band.
+fn outage_errors_svg(r: &EvaluationReport) -> Result<String, FigureError> {
     let curves = error_curves(r);
     let length = r.outages.iter().map(|o| o.length_s).fold(0.0, f64::max);
-    let mut median = Vec::new();
-    let mut band = Vec::new();
-    for i in 0..SPREAD_POINTS {
-        let t = length * i as f64 / (SPREAD_POINTS - 1) as f64;
-        let v: Vec<f64> = curves.iter().filter_map(|c| at(c, t)).collect();
-        if v.len() >= 3 {
-            if let (Some(m), Some(lo), Some(hi)) = (
-                percentile(&v, 0.5),
-                percentile(&v, 0.1),
-                percentile(&v, 0.9),
-            ) {
-                median.push([t, m]);
-                band.push([t, lo, hi]);
-            }
-        }
-    }
+    let (median, band) = spread(&curves, length);
     let mut errors = Figure::new(
         "Position error through each outage",
         Axis::linear("time since the outage start", "s"),
@@ -108,20 +133,47 @@ pub fn figures(
             .with_mark(Mark::Line { width: 1 })
             .with_opacity(0.35),
     );
-    let errors = errors
+    errors
         .with(Series::line(
             "median over the outages",
             median,
             Colour::BLACK,
         ))
-        .svg()?;
+        .svg()
+}
+
+/// The median `[t, error]` and the 10-90 % band `[t, lo, hi]` of the
+/// error `curves` at [`SPREAD_POINTS`] times over `length` s, where at
+/// least three outages last.
+fn spread(curves: &[Vec<[f64; 2]>], length: f64) -> (Vec<[f64; 2]>, Vec<[f64; 3]>) {
+    let mut median = Vec::new();
+    let mut band = Vec::new();
+    for i in 0..SPREAD_POINTS {
+        let t = length * i as f64 / (SPREAD_POINTS - 1) as f64;
+        let v: Vec<f64> = curves.iter().filter_map(|c| at(c, t)).collect();
+        if v.len() >= 3 {
+            if let (Some(m), Some(lo), Some(hi)) = (
+                percentile(&v, 0.5),
+                percentile(&v, 0.1),
+                percentile(&v, 0.9),
+            ) {
+                median.push([t, m]);
+                band.push([t, lo, hi]);
+            }
+        }
+    }
+    (median, band)
+}
+
+/// The error at each outage's end against its start time, with the median.
+fn end_errors_svg(r: &EvaluationReport) -> Result<String, FigureError> {
     let t0 = r.outages.first().map_or(0.0, |o| o.t_start_s);
     let ends: Vec<[f64; 2]> = r
         .outages
         .iter()
         .map(|o| [o.t_start_s - t0, o.error_m])
         .collect();
-    let end_errors = Figure::new(
+    Figure::new(
         "Error at each outage's end, along the drive",
         Axis::linear("outage start, time since the first outage", "s"),
         Axis::linear("position error at the outage end", "m"),
@@ -137,13 +189,17 @@ pub fn figures(
         },
         Colour::BLACK,
     ))
-    .svg()?;
+    .svg()
+}
+
+/// The truth track and every outage's dead-reckoned track.
+fn track_svg(r: &EvaluationReport, truth: &[[f64; 2]]) -> Result<String, FigureError> {
     let tracks: Vec<Vec<[f64; 2]>> = r
         .outages
         .iter()
         .map(|o| o.track.iter().map(|p| p.dead_reckoned_m).collect())
         .collect();
-    let map = Figure::new(
+    Figure::new(
         "Track: dead-reckoned outages on the truth",
         Axis::linear("east", "m"),
         Axis::linear("north", "m"),
@@ -159,42 +215,7 @@ pub fn figures(
         .with_opacity(0.7),
     )
     .map((900, 800))
-    .svg()?;
-    Ok(vec![
-        EvaluationFigure {
-            file: "outage_errors.svg",
-            name: "Position error through each outage".to_string(),
-            svg: errors,
-            caption: format!(
-                "The distance between the dead-reckoned and the true position of the scored \
-                 point inside each of the {} outages (read from the truth rows every 1/{} of the \
-                 outage), against the time since the outage's start (the pose taken from the \
-                 truth there). Black: the median \
-                 over the outages at each time; the band holds the middle 80 % of them. The \
-                 dead-reckoning gives no sigma of its own, so the band is the outages' spread, \
-                 not a predicted uncertainty.",
-                r.outages.len(),
-                SPREAD_POINTS - 1
-            ),
-        },
-        EvaluationFigure {
-            file: "outage_end_errors.svg",
-            name: "Error at each outage's end".to_string(),
-            svg: end_errors,
-            caption: "The score of every outage (its position error at the end) at its start \
-                      time: a run of large errors points at a stretch of the drive the model \
-                      does not carry (slip, a wrong gyro bias, a truth jump)."
-                .to_string(),
-        },
-        EvaluationFigure {
-            file: "track.svg",
-            name: "Track".to_string(),
-            svg: map,
-            caption: "The truth and every outage's dead-reckoned track, at equal scale on both \
-                      axes."
-                .to_string(),
-        },
-    ])
+    .svg()
 }
 
 /// The page of evaluation `r` of the drive named `drive`, with the

@@ -124,22 +124,43 @@ pub(crate) fn write_mcap(
     options: &WriteOptions,
 ) -> Result<(), DriveError> {
     let file = std::fs::File::create(path).map_err(|e| DriveError::io(path, e))?;
-    let err = |what: &str| {
-        let path = path.to_path_buf();
-        let what = what.to_string();
-        move |e: mcap::McapError| DriveError::Mcap {
-            path: path.clone(),
-            location: what.clone(),
-            message: e.to_string(),
-        }
-    };
     let mut writer = mcap::WriteOptions::new()
         .compression(None)
         .profile("")
         .create(BufWriter::new(file))
-        .map_err(err("writing the header"))?;
+        .map_err(mcap_error(path, "writing the header"))?;
+    let (streams, offset_ns) = streams_of(drive, options);
+    write_metadata(&mut writer, path, drive, offset_ns)?;
+    let channel_ids = add_channels(&mut writer, path, &streams)?;
+    write_messages(&mut writer, path, &streams, &channel_ids, offset_ns)?;
+    writer
+        .finish()
+        .map_err(mcap_error(path, "writing the summary"))?;
+    Ok(())
+}
 
-    // The streams present, in channel order.
+/// The MCAP writer of a recording file.
+type McapWriter = mcap::Writer<BufWriter<std::fs::File>>;
+
+/// An MCAP error while writing `path`, at `what`, as a [`DriveError`].
+fn mcap_error(path: &Path, what: &str) -> impl Fn(mcap::McapError) -> DriveError {
+    let path = path.to_path_buf();
+    let what = what.to_string();
+    move |e: mcap::McapError| DriveError::Mcap {
+        path: path.clone(),
+        location: what.clone(),
+        message: e.to_string(),
+    }
+}
+
+/// The channels to write, in channel order: the drive's streams present,
+/// Foxglove's (when asked), and what the services served; and the
+/// log-time offset, ns, that the earliest sample time of the drive's
+/// streams sets.
+fn streams_of<'a>(
+    drive: &'a Drive,
+    options: &'a WriteOptions,
+) -> (Vec<Box<dyn Outgoing + 'a>>, u64) {
     let units = drive.wheels.units;
     let wheels = WheelsOut {
         units,
@@ -169,7 +190,18 @@ pub(crate) fn write_mcap(
             offset_ns,
         ));
     }
-    // What the services served while the drive was recorded.
+    streams.extend(served_streams(drive, options, offset_ns));
+    (streams, offset_ns)
+}
+
+/// What the services served while the drive was recorded: the poses (also
+/// in Foxglove's schemas when asked) and the estimates.
+fn served_streams<'a>(
+    drive: &'a Drive,
+    options: &'a WriteOptions,
+    offset_ns: u64,
+) -> Vec<Box<dyn Outgoing + 'a>> {
+    let mut streams: Vec<Box<dyn Outgoing + 'a>> = Vec::new();
     if !options.poses.is_empty() {
         streams.push(Box::new(super::served::PoseOut(&options.poses)));
         if options.foxglove {
@@ -193,6 +225,19 @@ pub(crate) fn write_mcap(
     if !options.estimates.is_empty() {
         streams.push(Box::new(super::served::EstimateOut(&options.estimates)));
     }
+    streams
+}
+
+/// The recording's metadata: the drive's (format, tool, wheel units,
+/// log-time offset), its `vehicle.toml` and, when it has one, its
+/// `truth.toml`.
+fn write_metadata(
+    writer: &mut McapWriter,
+    path: &Path,
+    drive: &Drive,
+    offset_ns: u64,
+) -> Result<(), DriveError> {
+    let err = || mcap_error(path, "writing metadata");
     let mut drive_meta = BTreeMap::new();
     drive_meta.insert("format".to_string(), FORMAT_MAGIC.to_string());
     drive_meta.insert("format_version".to_string(), FORMAT_VERSION.to_string());
@@ -201,42 +246,62 @@ pub(crate) fn write_mcap(
         "tool_version".to_string(),
         env!("CARGO_PKG_VERSION").to_string(),
     );
-    drive_meta.insert(WHEEL_UNITS_KEY.to_string(), wheel_units_text(&units));
+    drive_meta.insert(
+        WHEEL_UNITS_KEY.to_string(),
+        wheel_units_text(&drive.wheels.units),
+    );
     drive_meta.insert("log_time_offset_ns".to_string(), offset_ns.to_string());
     writer
         .write_metadata(&Metadata {
             name: DRIVE_METADATA.to_string(),
             metadata: drive_meta,
         })
-        .map_err(err("writing metadata"))?;
+        .map_err(err())?;
     writer
         .write_metadata(&Metadata {
             name: VEHICLE_METADATA.to_string(),
             metadata: BTreeMap::from([(VEHICLE_KEY.to_string(), vehicle_toml(&drive.vehicle)?)]),
         })
-        .map_err(err("writing metadata"))?;
+        .map_err(err())?;
     if let Some(p) = &drive.truth_params {
         writer
             .write_metadata(&Metadata {
                 name: TRUTH_METADATA.to_string(),
                 metadata: BTreeMap::from([(TRUTH_KEY.to_string(), truth_toml(p)?)]),
             })
-            .map_err(err("writing metadata"))?;
+            .map_err(err())?;
     }
+    Ok(())
+}
 
+/// One schema and channel per stream; their channel ids, in stream order.
+fn add_channels(
+    writer: &mut McapWriter,
+    path: &Path,
+    streams: &[Box<dyn Outgoing + '_>],
+) -> Result<Vec<u16>, DriveError> {
     let mut channel_ids = Vec::with_capacity(streams.len());
-    for s in &streams {
+    for s in streams {
         let topic = s.topic();
         let schema_id = writer
             .add_schema(s.schema_name(), "jsonschema", &s.schema())
-            .map_err(err(topic))?;
+            .map_err(mcap_error(path, topic))?;
         let channel_id = writer
             .add_channel(schema_id, topic, "json", &s.metadata())
-            .map_err(err(topic))?;
+            .map_err(mcap_error(path, topic))?;
         channel_ids.push(channel_id);
     }
+    Ok(channel_ids)
+}
 
-    // Every message in time order across channels, for playback.
+/// Every message in time order across channels, for playback.
+fn write_messages(
+    writer: &mut McapWriter,
+    path: &Path,
+    streams: &[Box<dyn Outgoing + '_>],
+    channel_ids: &[u16],
+    offset_ns: u64,
+) -> Result<(), DriveError> {
     // (log time, stream, index within the stream)
     let mut order: Vec<(u64, u8, u32)> = Vec::new();
     for (stream, s) in streams.iter().enumerate() {
@@ -276,9 +341,8 @@ pub(crate) fn write_mcap(
                 },
                 &buf,
             )
-            .map_err(err("writing a message"))?;
+            .map_err(mcap_error(path, "writing a message"))?;
         *seq = seq.wrapping_add(1);
     }
-    writer.finish().map_err(err("writing the summary"))?;
     Ok(())
 }

@@ -64,36 +64,7 @@ pub(super) fn run_outage(
         (Some(a), Some(b)) => (a, b),
         _ => return Err("no truth arc length".into()),
     };
-    let (start, yaw, yaw_source) = if let Some(y) = truth.yaw_at(t0) {
-        (start, y, "truth_yaw")
-    } else if let Some((position, y)) = aligned {
-        let after = truth.arc_at(t0).is_some_and(|s0| {
-            alignment_window(truth, config, t0, s0).is_some_and(|(ta, _)| ta == t0)
-        });
-        let source = if after {
-            "truth_track_alignment_after"
-        } else {
-            "truth_track_alignment"
-        };
-        (position, y, source)
-    } else {
-        (
-            start,
-            // Widen the window where the truth is sparse (e.g. at a drive's start).
-            [1.0, 2.0, 4.0]
-                .iter()
-                .find_map(|k| {
-                    course_at(
-                        truth.rows,
-                        &truth.arc_m,
-                        s0,
-                        k * config.course_half_window_m,
-                    )
-                })
-                .ok_or("the truth track does not move enough around the start to give a course")?,
-            "truth_course",
-        )
-    };
+    let (start, yaw, yaw_source) = start_pose(truth, config, aligned, start, t0, s0)?;
     // The rear-axle pose whose truth point is at the truth.
     let arm = Pose2 {
         x: 0.0,
@@ -119,19 +90,11 @@ pub(super) fn run_outage(
         .map(|(_, p)| *p)
         .ok_or("empty dead-reckoning")?;
     let end_point = pose.point_at(config.truth_point.point_m);
-    let mut track = Vec::new();
-    if config.keep_tracks {
-        let first = truth.rows.partition_point(|r| r.t_s < t0);
-        for r in truth.rows[first..].iter().take_while(|r| r.t_s <= t1) {
-            if let Some(d) = track_position_at(&span.track, r.t_s, config.truth_point.point_m) {
-                track.push(TrackPoint {
-                    t_s: r.t_s,
-                    dead_reckoned_m: d,
-                    truth_m: [r.x_m, r.y_m],
-                });
-            }
-        }
-    }
+    let track = if config.keep_tracks {
+        kept_track(truth, &span.track, config.truth_point.point_m, t0, t1)
+    } else {
+        Vec::new()
+    };
     let error_m = (end_point[0] - end[0]).hypot(end_point[1] - end[1]);
     let distance_m = s1 - s0;
     Ok(OutageResult {
@@ -150,4 +113,69 @@ pub(super) fn run_outage(
         gyro_bias_standstills: span.gyro_bias_standstills,
         track,
     })
+}
+
+/// Where an outage at `t0` (truth arc length `s0`) starts: the truth
+/// position (`start`) with the truth's yaw; else the pose aligned on the
+/// truth track (`aligned`); else the truth position with the course of
+/// the truth track. Returns the position, the yaw and where the yaw came
+/// from.
+fn start_pose(
+    truth: &TruthTrack<'_>,
+    config: &EvaluateConfig,
+    aligned: Option<([f64; 2], f64)>,
+    start: [f64; 2],
+    t0: f64,
+    s0: f64,
+) -> Result<([f64; 2], f64, &'static str), String> {
+    if let Some(y) = truth.yaw_at(t0) {
+        return Ok((start, y, "truth_yaw"));
+    }
+    if let Some((position, y)) = aligned {
+        let after = truth.arc_at(t0).is_some_and(|s0| {
+            alignment_window(truth, config, t0, s0).is_some_and(|(ta, _)| ta == t0)
+        });
+        let source = if after {
+            "truth_track_alignment_after"
+        } else {
+            "truth_track_alignment"
+        };
+        return Ok((position, y, source));
+    }
+    // Widen the window where the truth is sparse (e.g. at a drive's start).
+    let course = [1.0, 2.0, 4.0]
+        .iter()
+        .find_map(|k| {
+            course_at(
+                truth.rows,
+                &truth.arc_m,
+                s0,
+                k * config.course_half_window_m,
+            )
+        })
+        .ok_or("the truth track does not move enough around the start to give a course")?;
+    Ok((start, course, "truth_course"))
+}
+
+/// The dead-reckoned `track` (at body point `point_m`) beside the truth at
+/// every truth row from `t0` to `t1`.
+fn kept_track(
+    truth: &TruthTrack<'_>,
+    track: &[(f64, Pose2)],
+    point_m: [f64; 2],
+    t0: f64,
+    t1: f64,
+) -> Vec<TrackPoint> {
+    let first = truth.rows.partition_point(|r| r.t_s < t0);
+    truth.rows[first..]
+        .iter()
+        .take_while(|r| r.t_s <= t1)
+        .filter_map(|r| {
+            track_position_at(track, r.t_s, point_m).map(|d| TrackPoint {
+                t_s: r.t_s,
+                dead_reckoned_m: d,
+                truth_m: [r.x_m, r.y_m],
+            })
+        })
+        .collect()
 }

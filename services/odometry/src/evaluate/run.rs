@@ -6,17 +6,17 @@ use super::alignment::aligned_start;
 use super::config::EvaluateConfig;
 use super::dead_reckon::{snapshots, Snapshot};
 use super::error::EvaluateError;
-use super::outage::{place_outages, run_outage};
-use super::report::{EvaluationReport, ParamsReport};
+use super::outage::{place_outages, run_outage, PlacedOutage};
+use super::report::{EvaluationReport, OutageResult, ParamsReport};
 use super::truth_point::truth_is_the_gnss_track;
 use super::truth_track::{
     truth_yaw_offset, TruthTrack, TRUTH_YAW_OFFSET_LIMIT_RAD, YAW_CHECK_STRETCH_M,
 };
 use super::wheel_clock;
 use crate::dead_reckoning::HeadingMode;
-use crate::inputs::drive_inputs;
+use crate::inputs::{drive_inputs, Input};
 use drive_io::plausibility::{self, Finding};
-use interfaces::drive::{Drive, WheelRevs};
+use interfaces::drive::{Drive, TruthSample, WheelRevs};
 use stats::percentile;
 use std::borrow::Cow;
 use vehicle_model::estimate::OdometryParams;
@@ -27,6 +27,64 @@ pub fn evaluate(
     params: &OdometryParams,
     config: &EvaluateConfig,
 ) -> Result<EvaluationReport, EvaluateError> {
+    let truth_rows = check_request(drive, params, config)?;
+    // The streams on the GNSS clock (truth.csv's), as the calibration found them.
+    let drive = on_the_gnss_clock(drive, config);
+    // The drive as the calibrator reads it: glitches set aside, what is
+    // impossible refused, what is doubtful said (the same checks and words).
+    let mut warnings = Vec::new();
+    let (repaired, pauses, stuck_gyro) = checked(&drive, &mut warnings)?;
+    let holes = holes(&pauses, &stuck_gyro, config)?;
+    let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
+    let (drive, revs) = on_the_truth_clock(&repaired, &truth, params, &mut warnings)?;
+    let inputs = drive_inputs(&drive)?;
+    let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
+    judge_truth_yaw(yaw_offset, &mut truth, &mut warnings);
+    let (t_from, t_to) = scored_span(&revs, truth_rows, config)?;
+    let windows = place_outages(&truth, config, t_from, t_to);
+    let starts = StartStates::new(&revs, &inputs, params, config, &windows);
+    if starts.skipped > 0 {
+        warnings.push(format!(
+            "{} wheel or IMU samples with bad values or times skipped",
+            starts.skipped
+        ));
+    }
+    let scoring = Scoring {
+        truth: &truth,
+        revs: &revs,
+        inputs: &inputs,
+        config,
+        starts: &starts,
+    };
+    let outages = scoring.score(&windows, &holes, &mut warnings);
+    if outages.is_empty() {
+        return Err(EvaluateError::NothingScored(warnings.join("; ")));
+    }
+    let errors: Vec<f64> = outages.iter().map(|o| o.error_m).collect();
+    let pcts: Vec<f64> = outages.iter().filter_map(|o| o.error_pct).collect();
+    Ok(EvaluationReport {
+        median_error_m: percentile(&errors, 0.5).unwrap_or(f64::NAN),
+        p90_error_m: percentile(&errors, 0.9).unwrap_or(f64::NAN),
+        median_error_pct: percentile(&pcts, 0.5),
+        outages,
+        heading: config.odometer.heading.name(),
+        params: ParamsReport::from(params),
+        truth_yaw_offset_rad: yaw_offset.map(|(offset, _)| offset),
+        truth_yaw_used: truth.use_yaw && truth_rows.iter().any(|r| r.yaw_rad.is_some()),
+        truth_point: config.truth_point,
+        truth_is_gnss_track: truth_is_the_gnss_track(&drive),
+        warnings,
+    })
+}
+
+/// What an evaluation needs before it looks at the drive: positive outage
+/// and spacing, valid parameters, a truth track, and an IMU when the gyro
+/// heads; returns the truth's rows.
+fn check_request<'a>(
+    drive: &'a Drive,
+    params: &OdometryParams,
+    config: &EvaluateConfig,
+) -> Result<&'a [TruthSample], EvaluateError> {
     if !(config.outage_s > 0.0 && config.spacing_s > 0.0) {
         return Err(EvaluateError::Config(format!(
             "outage ({} s) and spacing ({} s) must be positive",
@@ -45,29 +103,40 @@ pub fn evaluate(
     {
         return Err(EvaluateError::NoImu);
     }
-    // The streams on the GNSS clock (truth.csv's), as the calibration found them.
-    let aligned;
-    let drive = if config.clocks.is_zero() {
-        drive
+    Ok(truth_rows)
+}
+
+/// The drive with its streams on the GNSS clock by the estimate's clocks
+/// (`config.clocks`; as it is when they are zero).
+fn on_the_gnss_clock<'a>(drive: &'a Drive, config: &EvaluateConfig) -> Cow<'a, Drive> {
+    if config.clocks.is_zero() {
+        Cow::Borrowed(drive)
     } else {
         let mut d = drive.clone();
         config.clocks.align(&mut d);
-        aligned = d;
-        &aligned
-    };
-    // The drive as the calibrator reads it: glitches set aside, what is
-    // impossible refused, what is doubtful said (the same checks and words).
-    let mut warnings = Vec::new();
-    let (repaired, pauses, stuck_gyro) = checked(drive, &mut warnings)?;
-    // A dead gyro heads nothing: refused in gyro heading mode when dead for
-    // the whole drive, its stretch left out otherwise.
+        Cow::Owned(d)
+    }
+}
+
+/// A stretch no outage may cross: start, end, s, and what is wrong there.
+type Hole = (f64, f64, &'static str);
+
+/// Where nothing dead-reckons: the pauses of the wheel stream and, in gyro
+/// heading mode, where the gyro is stuck. A dead gyro heads nothing: the
+/// evaluation is refused in gyro heading mode when it is dead for the
+/// whole drive.
+fn holes(
+    pauses: &Stretches,
+    stuck_gyro: &StuckGyro,
+    config: &EvaluateConfig,
+) -> Result<Vec<Hole>, EvaluateError> {
     let gyro_heading = config.odometer.heading == HeadingMode::Gyro;
     if gyro_heading {
         if let Some(f) = stuck_gyro.iter().find_map(|(_, _, whole)| whole.as_ref()) {
             return Err(EvaluateError::DeadGyro(f.clone()));
         }
     }
-    let holes: Vec<(f64, f64, &str)> = pauses
+    Ok(pauses
         .iter()
         .map(|&(a, b)| (a, b, "the wheel stream pauses"))
         .chain(
@@ -76,34 +145,46 @@ pub fn evaluate(
                 .filter(|_| gyro_heading)
                 .map(|&(a, b, _)| (a, b, "the gyro is stuck (imu.gz_rad_s)")),
         )
-        .collect();
-    let drive: &Drive = &repaired;
-    let mut truth = TruthTrack::new(truth_rows, config.max_truth_gap_s);
-    // The wheels on the truth's clock: a lag the speeds show beyond doubt
-    // is taken out of the wheel time stamps (the estimate's clocks are
-    // already applied above).
+        .collect())
+}
+
+/// The wheels on the truth's clock, and their revolutions: a lag the
+/// speeds show beyond doubt is taken out of the wheel time stamps, and
+/// said (the estimate's clocks are already applied).
+fn on_the_truth_clock<'a>(
+    drive: &'a Drive,
+    truth: &TruthTrack<'_>,
+    params: &OdometryParams,
+    warnings: &mut Vec<String>,
+) -> Result<(Cow<'a, Drive>, Vec<WheelRevs>), EvaluateError> {
     let revs = drive.wheel_revolutions()?;
-    let shifted;
-    let (drive, revs): (&Drive, _) = match wheel_lag(&revs, &truth, params) {
-        Some(lag) => {
-            let mut d = drive.clone();
-            for s in &mut d.wheels.samples {
-                s.t_s -= lag;
-            }
-            warnings.push(format!(
-                "wheels.csv: the wheels' time stamps are {:+.0} ms off truth.csv's (from the speeds of the \
-                 wheels and of the truth track); the wheel times were shifted by {:+.0} ms for the scoring \
-                 (calibrate the drive to find every stream's clock offset)",
-                lag * 1e3,
-                -lag * 1e3
-            ));
-            shifted = d;
-            (&shifted, shifted.wheel_revolutions()?)
-        }
-        None => (drive, revs),
+    let Some(lag) = wheel_lag(&revs, truth, params) else {
+        return Ok((Cow::Borrowed(drive), revs));
     };
-    let inputs = drive_inputs(drive)?;
-    let yaw_offset = truth_yaw_offset(truth_rows, config.max_truth_gap_s);
+    let mut d = drive.clone();
+    for s in &mut d.wheels.samples {
+        s.t_s -= lag;
+    }
+    warnings.push(format!(
+        "wheels.csv: the wheels' time stamps are {:+.0} ms off truth.csv's (from the speeds of the \
+         wheels and of the truth track); the wheel times were shifted by {:+.0} ms for the scoring \
+         (calibrate the drive to find every stream's clock offset)",
+        lag * 1e3,
+        -lag * 1e3
+    ));
+    let revs = d.wheel_revolutions()?;
+    Ok((Cow::Owned(d), revs))
+}
+
+/// The truth's yaw is not used for the start poses when it is off the
+/// course of its own positions beyond [`TRUTH_YAW_OFFSET_LIMIT_RAD`]
+/// (`yaw_offset`: the offset and the straight stretches it is from), and
+/// that is said.
+fn judge_truth_yaw(
+    yaw_offset: Option<(f64, usize)>,
+    truth: &mut TruthTrack<'_>,
+    warnings: &mut Vec<String>,
+) {
     if let Some((offset, stretches)) = yaw_offset {
         if offset.abs() > TRUTH_YAW_OFFSET_LIMIT_RAD {
             truth.use_yaw = false;
@@ -117,7 +198,15 @@ pub fn evaluate(
             ));
         }
     }
+}
 
+/// The span both the wheels and the truth cover, s; an error when it
+/// holds no outage.
+fn scored_span(
+    revs: &[WheelRevs],
+    truth_rows: &[TruthSample],
+    config: &EvaluateConfig,
+) -> Result<(f64, f64), EvaluateError> {
     let (Some(w0), Some(w1)) = (revs.first(), revs.last()) else {
         return Err(EvaluateError::TooShort {
             outage_s: config.outage_s,
@@ -134,87 +223,124 @@ pub fn evaluate(
             to_s: t_to,
         });
     }
-    let windows = place_outages(&truth, config, t_from, t_to);
+    Ok((t_from, t_to))
+}
 
-    // One pass of the odometer over the whole drive, as the service runs it;
-    // every outage (and alignment) starts from a copy of it.
-    let mut starts: Vec<f64> = windows
-        .iter()
-        .flat_map(|w| std::iter::once(w.0).chain(w.2.map(|a| a.0)))
-        .collect();
-    starts.sort_by(f64::total_cmp);
-    starts.dedup();
-    let (snapshots, background_skipped) = snapshots(
-        &revs,
-        &inputs,
-        params,
-        config.odometer,
-        config.effects,
-        &starts,
-    );
-    let snapshot_at = |t: f64| -> Result<&Snapshot, String> {
-        let i = starts.partition_point(|s| *s < t);
-        match snapshots.get(i) {
-            Some(Ok(snap)) if starts[i] == t => Ok(snap),
+/// One pass of the odometer over the whole drive, as the service runs it,
+/// copied at every outage (and alignment) start.
+struct StartStates {
+    /// The start times, sorted, without duplicates.
+    times: Vec<f64>,
+    /// The odometer's state at each, or why there is none.
+    snapshots: Vec<Result<Snapshot, String>>,
+    /// Wheel or IMU samples the pass skipped (bad values or times).
+    skipped: usize,
+}
+
+impl StartStates {
+    fn new(
+        revs: &[WheelRevs],
+        inputs: &[Input],
+        params: &OdometryParams,
+        config: &EvaluateConfig,
+        windows: &[PlacedOutage],
+    ) -> StartStates {
+        let mut times: Vec<f64> = windows
+            .iter()
+            .flat_map(|w| std::iter::once(w.0).chain(w.2.map(|a| a.0)))
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        let (snapshots, skipped) = snapshots(
+            revs,
+            inputs,
+            params,
+            config.odometer,
+            config.effects,
+            &times,
+        );
+        StartStates {
+            times,
+            snapshots,
+            skipped,
+        }
+    }
+
+    /// The odometer's state at start time `t`.
+    fn at(&self, t: f64) -> Result<&Snapshot, String> {
+        let i = self.times.partition_point(|s| *s < t);
+        match self.snapshots.get(i) {
+            Some(Ok(snap)) if self.times[i] == t => Ok(snap),
             Some(Err(e)) => Err(e.clone()),
             _ => Err(format!("no odometer state at {t} s")),
         }
-    };
+    }
+}
 
-    let mut outages = Vec::new();
-    if background_skipped > 0 {
-        warnings.push(format!(
-            "{background_skipped} wheel or IMU samples with bad values or times skipped"
-        ));
-    }
-    for &(t0, t1, align) in &windows {
-        // Nothing dead-reckons across a hole in the wheels or a stuck gyro.
-        let from = align.map_or(t0, |(ta, _)| ta.min(t0));
-        if let Some((p0, p1, what)) = holes.iter().find(|(p0, p1, _)| *p0 < t1 && *p1 > from) {
-            warnings.push(format!(
-                "outage at {t0:.2} s skipped: {what} from {p0:.2} to {p1:.2} s within it"
-            ));
-            continue;
+/// What scoring an outage reads.
+struct Scoring<'a> {
+    truth: &'a TruthTrack<'a>,
+    revs: &'a [WheelRevs],
+    inputs: &'a [Input],
+    config: &'a EvaluateConfig,
+    starts: &'a StartStates,
+}
+
+impl Scoring<'_> {
+    /// Every outage of `windows` scored; one that crosses a hole, or cannot
+    /// be scored, is skipped with a warning that says why.
+    fn score(
+        &self,
+        windows: &[PlacedOutage],
+        holes: &[Hole],
+        warnings: &mut Vec<String>,
+    ) -> Vec<OutageResult> {
+        let mut outages = Vec::new();
+        for &(t0, t1, align) in windows {
+            // Nothing dead-reckons across a hole in the wheels or a stuck gyro.
+            let from = align.map_or(t0, |(ta, _)| ta.min(t0));
+            if let Some((p0, p1, what)) = holes.iter().find(|(p0, p1, _)| *p0 < t1 && *p1 > from) {
+                warnings.push(format!(
+                    "outage at {t0:.2} s skipped: {what} from {p0:.2} to {p1:.2} s within it"
+                ));
+                continue;
+            }
+            match self.one(t0, t1, align) {
+                Ok(result) => outages.push(result),
+                Err(reason) => warnings.push(format!("outage at {t0:.2} s skipped: {reason}")),
+            }
         }
-        let scored = snapshot_at(t0).and_then(|start| {
-            let aligned = align.and_then(|(ta, tb)| {
-                let from = snapshot_at(ta).ok()?;
-                aligned_start(
-                    &truth,
-                    &revs,
-                    &inputs,
-                    from,
-                    config.truth_point.point_m,
-                    ta,
-                    tb,
-                    t0,
-                )
-            });
-            run_outage(&truth, &revs, &inputs, config, start, aligned, t0, t1)
+        outages
+    }
+
+    /// The outage `t0..t1`, started from the truth (aligned on the truth
+    /// track over `align` when it has one).
+    fn one(&self, t0: f64, t1: f64, align: Option<(f64, f64)>) -> Result<OutageResult, String> {
+        let start = self.starts.at(t0)?;
+        let aligned = align.and_then(|(ta, tb)| {
+            let from = self.starts.at(ta).ok()?;
+            aligned_start(
+                self.truth,
+                self.revs,
+                self.inputs,
+                from,
+                self.config.truth_point.point_m,
+                ta,
+                tb,
+                t0,
+            )
         });
-        match scored {
-            Ok(result) => outages.push(result),
-            Err(reason) => warnings.push(format!("outage at {t0:.2} s skipped: {reason}")),
-        }
+        run_outage(
+            self.truth,
+            self.revs,
+            self.inputs,
+            self.config,
+            start,
+            aligned,
+            t0,
+            t1,
+        )
     }
-    if outages.is_empty() {
-        return Err(EvaluateError::NothingScored(warnings.join("; ")));
-    }
-    let errors: Vec<f64> = outages.iter().map(|o| o.error_m).collect();
-    let pcts: Vec<f64> = outages.iter().filter_map(|o| o.error_pct).collect();
-    Ok(EvaluationReport {
-        median_error_m: percentile(&errors, 0.5).unwrap_or(f64::NAN),
-        p90_error_m: percentile(&errors, 0.9).unwrap_or(f64::NAN),
-        median_error_pct: percentile(&pcts, 0.5),
-        outages,
-        heading: config.odometer.heading.name(),
-        params: ParamsReport::from(params),
-        truth_yaw_offset_rad: yaw_offset.map(|(offset, _)| offset),
-        truth_yaw_used: truth.use_yaw && truth_rows.iter().any(|r| r.yaw_rad.is_some()),
-        truth_point: config.truth_point,
-        truth_is_gnss_track: truth_is_the_gnss_track(drive),
-        warnings,
-    })
 }
 
 /// The wheels' clock lag against the truth, when it is beyond doubt
