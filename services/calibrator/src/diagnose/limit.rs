@@ -731,7 +731,10 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
         )));
     }
     let segment_sizes: Vec<usize> = times.iter().map(Vec::len).filter(|n| *n > 0).collect();
-    let z_critical = t_quantile(1.0 - 0.5 * alpha, segment_sizes.len().saturating_sub(1));
+    let z_critical = super::select::t_quantile(
+        1.0 - 0.5 * alpha,
+        segment_sizes.len().saturating_sub(1) as f64,
+    );
     let mut limits = BTreeMap::new();
     let mut noises = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
@@ -935,24 +938,6 @@ fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> 
     Some([e?.1, nn?.1])
 }
 
-/// The quantile `p` of Student's t with `dof` degrees of freedom (the
-/// Cornish-Fisher expansion about the normal quantile: within 1 % from 3
-/// degrees of freedom at the tails used here); the normal quantile with
-/// none given.
-pub fn t_quantile(p: f64, dof: usize) -> f64 {
-    let z = super::select::normal_quantile(p);
-    if dof == 0 {
-        return z;
-    }
-    let n = dof as f64;
-    let (z2, z3) = (z * z, z * z * z);
-    let z5 = z3 * z2;
-    let z7 = z5 * z2;
-    z + (z3 + z) / (4.0 * n)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * n * n)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * n * n * n)
-}
-
 /// The limit of one effect from its profiled information and estimate
 /// (model units).
 fn limit_of(
@@ -1135,24 +1120,5 @@ mod tests {
             InformationSource::PositionsWheelHeading,
         );
         assert!(none.smallest.is_none() && none.estimate.is_none());
-    }
-
-    #[test]
-    fn the_t_quantile_matches_its_table() {
-        // Two-sided 5 % and 1 %, and the family's 0.42 %, against the
-        // published values of Student's t.
-        for (p, dof, t) in [
-            (0.975, 11, 2.201),
-            (0.995, 11, 3.106),
-            (0.975, 4, 2.776),
-            (0.99792, 11, 3.6),
-            (0.975, 1000, 1.962),
-        ] {
-            let q = t_quantile(p, dof);
-            assert!(
-                (q - t).abs() < 0.015 * t,
-                "p {p} dof {dof}: {q} against {t}"
-            );
-        }
     }
 }

@@ -414,6 +414,9 @@ mod tests {
         // t(0.975, 10) = 2.228, t(0.995, 20) = 2.845.
         assert!((t_quantile(0.975, 10.0) - 2.228).abs() < 0.01);
         assert!((t_quantile(0.995, 20.0) - 2.845).abs() < 0.01);
+        // The information limit's critical value: 12 segments, 5 % over
+        // 12 effects two-sided (t(0.99792, 11) = 3.60).
+        assert!((t_quantile(1.0 - 0.025 / 12.0, 11.0) - 3.60).abs() < 0.05);
     }
 
     #[test]
