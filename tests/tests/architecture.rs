@@ -482,8 +482,8 @@ fn the_process_side_is_seen_where_it_is() {
 const STAGES: [&str; 6] = ["check", "clocks", "reference", "fit", "sigmas", "result"];
 /// The modules beside the stages, which any stage may use and which use
 /// no stage.
-const SHARED: [&str; 7] = [
-    "config", "error", "method", "products", "series", "streams", "warnings",
+const SHARED: [&str; 8] = [
+    "config", "error", "method", "products", "series", "smoother", "streams", "warnings",
 ];
 /// Arrows from a stage to a later one that the code still has (file,
 /// module named): the batch and gyro fits compute their sigmas from the

@@ -55,6 +55,7 @@ pub mod error;
 pub mod method;
 pub mod products;
 pub mod series;
+pub mod smoother;
 pub mod streams;
 pub mod warnings;
 
