@@ -20,13 +20,14 @@
 //!
 //! The calibration runs as stages (`docs/design/calibration-stages.md`),
 //! each a folder with one entry point taking the products of those above
-//! it; [`pipeline`] runs them in order:
+//! it; `pipeline.rs` runs them in order ([`calibrate`]):
 //! 1. [`check`]: `check::drive`, the drive checked, repaired and converted
 //!    to arrays (no IMU array yet: it waits for the IMU's clock);
 //! 2. [`clocks`]: `clocks::align`, every stream on the wheels' clock (the
-//!    IMU offset, the drifts, the re-stamped arrays);
+//!    IMU offset, the drifts, the re-stamped arrays, the GNSS's noise and
+//!    offset over every pair of streams);
 //! 3. [`reference`](mod@reference): `reference::build`, the reference poses,
-//!    headings, the GNSS noise, its clock offset, jumps and side-slip;
+//!    headings, GNSS jumps and outliers, side-slip;
 //! 4. [`fit`]: `fit::run`, the paper's method, the batch fit, the wheel +
 //!    gyro model and the choice of the scale;
 //! 5. [`sigmas`]: `sigmas::of`, what the sigmas leave undetermined (the
@@ -34,13 +35,15 @@
 //! 6. [`result`]: `result::assemble`, the [`Calibration`]; its text report,
 //!    page, plots and exports.
 //!
-//! Beside the stages, used by any of them and using none: [`config`],
-//! [`error`], [`method`], [`products`] (the circumferences, sigmas and
-//! per-iteration table as types), [`series`] (the arrays every stage reads),
-//! [`streams`] (building them from a drive's streams) and [`warnings`].
-//! Beside the driver: [`live`] (when a drive collected so far supports
-//! publishing an estimate) and [`diagnose`] (which physics the calibrated
-//! model leaves out; uses [`calibrate`]).
+//! Beside the stages, used by any of them and using none (inside the
+//! crate; their public types are re-exported here or by the stages):
+//! `config`, `error`, `method`, `products` (the circumferences, sigmas and
+//! per-iteration table as types), `series` (the arrays every stage reads),
+//! `smoother` (the GNSS position smoother), `streams` (building the arrays
+//! from a drive's streams) and `warnings`. Beside the driver: [`live`]
+//! (when a drive collected so far supports publishing an estimate) and
+//! [`diagnose`] (which physics the calibrated model leaves out; uses
+//! [`calibrate`]).
 //!
 //! ```no_run
 //! # fn demo(drive: &interfaces::drive::Drive) -> Result<(), calibrator::CalibrationError> {
@@ -50,14 +53,14 @@
 //! ```
 
 // The shared modules, beside the stages.
-pub mod config;
-pub mod error;
-pub mod method;
-pub mod products;
-pub mod series;
-pub mod smoother;
-pub mod streams;
-pub mod warnings;
+pub(crate) mod config;
+pub(crate) mod error;
+pub(crate) mod method;
+pub(crate) mod products;
+pub(crate) mod series;
+pub(crate) mod smoother;
+pub(crate) mod streams;
+pub(crate) mod warnings;
 
 // The stages, in the order they run; each uses only those above it.
 pub mod check;
@@ -70,7 +73,7 @@ pub mod sigmas;
 // The driver, and what stays beside the stages.
 pub mod diagnose;
 pub mod live;
-pub mod pipeline;
+pub(crate) mod pipeline;
 
 pub use clocks::offsets::{ClockOffsets, ClockStream, OffsetStatus, PairOffset, StreamOffset};
 pub use config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};

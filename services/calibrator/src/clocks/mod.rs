@@ -13,9 +13,9 @@
 //! - [`drift`]: their slow drift, from offsets in windows along the drive;
 //! - [`gnss`]: the GNSS's noise and clock offset.
 
-pub mod drift;
-pub mod gnss;
-pub mod offsets;
+pub(crate) mod drift;
+pub(crate) mod gnss;
+pub(crate) mod offsets;
 
 use crate::check::Checked;
 use crate::clocks::offsets::{ClockDrift, OffsetStatus, StreamOffset, CLOCK_SEARCH_S};

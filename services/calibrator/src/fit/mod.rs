@@ -7,14 +7,14 @@
 //! [`Fits`]: the method the estimate comes from, the comparison of the
 //! methods, the gyro model and the choice of the common scale.
 
-pub mod batch;
+pub(crate) mod batch;
 pub mod ekf;
-pub mod gyro;
-pub mod holdout;
-pub mod jackknife;
-pub mod lm;
-pub mod paper;
-pub mod track_width;
+pub(crate) mod gyro;
+pub(crate) mod holdout;
+pub(crate) mod jackknife;
+pub(crate) mod lm;
+pub(crate) mod paper;
+pub(crate) mod track_width;
 
 use crate::clocks::Aligned;
 use crate::config::CalibrationConfig;
