@@ -59,10 +59,10 @@ fn main() -> Result<()> {
     println!("| step rate | c_RL opt - true | c_RR opt - true |");
     println!("|---|---|---|");
     for rate in [100.0, 50.0, 20.0, 10.0, 5.0, 2.0] {
-        let grid = ekf::grid(&p, rate);
+        let grid = ekf::grid(p, rate);
         let cov = ekf::schedule(5, config.q_m, config.q_p);
         let pass = ekf::run_pass(
-            &p,
+            p,
             &r,
             &grid,
             c,

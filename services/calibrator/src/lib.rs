@@ -11,50 +11,39 @@
 //! 1. [`reference`](mod@reference): GNSS/IMU Kalman fusion (`p'' = a`,
 //!    heading from the yaw rate fused with the GNSS course or an absolute
 //!    heading) and a KF side-slip estimate, giving the reference poses `r_k`.
-//! 2. [`ekf`]: the EKF on the 2W model with `d = n c` as inputs and `r_k` as
-//!    measurement, covariances by the decreasing schedule of eq. (10), and
-//!    the 2W dead-reckoning check.
-//! 3. [`paper`]: the weighted least squares of eq. (8)-(9), the step of
-//!    eq. (11), and the per-iteration dead-reckoning check that keeps the best
-//!    iteration.
+//! 2. [`fit::ekf`]: the EKF on the 2W model with `d = n c` as inputs and
+//!    `r_k` as measurement, covariances by the decreasing schedule of eq.
+//!    (10), and the 2W dead-reckoning check.
+//! 3. [`fit::paper`]: the weighted least squares of eq. (8)-(9), the step of
+//!    eq. (11), and the per-iteration dead-reckoning check that keeps the
+//!    best iteration.
 //!
-//! Modules, each with one job (a module uses only those listed above it, so
-//! the imports form no cycle):
-//! - [`method`]: which estimator produces the result;
-//! - [`error`]: why a drive could not be calibrated;
-//! - [`config`]: the tuning of a calibration and its range check;
-//! - [`warnings`]: the warning codes and messages;
-//! - [`clocks`]: the clock offsets of the streams against the wheels
-//!   (pure functions on arrays);
-//! - [`clock_drift`]: their slow drift, from offsets in windows along the
-//!   drive (pure; [`pipeline`] applies it);
-//! - [`prep`]: checking the drive and converting it to the arrays the layers
-//!   use;
-//! - [`reference`](mod@reference), [`ekf`]: layers 1 and 2 (above);
-//! - [`uncertainty`]: sigmas (block jackknife) and observability warnings;
-//! - [`lm`]: the Levenberg-Marquardt fitter of a dead-reckoning model to the
-//!   GNSS fixes in segments;
-//! - [`gyro`]: the yaw-rate gyro's bias and scale (a model for [`lm`]);
-//! - [`result`]: the result types ([`Calibration`], the per-method result);
-//! - [`track_width`]: whether the track width is estimated, and whether an
-//!   estimate of it is plausible;
-//! - [`paper`]: layer 3 and the paper's loop;
-//! - [`batch`]: the 2W model fitted with [`lm`] over the whole drive;
-//! - [`pipeline`]: [`calibrate`], the stages in order, and putting the
-//!   result together;
-//! - [`report`]: the readable text report;
-//! - [`plots`]: the figures of a calibration (SVG text, drawn by the
-//!   `report` library);
-//! - [`export`]: the calibration in other stacks' forms (an Autoware-style
-//!   parameter file, the 2W parameters as TOML);
-//! - [`page`]: the calibration's HTML page (the figures, the warnings, the
-//!   numbers);
-//! - [`holdout`]: dead-reckoning errors of parameter sets on held-out data;
-//! - [`live`]: when a drive collected so far supports publishing an estimate
-//!   (coverage, attempt on all but a held-out tail, quality gate);
-//! - [`diagnose`]: which physics the calibrated model leaves out, its
-//!   terms, and the fit before and after on held-out blocks (uses
-//!   [`calibrate`]).
+//! The calibration runs as stages (`docs/design/calibration-stages.md`),
+//! each a folder with one entry point taking the products of those above
+//! it; `pipeline.rs` runs them in order ([`calibrate`]):
+//! 1. [`check`]: `check::drive`, the drive checked, repaired and converted
+//!    to arrays (no IMU array yet: it waits for the IMU's clock);
+//! 2. [`clocks`]: `clocks::align`, every stream on the wheels' clock (the
+//!    IMU offset, the drifts, the re-stamped arrays, the GNSS's noise and
+//!    offset over every pair of streams);
+//! 3. [`reference`](mod@reference): `reference::build`, the reference poses,
+//!    headings, GNSS jumps and outliers, side-slip;
+//! 4. [`fit`]: `fit::run`, the paper's method, the batch fit, the wheel +
+//!    gyro model and the choice of the scale;
+//! 5. [`sigmas`]: `sigmas::of`, what the sigmas leave undetermined (the
+//!    error model the fits' sigmas rest on lives here too);
+//! 6. [`result`]: `result::assemble`, the [`Calibration`]; its text report,
+//!    page, plots and exports.
+//!
+//! Beside the stages, used by any of them and using none (inside the
+//! crate; their public types are re-exported here or by the stages):
+//! `config`, `error`, `method`, `products` (the circumferences, sigmas and
+//! per-iteration table as types), `series` (the arrays every stage reads),
+//! `smoother` (the GNSS position smoother), `streams` (building the arrays
+//! from a drive's streams) and `warnings`. Beside the driver: [`live`]
+//! (when a drive collected so far supports publishing an estimate) and
+//! [`diagnose`] (which physics the calibrated model leaves out; uses
+//! [`calibrate`]).
 //!
 //! ```no_run
 //! # fn demo(drive: &interfaces::drive::Drive) -> Result<(), calibrator::CalibrationError> {
@@ -64,12 +53,14 @@
 //! ```
 
 // The shared modules, beside the stages.
-pub mod config;
-pub mod error;
-pub mod method;
-pub mod series;
-pub mod streams;
-pub mod warnings;
+pub(crate) mod config;
+pub(crate) mod error;
+pub(crate) mod method;
+pub(crate) mod products;
+pub(crate) mod series;
+pub(crate) mod smoother;
+pub(crate) mod streams;
+pub(crate) mod warnings;
 
 // The stages, in the order they run; each uses only those above it.
 pub mod check;
@@ -82,7 +73,7 @@ pub mod sigmas;
 // The driver, and what stays beside the stages.
 pub mod diagnose;
 pub mod live;
-pub mod pipeline;
+pub(crate) mod pipeline;
 
 pub use clocks::offsets::{ClockOffsets, ClockStream, OffsetStatus, PairOffset, StreamOffset};
 pub use config::{CalibrationConfig, TimeOffsetMode, TrackWidthMode};

@@ -4,15 +4,18 @@
 //! IMU times before the gyro is integrated; the streams' slow drifts
 //! ([`drift`]) are looked for and, where applied, the streams are
 //! re-stamped and their arrays built again by the shared builders
-//! ([`crate::streams`]). The GNSS offset is still found by the reference
-//! (see `docs/design/calibration-stages.md`).
+//! ([`crate::streams`]). Last, the GNSS's offset ([`gnss`]): its noise, the
+//! fixes smoothed alone, the offset over every pair of streams, applied
+//! where compensated.
 //!
 //! - [`offsets`]: the clock offsets of the streams against the wheels (pure
 //!   functions on arrays);
-//! - [`drift`]: their slow drift, from offsets in windows along the drive.
+//! - [`drift`]: their slow drift, from offsets in windows along the drive;
+//! - [`gnss`]: the GNSS's noise and clock offset.
 
-pub mod drift;
-pub mod offsets;
+pub(crate) mod drift;
+pub(crate) mod gnss;
+pub(crate) mod offsets;
 
 use crate::check::Checked;
 use crate::clocks::offsets::{ClockDrift, OffsetStatus, StreamOffset, CLOCK_SEARCH_S};
@@ -36,12 +39,16 @@ pub struct Aligned<'a> {
     pub imu_clock: StreamOffset,
     /// The GNSS and IMU clock drifts.
     pub drifts: Drifts,
+    /// The GNSS on the wheels' clock: its noise, the fixes smoothed alone,
+    /// its clock offset.
+    pub gnss: gnss::Gnss,
     /// The warnings so far.
     pub warnings: Vec<Warning>,
 }
 
 /// Put every stream of `checked` on the wheels' clock: the IMU offset, the
-/// drifts (a drive re-stamped for one is converted again), the arrays.
+/// drifts (a drive re-stamped for one is converted again), the arrays, the
+/// GNSS offset.
 pub fn align<'a>(
     checked: Checked<'a>,
     config: &CalibrationConfig,
@@ -71,11 +78,13 @@ pub fn align<'a>(
         None => drive,
     };
     drift_warnings(&drifts, &mut warnings);
+    let gnss = gnss::align(&series, &imu_clock, config, &mut warnings)?;
     Ok(Aligned {
         drive,
         series,
         imu_clock,
         drifts,
+        gnss,
         warnings,
     })
 }
@@ -95,6 +104,7 @@ pub fn align_offsets<'a>(
     } = checked;
     let (imu_clock, series) = on_wheel_clock(&drive, config, &wheels, &timed, &mut warnings);
     let off = ClockDrift::not_checked("drift not looked for");
+    let gnss = gnss::align(&series, &imu_clock, config, &mut warnings)?;
     Ok(Aligned {
         drive,
         series,
@@ -103,6 +113,7 @@ pub fn align_offsets<'a>(
             gnss: off.clone(),
             imu: off,
         },
+        gnss,
         warnings,
     })
 }

@@ -27,12 +27,13 @@
 //! blocks of fixes and over whole segments takes its place.
 
 use crate::error::CalibrationError;
+use crate::fit::jackknife::jackknife_covariance;
+use crate::products::{SigmaBasis, Sigmas};
 use crate::reference::{RefFix, Reference};
 use crate::series::Series;
 use crate::sigmas::error_model::{
     conservative_covariance, fit_error_model, ErrorModel, FixLin, Linearisation, SegmentLin,
 };
-use crate::sigmas::uncertainty::{jackknife_covariance, SigmaBasis, Sigmas};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use vehicle_model::two_wheel::Pose2;
 

@@ -19,12 +19,14 @@
 use crate::config::{CalibrationConfig, TrackWidthMode};
 use crate::error::CalibrationError;
 use crate::fit::ekf::{dr_deviation, grid, run_pass, schedule, Slip};
+use crate::fit::jackknife::jackknife_ls;
 use crate::fit::track_width::{decide_track, implausible_track};
+use crate::fit::MethodResult;
 use crate::method::Method;
+use crate::products::Sigmas;
+use crate::products::{IterationRecord, RearPair, TRACK_POINTS};
 use crate::reference::Reference;
-use crate::result::{IterationRecord, MethodResult, RearPair, TRACK_POINTS};
 use crate::series::Series;
-use crate::sigmas::uncertainty::{jackknife_ls, Sigmas};
 use crate::warnings::Warning;
 use vehicle_model::two_wheel::TwoWheelParams;
 
@@ -152,7 +154,7 @@ fn run_once(
         selected_iteration: selected,
         residual_rms_m: None,
         segments: 0,
-        sigma_basis: Some(crate::sigmas::uncertainty::SigmaBasis {
+        sigma_basis: Some(crate::products::SigmaBasis {
             method: "block jackknife over time blocks of the paper's least squares".to_string(),
             error_model: None,
         }),

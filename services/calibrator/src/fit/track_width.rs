@@ -6,8 +6,10 @@ use crate::config::{CalibrationConfig, TrackWidthMode};
 use crate::error::CalibrationError;
 use crate::reference::Reference;
 use crate::series::Series;
-use crate::sigmas::uncertainty::NO_TURN_DEG;
 use crate::warnings::{Warning, WarningCode};
+
+/// Turning below which the drive counts as having no turn, degrees.
+pub const NO_TURN_DEG: f64 = 30.0;
 
 /// Whether the track width is estimated on this drive (per the
 /// configuration and the turning); an `Auto` decision to keep it is a warning.

@@ -15,79 +15,38 @@
 //!   and heading) and by an absolute heading when the drive has one; smoothed.
 //! - Side-slip: beta = course - heading, filtered as a first-order Markov
 //!   process (Bevly et al.); also summarised as a gain beta = -k a_y.
-//! - The wheel/GNSS time offset is estimated over +-3 s from the speeds
-//!   (GNSS speed against wheel speed at shifted times) or, where the speed
-//!   hardly changes, the GNSS course rate against the wheels' yaw rate
-//!   (`crate::clocks`), and optionally compensated.
+//! - The wheel/GNSS time offset comes with the aligned streams
+//!   ([`crate::clocks::gnss`]: the fixes' noise, the fixes smoothed alone,
+//!   the offset found and optionally compensated); the reference starts
+//!   from those fixes and that smoothed track.
 //!
 //! Everything is produced at the wheel sample times, with a validity flag
 //! that is false in GNSS outages longer than `max_gnss_gap_s`.
 
 pub mod gnss_jumps;
 
-use crate::clocks::offsets::{
-    self as clocks, ClockStream, PairOffset, StreamOffset, CLOCK_SEARCH_S,
-};
+use crate::clocks::offsets::{PairOffset, StreamOffset};
 use crate::clocks::Aligned;
-use crate::config::{CalibrationConfig, TimeOffsetMode};
+use crate::config::CalibrationConfig;
 use crate::error::CalibrationError;
-use crate::series::{Fix, Series};
+use crate::series::Series;
+use crate::smoother::{
+    smooth_positions, Input, PosTrack, COURSE_MIN_SPEED, Q_ACCEL_FREE, Q_ACCEL_IMU,
+};
 use crate::warnings::{Warning, WarningCode};
 use gnss_jumps::JumpSearch;
 use interfaces::drive::{Drive, ImuSample};
 use nalgebra::{Matrix3, Vector3};
-use serde::{Deserialize, Serialize};
 use vehicle_model::two_wheel::wrap_angle;
 
-/// Process noise of the position filter without accelerations, m^2/s^3.
-const Q_ACCEL_FREE: f64 = 4.0;
-/// Process noise of the position filter with IMU accelerations as input, m^2/s^3.
-const Q_ACCEL_IMU: f64 = 0.5;
-/// Minimum speed for a usable GNSS course, m/s.
-const COURSE_MIN_SPEED: f64 = 2.0;
+pub use crate::clocks::gnss::{SigmaClaim, TimeOffset, CLAIM_FACTOR, CLAIM_MIN_DIFFERENCES};
+pub use crate::smoother::RefFix;
+
 /// The least distance with GNSS reference a calibration needs, m (the
 /// fits' own minimum, `lm`).
 const MIN_REFERENCE_M: f64 = 50.0;
 /// Largest variance of a usable GNSS course, rad^2 (0.2 rad).
 const COURSE_MAX_VAR: f64 = 0.04;
-/// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
-/// rate lags the yaw rate by about k v, a systematic error of the GNSS time
-/// offset found from the course rate.
-const SLIP_GAIN_TYPICAL: f64 = 0.005;
-/// A typical distance of the GNSS antenna ahead of the rear axle, m (the
-/// catalogue's `gnss_lever_arm` spans 0.1-2 m): the antenna's course leads
-/// the body's heading by about l_x / v (its velocity turns with l_x w), a
-/// systematic error of the time offset found from the course rate when the
-/// antenna has not been calibrated yet. On wid-trial02, whose antenna the
-/// calibration puts 0.49 m ahead, the lead weighted by the turns is 0.109 s
-/// and the IMU-GNSS pair reads -0.11 +- 0.06 s where the speed gives 0.00.
-const ANTENNA_AHEAD_TYPICAL_M: f64 = 0.5;
-
-/// The estimated wheel/GNSS time offset.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct TimeOffset {
-    /// GNSS stamps late by this much relative to the wheels, s.
-    pub gnss_late_s: f64,
-    /// Its 1-sigma, s.
-    pub sigma_s: f64,
-    /// Whether the GNSS time stamps were shifted by it.
-    pub compensated: bool,
-}
-
-/// A GNSS fix as the later layers use it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RefFix {
-    /// Time (after any time-offset compensation), s.
-    pub t: f64,
-    /// Antenna east, m.
-    pub x: f64,
-    /// Antenna north, m.
-    pub y: f64,
-    /// 1-sigma, m.
-    pub sigma: f64,
-    /// Passed the outlier gate.
-    pub accepted: bool,
-}
 
 /// The layer-1 output at the wheel sample times.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,7 +78,7 @@ pub struct Reference {
     /// The wheel/GNSS time offset, when checked and determinable.
     pub time_offset: Option<TimeOffset>,
     /// The GNSS clock offset against the wheels, determined or not (and
-    /// why): every pair of streams combined ([`clocks::solve_offsets`]).
+    /// why): every pair of streams combined ([`crate::clocks::offsets::solve_offsets`]).
     pub gnss_clock: StreamOffset,
     /// The pairs of streams compared for it.
     pub clock_pairs: Vec<PairOffset>,
@@ -133,594 +92,6 @@ pub struct Reference {
     pub total_turn_rad: f64,
     /// Number of GNSS outages (gaps longer than `max_gnss_gap_s` inside the drive).
     pub outages: usize,
-}
-
-/// Symmetric 2x2 covariance of one axis: position, cross, velocity.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Cov2 {
-    pp: f64,
-    pv: f64,
-    vv: f64,
-}
-
-/// Smoothed position/velocity at the GNSS epochs.
-struct PosTrack {
-    t: Vec<f64>,
-    /// [x, y, vx, vy].
-    s: Vec<[f64; 4]>,
-    /// Smoothed covariance per axis (shared by x and y).
-    cov: Vec<Cov2>,
-    accepted: Vec<bool>,
-}
-
-impl PosTrack {
-    /// Hermite interpolation of position (and velocity) at `t` in [t_j, t_{j+1}].
-    fn at(&self, j: usize, t: f64) -> [f64; 4] {
-        let n = self.t.len();
-        if j + 1 >= n {
-            let a = self.s[n - 1];
-            let dt = t - self.t[n - 1];
-            return [a[0] + a[2] * dt, a[1] + a[3] * dt, a[2], a[3]];
-        }
-        let (t0, t1) = (self.t[j], self.t[j + 1]);
-        let h = t1 - t0;
-        if t <= t0 || h <= 0.0 {
-            let a = self.s[j];
-            let dt = t - t0;
-            return [a[0] + a[2] * dt, a[1] + a[3] * dt, a[2], a[3]];
-        }
-        let s = ((t - t0) / h).min(1.0);
-        let (a, b) = (self.s[j], self.s[j + 1]);
-        let s2 = s * s;
-        let s3 = s2 * s;
-        let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-        let h10 = s3 - 2.0 * s2 + s;
-        let h01 = -2.0 * s3 + 3.0 * s2;
-        let h11 = s3 - s2;
-        let d00 = (6.0 * s2 - 6.0 * s) / h;
-        let d10 = 3.0 * s2 - 4.0 * s + 1.0;
-        let d01 = (-6.0 * s2 + 6.0 * s) / h;
-        let d11 = 3.0 * s2 - 2.0 * s;
-        [
-            h00 * a[0] + h10 * h * a[2] + h01 * b[0] + h11 * h * b[2],
-            h00 * a[1] + h10 * h * a[3] + h01 * b[1] + h11 * h * b[3],
-            d00 * a[0] + d10 * a[2] + d01 * b[0] + d11 * b[2],
-            d00 * a[1] + d10 * a[3] + d01 * b[1] + d11 * b[3],
-        ]
-    }
-}
-
-/// Kinematic input of one filter interval: position and velocity change
-/// explained by the measured acceleration.
-type Input = [f64; 4];
-
-/// Huber threshold of the position smoother's reweighting, in units of a
-/// fix's residual sigma (the norm of a 2-D residual: about 4 % of normal
-/// fixes lie beyond it).
-const SMOOTHER_HUBER_K: f64 = 2.5;
-/// Reweighting passes of the position smoother at most.
-const SMOOTHER_REWEIGHTS: usize = 3;
-
-/// The robust position smoother: [`smooth_pass`] reweighted with Huber
-/// weights. Each fix's residual against the smoothed track, over its
-/// expected spread (the fix's sigma and the track's), gives its weight
-/// (1 within [`SMOOTHER_HUBER_K`], `k / u` beyond: the fix's variance grows
-/// with how far out it lies), and the smoother runs again, until the
-/// weights settle. Heavy-tailed GNSS errors (multipath, a receiver's
-/// wander) pull the track by a bounded amount instead of quadratically;
-/// the gate still keeps gross outliers out, and the jump detection
-/// (`crate::reference::gnss_jumps`) sets whole offset stretches aside.
-fn smooth_positions(
-    fixes: &[RefFix],
-    z: &[[f64; 2]],
-    q: f64,
-    gate: f64,
-    inputs: Option<&[Input]>,
-    set_aside: Option<&[bool]>,
-) -> Result<PosTrack, CalibrationError> {
-    let mut weights = vec![1.0; fixes.len()];
-    let mut track = smooth_pass(fixes, z, q, gate, inputs, set_aside, &weights)?;
-    for _ in 0..SMOOTHER_REWEIGHTS {
-        let mut changed = 0usize;
-        for (j, w) in weights.iter_mut().enumerate() {
-            if !track.accepted[j] {
-                continue;
-            }
-            let r = fixes[j].sigma * fixes[j].sigma;
-            let d = (z[j][0] - track.s[j][0]).hypot(z[j][1] - track.s[j][1]);
-            // The residual's spread taken as the fix's noise plus the
-            // track's own uncertainty (an upper bound: fewer fixes are
-            // down-weighted than with the exact residual variance).
-            let u = d / (r + track.cov[j].pp).max(1e-12).sqrt();
-            let new = if u <= SMOOTHER_HUBER_K {
-                1.0
-            } else {
-                SMOOTHER_HUBER_K / u
-            };
-            if (new - *w).abs() > 0.05 * *w {
-                changed += 1;
-            }
-            *w = new;
-        }
-        if changed == 0 {
-            break;
-        }
-        track = smooth_pass(fixes, z, q, gate, inputs, set_aside, &weights)?;
-    }
-    Ok(track)
-}
-
-/// One pass of the forward Kalman filter with innovation gate + RTS
-/// smoother on `p'' = a`; fix `j`'s variance divided by `weights[j]`.
-fn smooth_pass(
-    fixes: &[RefFix],
-    z: &[[f64; 2]],
-    q: f64,
-    gate: f64,
-    inputs: Option<&[Input]>,
-    set_aside: Option<&[bool]>,
-    weights: &[f64],
-) -> Result<PosTrack, CalibrationError> {
-    let n = fixes.len();
-    // The kinematic input of the interval ending at fix j: none next to a
-    // fix set aside, where a run of predictions would integrate the
-    // accelerometer's bias for as long as the jump lasts (the filter
-    // bridges it at constant velocity, as it bridges an outage).
-    let input_of = |j: usize| -> Input {
-        let aside = |k: usize| set_aside.is_some_and(|a| a[k]);
-        if aside(j) || (j > 0 && aside(j - 1)) {
-            return [0.0; 4];
-        }
-        inputs.map_or([0.0; 4], |i| i[j])
-    };
-    let mut xf: Vec<[f64; 4]> = Vec::with_capacity(n);
-    let mut pf: Vec<Cov2> = Vec::with_capacity(n);
-    let mut pp: Vec<Cov2> = Vec::with_capacity(n);
-    let mut accepted = Vec::with_capacity(n);
-    let mut rejects_in_row = 0usize;
-    let mut last_rejected: Option<(f64, [f64; 2])> = None;
-    for j in 0..n {
-        let r = fixes[j].sigma * fixes[j].sigma / weights[j].max(1e-6);
-        if j == 0 {
-            xf.push([z[0][0], z[0][1], 0.0, 0.0]);
-            let c = Cov2 {
-                pp: r,
-                pv: 0.0,
-                vv: 400.0,
-            };
-            pf.push(c);
-            pp.push(c);
-            accepted.push(true);
-            continue;
-        }
-        let tt = fixes[j].t - fixes[j - 1].t;
-        let a = xf[j - 1];
-        let u = input_of(j);
-        let xp = [
-            a[0] + a[2] * tt + u[0],
-            a[1] + a[3] * tt + u[1],
-            a[2] + u[2],
-            a[3] + u[3],
-        ];
-        let c = pf[j - 1];
-        let pred = Cov2 {
-            pp: c.pp + 2.0 * tt * c.pv + tt * tt * c.vv + q * tt * tt * tt / 3.0,
-            pv: c.pv + tt * c.vv + q * tt * tt / 2.0,
-            vv: c.vv + q * tt,
-        };
-        pp.push(pred);
-        if set_aside.is_some_and(|a| a[j]) {
-            // Inside a jump (`crate::reference::gnss_jumps`): not a measurement, and
-            // not a rejection that could restart the filter on the jump.
-            xf.push(xp);
-            pf.push(pred);
-            accepted.push(false);
-            continue;
-        }
-        let nu = [z[j][0] - xp[0], z[j][1] - xp[1]];
-        let s = pred.pp + r;
-        let d2 = (nu[0] * nu[0] + nu[1] * nu[1]) / s;
-        let mut take = d2 <= gate * gate;
-        let mut p_use = pred;
-        if !take && rejects_in_row >= 5 {
-            // A run of rejections that agree with each other is a jump the
-            // filter missed, not outliers: restart on it.
-            if let Some((t_prev, z_prev)) = last_rejected {
-                let jump = ((z[j][0] - z_prev[0]).powi(2) + (z[j][1] - z_prev[1]).powi(2)).sqrt();
-                let speed = (a[2] * a[2] + a[3] * a[3]).sqrt();
-                if jump <= (speed + 5.0) * (fixes[j].t - t_prev) + 3.0 * fixes[j].sigma {
-                    take = true;
-                    p_use = Cov2 {
-                        pp: pred.pp + nu[0] * nu[0] + nu[1] * nu[1],
-                        pv: pred.pv,
-                        vv: pred.vv + 100.0,
-                    };
-                }
-            }
-        }
-        if take {
-            let s = p_use.pp + r;
-            let k0 = p_use.pp / s;
-            let k1 = p_use.pv / s;
-            let nu = [z[j][0] - xp[0], z[j][1] - xp[1]];
-            xf.push([
-                xp[0] + k0 * nu[0],
-                xp[1] + k0 * nu[1],
-                xp[2] + k1 * nu[0],
-                xp[3] + k1 * nu[1],
-            ]);
-            pf.push(Cov2 {
-                pp: p_use.pp - k0 * p_use.pp,
-                pv: p_use.pv - k0 * p_use.pv,
-                vv: p_use.vv - k1 * p_use.pv,
-            });
-            if rejects_in_row > 0 {
-                pp[j] = p_use;
-            }
-            rejects_in_row = 0;
-            last_rejected = None;
-            accepted.push(true);
-        } else {
-            xf.push(xp);
-            pf.push(pred);
-            rejects_in_row += 1;
-            last_rejected = Some((fixes[j].t, z[j]));
-            accepted.push(false);
-        }
-    }
-    // Rauch-Tung-Striebel backward pass.
-    // In place: step j reads the filtered values at j before overwriting them.
-    let mut xs = xf;
-    let mut ps = pf;
-    for j in (0..n.saturating_sub(1)).rev() {
-        let tt = fixes[j + 1].t - fixes[j].t;
-        let c = ps[j];
-        let p1 = pp[j + 1];
-        // C = Pf F^T Pp^-1 with F = [[1, tt], [0, 1]].
-        let pft = [[c.pp + tt * c.pv, c.pv], [c.pv + tt * c.vv, c.vv]];
-        let det = p1.pp * p1.vv - p1.pv * p1.pv;
-        if !(det.is_finite() && det > 0.0) {
-            return Err(CalibrationError::Numerical {
-                stage: "reference position smoother",
-                detail: format!(
-                    "predicted covariance not positive definite at t = {:.3} s",
-                    fixes[j + 1].t
-                ),
-            });
-        }
-        let inv = [[p1.vv / det, -p1.pv / det], [-p1.pv / det, p1.pp / det]];
-        let g = [
-            [
-                pft[0][0] * inv[0][0] + pft[0][1] * inv[1][0],
-                pft[0][0] * inv[0][1] + pft[0][1] * inv[1][1],
-            ],
-            [
-                pft[1][0] * inv[0][0] + pft[1][1] * inv[1][0],
-                pft[1][0] * inv[0][1] + pft[1][1] * inv[1][1],
-            ],
-        ];
-        let a = xs[j];
-        let u = input_of(j + 1);
-        let xp = [
-            a[0] + a[2] * tt + u[0],
-            a[1] + a[3] * tt + u[1],
-            a[2] + u[2],
-            a[3] + u[3],
-        ];
-        let nx = xs[j + 1];
-        for axis in 0..2 {
-            let dp = nx[axis] - xp[axis];
-            let dv = nx[axis + 2] - xp[axis + 2];
-            xs[j][axis] = a[axis] + g[0][0] * dp + g[0][1] * dv;
-            xs[j][axis + 2] = a[axis + 2] + g[1][0] * dp + g[1][1] * dv;
-        }
-        let dpp = ps[j + 1].pp - p1.pp;
-        let dpv = ps[j + 1].pv - p1.pv;
-        let dvv = ps[j + 1].vv - p1.vv;
-        // P += G dP G^T
-        let m00 = g[0][0] * dpp + g[0][1] * dpv;
-        let m01 = g[0][0] * dpv + g[0][1] * dvv;
-        let m10 = g[1][0] * dpp + g[1][1] * dpv;
-        let m11 = g[1][0] * dpv + g[1][1] * dvv;
-        ps[j] = Cov2 {
-            pp: c.pp + m00 * g[0][0] + m01 * g[0][1],
-            pv: c.pv + m00 * g[1][0] + m01 * g[1][1],
-            vv: c.vv + m10 * g[1][0] + m11 * g[1][1],
-        };
-    }
-    if xs.iter().any(|s| !s.iter().all(|v| v.is_finite())) {
-        return Err(CalibrationError::Numerical {
-            stage: "reference position smoother",
-            detail: "non-finite smoothed state".to_string(),
-        });
-    }
-    Ok(PosTrack {
-        t: fixes.iter().map(|f| f.t).collect(),
-        s: xs,
-        cov: ps,
-        accepted,
-    })
-}
-
-/// GNSS noise from the fixes ([`crate::series::gnss_scatter_sigma`]).
-fn estimate_gnss_sigma(fixes: &[Fix]) -> Option<f64> {
-    let points: Vec<(f64, f64, f64)> = fixes.iter().map(|f| (f.t, f.x, f.y)).collect();
-    crate::series::gnss_scatter_sigma(&points)
-}
-
-/// A claimed GNSS sigma is refuted when the fixes scatter more than this
-/// many times the claim: the measured scatter ([`crate::series::gnss_scatter_sigma_robust`])
-/// is a lower bound of the error, and with at least
-/// [`CLAIM_MIN_DIFFERENCES`] differences its MAD is known to about 15 %
-/// (1.1 / sqrt(n)), so twice the claim is 6 of its sigmas away.
-pub const CLAIM_FACTOR: f64 = 2.0;
-/// Fourth differences the check of a claimed sigma needs.
-pub const CLAIM_MIN_DIFFERENCES: usize = 50;
-
-/// A receiver's `sigma_m` the fixes' own scatter refutes.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SigmaClaim {
-    /// The median claimed sigma, m.
-    pub claimed_m: f64,
-    /// The scatter measured on the fixes, m (used instead).
-    pub measured_m: f64,
-}
-
-/// The receiver's claimed sigma (median of the fixes' `sigma_m`) against
-/// the scatter of the fixes themselves; `Some` with a warning naming
-/// `sigma_m` when the scatter exceeds [`CLAIM_FACTOR`] times the claim.
-fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<SigmaClaim> {
-    let mut given: Vec<f64> = fixes.iter().filter_map(|f| f.sigma).collect();
-    let claimed_m = stats::upper_median(&mut given)?;
-    let points: Vec<(f64, f64, f64)> = fixes
-        .iter()
-        .filter(|f| f.sigma.is_some())
-        .map(|f| (f.t, f.x, f.y))
-        .collect();
-    let (measured_m, n) = crate::series::gnss_scatter_sigma_robust(&points)?;
-    if n < CLAIM_MIN_DIFFERENCES || measured_m <= CLAIM_FACTOR * claimed_m {
-        return None;
-    }
-    warnings.push(Warning::new(
-        WarningCode::GnssSigmaUnderstated,
-        format!(
-            "gnss.csv sigma_m claims {claimed_m:.2} m (median of {} fixes) but the fixes scatter {measured_m:.2} m from one to the next (fourth differences, which the drive's motion does not reach): the receiver understates its noise; its fixes are weighted with {measured_m:.2} m instead (set gnss_sigma_m to override)",
-            given.len()
-        ),
-    ));
-    Some(SigmaClaim {
-        claimed_m,
-        measured_m,
-    })
-}
-
-/// Estimate the GNSS clock offset against the wheels over
-/// +-[`CLOCK_SEARCH_S`] with [`clocks::fit_lag`]: the speed of the smoothed
-/// GNSS track against the wheel speed at shifted times, `sum (v_gnss(t) - k
-/// v_wheel(t - tau))^2` (k absorbs the unknown circumference; coarse grid,
-/// then the fine grid and parabola near its minimum); where the speed hardly
-/// changes, the GNSS course rate against the wheels' yaw rate (its sigma
-/// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
-/// determined (with the reason and the manoeuvre that would determine it)
-/// when neither does.
-fn estimate_time_offset(p: &Series, track: &PosTrack, rates: &CourseRates) -> StreamOffset {
-    let h = 0.25;
-    let n = p.len();
-    if n < 3 {
-        return StreamOffset::not_determined("too few wheel samples".to_string());
-    }
-    // Wheel speed and yaw rate over +-h at every wheel time (f32 to keep a
-    // long drive small).
-    let inc: Vec<f64> = (0..n)
-        .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]) * p.nominal_c)
-        .collect();
-    // Unsigned, as the GNSS speed is (a drive may reverse).
-    let speed: Vec<f32> = clocks::windowed_rate(&p.t, &inc, h)
-        .into_iter()
-        .map(f32::abs)
-        .collect();
-    let inc: Vec<f64> = (0..n)
-        .map(|k| (p.dn_rr[k] - p.dn_rl[k]) * p.nominal_c / p.track)
-        .collect();
-    let yaw_rate = clocks::windowed_rate(&p.t, &inc, h);
-    drop(inc);
-    let speeds: Vec<(f64, f64)> = (0..track.t.len())
-        .filter(|&j| track.accepted[j])
-        .map(|j| (track.t[j], track.speed(j)))
-        .filter(|(_, v)| *v > 1.0)
-        .collect();
-    let fit = |obs: &[(f64, f64)], v: &[f32], intercept: bool| {
-        clocks::fit_lag(
-            obs,
-            &clocks::Sampled { t: &p.t, v },
-            CLOCK_SEARCH_S,
-            2.0 * h,
-            intercept,
-        )
-    };
-    let by_speed = fit(&speeds, &speed, false);
-    if let Ok(f) = clocks::judge(by_speed, CLOCK_SEARCH_S) {
-        // Determined by the speed: the course rate is not needed.
-        return clocks::StreamOffset::determined(&f, "speed");
-    }
-    let by_course = fit(&rates.obs, &yaw_rate, true).map(|mut f| {
-        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
-        f
-    });
-    let tries = vec![("speed", by_speed), ("course rate", by_course)];
-    clocks::first_determined(
-        tries,
-        CLOCK_SEARCH_S,
-        "speed changes (accelerating and braking) or turns with GNSS",
-    )
-}
-
-/// The GNSS course rate at the accepted epochs of the smoothed track (both
-/// neighbours accepted and faster than [`COURSE_MIN_SPEED`]), for the clock
-/// offsets against the wheels' and the gyro's yaw rates.
-struct CourseRates {
-    /// (GNSS time, course rate rad/s).
-    obs: Vec<(f64, f64)>,
-    /// The course leads or lags the heading by the side-slip's response,
-    /// about k v (beta = -k a_y): a systematic lag the fit cannot see at
-    /// constant speed, added to the sigma of an offset found from it, s;
-    /// with the lead of an antenna ahead of the axle (about l_x / v, see
-    /// [`ANTENNA_AHEAD_TYPICAL_M`]) beside it.
-    slip_lag_s: f64,
-}
-
-impl PosTrack {
-    /// Speed at epoch `j`, m/s.
-    fn speed(&self, j: usize) -> f64 {
-        let s = self.s[j];
-        (s[2] * s[2] + s[3] * s[3]).sqrt()
-    }
-}
-
-fn course_rates(track: &PosTrack) -> CourseRates {
-    let mut obs = Vec::new();
-    let mut course_speed = 0.0;
-    let mut inverse_speed = 0.0;
-    let m = track.t.len();
-    for j in 1..m.saturating_sub(1) {
-        if !(track.accepted[j - 1] && track.accepted[j] && track.accepted[j + 1]) {
-            continue;
-        }
-        let (a, b) = (track.s[j - 1], track.s[j + 1]);
-        let dt = track.t[j + 1] - track.t[j - 1];
-        if track.speed(j - 1) > COURSE_MIN_SPEED
-            && track.speed(j + 1) > COURSE_MIN_SPEED
-            && dt > 0.0
-        {
-            let d = wrap_angle(b[3].atan2(b[2]) - a[3].atan2(a[2]));
-            obs.push((track.t[j], d / dt));
-            course_speed += track.speed(j);
-            inverse_speed += 1.0 / track.speed(j).max(COURSE_MIN_SPEED);
-        }
-    }
-    let n = obs.len().max(1) as f64;
-    let slip_lag_s =
-        (SLIP_GAIN_TYPICAL * course_speed / n).hypot(ANTENNA_AHEAD_TYPICAL_M * inverse_speed / n);
-    CourseRates { obs, slip_lag_s }
-}
-
-/// The GNSS clock against the IMU's: the GNSS course rate against the
-/// gyro's yaw rate (as prepared: on the IMU clock less `p.imu_shift_s`),
-/// by [`clocks::fit_lag`]; its sigma includes the side-slip lag. The pair
-/// that closes the chain wheels-IMU-GNSS when the GNSS's speed and course
-/// do not determine its offset against the wheels directly (a drive at
-/// near-constant speed whose wheel yaw rate is too coarse).
-fn gnss_imu_pair(p: &Series, rates: &CourseRates) -> StreamOffset {
-    let h = 0.25;
-    let Some(gyro) = p.gyro.as_ref() else {
-        return StreamOffset::not_checked("the drive has no usable gyro");
-    };
-    let (t, g): (Vec<f64>, Vec<f64>) =
-        p.t.iter()
-            .zip(gyro)
-            .filter(|(_, g)| g.is_finite())
-            .map(|(t, g)| (*t, *g))
-            .unzip();
-    if t.len() < 3 {
-        return StreamOffset::not_determined("the gyro covers too few wheel samples".to_string());
-    }
-    let inc: Vec<f64> = std::iter::once(0.0)
-        .chain(g.windows(2).map(|w| w[1] - w[0]))
-        .collect();
-    let yaw_rate = clocks::windowed_rate(&t, &inc, h);
-    let fit = clocks::fit_lag(
-        &rates.obs,
-        &clocks::Sampled {
-            t: &t,
-            v: &yaw_rate,
-        },
-        CLOCK_SEARCH_S,
-        2.0 * h,
-        true,
-    )
-    .map(|mut f| {
-        // Against the IMU's own clock.
-        f.lag_s -= p.imu_shift_s;
-        f.sigma_s = f.sigma_s.hypot(rates.slip_lag_s);
-        f
-    });
-    clocks::first_determined(
-        [("course rate against the gyro", fit)],
-        CLOCK_SEARCH_S,
-        "turns with GNSS",
-    )
-}
-
-/// The pairs of streams compared (wheels-GNSS, wheels-IMU, IMU-GNSS), the
-/// wheels-IMU pair's sigma widened by the lag the car itself puts between
-/// the wheels' and the gyro's yaw rates ([`crate::clocks::IMU_PHYSICAL_LAG_S`]).
-fn clock_pairs(
-    imu_clock: &StreamOffset,
-    direct: &StreamOffset,
-    gnss_imu: StreamOffset,
-) -> Vec<PairOffset> {
-    let mut imu = imu_clock.clone();
-    if let Some(s) = imu.sigma_s.as_mut() {
-        *s = s.hypot(crate::clocks::IMU_PHYSICAL_LAG_S);
-    }
-    vec![
-        PairOffset {
-            base: ClockStream::Wheels,
-            later: ClockStream::Gnss,
-            offset: direct.clone(),
-        },
-        PairOffset {
-            base: ClockStream::Wheels,
-            later: ClockStream::Imu,
-            offset: imu,
-        },
-        PairOffset {
-            base: ClockStream::Imu,
-            later: ClockStream::Gnss,
-            offset: gnss_imu,
-        },
-    ]
-}
-
-/// The GNSS offset against the wheels over every pair ([`clocks::solve_offsets`]):
-/// determined when the combination is (within [`clocks::MAX_OFFSET_SIGMA_S`]),
-/// else the direct pair's result with why the chain did not help.
-fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffset {
-    match clocks::solve_offsets(pairs, ClockStream::Gnss) {
-        Ok(j) if j.sigma_s <= clocks::MAX_OFFSET_SIGMA_S => StreamOffset {
-            status: clocks::OffsetStatus::Determined,
-            offset_s: Some(j.offset_s),
-            sigma_s: Some(j.sigma_s),
-            from: Some(if j.direct {
-                direct.from.clone().unwrap_or(j.path)
-            } else {
-                j.path
-            }),
-            applied: false,
-            reason: None,
-            drift: direct.drift.clone(),
-            weak: None,
-        },
-        Ok(j) if direct.status != clocks::OffsetStatus::Determined => {
-            let mut o = direct.clone();
-            o.reason = Some(format!(
-                "{}; through {}: sigma {:.2} s",
-                o.reason.as_deref().unwrap_or("not determined"),
-                j.path,
-                j.sigma_s
-            ));
-            o
-        }
-        Err(why) if direct.status != clocks::OffsetStatus::Determined => {
-            let mut o = direct.clone();
-            o.reason = Some(format!(
-                "{}; {why}",
-                o.reason.as_deref().unwrap_or("not determined")
-            ));
-            o
-        }
-        _ => direct.clone(),
-    }
 }
 
 /// The heading reference at the epochs and between them.
@@ -1054,106 +425,14 @@ pub fn build(
 ) -> Result<Reference, CalibrationError> {
     let p = &a.series;
     let drive: &Drive = &a.drive;
-    let (gnss_sigma_m, estimated) = match config.gnss_sigma_m {
-        Some(s) => (s, false),
-        None => {
-            let given: Vec<f64> = p.fixes.iter().filter_map(|f| f.sigma).collect();
-            if given.len() == p.fixes.len() {
-                let mut g = given;
-                g.sort_by(f64::total_cmp);
-                (g[g.len() / 2], false)
-            } else {
-                // Receivers filter their output, so the short-term scatter
-                // understates the error: never below 0.3 m when estimated.
-                (estimate_gnss_sigma(&p.fixes).unwrap_or(1.0).max(0.3), true)
-            }
-        }
-    };
-    // A receiver's sigma_m below the scatter its own fixes show is not
-    // believed: the larger is used.
-    let claim = match config.gnss_sigma_m {
-        Some(_) => None,
-        None => check_claimed_sigma(&p.fixes, warnings),
-    };
-    let floor = claim.map_or(0.0, |c| c.measured_m);
-    let gnss_sigma_m = if estimated {
-        gnss_sigma_m
-    } else {
-        gnss_sigma_m.max(floor)
-    };
-    let sigma_of = |f: &Fix| -> f64 {
-        match (config.gnss_sigma_m, f.sigma) {
-            (Some(s), _) => s,
-            (None, Some(s)) => s.max(0.01).max(floor),
-            (None, None) => gnss_sigma_m,
-        }
-    };
-    let mut fixes: Vec<RefFix> = p
-        .fixes
-        .iter()
-        .map(|f| RefFix {
-            t: f.t,
-            x: f.x,
-            y: f.y,
-            sigma: sigma_of(f),
-            accepted: true,
-        })
-        .collect();
+    // The GNSS on the wheels' clock (stage 2): its noise, the fixes with
+    // their sigmas, smoothed alone, the clock offset applied.
+    let g = &a.gnss;
+    let (gnss_sigma_m, estimated, claim) = (g.sigma_m, g.sigma_estimated, g.claim);
+    let mut fixes = g.fixes.clone();
+    let antenna: &[[f64; 2]] = &g.antenna;
+    let mut pass1 = g.alone.clone();
     let gate = config.outlier_gate_sigma;
-    let antenna: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
-
-    // Pass 1: GNSS alone, for the course and the time offset.
-    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
-    let mut time_offset = None;
-    let mut clock = StreamOffset::not_checked("time offset check switched off");
-    let mut clock_pairs_found = Vec::new();
-    if config.time_offset != TimeOffsetMode::Off {
-        let rates = course_rates(&pass1);
-        let direct = estimate_time_offset(p, &pass1, &rates);
-        clock_pairs_found = clock_pairs(&a.imu_clock, &direct, gnss_imu_pair(p, &rates));
-        clock = joint_gnss_offset(&direct, &clock_pairs_found);
-        if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
-            let significant = clock.significant(0.015).is_some();
-            let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
-            if significant {
-                warnings.push(Warning::new(
-                    WarningCode::TimeOffset,
-                    format!(
-                        "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms, from the {}){}",
-                        1000.0 * tau.abs(),
-                        if tau > 0.0 { "later" } else { "earlier" },
-                        1000.0 * sigma,
-                        clock.from.as_deref().unwrap_or("speed"),
-                        if compensate {
-                            "; the GNSS times were shifted to match"
-                        } else {
-                            "; not compensated"
-                        }
-                    ),
-                ));
-            }
-            if compensate {
-                for f in &mut fixes {
-                    f.t -= tau;
-                }
-                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
-            }
-            clock.applied = compensate;
-            time_offset = Some(TimeOffset {
-                gnss_late_s: tau,
-                sigma_s: sigma,
-                compensated: compensate,
-            });
-        } else {
-            warnings.push(Warning::new(
-                WarningCode::TimeOffset,
-                format!(
-                    "the wheel/GNSS time offset could not be determined within +-{CLOCK_SEARCH_S:.1} s ({}); it is not checked",
-                    clock.reason.as_deref().unwrap_or("no reason")
-                ),
-            ));
-        }
-    }
     // Heading: gyro + GNSS course (+ absolute heading).
     let gyro = p.gyro.as_ref();
     let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
@@ -1169,7 +448,7 @@ pub fn build(
     if jumps.set_aside.iter().any(|a| *a) {
         pass1 = smooth_positions(
             &fixes,
-            &antenna,
+            antenna,
             Q_ACCEL_FREE,
             gate,
             None,
@@ -1405,9 +684,9 @@ pub fn build(
         gnss_sigma_claim: claim,
         outliers,
         jumps: jumps.jumps,
-        time_offset,
-        gnss_clock: clock,
-        clock_pairs: clock_pairs_found,
+        time_offset: g.time_offset,
+        gnss_clock: g.clock.clone(),
+        clock_pairs: g.pairs.clone(),
         side_slip_gain,
         heading_filter_gyro_bias,
         distance_m,
@@ -1615,6 +894,8 @@ fn accel_inputs(fixes: &[RefFix], p: &Series, drive: &Drive, heading: &HeadingTr
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::clocks::gnss::estimate_gnss_sigma;
+    use crate::series::Fix;
 
     #[test]
     fn smoother_follows_a_constant_velocity_track_and_gates_an_outlier() {

@@ -5,6 +5,7 @@
 //! `circumference_m.rl/.rr`, `sigma_m`, `track_width_m`, `gyro_bias_rad_s`,
 //! `gyro_scale`, `method`, `selected_iteration`, `iterations`, `warnings`.
 
+mod assembly;
 pub mod export;
 pub mod page;
 pub mod plots;
@@ -15,120 +16,12 @@ use crate::fit::gyro::GyroEstimate;
 use crate::fit::lm::ModelTrack;
 use crate::method::Method;
 use crate::reference::TimeOffset;
-use crate::sigmas::uncertainty::Sigmas;
 use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
 
-/// Points kept of the dead-reckoned tracks for the plots.
-pub const TRACK_POINTS: usize = 3000;
-
-/// A value per rear wheel.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct RearPair {
-    /// Rear left.
-    pub rl: f64,
-    /// Rear right.
-    pub rr: f64,
-}
-
-/// 1-sigma of the circumferences; `None` where not determined.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct RearSigma {
-    /// c_RL, m.
-    pub rl: Option<f64>,
-    /// c_RR, m.
-    pub rr: Option<f64>,
-    /// c_RR - c_RL, m.
-    pub difference: Option<f64>,
-    /// (c_RL + c_RR) / 2, m.
-    pub mean: Option<f64>,
-}
-
-impl From<&Sigmas> for RearSigma {
-    fn from(s: &Sigmas) -> Self {
-        let f = |v: f64| v.is_finite().then_some(v);
-        RearSigma {
-            rl: f(s.rl),
-            rr: f(s.rr),
-            difference: f(s.difference),
-            mean: f(s.mean),
-        }
-    }
-}
-
-/// One row of the per-iteration table (the paper's Fig. 6).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct IterationRecord {
-    /// Iteration (0 = the nominal start).
-    pub n: usize,
-    /// Circumferences after it.
-    pub circumference_m: RearPair,
-    /// Track width used, m.
-    pub track_width_m: f64,
-    /// Mean deviation of the pure 2W dead-reckoning from the reference, m.
-    pub dr_error_mean_m: f64,
-    /// Largest deviation, m.
-    pub dr_error_max_m: f64,
-}
-
-/// The output of one method (internal to the library, public for the report).
-#[derive(Debug, Clone, PartialEq)]
-pub struct MethodResult {
-    /// Which method.
-    pub method: Method,
-    /// [c_RL, c_RR], m.
-    pub c: [f64; 2],
-    /// Track width used or estimated, m.
-    pub track: f64,
-    /// Whether the track width was estimated.
-    pub track_estimated: bool,
-    /// Fitted side-slip gain (batch with side-slip on).
-    pub side_slip_gain: Option<f64>,
-    /// Whether side-slip was in the model.
-    pub side_slip: bool,
-    /// Estimated GNSS antenna position (body x, y from the rear-axle centre)
-    /// and its sigmas, m (batch with the lever arm estimated).
-    pub lever_arm: Option<([f64; 2], [f64; 2])>,
-    /// Uncertainty.
-    pub sigmas: Sigmas,
-    /// Per-iteration table.
-    pub iterations: Vec<IterationRecord>,
-    /// The kept iteration.
-    pub selected_iteration: usize,
-    /// RMS of the GNSS residuals (batch), m.
-    pub residual_rms_m: Option<f64>,
-    /// Segments (batch).
-    pub segments: usize,
-    /// What the sigmas rest on.
-    pub sigma_basis: Option<crate::sigmas::uncertainty::SigmaBasis>,
-    /// Dead-reckoned track with the nominal values (thinned).
-    pub track_before: Vec<[f64; 2]>,
-    /// Dead-reckoned track with the estimate (thinned).
-    pub track_after: Vec<[f64; 2]>,
-    /// The fitted model's segment-wise track and GNSS residuals (batch).
-    pub model_track: Option<ModelTrack>,
-    /// Method-specific warnings.
-    pub notes: Vec<Warning>,
-}
-
-/// One method's result in a side-by-side comparison.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct MethodSummary {
-    /// Method.
-    pub method: Method,
-    /// Estimate.
-    pub circumference_m: RearPair,
-    /// Its sigmas.
-    pub sigma_m: RearSigma,
-    /// Track width used or estimated, m.
-    pub track_width_m: f64,
-    /// Kept iteration.
-    pub selected_iteration: usize,
-    /// Mean deviation of the pure 2W dead-reckoning from the reference, m.
-    pub dr_error_mean_m: f64,
-    /// Largest deviation, m.
-    pub dr_error_max_m: f64,
-}
+pub use crate::fit::MethodResult;
+pub use crate::products::{IterationRecord, MethodSummary, RearPair, RearSigma, TRACK_POINTS};
+pub use assembly::assemble;
 
 /// A fit worse than this many times the GNSS noise is a warning
 /// ([`crate::WarningCode::FitWorseThanNoise`]).

@@ -4,98 +4,17 @@
 //! over thousands of samples is far too optimistic. The batch fit (and the
 //! gyro fit) take their sigmas from an error model of the drive's own
 //! residuals ([`crate::sigmas::error_model`], described in the result by
-//! [`SigmaBasis`]). The paper's least squares uses a *block jackknife*: the
-//! drive is cut into contiguous time blocks, the estimate is recomputed
-//! without each, and the spread of those estimates gives the covariance.
+//! [`SigmaBasis`]). The paper's least squares uses a *block jackknife*
+//! ([`crate::fit::jackknife`], which the fits run as they go): the drive is
+//! cut into contiguous time blocks, the estimate is recomputed without
+//! each, and the spread of those estimates gives the covariance.
 
-use crate::fit::ekf::{EkfPass, NormalBlock};
 use crate::reference::Reference;
 use crate::warnings::{Warning, WarningCode};
-use nalgebra::{DMatrix, DVector};
-use serde::{Deserialize, Serialize};
 
-/// 1-sigma uncertainties of the estimated parameters.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct Sigmas {
-    /// c_RL, m.
-    pub rl: f64,
-    /// c_RR, m.
-    pub rr: f64,
-    /// c_RR - c_RL, m.
-    pub difference: f64,
-    /// (c_RL + c_RR) / 2, m.
-    pub mean: f64,
-    /// Track width, m (when estimated).
-    pub track: Option<f64>,
-    /// Correlation of (c_RR - c_RL) with the track width (when estimated).
-    pub corr_difference_track: Option<f64>,
-}
-
-impl Sigmas {
-    /// Sigmas from a covariance of `[c_RL, c_RR]` or `[c_RL, c_RR, t_R, ...]`.
-    pub fn from_covariance(c: &DMatrix<f64>) -> Sigmas {
-        let v = |i: usize, j: usize| c[(i, j)];
-        let diff_var = (v(0, 0) + v(1, 1) - 2.0 * v(0, 1)).max(0.0);
-        let mean_var = (0.25 * (v(0, 0) + v(1, 1) + 2.0 * v(0, 1))).max(0.0);
-        let (track, corr) = if c.nrows() >= 3 {
-            let tv = v(2, 2).max(0.0);
-            let cov_dt = v(1, 2) - v(0, 2);
-            let denom = (diff_var * tv).sqrt();
-            (Some(tv.sqrt()), (denom > 0.0).then(|| cov_dt / denom))
-        } else {
-            (None, None)
-        };
-        Sigmas {
-            rl: v(0, 0).max(0.0).sqrt(),
-            rr: v(1, 1).max(0.0).sqrt(),
-            difference: diff_var.sqrt(),
-            mean: mean_var.sqrt(),
-            track,
-            corr_difference_track: corr,
-        }
-    }
-
-    /// The larger of two sigma sets, entry by entry.
-    pub fn max(self, other: Sigmas) -> Sigmas {
-        let m = |a: Option<f64>, b: Option<f64>| match (a, b) {
-            (Some(a), Some(b)) => Some(a.max(b)),
-            (a, b) => a.or(b),
-        };
-        Sigmas {
-            rl: self.rl.max(other.rl),
-            rr: self.rr.max(other.rr),
-            difference: self.difference.max(other.difference),
-            mean: self.mean.max(other.mean),
-            track: m(self.track, other.track),
-            corr_difference_track: self.corr_difference_track.or(other.corr_difference_track),
-        }
-    }
-}
-
-/// One axis of the GNSS error model the sigmas came from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct AxisNoise {
-    /// White part, 1-sigma, m.
-    pub white_sigma_m: f64,
-    /// Correlated (Gauss-Markov) part, 1-sigma, m.
-    pub correlated_sigma_m: f64,
-    /// Its correlation time, s.
-    pub correlation_time_s: f64,
-    /// Whether the drive resolved that time (it is within the lags the
-    /// residuals showed); if not, the least favourable plausible value was
-    /// taken.
-    pub resolved: bool,
-}
-
-/// What the calibration's sigmas rest on.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct SigmaBasis {
-    /// In words.
-    pub method: String,
-    /// The error model of the east and north residuals, when one was fitted.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub error_model: Option<[AxisNoise; 2]>,
-}
+pub use crate::fit::jackknife::{infinite, jackknife_covariance, jackknife_ls};
+pub use crate::fit::track_width::NO_TURN_DEG;
+pub use crate::products::{AxisNoise, SigmaBasis, Sigmas};
 
 impl SigmaBasis {
     /// Sigmas from the error model `m` (east, north).
@@ -111,95 +30,6 @@ impl SigmaBasis {
             })),
         }
     }
-
-    /// Sigmas from a jackknife (`true`) or the formal covariance alone.
-    pub fn jackknife(jackknife: bool) -> SigmaBasis {
-        SigmaBasis {
-            method: if jackknife {
-                "block jackknife (the residuals showed too few lags for an error model)"
-            } else {
-                "formal covariance only (too few fixes for an error model or a jackknife)"
-            }
-            .to_string(),
-            error_model: None,
-        }
-    }
-
-    /// One line for a text report.
-    pub fn describe(&self) -> String {
-        match &self.error_model {
-            Some([e, n]) => {
-                let axis = |a: &AxisNoise| {
-                    format!(
-                        "{:.3} m white + {:.3} m over {:.0} s{}",
-                        a.white_sigma_m,
-                        a.correlated_sigma_m,
-                        a.correlation_time_s,
-                        if a.resolved {
-                            ""
-                        } else {
-                            " (not resolved: least favourable)"
-                        }
-                    )
-                };
-                format!("{}: east {}, north {}", self.method, axis(e), axis(n))
-            }
-            None => self.method.clone(),
-        }
-    }
-}
-
-/// Block jackknife of the paper's least squares (exact leave-one-block-out solves).
-pub fn jackknife_ls(pass: &EkfPass) -> Sigmas {
-    let mut estimates = Vec::new();
-    for b in pass.blocks.iter().filter(|b| b.rows > 0) {
-        let rest = NormalBlock {
-            a: pass.total.a - b.a,
-            b: pass.total.b - b.b,
-            yy: pass.total.yy - b.yy,
-            rows: pass.total.rows - b.rows,
-        };
-        match rest.solve(pass.dim) {
-            Some(x) => estimates.push(DVector::from_iterator(
-                pass.dim,
-                x.iter().copied().take(pass.dim),
-            )),
-            None => return infinite(),
-        }
-    }
-    jackknife_covariance(&estimates).map_or_else(infinite, |c| Sigmas::from_covariance(&c))
-}
-
-/// Jackknife covariance `(S-1)/S sum (x_s - mean)(x_s - mean)^T`.
-pub fn jackknife_covariance(estimates: &[DVector<f64>]) -> Option<DMatrix<f64>> {
-    let s = estimates.len();
-    if s < 3 {
-        return None;
-    }
-    let dim = estimates[0].len();
-    let mut mean = DVector::zeros(dim);
-    for e in estimates {
-        mean += e;
-    }
-    mean /= s as f64;
-    let mut c = DMatrix::zeros(dim, dim);
-    for e in estimates {
-        let d = e - &mean;
-        c += &d * d.transpose();
-    }
-    Some(c * ((s as f64 - 1.0) / s as f64))
-}
-
-/// Sigmas that say "not determined".
-pub fn infinite() -> Sigmas {
-    Sigmas {
-        rl: f64::INFINITY,
-        rr: f64::INFINITY,
-        difference: f64::INFINITY,
-        mean: f64::INFINITY,
-        track: None,
-        corr_difference_track: None,
-    }
 }
 
 /// Limits above which a parameter is reported as not determined.
@@ -208,8 +38,6 @@ pub const DIFFERENCE_SIGMA_LIMIT_M: f64 = 0.001;
 pub const MEAN_SIGMA_LIMIT_M: f64 = 0.002;
 /// Limit on the sigma of the track width, m.
 pub const TRACK_SIGMA_LIMIT_M: f64 = 0.02;
-/// Turning below which the drive counts as having no turn, degrees.
-pub const NO_TURN_DEG: f64 = 30.0;
 
 /// Observability warnings for an estimate with `sigmas` on the drive
 /// described by `r`. Each names the parameter and the reason.
@@ -313,6 +141,7 @@ fn fmt_mm(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{DMatrix, DVector};
 
     #[test]
     fn sigmas_of_a_covariance() {
