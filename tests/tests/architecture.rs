@@ -364,7 +364,14 @@ fn the_algorithm_libraries_touch_no_files_threads_clock_or_cli() {
     for lib in libs {
         for f in crate_files(&root().join(lib)) {
             for b in banned {
-                if f.code.contains(b) {
+                // A whole name: `EstimateFile::` is not `File::`.
+                let whole = f.code.match_indices(b).any(|(i, _)| {
+                    !f.code[..i]
+                        .chars()
+                        .next_back()
+                        .is_some_and(|c| c.is_alphanumeric() || c == '_')
+                });
+                if whole {
                     found.push(format!("{}: {b}", f.path.display()));
                 }
             }

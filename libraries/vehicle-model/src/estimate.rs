@@ -5,7 +5,7 @@
 //!   rear circumferences equal to `nominal_circumference_m`, the given track,
 //!   an ideal gyro;
 //! - the JSON that `calibrator calibrate --json` writes, the estimate file
-//!   ([`EstimateFile`], [`Estimate::from_json_str`]; `drive_io::read_estimate`
+//!   ([`crate::estimate_file::EstimateFile`], [`Estimate::from_json_str`]; `drive_io::read_estimate`
 //!   reads the file): `circumference_m.{rl,rr}`, `track_width_m`, and when
 //!   the calibrator estimated them `gyro_bias_rad_s` and `gyro_scale`; the
 //!   fields the odometry does not use are carried, not read;
@@ -19,7 +19,6 @@
 //! `w = (gz - gyro_bias_rad_s) / (1 + gyro_scale)`.
 
 use crate::effects::{EffectTerms, WheelEffects};
-use crate::estimate_file::EstimateFile;
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
 use interfaces::effects::{Effect, GNSS_CLOCK_EXTENSION, IMU_CLOCK_EXTENSION};
@@ -338,13 +337,6 @@ pub enum ParamsError {
 }
 
 impl Estimate {
-    /// Parse the calibrator's JSON (the estimate file,
-    /// [`EstimateFile`]); `source` names the input in errors. A gyro bias
-    /// or scale that is absent (or `null`) means an ideal gyro.
-    pub fn from_json_str(text: &str, source: &str) -> Result<Estimate, ParamsError> {
-        EstimateFile::from_json_str(text, source)?.estimate(source)
-    }
-
     /// The estimate received on the wire, validated.
     pub fn from_wire(wire: &CircumferenceEstimate) -> Result<Estimate, ParamsError> {
         let params = OdometryParams {

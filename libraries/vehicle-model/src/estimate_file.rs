@@ -19,7 +19,8 @@
 
 use crate::effects::EffectTerms;
 use crate::estimate::{validate_antenna, Estimate, OdometryParams, ParamsError, StreamClocks};
-use crate::estimate_vehicle::EstimateVehicle;
+pub use crate::estimate_vehicle::NominalFields;
+use crate::estimate_vehicle::{json_error, made_for, EstimateVehicle};
 use crate::two_wheel::TwoWheelParams;
 use interfaces::drive::VehicleParams;
 use serde::{Deserialize, Serialize};
@@ -160,25 +161,12 @@ pub struct ClockDriftFields {
     pub report: Other,
 }
 
-/// `nominal`: the values the calibration started from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct NominalFields {
-    /// The nominal circumference of every wheel, m.
-    pub circumference_m: f64,
-    /// The nominal rear track, m.
-    pub track_width_m: f64,
-    /// Any other field.
-    #[serde(flatten)]
-    pub report: Other,
-}
-
-/// A serde_json error as a [`ParamsError`] naming `source`.
-pub(crate) fn json_error(e: &serde_json::Error, source: &str) -> ParamsError {
-    ParamsError::Json {
-        source_name: source.to_string(),
-        line: e.line(),
-        column: e.column(),
-        message: e.to_string(),
+impl Estimate {
+    /// Parse the calibrator's JSON (the estimate file, [`EstimateFile`]);
+    /// `source` names the input in errors. A gyro bias or scale that is
+    /// absent (or `null`) means an ideal gyro.
+    pub fn from_json_str(text: &str, source: &str) -> Result<Estimate, ParamsError> {
+        EstimateFile::from_json_str(text, source)?.estimate(source)
     }
 }
 
@@ -252,24 +240,6 @@ impl EstimateFile {
     /// estimate).
     pub fn made_for(&self) -> Option<EstimateVehicle> {
         made_for(self.vehicle.as_ref(), self.nominal.as_ref())
-    }
-}
-
-/// The vehicle of an estimate file's `vehicle`, else of its `nominal`.
-pub(crate) fn made_for(
-    vehicle: Option<&VehicleParams>,
-    nominal: Option<&NominalFields>,
-) -> Option<EstimateVehicle> {
-    match (vehicle, nominal) {
-        (Some(v), _) => Some(EstimateVehicle::of(v)),
-        (None, Some(n)) => Some(EstimateVehicle {
-            name: None,
-            nominal_circumference_m: n.circumference_m,
-            track_width_m: n.track_width_m,
-            wheelbase_m: None,
-            ticks_per_rev: None,
-        }),
-        (None, None) => None,
     }
 }
 

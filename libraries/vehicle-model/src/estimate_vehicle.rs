@@ -5,9 +5,9 @@
 //! vehicle is said plainly, not silently used.
 
 use crate::estimate::ParamsError;
-use crate::estimate_file::{json_error, made_for, NominalFields};
 use interfaces::drive::VehicleParams;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
 
 /// Nominal values closer than this are the same, m (the JSON keeps every
 /// digit of `vehicle.toml`; a difference is another file).
@@ -120,6 +120,46 @@ pub fn other_vehicle_warning(
          its circumferences may not fit this car",
         d.join("; ")
     ))
+}
+
+/// `nominal`: the values the calibration started from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NominalFields {
+    /// The nominal circumference of every wheel, m.
+    pub circumference_m: f64,
+    /// The nominal rear track, m.
+    pub track_width_m: f64,
+    /// Any other field.
+    #[serde(flatten)]
+    pub report: Map<String, Value>,
+}
+
+/// A serde_json error as a [`ParamsError`] naming `source`.
+pub(crate) fn json_error(e: &serde_json::Error, source: &str) -> ParamsError {
+    ParamsError::Json {
+        source_name: source.to_string(),
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    }
+}
+
+/// The vehicle of an estimate file's `vehicle`, else of its `nominal`.
+pub(crate) fn made_for(
+    vehicle: Option<&VehicleParams>,
+    nominal: Option<&NominalFields>,
+) -> Option<EstimateVehicle> {
+    match (vehicle, nominal) {
+        (Some(v), _) => Some(EstimateVehicle::of(v)),
+        (None, Some(n)) => Some(EstimateVehicle {
+            name: None,
+            nominal_circumference_m: n.circumference_m,
+            track_width_m: n.track_width_m,
+            wheelbase_m: None,
+            ticks_per_rev: None,
+        }),
+        (None, None) => None,
+    }
 }
 
 #[cfg(test)]
