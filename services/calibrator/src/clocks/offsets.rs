@@ -335,25 +335,8 @@ const LOOP_CHI2_LIMIT: f64 = 9.0;
 /// reaches `stream`, or the pairs of a loop contradict each other and the
 /// direct pair is not determined.
 pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointOffset, String> {
-    const NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
-    let idx = |s: ClockStream| NODES.iter().position(|n| *n == s).unwrap_or(0);
-    let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
-        .iter()
-        .filter_map(|p| {
-            let (o, s) = match (
-                p.offset.status,
-                p.offset.offset_s,
-                p.offset.sigma_s,
-                p.offset.weak,
-            ) {
-                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
-                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
-                _ => return None,
-            };
-            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
-        })
-        .collect();
-    let target = idx(stream);
+    let edges = offset_edges(pairs);
+    let target = node_index(stream);
     if target == 0 {
         return Ok(JointOffset {
             offset_s: 0.0,
@@ -362,21 +345,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             direct: true,
         });
     }
-    // The streams a chain of determined pairs links to the wheels.
-    let mut reached = [true, false, false];
-    loop {
-        let mut grew = false;
-        for &(a, b, ..) in &edges {
-            if reached[a] != reached[b] {
-                reached[a] = true;
-                reached[b] = true;
-                grew = true;
-            }
-        }
-        if !grew {
-            break;
-        }
-    }
+    let reached = reached(&edges);
     if !reached[target] {
         return Err(format!(
             "no chain of determined pairs links the {} to the wheels",
@@ -388,28 +357,10 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
         .filter(|e| reached[e.0] && reached[e.1])
         .collect();
     // Unknowns: the reached streams other than the wheels.
-    let unknowns: Vec<usize> = (1..NODES.len()).filter(|&i| reached[i]).collect();
+    let unknowns: Vec<usize> = (1..CLOCK_NODES.len()).filter(|&i| reached[i]).collect();
     let col = |i: usize| unknowns.iter().position(|&u| u == i);
     let n = unknowns.len();
-    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
-    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
-    for &&(a, b, o, s, _) in &used {
-        // o = x_b - x_a, weight 1 / s^2.
-        let w = 1.0 / (s * s);
-        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
-        if let Some(c) = col(b) {
-            row.push((c, 1.0));
-        }
-        if let Some(c) = col(a) {
-            row.push((c, -1.0));
-        }
-        for &(i, ri) in &row {
-            rhs[i] += w * ri * o;
-            for &(j, rj) in &row {
-                normal[(i, j)] += w * ri * rj;
-            }
-        }
-    }
+    let (normal, rhs) = normal_equations(&used, &unknowns);
     let cov = normal
         .try_inverse()
         .ok_or_else(|| "the pairs do not determine the offsets".to_string())?;
@@ -423,19 +374,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             r * r
         })
         .sum();
-    let describe = |e: &&(usize, usize, f64, f64, &PairOffset)| {
-        format!(
-            "{}-{} ({}{})",
-            e.4.base.name(),
-            e.4.later.name(),
-            e.4.offset.from.as_deref().unwrap_or("?"),
-            if e.4.offset.status == OffsetStatus::Determined {
-                String::new()
-            } else {
-                format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
-            }
-        )
-    };
+    let describe = |e: &&Edge<'_>| describe_edge(e);
     let direct = used
         .iter()
         .find(|e| (e.0 == 0 && e.1 == target) || (e.1 == 0 && e.0 == target));
@@ -463,7 +402,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
     };
     let c = col(target).unwrap_or(0);
     // The pairs the target's offset depends on: d x / d o_e = cov r_e w_e.
-    let moves = |e: &&&(usize, usize, f64, f64, &PairOffset)| {
+    let moves = |e: &&&Edge<'_>| {
         let r = |i: usize| col(i).map_or(0.0, |k| cov[(c, k)]);
         (r(e.1) - r(e.0)).abs() > 1e-9 * cov[(c, c)].abs()
     };
@@ -478,6 +417,105 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             .join(" + "),
         direct: from.len() == 1 && direct.is_some(),
     })
+}
+
+/// The streams of the joint solution, the time base (the wheels) first.
+const CLOCK_NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
+
+/// A pair as an edge of the joint solution: base and later stream (their
+/// [`node_index`]), offset and sigma (s), the pair.
+type Edge<'a> = (usize, usize, f64, f64, &'a PairOffset);
+
+/// `s`'s place in [`CLOCK_NODES`].
+fn node_index(s: ClockStream) -> usize {
+    CLOCK_NODES.iter().position(|n| *n == s).unwrap_or(0)
+}
+
+/// The pairs usable in the joint solution: determined, or with a weak fit;
+/// a positive sigma, between two different streams.
+fn offset_edges(pairs: &[PairOffset]) -> Vec<Edge<'_>> {
+    let idx = node_index;
+    pairs
+        .iter()
+        .filter_map(|p| {
+            let (o, s) = match (
+                p.offset.status,
+                p.offset.offset_s,
+                p.offset.sigma_s,
+                p.offset.weak,
+            ) {
+                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
+                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
+                _ => return None,
+            };
+            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
+        })
+        .collect()
+}
+
+/// The streams a chain of edges links to the wheels.
+fn reached(edges: &[Edge<'_>]) -> [bool; 3] {
+    let mut reached = [true, false, false];
+    loop {
+        let mut grew = false;
+        for &(a, b, ..) in edges {
+            if reached[a] != reached[b] {
+                reached[a] = true;
+                reached[b] = true;
+                grew = true;
+            }
+        }
+        if !grew {
+            return reached;
+        }
+    }
+}
+
+/// The weighted least-squares normal equations of the edges `used`
+/// (o = x_b - x_a, weight 1 / s^2) in the `unknowns` (the streams' offsets
+/// against the wheels).
+fn normal_equations(
+    used: &[&Edge<'_>],
+    unknowns: &[usize],
+) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
+    let col = |i: usize| unknowns.iter().position(|&u| u == i);
+    let n = unknowns.len();
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+    for &&(a, b, o, s, _) in used {
+        // o = x_b - x_a, weight 1 / s^2.
+        let w = 1.0 / (s * s);
+        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
+        if let Some(c) = col(b) {
+            row.push((c, 1.0));
+        }
+        if let Some(c) = col(a) {
+            row.push((c, -1.0));
+        }
+        for &(i, ri) in &row {
+            rhs[i] += w * ri * o;
+            for &(j, rj) in &row {
+                normal[(i, j)] += w * ri * rj;
+            }
+        }
+    }
+    (normal, rhs)
+}
+
+/// An edge in words: the streams, where its offset came from, and a weak
+/// fit's value.
+fn describe_edge(e: &Edge<'_>) -> String {
+    format!(
+        "{}-{} ({}{})",
+        e.4.base.name(),
+        e.4.later.name(),
+        e.4.offset.from.as_deref().unwrap_or("?"),
+        if e.4.offset.status == OffsetStatus::Determined {
+            String::new()
+        } else {
+            format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
+        }
+    )
 }
 
 /// A signal sampled at increasing times, linear between samples.
