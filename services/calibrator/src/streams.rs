@@ -106,6 +106,56 @@ pub fn series(
     let t = &w.t;
     let findings = &timed.findings[..];
     let (mut gyro, mut has_accel, imu_end) = imu(drive, t, imu_shift_s, warnings);
+    act_on_findings(
+        findings,
+        config,
+        t,
+        imu_shift_s,
+        &mut gyro,
+        &mut has_accel,
+        warnings,
+    );
+    let headings = heading(drive, warnings);
+    check_stream_ends(t, &timed.fixes, imu_end, warnings);
+    Series {
+        t: w.t.clone(),
+        dn_rl: w.dn_rl.clone(),
+        dn_rr: w.dn_rr.clone(),
+        piece_starts: w.piece_starts.clone(),
+        wheel_dt: w.wheel_dt,
+        fixes: timed.fixes.clone(),
+        gyro,
+        has_accel,
+        headings,
+        lever_arm: [
+            vehicle.gnss.antenna_x_m.unwrap_or(0.0),
+            vehicle.gnss.antenna_y_m.unwrap_or(0.0),
+        ],
+        lever_arm_given: [
+            vehicle.gnss.antenna_x_m.is_some(),
+            vehicle.gnss.antenna_y_m.is_some(),
+        ],
+        nominal_c: vehicle.nominal_circumference_m,
+        track: vehicle.track_width_m,
+        standstill: w.standstill.clone(),
+        lateral_accel: w.lateral_accel.clone(),
+        wheel_offsets: w.wheel_offsets,
+        imu_shift_s,
+    }
+}
+
+/// Act on the plausibility findings: a stuck gyro dropped (the whole drive)
+/// or blanked (its stretch), stuck accelerations not used; each finding a
+/// warning with what was done.
+fn act_on_findings(
+    findings: &[Finding],
+    config: &CalibrationConfig,
+    t: &[f64],
+    imu_shift_s: f64,
+    gyro: &mut Option<Vec<f64>>,
+    has_accel: &mut bool,
+    warnings: &mut Vec<Warning>,
+) {
     for f in findings {
         match f {
             Finding::ImuStuck {
@@ -117,7 +167,7 @@ pub fn series(
             } => {
                 let what = match (*field, *whole_drive) {
                     ("gz_rad_s", true) if gyro.is_some() => {
-                        gyro = None;
+                        *gyro = None;
                         "the gyro is dropped: no gyro bias or scale is fitted and no gyro heading is used"
                             .to_string()
                     }
@@ -131,8 +181,8 @@ pub fn series(
                         }
                         format!("the gyro is not used from t = {t_start_s:.2} to {t_end_s:.2} s")
                     }
-                    _ if has_accel => {
-                        has_accel = false;
+                    _ if *has_accel => {
+                        *has_accel = false;
                         "the IMU accelerations are not used".to_string()
                     }
                     _ => "not used".to_string(),
@@ -171,33 +221,6 @@ pub fn series(
             }
             _ => {}
         }
-    }
-    let headings = heading(drive, warnings);
-    check_stream_ends(t, &timed.fixes, imu_end, warnings);
-    Series {
-        t: w.t.clone(),
-        dn_rl: w.dn_rl.clone(),
-        dn_rr: w.dn_rr.clone(),
-        piece_starts: w.piece_starts.clone(),
-        wheel_dt: w.wheel_dt,
-        fixes: timed.fixes.clone(),
-        gyro,
-        has_accel,
-        headings,
-        lever_arm: [
-            vehicle.gnss.antenna_x_m.unwrap_or(0.0),
-            vehicle.gnss.antenna_y_m.unwrap_or(0.0),
-        ],
-        lever_arm_given: [
-            vehicle.gnss.antenna_x_m.is_some(),
-            vehicle.gnss.antenna_y_m.is_some(),
-        ],
-        nominal_c: vehicle.nominal_circumference_m,
-        track: vehicle.track_width_m,
-        standstill: w.standstill.clone(),
-        lateral_accel: w.lateral_accel.clone(),
-        wheel_offsets: w.wheel_offsets,
-        imu_shift_s,
     }
 }
 
