@@ -203,10 +203,10 @@ fn warn_disagreement(a: &MethodResult, b: &MethodResult, warnings: &mut Vec<Warn
     }
 }
 
-/// The circumferences and their sigmas: the primary's, or, where the wheel
-/// + gyro model fits the GNSS far better than the 2W model, scaled by its
-/// common distance factor (with its warnings into `later`); and whether
-/// the scale came from the gyro model.
+/// The circumferences and their sigmas: the primary's, or, where the
+/// wheel + gyro model fits the GNSS far better than the 2W model, scaled by
+/// its common distance factor (with its warnings into `later`); and
+/// whether the scale came from the gyro model.
 fn gyro_scale(
     primary: &MethodResult,
     gyro: Option<GyroEstimate>,

@@ -36,6 +36,14 @@ const MAX_EDGES_INSIDE: usize = 50;
 /// Fix pairs further apart than this are not compared, s.
 const MAX_PAIR_DT_S: f64 = 1.5;
 
+/// A displacement pair: the later fix's index, the GNSS displacement and
+/// the dead-reckoned one, m.
+type Pair = (usize, [f64; 2], [f64; 2]);
+
+/// A pair's residual displacement, m, with the wheels' unit direction of
+/// travel (where they moved).
+type Residual = (usize, [f64; 2], Option<[f64; 2]>);
+
 /// One jump found and set aside.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Jump {
@@ -112,13 +120,12 @@ pub fn find(
 
 /// Displacement pairs (j-1, j) of fixes at most [`MAX_PAIR_DT_S`] apart on
 /// one wheel piece: (j, GNSS displacement, dead-reckoned displacement).
-#[allow(clippy::type_complexity)]
 fn displacement_pairs(
     fix_t: &[f64],
     fix_xy: &[[f64; 2]],
     dr: &[Option<(usize, [f64; 2])>],
-) -> Vec<(usize, [f64; 2], [f64; 2])> {
-    let mut pairs: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
+) -> Vec<Pair> {
+    let mut pairs: Vec<Pair> = Vec::new();
     for j in 1..fix_t.len() {
         let dt = fix_t[j] - fix_t[j - 1];
         if !(dt > 0.0 && dt <= MAX_PAIR_DT_S) {
@@ -142,7 +149,7 @@ fn displacement_pairs(
 
 /// The wheels' scale against the GNSS (the nominal circumference is a
 /// percent off): a robust ratio of the longer displacements.
-fn wheel_scale(pairs: &[(usize, [f64; 2], [f64; 2])]) -> f64 {
+fn wheel_scale(pairs: &[Pair]) -> f64 {
     let mut ratios: Vec<f64> = pairs
         .iter()
         .filter_map(|(_, dz, dd)| {
@@ -156,11 +163,7 @@ fn wheel_scale(pairs: &[(usize, [f64; 2], [f64; 2])]) -> f64 {
 /// Residual displacement per pair, and the wheels' direction of travel
 /// (where they moved): stamp jitter and the wheels' scale err along it,
 /// the heading across it, so each has its own spread.
-#[allow(clippy::type_complexity)]
-fn residuals(
-    pairs: &[(usize, [f64; 2], [f64; 2])],
-    scale: f64,
-) -> Vec<(usize, [f64; 2], Option<[f64; 2]>)> {
+fn residuals(pairs: &[Pair], scale: f64) -> Vec<Residual> {
     pairs
         .iter()
         .map(|(j, dz, dd)| {
@@ -189,7 +192,7 @@ struct Noise {
 impl Noise {
     /// From the residuals (`None` when there are none); along and across
     /// the travel apart when at least 20 residuals have a direction.
-    fn of(e: &[(usize, [f64; 2], Option<[f64; 2]>)]) -> Option<Noise> {
+    fn of(e: &[Residual]) -> Option<Noise> {
         let mut along: Vec<f64> = Vec::new();
         let mut across: Vec<f64> = Vec::new();
         let mut comps: Vec<f64> = Vec::new();
