@@ -225,39 +225,9 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
     let mut config = args.config();
     let mut reading: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
     if let Some(path) = &args.initial {
-        let (estimate, made_for) = drive_io::read_estimate_with_vehicle(path)
-            .with_context(|| format!("--initial {}", path.display()))?;
-        if let Some(w) = made_for.and_then(|v| {
-            vehicle_model::estimate_vehicle::other_vehicle_warning(
-                &v,
-                &drive.vehicle,
-                &path.display().to_string(),
-                &args.drive.display().to_string(),
-            )
-        }) {
-            tracing::warn!("{w}");
-            reading.push(w);
-        }
-        let tw = estimate.params.two_wheel;
-        config.initial_circumference_m = Some([tw.c_rl, tw.c_rr]);
+        start_from(args, path, &drive, &mut config, &mut reading)?;
     }
-    // A bar only where it helps: drives longer than five minutes.
-    let mut bar = Bar {
-        shown: false,
-        last: -1,
-    };
-    // A carriage-return bar only on a terminal: a log file or a pipe gets none.
-    let show =
-        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
-    let result = calibrate_with_progress(&drive, &config, &mut |p| {
-        if show {
-            bar.update(p)
-        }
-    });
-    if bar.shown {
-        eprintln!();
-    }
-    let cal = result.with_context(|| format!("cannot calibrate {}", args.drive.display()))?;
+    let cal = calibrate_showing_progress(args, &drive, &config)?;
     print!("{}", report::render_text(&cal));
     if !reading.is_empty() {
         println!("reading the drive:");
@@ -266,29 +236,7 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         }
     }
     let effects = if args.diagnose {
-        let d = calibrator::diagnose::diagnose(
-            &drive,
-            &calibrator::diagnose::DiagnoseConfig::default(),
-        )
-        .with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
-        let found: Vec<&str> = d.findings.iter().map(|f| f.effect.id()).collect();
-        println!(
-            "diagnosis: {}",
-            if found.is_empty() {
-                "no effect beyond the noise".to_string()
-            } else {
-                format!(
-                    "{} (the terms go into the JSON's `effects`)",
-                    found.join(", ")
-                )
-            }
-        );
-        // What the calibration fitted itself stays with it.
-        Some(calibrator::diagnose::terms_beside(
-            &d.terms,
-            cal.track_width_estimated,
-            cal.side_slip,
-        ))
+        Some(diagnose_effects(args, &drive, &cal)?)
     } else {
         None
     };
@@ -296,6 +244,102 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
         write_estimate_file(path, &estimate_file(&cal, &reading, effects)?)?;
         println!("wrote {}", path.display());
     }
+    write_exports(args, &cal)?;
+    if let Some(dir) = &args.plots {
+        let name = args.drive.file_name().map_or_else(
+            || args.drive.display().to_string(),
+            |n| n.to_string_lossy().to_string(),
+        );
+        write_plots(dir, &cal, &name, &reading)?;
+    }
+    Ok(())
+}
+
+/// Start the fit from the estimate file at `path` (--initial): its
+/// circumferences into `config`; a warning (logged and kept in `reading`)
+/// when it was made for another vehicle.
+fn start_from(
+    args: &CalibrateArgs,
+    path: &Path,
+    drive: &interfaces::drive::Drive,
+    config: &mut CalibrationConfig,
+    reading: &mut Vec<String>,
+) -> Result<()> {
+    let (estimate, made_for) = drive_io::read_estimate_with_vehicle(path)
+        .with_context(|| format!("--initial {}", path.display()))?;
+    if let Some(w) = made_for.and_then(|v| {
+        vehicle_model::estimate_vehicle::other_vehicle_warning(
+            &v,
+            &drive.vehicle,
+            &path.display().to_string(),
+            &args.drive.display().to_string(),
+        )
+    }) {
+        tracing::warn!("{w}");
+        reading.push(w);
+    }
+    let tw = estimate.params.two_wheel;
+    config.initial_circumference_m = Some([tw.c_rl, tw.c_rr]);
+    Ok(())
+}
+
+/// Calibrate, with a progress bar on a terminal for drives longer than
+/// five minutes (unless --no-progress).
+fn calibrate_showing_progress(
+    args: &CalibrateArgs,
+    drive: &interfaces::drive::Drive,
+    config: &CalibrationConfig,
+) -> Result<calibrator::Calibration> {
+    // A bar only where it helps: drives longer than five minutes.
+    let mut bar = Bar {
+        shown: false,
+        last: -1,
+    };
+    // A carriage-return bar only on a terminal: a log file or a pipe gets none.
+    let show =
+        !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
+    let result = calibrate_with_progress(drive, config, &mut |p| {
+        if show {
+            bar.update(p)
+        }
+    });
+    if bar.shown {
+        eprintln!();
+    }
+    result.with_context(|| format!("cannot calibrate {}", args.drive.display()))
+}
+
+/// Diagnose the drive (--diagnose) and print what it found: the effects'
+/// terms for the JSON, less what the calibration fitted itself.
+fn diagnose_effects(
+    args: &CalibrateArgs,
+    drive: &interfaces::drive::Drive,
+    cal: &calibrator::Calibration,
+) -> Result<EffectTerms> {
+    let d = calibrator::diagnose::diagnose(drive, &calibrator::diagnose::DiagnoseConfig::default())
+        .with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+    let found: Vec<&str> = d.findings.iter().map(|f| f.effect.id()).collect();
+    println!(
+        "diagnosis: {}",
+        if found.is_empty() {
+            "no effect beyond the noise".to_string()
+        } else {
+            format!(
+                "{} (the terms go into the JSON's `effects`)",
+                found.join(", ")
+            )
+        }
+    );
+    // What the calibration fitted itself stays with it.
+    Ok(calibrator::diagnose::terms_beside(
+        &d.terms,
+        cal.track_width_estimated,
+        cal.side_slip,
+    ))
+}
+
+/// Write the Autoware and TOML exports asked for.
+fn write_exports(args: &CalibrateArgs, cal: &calibrator::Calibration) -> Result<()> {
     let provenance = export::Provenance {
         drive: args.drive.display().to_string(),
         version: env!("CARGO_PKG_VERSION").to_string(),
@@ -305,13 +349,13 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
             &args.export_autoware,
             args.export_autoware
                 .as_ref()
-                .map(|_| export::autoware_yaml(&cal, &provenance)),
+                .map(|_| export::autoware_yaml(cal, &provenance)),
         ),
         (
             &args.export_toml,
             args.export_toml
                 .as_ref()
-                .map(|_| export::two_wheel_toml(&cal, &provenance)),
+                .map(|_| export::two_wheel_toml(cal, &provenance)),
         ),
     ] {
         if let (Some(path), Some(text)) = (path, text) {
@@ -319,13 +363,6 @@ pub fn run_calibrate(args: &CalibrateArgs) -> Result<()> {
                 .with_context(|| format!("cannot write {}", path.display()))?;
             println!("wrote {}", path.display());
         }
-    }
-    if let Some(dir) = &args.plots {
-        let name = args.drive.file_name().map_or_else(
-            || args.drive.display().to_string(),
-            |n| n.to_string_lossy().to_string(),
-        );
-        write_plots(dir, &cal, &name, &reading)?;
     }
     Ok(())
 }

@@ -134,6 +134,16 @@ fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
 /// The diagnosis as text for the terminal.
 pub fn render_text(d: &Diagnosis) -> String {
     let mut s = String::new();
+    write_model_and_noise(&mut s, d);
+    write_findings(&mut s, d);
+    write_other_effects(&mut s, d);
+    write_fit(&mut s, d);
+    information_text(&mut s, d);
+    s
+}
+
+/// The plain 2W model, the warnings of reading the drive, the noise.
+fn write_model_and_noise(s: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         s,
         "plain 2W model: c_RL {:.4} m, c_RR {:.4} m, track {:.3} m (vehicle.toml)",
@@ -158,6 +168,10 @@ pub fn render_text(d: &Diagnosis) -> String {
             String::new()
         }
     );
+}
+
+/// The effects accepted, with their parameters and held-out gain.
+fn write_findings(s: &mut String, d: &Diagnosis) {
     if d.findings.is_empty() {
         let _ = writeln!(
             s,
@@ -191,6 +205,12 @@ pub fn render_text(d: &Diagnosis) -> String {
             let _ = writeln!(s, "    {}", f.evidence);
         }
     }
+}
+
+/// The effects ambiguous, unexplained stretches, mismatching segments, the
+/// effects rejected, not accepted (with what this drive could detect) and
+/// not testable.
+fn write_other_effects(s: &mut String, d: &Diagnosis) {
     for a in &d.ambiguous {
         let ids: Vec<&str> = a.effects.iter().map(|e| e.id()).collect();
         let _ = writeln!(
@@ -247,6 +267,10 @@ pub fn render_text(d: &Diagnosis) -> String {
     for u in &d.untestable {
         let _ = writeln!(s, "not testable here: {} (needs {})", u.effect, u.needs);
     }
+}
+
+/// The held-out fit before and after.
+fn write_fit(s: &mut String, d: &Diagnosis) {
     let (b, a) = (&d.fit.before, &d.fit.after);
     let _ = writeln!(
         s,
@@ -261,8 +285,6 @@ pub fn render_text(d: &Diagnosis) -> String {
         b.residual_lag1_autocorr,
         a.residual_lag1_autocorr
     );
-    information_text(&mut s, d);
-    s
 }
 
 /// What the drive could show of each effect (the information limit),

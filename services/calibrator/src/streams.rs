@@ -106,6 +106,56 @@ pub fn series(
     let t = &w.t;
     let findings = &timed.findings[..];
     let (mut gyro, mut has_accel, imu_end) = imu(drive, t, imu_shift_s, warnings);
+    act_on_findings(
+        findings,
+        config,
+        t,
+        imu_shift_s,
+        &mut gyro,
+        &mut has_accel,
+        warnings,
+    );
+    let headings = heading(drive, warnings);
+    check_stream_ends(t, &timed.fixes, imu_end, warnings);
+    Series {
+        t: w.t.clone(),
+        dn_rl: w.dn_rl.clone(),
+        dn_rr: w.dn_rr.clone(),
+        piece_starts: w.piece_starts.clone(),
+        wheel_dt: w.wheel_dt,
+        fixes: timed.fixes.clone(),
+        gyro,
+        has_accel,
+        headings,
+        lever_arm: [
+            vehicle.gnss.antenna_x_m.unwrap_or(0.0),
+            vehicle.gnss.antenna_y_m.unwrap_or(0.0),
+        ],
+        lever_arm_given: [
+            vehicle.gnss.antenna_x_m.is_some(),
+            vehicle.gnss.antenna_y_m.is_some(),
+        ],
+        nominal_c: vehicle.nominal_circumference_m,
+        track: vehicle.track_width_m,
+        standstill: w.standstill.clone(),
+        lateral_accel: w.lateral_accel.clone(),
+        wheel_offsets: w.wheel_offsets,
+        imu_shift_s,
+    }
+}
+
+/// Act on the plausibility findings: a stuck gyro dropped (the whole drive)
+/// or blanked (its stretch), stuck accelerations not used; each finding a
+/// warning with what was done.
+fn act_on_findings(
+    findings: &[Finding],
+    config: &CalibrationConfig,
+    t: &[f64],
+    imu_shift_s: f64,
+    gyro: &mut Option<Vec<f64>>,
+    has_accel: &mut bool,
+    warnings: &mut Vec<Warning>,
+) {
     for f in findings {
         match f {
             Finding::ImuStuck {
@@ -117,7 +167,7 @@ pub fn series(
             } => {
                 let what = match (*field, *whole_drive) {
                     ("gz_rad_s", true) if gyro.is_some() => {
-                        gyro = None;
+                        *gyro = None;
                         "the gyro is dropped: no gyro bias or scale is fitted and no gyro heading is used"
                             .to_string()
                     }
@@ -131,8 +181,8 @@ pub fn series(
                         }
                         format!("the gyro is not used from t = {t_start_s:.2} to {t_end_s:.2} s")
                     }
-                    _ if has_accel => {
-                        has_accel = false;
+                    _ if *has_accel => {
+                        *has_accel = false;
                         "the IMU accelerations are not used".to_string()
                     }
                     _ => "not used".to_string(),
@@ -171,33 +221,6 @@ pub fn series(
             }
             _ => {}
         }
-    }
-    let headings = heading(drive, warnings);
-    check_stream_ends(t, &timed.fixes, imu_end, warnings);
-    Series {
-        t: w.t.clone(),
-        dn_rl: w.dn_rl.clone(),
-        dn_rr: w.dn_rr.clone(),
-        piece_starts: w.piece_starts.clone(),
-        wheel_dt: w.wheel_dt,
-        fixes: timed.fixes.clone(),
-        gyro,
-        has_accel,
-        headings,
-        lever_arm: [
-            vehicle.gnss.antenna_x_m.unwrap_or(0.0),
-            vehicle.gnss.antenna_y_m.unwrap_or(0.0),
-        ],
-        lever_arm_given: [
-            vehicle.gnss.antenna_x_m.is_some(),
-            vehicle.gnss.antenna_y_m.is_some(),
-        ],
-        nominal_c: vehicle.nominal_circumference_m,
-        track: vehicle.track_width_m,
-        standstill: w.standstill.clone(),
-        lateral_accel: w.lateral_accel.clone(),
-        wheel_offsets: w.wheel_offsets,
-        imu_shift_s,
     }
 }
 
@@ -286,87 +309,20 @@ fn imu(
         ));
         return (None, false, None);
     };
-    let usable = |r: &&interfaces::drive::ImuSample| r.t_s.is_finite() && r.gz_rad_s.is_finite();
-    let mut dts: Vec<f64> = rows
-        .iter()
-        .filter(usable)
-        .take(10_000)
-        .map(|r| r.t_s)
-        .collect::<Vec<_>>()
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    let threshold = (10.0 * stats::upper_median(&mut dts).unwrap_or(0.01)).max(0.5);
-    let mut out = Vec::with_capacity(t.len());
-    let mut k = 0usize;
-    let mut prev: Option<(f64, f64)> = None; // (time, rate)
-    let mut acc = 0.0;
-    let mut skipped = 0usize;
-    let mut first_bad = None;
-    let mut used = 0usize;
-    let mut gaps = 0usize;
-    let mut longest = (0.0f64, 0.0f64);
-    let mut has_accel = false;
-    let mut last_t = None;
-    for r in rows {
-        // The IMU time on the wheels' clock.
-        let rt = r.t_s - shift;
-        if !usable(&r) || prev.is_some_and(|(t0, _)| rt <= t0) {
-            skipped += 1;
-            first_bad.get_or_insert(r.t_s);
-            continue;
-        }
-        has_accel |= r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite);
-        used += 1;
-        last_t = Some(rt);
-        match prev {
-            None => {
-                // Wheel times before the IMU starts are not covered.
-                while k < t.len() && t[k] < rt {
-                    out.push(f64::NAN);
-                    k += 1;
-                }
-                if k < t.len() && t[k] == rt {
-                    out.push(0.0);
-                    k += 1;
-                }
-            }
-            Some((t0, w0)) => {
-                let dt = rt - t0;
-                let next = acc + 0.5 * (w0 + r.gz_rad_s) * dt;
-                let pause = dt > threshold;
-                if pause {
-                    gaps += 1;
-                    if dt > longest.0 {
-                        longest = (dt, t0);
-                    }
-                }
-                while k < t.len() && t[k] <= rt {
-                    if pause && t[k] > t0 && t[k] < rt {
-                        out.push(f64::NAN);
-                    } else {
-                        let f = (t[k] - t0) / dt;
-                        out.push(acc + f * (next - acc));
-                    }
-                    k += 1;
-                }
-                acc = next;
-            }
-        }
-        prev = Some((rt, r.gz_rad_s));
-    }
-    out.resize(t.len(), f64::NAN);
-    if skipped > 0 {
+    let threshold = imu_gap_threshold(rows);
+    let g = GyroAngle::integrate(rows, t, shift, threshold);
+    if g.skipped > 0 {
         warnings.push(Warning::new(
             WarningCode::NonFiniteSamples,
             format!(
-                "imu: {skipped} of {} rows have a non-finite time or gz_rad_s (or break the time order) and were skipped (first at t = {:.3} s)",
+                "imu: {} of {} rows have a non-finite time or gz_rad_s (or break the time order) and were skipped (first at t = {:.3} s)",
+                g.skipped,
                 rows.len(),
-                first_bad.unwrap_or(f64::NAN)
+                g.first_bad.unwrap_or(f64::NAN)
             ),
         ));
     }
+    let used = g.used;
     if used < 10 {
         warnings.push(Warning::new(
             WarningCode::NoImu,
@@ -374,6 +330,7 @@ fn imu(
         ));
         return (None, false, None);
     }
+    let (gaps, longest) = (g.gaps, g.longest);
     if gaps > 0 {
         warnings.push(Warning::new(
             WarningCode::StreamGap,
@@ -384,7 +341,131 @@ fn imu(
             ),
         ));
     }
-    (Some(out), has_accel, last_t)
+    (Some(g.angle), g.has_accel, g.last_t)
+}
+
+/// Whether an IMU row has a finite time and yaw rate.
+fn imu_usable(r: &&interfaces::drive::ImuSample) -> bool {
+    r.t_s.is_finite() && r.gz_rad_s.is_finite()
+}
+
+/// The IMU pause threshold: ten median intervals of the first usable rows,
+/// at least 0.5 s.
+fn imu_gap_threshold(rows: &[interfaces::drive::ImuSample]) -> f64 {
+    let mut dts: Vec<f64> = rows
+        .iter()
+        .filter(imu_usable)
+        .take(10_000)
+        .map(|r| r.t_s)
+        .collect::<Vec<_>>()
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    (10.0 * stats::upper_median(&mut dts).unwrap_or(0.01)).max(0.5)
+}
+
+/// The gyro's cumulative yaw angle at the wheel times, with what the
+/// integration skipped and found.
+struct GyroAngle {
+    /// Per wheel time, rad (NaN where not covered or across a pause).
+    angle: Vec<f64>,
+    /// Rows skipped (non-finite, or out of time order), and the first's time.
+    skipped: usize,
+    first_bad: Option<f64>,
+    /// Rows used.
+    used: usize,
+    /// Pauses longer than the threshold, and the longest with its start.
+    gaps: usize,
+    longest: (f64, f64),
+    /// Whether any used row has both horizontal accelerations.
+    has_accel: bool,
+    /// The last used row's time on the wheels' clock, s.
+    last_t: Option<f64>,
+}
+
+impl GyroAngle {
+    /// Integrate the yaw rate (trapezoid) over the rows, their times
+    /// shifted by `shift` onto the wheels' clock, and interpolate it at the
+    /// wheel times `t`.
+    fn integrate(
+        rows: &[interfaces::drive::ImuSample],
+        t: &[f64],
+        shift: f64,
+        threshold: f64,
+    ) -> GyroAngle {
+        let usable = imu_usable;
+        let mut out = Vec::with_capacity(t.len());
+        let mut k = 0usize;
+        let mut prev: Option<(f64, f64)> = None; // (time, rate)
+        let mut acc = 0.0;
+        let mut skipped = 0usize;
+        let mut first_bad = None;
+        let mut used = 0usize;
+        let mut gaps = 0usize;
+        let mut longest = (0.0f64, 0.0f64);
+        let mut has_accel = false;
+        let mut last_t = None;
+        for r in rows {
+            // The IMU time on the wheels' clock.
+            let rt = r.t_s - shift;
+            if !usable(&r) || prev.is_some_and(|(t0, _)| rt <= t0) {
+                skipped += 1;
+                first_bad.get_or_insert(r.t_s);
+                continue;
+            }
+            has_accel |=
+                r.ax_m_s2.is_some_and(f64::is_finite) && r.ay_m_s2.is_some_and(f64::is_finite);
+            used += 1;
+            last_t = Some(rt);
+            match prev {
+                None => {
+                    // Wheel times before the IMU starts are not covered.
+                    while k < t.len() && t[k] < rt {
+                        out.push(f64::NAN);
+                        k += 1;
+                    }
+                    if k < t.len() && t[k] == rt {
+                        out.push(0.0);
+                        k += 1;
+                    }
+                }
+                Some((t0, w0)) => {
+                    let dt = rt - t0;
+                    let next = acc + 0.5 * (w0 + r.gz_rad_s) * dt;
+                    let pause = dt > threshold;
+                    if pause {
+                        gaps += 1;
+                        if dt > longest.0 {
+                            longest = (dt, t0);
+                        }
+                    }
+                    while k < t.len() && t[k] <= rt {
+                        if pause && t[k] > t0 && t[k] < rt {
+                            out.push(f64::NAN);
+                        } else {
+                            let f = (t[k] - t0) / dt;
+                            out.push(acc + f * (next - acc));
+                        }
+                        k += 1;
+                    }
+                    acc = next;
+                }
+            }
+            prev = Some((rt, r.gz_rad_s));
+        }
+        out.resize(t.len(), f64::NAN);
+        GyroAngle {
+            angle: out,
+            skipped,
+            first_bad,
+            used,
+            gaps,
+            longest,
+            has_accel,
+            last_t,
+        }
+    }
 }
 
 fn heading(drive: &Drive, warnings: &mut Vec<Warning>) -> Vec<HeadingSample> {

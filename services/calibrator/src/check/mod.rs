@@ -214,8 +214,37 @@ fn rate_offsets(
     (total_t >= 2.0 && n > 0).then(|| (sum_l / n as f64, sum_r / n as f64, total_t))
 }
 
+/// The rear wheels checked and integrated into revolution increments per
+/// row (zero across pauses, which start pieces), with the sample interval
+/// and the standstill rate offsets.
 fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, CalibrationError> {
     let samples = &drive.wheels.samples;
+    check_channels(samples)?;
+    let units = drive.wheels.units;
+    let (k_rl, k_rr) = unit_scales(drive)?;
+    let offsets = rate_offsets(
+        samples,
+        units,
+        k_rl,
+        k_rr,
+        drive.vehicle.nominal_circumference_m,
+    );
+    let (o_rl, o_rr) = offsets.map_or((0.0, 0.0), |o| (o.0, o.1));
+    let wheel_dt = median_interval(samples);
+    let gap_threshold = (10.0 * wheel_dt).max(0.5);
+    let w = Integrated::of(samples, units, [k_rl, k_rr], [o_rl, o_rr], gap_threshold);
+    w.warn(samples.len(), gap_threshold, warnings);
+    check_both_turn(
+        w.total_rl,
+        w.total_rr,
+        drive.vehicle.nominal_circumference_m,
+    )?;
+    Ok((w.t, w.dn_rl, w.dn_rr, w.piece_starts, wheel_dt, offsets))
+}
+
+/// Refuse a drive without wheel rows, or with a rear channel that has no
+/// finite value.
+fn check_channels(samples: &[WheelSample]) -> Result<(), CalibrationError> {
     if samples.is_empty() {
         return Err(CalibrationError::NoWheelData);
     }
@@ -233,6 +262,12 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             count: samples.len(),
         });
     }
+    Ok(())
+}
+
+/// The factors from each rear channel's unit to revolutions (per second
+/// for a rate): rl, rr.
+fn unit_scales(drive: &Drive) -> Result<(f64, f64), CalibrationError> {
     let units = drive.wheels.units;
     let scale = |unit: WheelUnit| -> Result<f64, CalibrationError> {
         Ok(match unit {
@@ -245,103 +280,159 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             WheelUnit::MS => 1.0 / drive.vehicle.nominal_circumference_m,
         })
     };
-    let (k_rl, k_rr) = (scale(units.rl)?, scale(units.rr)?);
-    let offsets = rate_offsets(
-        samples,
-        units,
-        k_rl,
-        k_rr,
-        drive.vehicle.nominal_circumference_m,
-    );
-    let (o_rl, o_rr) = offsets.map_or((0.0, 0.0), |o| (o.0, o.1));
-    // Median sample interval from the first rows (enough to set the gap threshold).
+    Ok((scale(units.rl)?, scale(units.rr)?))
+}
+
+/// Median sample interval from the first rows (enough to set the gap
+/// threshold), s; 0.01 s when none is known, at least 0.1 ms.
+fn median_interval(samples: &[WheelSample]) -> f64 {
     let mut dts: Vec<f64> = samples
         .windows(2)
         .take(10_000)
         .map(|w| w[1].t_s - w[0].t_s)
         .filter(|d| d.is_finite() && *d > 0.0)
         .collect();
-    let wheel_dt = stats::upper_median(&mut dts).unwrap_or(0.01).max(1e-4);
-    let gap_threshold = (10.0 * wheel_dt).max(0.5);
+    stats::upper_median(&mut dts).unwrap_or(0.01).max(1e-4)
+}
 
-    let n = samples.len();
-    let mut t = Vec::with_capacity(n);
-    let mut dn_rl = Vec::with_capacity(n);
-    let mut dn_rr = Vec::with_capacity(n);
-    let mut piece_starts = vec![0usize];
-    let mut gaps = 0usize;
-    let mut longest = (0.0f64, 0.0f64);
-    let (mut total_rl, mut total_rr) = (0.0f64, 0.0f64);
-    let mut skipped = 0usize;
-    let mut first_bad = None;
-    let mut prev: Option<&WheelSample> = None;
-    for s in samples {
-        if !(s.rl.is_finite() && s.rr.is_finite() && s.t_s.is_finite()) {
-            // Skipped: a rate is integrated across it from its neighbours,
-            // as `wheel_revolutions` does on the cleaned rows.
-            skipped += 1;
-            first_bad.get_or_insert(s.t_s);
-            continue;
-        }
-        let Some(p) = prev else {
+/// The wheel rows integrated into revolution increments, with the pieces
+/// between pauses and what was skipped.
+struct Integrated {
+    t: Vec<f64>,
+    dn_rl: Vec<f64>,
+    dn_rr: Vec<f64>,
+    piece_starts: Vec<usize>,
+    /// Pauses longer than the gap threshold.
+    gaps: usize,
+    /// The longest pause and the time it starts, s.
+    longest: (f64, f64),
+    /// Absolute revolutions turned, rl and rr.
+    total_rl: f64,
+    total_rr: f64,
+    /// Rows skipped (non-finite, or out of time order), and the first's time.
+    skipped: usize,
+    first_bad: Option<f64>,
+}
+
+impl Integrated {
+    /// Integrate the rows: a rate by the trapezoid (less its standstill
+    /// `offset`), a count by its difference, both times the unit's factor
+    /// `k` (rl, rr); an increment over a pause longer than `gap_threshold`
+    /// is zero and starts a new piece.
+    fn of(
+        samples: &[WheelSample],
+        units: interfaces::drive::WheelUnits,
+        k: [f64; 2],
+        offset: [f64; 2],
+        gap_threshold: f64,
+    ) -> Integrated {
+        let [k_rl, k_rr] = k;
+        let [o_rl, o_rr] = offset;
+        let n = samples.len();
+        let mut t = Vec::with_capacity(n);
+        let mut dn_rl = Vec::with_capacity(n);
+        let mut dn_rr = Vec::with_capacity(n);
+        let mut piece_starts = vec![0usize];
+        let mut gaps = 0usize;
+        let mut longest = (0.0f64, 0.0f64);
+        let (mut total_rl, mut total_rr) = (0.0f64, 0.0f64);
+        let mut skipped = 0usize;
+        let mut first_bad = None;
+        let mut prev: Option<&WheelSample> = None;
+        for s in samples {
+            if !(s.rl.is_finite() && s.rr.is_finite() && s.t_s.is_finite()) {
+                // Skipped: a rate is integrated across it from its neighbours,
+                // as `wheel_revolutions` does on the cleaned rows.
+                skipped += 1;
+                first_bad.get_or_insert(s.t_s);
+                continue;
+            }
+            let Some(p) = prev else {
+                t.push(s.t_s);
+                dn_rl.push(0.0);
+                dn_rr.push(0.0);
+                prev = Some(s);
+                continue;
+            };
+            let dt = s.t_s - p.t_s;
+            if dt.is_nan() || dt <= 0.0 {
+                skipped += 1;
+                first_bad.get_or_insert(s.t_s);
+                continue;
+            }
+            let inc = |unit: WheelUnit, k: f64, a: f64, b: f64, offset: f64| {
+                if unit.is_rate() {
+                    (0.5 * (a + b) - offset) * k * dt
+                } else {
+                    (b - a) * k
+                }
+            };
+            let a = inc(units.rl, k_rl, p.rl, s.rl, o_rl);
+            let b = inc(units.rr, k_rr, p.rr, s.rr, o_rr);
             t.push(s.t_s);
-            dn_rl.push(0.0);
-            dn_rr.push(0.0);
-            prev = Some(s);
-            continue;
-        };
-        let dt = s.t_s - p.t_s;
-        if dt.is_nan() || dt <= 0.0 {
-            skipped += 1;
-            first_bad.get_or_insert(s.t_s);
-            continue;
-        }
-        let inc = |unit: WheelUnit, k: f64, a: f64, b: f64, offset: f64| {
-            if unit.is_rate() {
-                (0.5 * (a + b) - offset) * k * dt
+            if dt > gap_threshold {
+                gaps += 1;
+                if dt > longest.0 {
+                    longest = (dt, p.t_s);
+                }
+                piece_starts.push(t.len() - 1);
+                dn_rl.push(0.0);
+                dn_rr.push(0.0);
             } else {
-                (b - a) * k
+                total_rl += a.abs();
+                total_rr += b.abs();
+                dn_rl.push(a);
+                dn_rr.push(b);
             }
-        };
-        let a = inc(units.rl, k_rl, p.rl, s.rl, o_rl);
-        let b = inc(units.rr, k_rr, p.rr, s.rr, o_rr);
-        t.push(s.t_s);
-        if dt > gap_threshold {
-            gaps += 1;
-            if dt > longest.0 {
-                longest = (dt, p.t_s);
-            }
-            piece_starts.push(t.len() - 1);
-            dn_rl.push(0.0);
-            dn_rr.push(0.0);
-        } else {
-            total_rl += a.abs();
-            total_rr += b.abs();
-            dn_rl.push(a);
-            dn_rr.push(b);
+            prev = Some(s);
         }
-        prev = Some(s);
+        Integrated {
+            t,
+            dn_rl,
+            dn_rr,
+            piece_starts,
+            gaps,
+            longest,
+            total_rl,
+            total_rr,
+            skipped,
+            first_bad,
+        }
     }
-    if skipped > 0 {
-        warnings.push(Warning::new(
-            WarningCode::NonFiniteSamples,
-            format!(
-                "wheels: {skipped} of {} rows have a non-finite time or rl/rr value (or break the time order) and were skipped (first at t = {:.3} s)",
-                samples.len(),
-                first_bad.unwrap_or(f64::NAN)
-            ),
-        ));
+
+    /// Warn of the rows skipped and of the pauses (`rows`: the rows read).
+    fn warn(&self, rows: usize, gap_threshold: f64, warnings: &mut Vec<Warning>) {
+        let (skipped, gaps, longest) = (self.skipped, self.gaps, self.longest);
+        if skipped > 0 {
+            warnings.push(Warning::new(
+                WarningCode::NonFiniteSamples,
+                format!(
+                    "wheels: {skipped} of {} rows have a non-finite time or rl/rr value (or break the time order) and were skipped (first at t = {:.3} s)",
+                    rows,
+                    self.first_bad.unwrap_or(f64::NAN)
+                ),
+            ));
+        }
+        if gaps > 0 {
+            warnings.push(Warning::new(
+                WarningCode::StreamGap,
+                format!(
+                    "wheels: the stream pauses {gaps} time(s) for more than {gap_threshold:.2} s (longest {:.1} s at t = {:.2} s); \
+                     the models restart after each pause",
+                    longest.0, longest.1
+                ),
+            ));
+        }
     }
-    if gaps > 0 {
-        warnings.push(Warning::new(
-            WarningCode::StreamGap,
-            format!(
-                "wheels: the stream pauses {gaps} time(s) for more than {gap_threshold:.2} s (longest {:.1} s at t = {:.2} s); \
-                 the models restart after each pause",
-                longest.0, longest.1
-            ),
-        ));
-    }
+}
+
+/// Refuse a drive whose busier rear wheel turned less than 2 revolutions,
+/// or whose other rear wheel turned less than 5 % of that (stuck).
+fn check_both_turn(
+    total_rl: f64,
+    total_rr: f64,
+    nominal_circumference_m: f64,
+) -> Result<(), CalibrationError> {
     let (big, small, big_name, small_name) = if total_rl >= total_rr {
         (total_rl, total_rr, "rl", "rr")
     } else {
@@ -349,7 +440,7 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
     };
     if big < 2.0 {
         return Err(CalibrationError::TooShort {
-            distance_m: big * drive.vehicle.nominal_circumference_m,
+            distance_m: big * nominal_circumference_m,
             needed_m: 50.0,
         });
     }
@@ -361,7 +452,7 @@ fn wheels(drive: &Drive, warnings: &mut Vec<Warning>) -> Result<WheelArrays, Cal
             other_revs: big,
         });
     }
-    Ok((t, dn_rl, dn_rr, piece_starts, wheel_dt, offsets))
+    Ok(())
 }
 
 /// Standstill intervals: wheel speed below 0.05 m/s for at least 1 s.

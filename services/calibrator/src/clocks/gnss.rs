@@ -54,6 +54,67 @@ pub fn align(
     config: &CalibrationConfig,
     warnings: &mut Vec<Warning>,
 ) -> Result<Gnss, CalibrationError> {
+    let (gnss_sigma_m, estimated, claim, floor) = gnss_sigma(p, config, warnings);
+    let mut fixes = ref_fixes(p, config, gnss_sigma_m, floor);
+    let gate = config.outlier_gate_sigma;
+    let antenna: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
+
+    // Pass 1: GNSS alone, for the course and the time offset.
+    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
+    let mut time_offset = None;
+    let mut clock = StreamOffset::not_checked("time offset check switched off");
+    let mut clock_pairs_found = Vec::new();
+    if config.time_offset != TimeOffsetMode::Off {
+        let rates = course_rates(&pass1);
+        let direct = estimate_time_offset(p, &pass1, &rates);
+        clock_pairs_found = clock_pairs(imu_clock, &direct, gnss_imu_pair(p, &rates));
+        clock = joint_gnss_offset(&direct, &clock_pairs_found);
+        if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
+            let compensate = apply_offset(&mut clock, tau, sigma, config, warnings);
+            if compensate {
+                for f in &mut fixes {
+                    f.t -= tau;
+                }
+                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
+            }
+            time_offset = Some(TimeOffset {
+                gnss_late_s: tau,
+                sigma_s: sigma,
+                compensated: compensate,
+            });
+        } else {
+            warnings.push(Warning::new(
+                WarningCode::TimeOffset,
+                format!(
+                    "the wheel/GNSS time offset could not be determined within +-{CLOCK_SEARCH_S:.1} s ({}); it is not checked",
+                    clock.reason.as_deref().unwrap_or("no reason")
+                ),
+            ));
+        }
+    }
+    Ok(Gnss {
+        sigma_m: gnss_sigma_m,
+        sigma_estimated: estimated,
+        claim,
+        fixes,
+        antenna,
+        alone: pass1,
+        time_offset,
+        clock,
+        pairs: clock_pairs_found,
+    })
+}
+
+/// The GNSS noise: the configured sigma, the fixes' own (median, when every
+/// fix has one; not below the scatter the fixes show), or estimated from
+/// the scatter (at least 0.3 m). With whether it was estimated, the check
+/// of the receiver's claimed sigma, and the floor of a fix's own sigma (the
+/// scatter measured, 0 without a check).
+fn gnss_sigma(
+    p: &Series,
+    config: &CalibrationConfig,
+    warnings: &mut Vec<Warning>,
+) -> (f64, bool, Option<SigmaClaim>, f64) {
     let (gnss_sigma_m, estimated) = match config.gnss_sigma_m {
         Some(s) => (s, false),
         None => {
@@ -81,6 +142,12 @@ pub fn align(
     } else {
         gnss_sigma_m.max(floor)
     };
+    (gnss_sigma_m, estimated, claim, floor)
+}
+
+/// The fixes for the reference, each with its sigma: the configured one,
+/// its own (at least 1 cm and the `floor`), or the drive's `gnss_sigma_m`.
+fn ref_fixes(p: &Series, config: &CalibrationConfig, gnss_sigma_m: f64, floor: f64) -> Vec<RefFix> {
     let sigma_of = |f: &Fix| -> f64 {
         match (config.gnss_sigma_m, f.sigma) {
             (Some(s), _) => s,
@@ -88,8 +155,7 @@ pub fn align(
             (None, None) => gnss_sigma_m,
         }
     };
-    let mut fixes: Vec<RefFix> = p
-        .fixes
+    p.fixes
         .iter()
         .map(|f| RefFix {
             t: f.t,
@@ -98,73 +164,40 @@ pub fn align(
             sigma: sigma_of(f),
             accepted: true,
         })
-        .collect();
-    let gate = config.outlier_gate_sigma;
-    let antenna: Vec<[f64; 2]> = fixes.iter().map(|f| [f.x, f.y]).collect();
+        .collect()
+}
 
-    // Pass 1: GNSS alone, for the course and the time offset.
-    let mut pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
-    let mut time_offset = None;
-    let mut clock = StreamOffset::not_checked("time offset check switched off");
-    let mut clock_pairs_found = Vec::new();
-    if config.time_offset != TimeOffsetMode::Off {
-        let rates = course_rates(&pass1);
-        let direct = estimate_time_offset(p, &pass1, &rates);
-        clock_pairs_found = clock_pairs(imu_clock, &direct, gnss_imu_pair(p, &rates));
-        clock = joint_gnss_offset(&direct, &clock_pairs_found);
-        if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
-            let significant = clock.significant(0.015).is_some();
-            let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
-            if significant {
-                warnings.push(Warning::new(
-                    WarningCode::TimeOffset,
-                    format!(
-                        "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms, from the {}){}",
-                        1000.0 * tau.abs(),
-                        if tau > 0.0 { "later" } else { "earlier" },
-                        1000.0 * sigma,
-                        clock.from.as_deref().unwrap_or("speed"),
-                        if compensate {
-                            "; the GNSS times were shifted to match"
-                        } else {
-                            "; not compensated"
-                        }
-                    ),
-                ));
-            }
-            if compensate {
-                for f in &mut fixes {
-                    f.t -= tau;
+/// Whether the GNSS clock's offset `tau` (sigma `sigma`) is compensated:
+/// when significant and the mode compensates. Warns of a significant
+/// offset; marks `clock` applied or not.
+fn apply_offset(
+    clock: &mut StreamOffset,
+    tau: f64,
+    sigma: f64,
+    config: &CalibrationConfig,
+    warnings: &mut Vec<Warning>,
+) -> bool {
+    let significant = clock.significant(0.015).is_some();
+    let compensate = significant && config.time_offset == TimeOffsetMode::Compensate;
+    if significant {
+        warnings.push(Warning::new(
+            WarningCode::TimeOffset,
+            format!(
+                "gnss time stamps are {:.0} ms {} than the wheels' (sigma {:.0} ms, from the {}){}",
+                1000.0 * tau.abs(),
+                if tau > 0.0 { "later" } else { "earlier" },
+                1000.0 * sigma,
+                clock.from.as_deref().unwrap_or("speed"),
+                if compensate {
+                    "; the GNSS times were shifted to match"
+                } else {
+                    "; not compensated"
                 }
-                pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
-            }
-            clock.applied = compensate;
-            time_offset = Some(TimeOffset {
-                gnss_late_s: tau,
-                sigma_s: sigma,
-                compensated: compensate,
-            });
-        } else {
-            warnings.push(Warning::new(
-                WarningCode::TimeOffset,
-                format!(
-                    "the wheel/GNSS time offset could not be determined within +-{CLOCK_SEARCH_S:.1} s ({}); it is not checked",
-                    clock.reason.as_deref().unwrap_or("no reason")
-                ),
-            ));
-        }
+            ),
+        ));
     }
-    Ok(Gnss {
-        sigma_m: gnss_sigma_m,
-        sigma_estimated: estimated,
-        claim,
-        fixes,
-        antenna,
-        alone: pass1,
-        time_offset,
-        clock,
-        pairs: clock_pairs_found,
-    })
+    clock.applied = compensate;
+    compensate
 }
 
 /// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course

@@ -335,25 +335,8 @@ const LOOP_CHI2_LIMIT: f64 = 9.0;
 /// reaches `stream`, or the pairs of a loop contradict each other and the
 /// direct pair is not determined.
 pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointOffset, String> {
-    const NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
-    let idx = |s: ClockStream| NODES.iter().position(|n| *n == s).unwrap_or(0);
-    let edges: Vec<(usize, usize, f64, f64, &PairOffset)> = pairs
-        .iter()
-        .filter_map(|p| {
-            let (o, s) = match (
-                p.offset.status,
-                p.offset.offset_s,
-                p.offset.sigma_s,
-                p.offset.weak,
-            ) {
-                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
-                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
-                _ => return None,
-            };
-            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
-        })
-        .collect();
-    let target = idx(stream);
+    let edges = offset_edges(pairs);
+    let target = node_index(stream);
     if target == 0 {
         return Ok(JointOffset {
             offset_s: 0.0,
@@ -362,21 +345,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             direct: true,
         });
     }
-    // The streams a chain of determined pairs links to the wheels.
-    let mut reached = [true, false, false];
-    loop {
-        let mut grew = false;
-        for &(a, b, ..) in &edges {
-            if reached[a] != reached[b] {
-                reached[a] = true;
-                reached[b] = true;
-                grew = true;
-            }
-        }
-        if !grew {
-            break;
-        }
-    }
+    let reached = reached(&edges);
     if !reached[target] {
         return Err(format!(
             "no chain of determined pairs links the {} to the wheels",
@@ -388,28 +357,10 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
         .filter(|e| reached[e.0] && reached[e.1])
         .collect();
     // Unknowns: the reached streams other than the wheels.
-    let unknowns: Vec<usize> = (1..NODES.len()).filter(|&i| reached[i]).collect();
+    let unknowns: Vec<usize> = (1..CLOCK_NODES.len()).filter(|&i| reached[i]).collect();
     let col = |i: usize| unknowns.iter().position(|&u| u == i);
     let n = unknowns.len();
-    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
-    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
-    for &&(a, b, o, s, _) in &used {
-        // o = x_b - x_a, weight 1 / s^2.
-        let w = 1.0 / (s * s);
-        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
-        if let Some(c) = col(b) {
-            row.push((c, 1.0));
-        }
-        if let Some(c) = col(a) {
-            row.push((c, -1.0));
-        }
-        for &(i, ri) in &row {
-            rhs[i] += w * ri * o;
-            for &(j, rj) in &row {
-                normal[(i, j)] += w * ri * rj;
-            }
-        }
-    }
+    let (normal, rhs) = normal_equations(&used, &unknowns);
     let cov = normal
         .try_inverse()
         .ok_or_else(|| "the pairs do not determine the offsets".to_string())?;
@@ -423,19 +374,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             r * r
         })
         .sum();
-    let describe = |e: &&(usize, usize, f64, f64, &PairOffset)| {
-        format!(
-            "{}-{} ({}{})",
-            e.4.base.name(),
-            e.4.later.name(),
-            e.4.offset.from.as_deref().unwrap_or("?"),
-            if e.4.offset.status == OffsetStatus::Determined {
-                String::new()
-            } else {
-                format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
-            }
-        )
-    };
+    let describe = |e: &&Edge<'_>| describe_edge(e);
     let direct = used
         .iter()
         .find(|e| (e.0 == 0 && e.1 == target) || (e.1 == 0 && e.0 == target));
@@ -463,7 +402,7 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
     };
     let c = col(target).unwrap_or(0);
     // The pairs the target's offset depends on: d x / d o_e = cov r_e w_e.
-    let moves = |e: &&&(usize, usize, f64, f64, &PairOffset)| {
+    let moves = |e: &&&Edge<'_>| {
         let r = |i: usize| col(i).map_or(0.0, |k| cov[(c, k)]);
         (r(e.1) - r(e.0)).abs() > 1e-9 * cov[(c, c)].abs()
     };
@@ -478,6 +417,105 @@ pub fn solve_offsets(pairs: &[PairOffset], stream: ClockStream) -> Result<JointO
             .join(" + "),
         direct: from.len() == 1 && direct.is_some(),
     })
+}
+
+/// The streams of the joint solution, the time base (the wheels) first.
+const CLOCK_NODES: [ClockStream; 3] = [ClockStream::Wheels, ClockStream::Gnss, ClockStream::Imu];
+
+/// A pair as an edge of the joint solution: base and later stream (their
+/// [`node_index`]), offset and sigma (s), the pair.
+type Edge<'a> = (usize, usize, f64, f64, &'a PairOffset);
+
+/// `s`'s place in [`CLOCK_NODES`].
+fn node_index(s: ClockStream) -> usize {
+    CLOCK_NODES.iter().position(|n| *n == s).unwrap_or(0)
+}
+
+/// The pairs usable in the joint solution: determined, or with a weak fit;
+/// a positive sigma, between two different streams.
+fn offset_edges(pairs: &[PairOffset]) -> Vec<Edge<'_>> {
+    let idx = node_index;
+    pairs
+        .iter()
+        .filter_map(|p| {
+            let (o, s) = match (
+                p.offset.status,
+                p.offset.offset_s,
+                p.offset.sigma_s,
+                p.offset.weak,
+            ) {
+                (OffsetStatus::Determined, Some(o), Some(s), _) => (o, s),
+                (OffsetStatus::NotDetermined, _, _, Some([o, s])) => (o, s),
+                _ => return None,
+            };
+            (s > 0.0 && idx(p.base) != idx(p.later)).then(|| (idx(p.base), idx(p.later), o, s, p))
+        })
+        .collect()
+}
+
+/// The streams a chain of edges links to the wheels.
+fn reached(edges: &[Edge<'_>]) -> [bool; 3] {
+    let mut reached = [true, false, false];
+    loop {
+        let mut grew = false;
+        for &(a, b, ..) in edges {
+            if reached[a] != reached[b] {
+                reached[a] = true;
+                reached[b] = true;
+                grew = true;
+            }
+        }
+        if !grew {
+            return reached;
+        }
+    }
+}
+
+/// The weighted least-squares normal equations of the edges `used`
+/// (o = x_b - x_a, weight 1 / s^2) in the `unknowns` (the streams' offsets
+/// against the wheels).
+fn normal_equations(
+    used: &[&Edge<'_>],
+    unknowns: &[usize],
+) -> (nalgebra::DMatrix<f64>, nalgebra::DVector<f64>) {
+    let col = |i: usize| unknowns.iter().position(|&u| u == i);
+    let n = unknowns.len();
+    let mut normal = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut rhs = nalgebra::DVector::<f64>::zeros(n);
+    for &&(a, b, o, s, _) in used {
+        // o = x_b - x_a, weight 1 / s^2.
+        let w = 1.0 / (s * s);
+        let mut row: Vec<(usize, f64)> = Vec::with_capacity(2);
+        if let Some(c) = col(b) {
+            row.push((c, 1.0));
+        }
+        if let Some(c) = col(a) {
+            row.push((c, -1.0));
+        }
+        for &(i, ri) in &row {
+            rhs[i] += w * ri * o;
+            for &(j, rj) in &row {
+                normal[(i, j)] += w * ri * rj;
+            }
+        }
+    }
+    (normal, rhs)
+}
+
+/// An edge in words: the streams, where its offset came from, and a weak
+/// fit's value.
+fn describe_edge(e: &Edge<'_>) -> String {
+    format!(
+        "{}-{} ({}{})",
+        e.4.base.name(),
+        e.4.later.name(),
+        e.4.offset.from.as_deref().unwrap_or("?"),
+        if e.4.offset.status == OffsetStatus::Determined {
+            String::new()
+        } else {
+            format!(", weak: {:+.3} +- {:.3} s", e.2, e.3)
+        }
+    )
 }
 
 /// A signal sampled at increasing times, linear between samples.
@@ -671,34 +709,58 @@ pub fn fit_lag(
     if obs.len() < 20 {
         return Err(LagFailure::TooFew);
     }
-    let blocks = JACKKNIFE_BLOCKS;
-    let block_of = |i: usize| i * blocks / obs.len();
-    // Per-block sums at one lag.
-    let eval = |lag: f64| -> Option<Vec<Sums>> {
-        let mut s = vec![Sums::default(); blocks];
-        let t_first = obs[0].0 - lag;
-        let mut cursor = x.t.partition_point(|&t| t <= t_first).saturating_sub(1);
-        for (i, &(t, y)) in obs.iter().enumerate() {
-            let v = x.at(t - lag, &mut cursor)?;
-            s[block_of(i)].add(v, y);
-        }
-        Some(s)
+    let centre = coarse_centre(&obs, x, search_s, intercept)?;
+    let grid = FineGrid::around(&obs, x, centre, intercept)?;
+    let (lags, sse, sst) = (&grid.lags, &grid.sse, grid.sst);
+    let i_min = argmin(sse).ok_or(LagFailure::Flat)?;
+    let (tau, c2) = parabola(lags, sse, i_min).ok_or(LagFailure::Flat)?;
+    if tau.abs() > search_s {
+        return Err(LagFailure::BeyondSearch);
+    }
+    let m = obs.len() as f64;
+    let params = if intercept { 3.0 } else { 2.0 };
+    let s2 = sse[i_min] / (m - params).max(1.0);
+    let var_curv = s2 / c2;
+    let var_jk = grid.jackknife_variance(intercept);
+    let explained = if sst > 0.0 {
+        (1.0 - sse[i_min] / sst).clamp(0.0, 1.0)
+    } else {
+        0.0
     };
-    let total = |s: &[Sums]| {
-        let mut a = Sums::default();
-        for b in s {
-            a.n += b.n;
-            a.sx += b.sx;
-            a.sy += b.sy;
-            a.sxx += b.sxx;
-            a.sxy += b.sxy;
-            a.syy += b.syy;
-        }
-        a
-    };
-    // Coarse, on at most about COARSE_SAMPLES of the observations (evenly
-    // spread): it only has to find the neighbourhood of the minimum, which
-    // the fine grid then resolves with every observation.
+    Ok(LagFit {
+        lag_s: tau,
+        sigma_s: var_curv.max(var_jk).sqrt(),
+        sigma_curvature_s: var_curv.sqrt(),
+        sigma_jackknife_s: var_jk.sqrt(),
+        explained,
+        samples: obs.len(),
+    })
+}
+
+/// The sums of all blocks.
+fn total(s: &[Sums]) -> Sums {
+    let mut a = Sums::default();
+    for b in s {
+        a.n += b.n;
+        a.sx += b.sx;
+        a.sy += b.sy;
+        a.sxx += b.sxx;
+        a.sxy += b.sxy;
+        a.syy += b.syy;
+    }
+    a
+}
+
+/// The coarse search's best lag, s: on at most about COARSE_SAMPLES of the
+/// observations (evenly spread), it only has to find the neighbourhood of
+/// the minimum, which the fine grid then resolves with every observation.
+/// A minimum at the edge of the search is beyond it.
+fn coarse_centre(
+    obs: &[(f64, f64)],
+    x: &Sampled<'_>,
+    search_s: f64,
+    intercept: bool,
+) -> Result<f64, LagFailure> {
     let stride = obs.len().div_ceil(COARSE_SAMPLES).max(1);
     let eval_coarse = |lag: f64| -> Option<Sums> {
         let mut s = Sums::default();
@@ -719,63 +781,88 @@ pub fn fit_lag(
     if ic == 0 || ic + 1 == coarse.len() {
         return Err(LagFailure::BeyondSearch);
     }
-    let centre = (ic as i64 - nc) as f64 * COARSE_STEP_S;
-    // Fine, with the per-block sums kept for the jackknife.
-    let mut lags = Vec::with_capacity((2 * FINE_STEPS + 1) as usize);
-    let mut per_block = Vec::with_capacity(lags.capacity());
-    let mut sse = Vec::with_capacity(lags.capacity());
-    let mut sst = 0.0;
-    for k in -FINE_STEPS..=FINE_STEPS {
-        let lag = centre + k as f64 * FINE_STEP_S;
-        let s = eval(lag).ok_or(LagFailure::TooFew)?;
-        let (tt, e) = total(&s).sst_sse(intercept).ok_or(LagFailure::Flat)?;
-        if k == 0 {
-            sst = tt;
+    Ok((ic as i64 - nc) as f64 * COARSE_STEP_S)
+}
+
+/// The fine grid of lags around the coarse centre, with the per-block
+/// sums kept for the jackknife.
+struct FineGrid {
+    lags: Vec<f64>,
+    /// Per lag, the sums of each of the [`JACKKNIFE_BLOCKS`] blocks.
+    per_block: Vec<Vec<Sums>>,
+    /// Per lag, the residual sum of squares.
+    sse: Vec<f64>,
+    /// The total sum of squares at the centre.
+    sst: f64,
+}
+
+impl FineGrid {
+    /// Every observation at each fine lag around `centre`.
+    fn around(
+        obs: &[(f64, f64)],
+        x: &Sampled<'_>,
+        centre: f64,
+        intercept: bool,
+    ) -> Result<FineGrid, LagFailure> {
+        let blocks = JACKKNIFE_BLOCKS;
+        let block_of = |i: usize| i * blocks / obs.len();
+        // Per-block sums at one lag.
+        let eval = |lag: f64| -> Option<Vec<Sums>> {
+            let mut s = vec![Sums::default(); blocks];
+            let t_first = obs[0].0 - lag;
+            let mut cursor = x.t.partition_point(|&t| t <= t_first).saturating_sub(1);
+            for (i, &(t, y)) in obs.iter().enumerate() {
+                let v = x.at(t - lag, &mut cursor)?;
+                s[block_of(i)].add(v, y);
+            }
+            Some(s)
+        };
+        let mut lags = Vec::with_capacity((2 * FINE_STEPS + 1) as usize);
+        let mut per_block = Vec::with_capacity(lags.capacity());
+        let mut sse = Vec::with_capacity(lags.capacity());
+        let mut sst = 0.0;
+        for k in -FINE_STEPS..=FINE_STEPS {
+            let lag = centre + k as f64 * FINE_STEP_S;
+            let s = eval(lag).ok_or(LagFailure::TooFew)?;
+            let (tt, e) = total(&s).sst_sse(intercept).ok_or(LagFailure::Flat)?;
+            if k == 0 {
+                sst = tt;
+            }
+            lags.push(lag);
+            sse.push(e);
+            per_block.push(s);
         }
-        lags.push(lag);
-        sse.push(e);
-        per_block.push(s);
+        Ok(FineGrid {
+            lags,
+            per_block,
+            sse,
+            sst,
+        })
     }
-    let i_min = argmin(&sse).ok_or(LagFailure::Flat)?;
-    let (tau, c2) = parabola(&lags, &sse, i_min).ok_or(LagFailure::Flat)?;
-    if tau.abs() > search_s {
-        return Err(LagFailure::BeyondSearch);
+
+    /// The block jackknife's variance of the lag, s^2 (infinite with fewer
+    /// than three blocks' estimates).
+    fn jackknife_variance(&self, intercept: bool) -> f64 {
+        let lags = &self.lags;
+        let mut taus = Vec::with_capacity(JACKKNIFE_BLOCKS);
+        for b in 0..JACKKNIFE_BLOCKS {
+            let e: Option<Vec<f64>> = self
+                .per_block
+                .iter()
+                .map(|s| total(s).minus(&s[b]).sst_sse(intercept).map(|(_, e)| e))
+                .collect();
+            let Some(e) = e else { continue };
+            let Some(i) = argmin(&e) else { continue };
+            taus.push(parabola(lags, &e, i).map_or(lags[i], |(t, _)| t));
+        }
+        if taus.len() >= 3 {
+            let k = taus.len() as f64;
+            let mean = taus.iter().sum::<f64>() / k;
+            (k - 1.0) / k * taus.iter().map(|t| (t - mean) * (t - mean)).sum::<f64>()
+        } else {
+            f64::INFINITY
+        }
     }
-    let m = obs.len() as f64;
-    let params = if intercept { 3.0 } else { 2.0 };
-    let s2 = sse[i_min] / (m - params).max(1.0);
-    let var_curv = s2 / c2;
-    // Block jackknife.
-    let mut taus = Vec::with_capacity(blocks);
-    for b in 0..blocks {
-        let e: Option<Vec<f64>> = per_block
-            .iter()
-            .map(|s| total(s).minus(&s[b]).sst_sse(intercept).map(|(_, e)| e))
-            .collect();
-        let Some(e) = e else { continue };
-        let Some(i) = argmin(&e) else { continue };
-        taus.push(parabola(&lags, &e, i).map_or(lags[i], |(t, _)| t));
-    }
-    let var_jk = if taus.len() >= 3 {
-        let k = taus.len() as f64;
-        let mean = taus.iter().sum::<f64>() / k;
-        (k - 1.0) / k * taus.iter().map(|t| (t - mean) * (t - mean)).sum::<f64>()
-    } else {
-        f64::INFINITY
-    };
-    let explained = if sst > 0.0 {
-        (1.0 - sse[i_min] / sst).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    Ok(LagFit {
-        lag_s: tau,
-        sigma_s: var_curv.max(var_jk).sqrt(),
-        sigma_curvature_s: var_curv.sqrt(),
-        sigma_jackknife_s: var_jk.sqrt(),
-        explained,
-        samples: obs.len(),
-    })
 }
 
 /// Whether a fit determines the offset, else why not.

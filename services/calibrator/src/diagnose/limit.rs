@@ -25,6 +25,7 @@
 use super::design::{Channel, Design};
 use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
+use crate::sigmas::error_model::{nnls2, variogram, Normal};
 use interfaces::effects::{Effect, Param};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -804,116 +805,31 @@ const REALISATIONS: usize = 4;
 /// out segment by segment (three columns each) and only the few global
 /// columns go through a QR decomposition: linear in the drive's length.
 fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
-    use crate::sigmas::error_model::{nnls2, variogram, Normal};
-    let cols = &src.cols;
-    let n = cols.first()?.len();
-    let stacked = |c: &Col, i: usize| if i < n { c[i][0] } else { c[i - n][1] };
-    let first_pose = src.first_effect + src.effects.len();
-    let pose_end = first_pose + src.pose_segment.len();
-    let global: Vec<usize> = (1..first_pose).chain(pose_end..cols.len()).collect();
-    // Rows of each segment (east; north is the same plus n) and its poses.
-    let mut segments: Vec<(std::ops::Range<usize>, Vec<usize>)> = Vec::new();
-    let mut at = 0;
-    for (k, size) in times.iter().map(Vec::len).filter(|l| *l > 0).enumerate() {
-        let poses = (first_pose..pose_end)
-            .filter(|c| src.pose_segment[c - first_pose] == k)
-            .collect();
-        segments.push((at..at + size, poses));
-        at += size;
-    }
-    // v less its least-squares fit on each segment's own poses.
-    let without_poses = |v: &mut DVector<f64>| {
-        for (rows, poses) in &segments {
-            let idx: Vec<usize> = rows.clone().chain(rows.start + n..rows.end + n).collect();
-            let p = DMatrix::from_fn(idx.len(), poses.len(), |i, j| {
-                stacked(&cols[poses[j]], idx[i])
-            });
-            let y = DVector::from_fn(idx.len(), |i, _| v[idx[i]]);
-            let Some(chol) = (p.transpose() * &p).cholesky() else {
-                continue;
-            };
-            let fitted = &p * chol.solve(&(p.transpose() * &y));
-            for (i, r) in idx.iter().enumerate() {
-                v[*r] -= fitted[i];
-            }
-        }
-    };
-    let mut g = DMatrix::from_fn(2 * n, global.len(), |i, j| stacked(&cols[global[j]], i));
-    for mut c in g.column_iter_mut() {
-        let mut v = DVector::from_column_slice(c.as_slice());
-        without_poses(&mut v);
-        c.copy_from(&v);
-    }
-    let q = g.qr().q();
-    let residual = |e: &DVector<f64>| {
-        let mut v = e.clone();
-        without_poses(&mut v);
-        let proj = &q * (q.transpose() * &v);
-        v - proj
-    };
-    let series = |v: &DVector<f64>, axis: usize| -> Vec<Vec<(f64, f64)>> {
-        let mut at = axis * n;
-        times
-            .iter()
-            .filter(|s| !s.is_empty())
-            .map(|s| {
-                let out = s.iter().enumerate().map(|(k, t)| (*t, v[at + k])).collect();
-                at += s.len();
-                out
-            })
-            .collect()
-    };
+    let fit = JointFit::new(times, src)?;
+    let n = fit.n;
     let mut gaps: Vec<f64> = times
         .iter()
         .flat_map(|s| s.windows(2).map(|w| w[1] - w[0]))
         .collect();
     let dt = stats::median(&mut gaps).filter(|d| *d > 0.0)?;
-    let r = DVector::from_fn(2 * n, |i, _| stacked(&cols[0], i));
-    let e = residual(&r);
-    let observed = [variogram(&series(&e, 0), dt), variogram(&series(&e, 1), dt)];
+    let r = DVector::from_fn(2 * n, |i, _| stacked(&fit.cols[0], i, n));
+    let e = fit.residual(&r);
+    let observed = [
+        variogram(&fit.series(&e, 0), dt),
+        variogram(&fit.series(&e, 1), dt),
+    ];
     if observed.iter().any(|g| g.len() < 3) {
         return None;
     }
     let max_lag = observed[0].iter().map(|g| g.0).fold(0.0, f64::max);
     let all_t: Vec<f64> = times.iter().flatten().copied().collect();
-    // The mean residual semivariogram of simulated errors, per axis, at the
-    // observed lags.
-    let simulate = |make: &dyn Fn(&mut Normal) -> DVector<f64>| -> [Vec<f64>; 2] {
-        let mut rng = Normal::new(0x5EED_0037);
-        let mut out = [vec![0.0; observed[0].len()], vec![0.0; observed[1].len()]];
-        for _ in 0..REALISATIONS {
-            let res = residual(&make(&mut rng));
-            for (axis, row) in out.iter_mut().enumerate() {
-                let g = variogram(&series(&res, axis), dt);
-                for (o, obs) in row.iter_mut().zip(&observed[axis]) {
-                    *o += g
-                        .iter()
-                        .find(|x| (x.0 - obs.0).abs() <= (0.25 * dt).max(0.1 * obs.0))
-                        .map_or(0.0, |v| v.1)
-                        / REALISATIONS as f64;
-                }
-            }
-        }
-        out
-    };
-    let white = simulate(&|rng| DVector::from_fn(2 * n, |_, _| rng.next()));
+    let white = fit.simulate(&observed, dt, &|rng| {
+        DVector::from_fn(2 * n, |_, _| rng.next())
+    });
     let mut best: [Option<(f64, PositionNoise)>; 2] = [None, None];
     let mut tau = 2.0 * dt;
     while tau <= 30.0 * max_lag {
-        let gm = simulate(&|rng| {
-            let mut v = DVector::zeros(2 * n);
-            for axis in 0..2 {
-                let mut x = rng.next();
-                let mut prev = all_t[0];
-                for (k, t) in all_t.iter().enumerate() {
-                    let rho = (-(t - prev).abs() / tau).exp();
-                    x = rho * x + (1.0 - rho * rho).max(0.0).sqrt() * rng.next();
-                    prev = *t;
-                    v[axis * n + k] = x;
-                }
-            }
-            v
-        });
+        let gm = fit.simulate(&observed, dt, &|rng| gauss_markov(rng, &all_t, n, tau));
         for axis in 0..2 {
             if let Some((sse, w, g)) = nnls2(&observed[axis], &white[axis], &gm[axis]) {
                 if best[axis].is_none_or(|(b, _)| sse < b) {
@@ -936,6 +852,148 @@ fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> 
     }
     let [e, nn] = best;
     Some([e?.1, nn?.1])
+}
+
+/// Row `i` of column `c` stacked east over north (`n` rows each).
+fn stacked(c: &Col, i: usize, n: usize) -> f64 {
+    if i < n {
+        c[i][0]
+    } else {
+        c[i - n][1]
+    }
+}
+
+/// Unit Gauss-Markov errors of correlation time `tau` at the times
+/// `all_t`, east then north (`n` each).
+fn gauss_markov(rng: &mut Normal, all_t: &[f64], n: usize, tau: f64) -> DVector<f64> {
+    let mut v = DVector::zeros(2 * n);
+    for axis in 0..2 {
+        let mut x = rng.next();
+        let mut prev = all_t[0];
+        for (k, t) in all_t.iter().enumerate() {
+            let rho = (-(t - prev).abs() / tau).exp();
+            x = rho * x + (1.0 - rho * rho).max(0.0).sqrt() * rng.next();
+            prev = *t;
+            v[axis * n + k] = x;
+        }
+    }
+    v
+}
+
+/// The joint least-squares fit of [`refit_noise`] as a projection: what
+/// of an error vector (east over north) is left after the fit.
+struct JointFit<'a> {
+    times: &'a [Vec<f64>],
+    cols: &'a [Col],
+    /// Rows per axis.
+    n: usize,
+    /// Rows of each segment (east; north is the same plus n) and its poses.
+    segments: Vec<(std::ops::Range<usize>, Vec<usize>)>,
+    /// Orthonormal basis of the global columns, poses projected out.
+    q: DMatrix<f64>,
+}
+
+impl<'a> JointFit<'a> {
+    /// The fit of the columns of `src` (`None` without rows).
+    fn new(times: &'a [Vec<f64>], src: &'a Columns) -> Option<JointFit<'a>> {
+        let cols = &src.cols;
+        let n = cols.first()?.len();
+        let first_pose = src.first_effect + src.effects.len();
+        let pose_end = first_pose + src.pose_segment.len();
+        let global: Vec<usize> = (1..first_pose).chain(pose_end..cols.len()).collect();
+        // Rows of each segment (east; north is the same plus n) and its poses.
+        let mut segments: Vec<(std::ops::Range<usize>, Vec<usize>)> = Vec::new();
+        let mut at = 0;
+        for (k, size) in times.iter().map(Vec::len).filter(|l| *l > 0).enumerate() {
+            let poses = (first_pose..pose_end)
+                .filter(|c| src.pose_segment[c - first_pose] == k)
+                .collect();
+            segments.push((at..at + size, poses));
+            at += size;
+        }
+        let mut fit = JointFit {
+            times,
+            cols,
+            n,
+            segments,
+            q: DMatrix::zeros(0, 0),
+        };
+        let mut g = DMatrix::from_fn(2 * n, global.len(), |i, j| stacked(&cols[global[j]], i, n));
+        for mut c in g.column_iter_mut() {
+            let mut v = DVector::from_column_slice(c.as_slice());
+            fit.without_poses(&mut v);
+            c.copy_from(&v);
+        }
+        fit.q = g.qr().q();
+        Some(fit)
+    }
+
+    /// v less its least-squares fit on each segment's own poses.
+    fn without_poses(&self, v: &mut DVector<f64>) {
+        let (cols, n) = (self.cols, self.n);
+        for (rows, poses) in &self.segments {
+            let idx: Vec<usize> = rows.clone().chain(rows.start + n..rows.end + n).collect();
+            let p = DMatrix::from_fn(idx.len(), poses.len(), |i, j| {
+                stacked(&cols[poses[j]], idx[i], n)
+            });
+            let y = DVector::from_fn(idx.len(), |i, _| v[idx[i]]);
+            let Some(chol) = (p.transpose() * &p).cholesky() else {
+                continue;
+            };
+            let fitted = &p * chol.solve(&(p.transpose() * &y));
+            for (i, r) in idx.iter().enumerate() {
+                v[*r] -= fitted[i];
+            }
+        }
+    }
+
+    /// What of `e` the joint fit leaves.
+    fn residual(&self, e: &DVector<f64>) -> DVector<f64> {
+        let mut v = e.clone();
+        self.without_poses(&mut v);
+        let proj = &self.q * (self.q.transpose() * &v);
+        v - proj
+    }
+
+    /// One axis of `v` as time series, one per non-empty segment.
+    fn series(&self, v: &DVector<f64>, axis: usize) -> Vec<Vec<(f64, f64)>> {
+        let mut at = axis * self.n;
+        self.times
+            .iter()
+            .filter(|s| !s.is_empty())
+            .map(|s| {
+                let out = s.iter().enumerate().map(|(k, t)| (*t, v[at + k])).collect();
+                at += s.len();
+                out
+            })
+            .collect()
+    }
+
+    /// The mean residual semivariogram of simulated errors (`make`), per
+    /// axis, at the `observed` lags.
+    fn simulate(
+        &self,
+        observed: &[Vec<(f64, f64, usize)>; 2],
+        dt: f64,
+        make: &dyn Fn(&mut Normal) -> DVector<f64>,
+    ) -> [Vec<f64>; 2] {
+        let mut rng = Normal::new(0x5EED_0037);
+        let mut out = [vec![0.0; observed[0].len()], vec![0.0; observed[1].len()]];
+        for _ in 0..REALISATIONS {
+            let res = self.residual(&make(&mut rng));
+            for (axis, row) in out.iter_mut().enumerate() {
+                let g = variogram(&self.series(&res, axis), dt);
+                for (o, obs) in row.iter_mut().zip(&observed[axis]) {
+                    *o += g
+                        .iter()
+                        .find(|x| (x.0 - obs.0).abs() <= (0.25 * dt).max(0.1 * obs.0))
+                        .map_or(0.0, |v| v.1)
+                        / REALISATIONS as f64;
+                }
+            }
+        }
+        out
+    }
 }
 
 /// The limit of one effect from its profiled information and estimate

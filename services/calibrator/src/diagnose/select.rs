@@ -436,4 +436,142 @@ mod tests {
         let g = gain(&[1.0, 1.0, 1.0, 1.0], &[0.5, 1.5, 0.9, 1.1]);
         assert!(g.t.abs() < 1.0);
     }
+
+    /// A small design: `blocks` blocks of `per` rows, three columns (a
+    /// constant, a ramp, a sine), weights that vary, and the data
+    /// `y = 0.5 + 2 x1 - x2` plus a deterministic wobble.
+    fn design(blocks: usize, per: usize) -> Design {
+        let n = blocks * per;
+        let col = |f: &dyn Fn(usize) -> f64| (0..n).map(f).collect::<Vec<f64>>();
+        let c0 = col(&|_| 1.0);
+        let c1 = col(&|i| i as f64 / n as f64);
+        let c2 = col(&|i| (i as f64 * 0.7).sin());
+        let y = col(&|i| 0.5 + 2.0 * c1[i] - c2[i] + 0.05 * (i as f64 * 2.3).cos());
+        Design {
+            rows: (0..n)
+                .map(|i| (crate::diagnose::design::Channel::Speed, i, i / per))
+                .collect(),
+            y,
+            w: col(&|i| 1.0 + (i % 3) as f64),
+            columns: vec![c0, c1, c2],
+            column_names: vec!["c0".into(), "c1".into(), "c2".into()],
+            nuisance: vec![0],
+            candidates: Vec::new(),
+            untestable: Vec::new(),
+            blocks,
+            block_s: 10.0,
+            channel_sigma: Vec::new(),
+            whitening: Vec::new(),
+        }
+    }
+
+    /// Weighted least squares of `y` on `cols` over the rows `keep` takes,
+    /// written out.
+    fn wls(d: &Design, cols: &[usize], keep: impl Fn(usize) -> bool) -> DVector<f64> {
+        let rows: Vec<usize> = (0..d.y.len()).filter(|&r| keep(d.rows[r].2)).collect();
+        let x = DMatrix::from_fn(rows.len(), cols.len(), |i, j| {
+            d.columns[cols[j]][rows[i]] * d.w[rows[i]].sqrt()
+        });
+        let y = DVector::from_fn(rows.len(), |i, _| d.y[rows[i]] * d.w[rows[i]].sqrt());
+        (x.transpose() * &x)
+            .cholesky()
+            .expect("full rank")
+            .solve(&(x.transpose() * y))
+    }
+
+    #[test]
+    fn the_block_sums_give_the_weighted_least_squares_and_its_held_out_errors() {
+        let d = design(6, 40);
+        let s = BlockStats::new(&d);
+        assert_eq!(s.used_blocks(), (0..6).collect::<Vec<_>>());
+        let cols = [0, 1, 2];
+        let beta = s.fit(&cols, |_| true).expect("fit");
+        let direct = wls(&d, &cols, |_| true);
+        assert!((beta - &direct).amax() < 1e-6, "{direct}");
+        assert!((direct[1] - 2.0).abs() < 0.05 && (direct[2] + 1.0).abs() < 0.05);
+        // The held-out error of block 2: fitted on the others, the weighted
+        // squared residual on block 2.
+        let held = wls(&d, &cols, |b| b != 2);
+        let e2: f64 = (0..d.y.len())
+            .filter(|&r| d.rows[r].2 == 2)
+            .map(|r| {
+                let m: f64 = cols.iter().map(|&c| held[c] * d.columns[c][r]).sum();
+                d.w[r] * (d.y[r] - m).powi(2)
+            })
+            .sum();
+        let cv = s.cv_errors(&cols);
+        assert!((cv[2] - e2).abs() < 1e-6 * e2.max(1e-12), "{} {e2}", cv[2]);
+    }
+
+    #[test]
+    fn a_shifted_drive_is_the_drive_with_more_of_a_column() {
+        let d = design(5, 30);
+        let delta = 0.8;
+        let mut more = d.clone();
+        for (r, y) in more.y.iter_mut().enumerate() {
+            *y += delta * d.columns[2][r];
+        }
+        let (a, b) = (
+            BlockStats::new(&d).shifted(2, delta),
+            BlockStats::new(&more),
+        );
+        for k in 0..5 {
+            assert!((a.yty[k] - b.yty[k]).abs() < 1e-9 * b.yty[k].max(1.0));
+            assert!((&a.xty[k] - &b.xty[k]).amax() < 1e-9);
+        }
+        let fit = b.fit(&[0, 1, 2], |_| true).expect("fit");
+        assert!((fit[2] - (-1.0 + delta)).abs() < 0.05, "{fit}");
+    }
+
+    #[test]
+    fn collinear_columns_inflate_the_variance_and_orthogonal_ones_do_not() {
+        let mut d = design(4, 50);
+        // Column 3: a near copy of column 1.
+        let copy: Vec<f64> = d.columns[1]
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v + 1e-3 * (i as f64).sin())
+            .collect();
+        d.columns.push(copy);
+        d.column_names.push("c3".into());
+        let s = BlockStats::new(&d);
+        assert!(s.vif(&[0], &[1], &[3]) > 1e3);
+        // The sine against the ramp: nearly orthogonal.
+        assert!(s.vif(&[0], &[2], &[1]) < 1.1);
+    }
+
+    #[test]
+    fn the_block_jackknife_sigma_shrinks_with_more_blocks() {
+        let few = BlockStats::new(&design(4, 60));
+        let many = BlockStats::new(&design(12, 20));
+        let (b1, s1) = few.fit_with_sigmas(&[0, 1, 2]).expect("fit");
+        let (b2, s2) = many.fit_with_sigmas(&[0, 1, 2]).expect("fit");
+        assert!((b1[1] - b2[1]).abs() < 0.05);
+        assert!(s1
+            .iter()
+            .chain(s2.iter())
+            .all(|v| v.is_finite() && *v > 0.0));
+        // With fewer than three blocks there is no jackknife.
+        let (_, s0) = BlockStats::new(&design(2, 60))
+            .fit_with_sigmas(&[0, 1, 2])
+            .expect("fit");
+        assert!(s0.iter().all(|v| v.is_infinite()));
+    }
+
+    #[test]
+    fn correlation_and_interpolation_at_their_edges() {
+        use crate::diagnose::epochs::{correlation, interp};
+        let line: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, 3.0 * i as f64 + 1.0)).collect();
+        assert!((correlation(&line) - 1.0).abs() < 1e-12);
+        let anti: Vec<(f64, f64)> = line.iter().map(|(x, y)| (*x, -y)).collect();
+        assert!((correlation(&anti) + 1.0).abs() < 1e-12);
+        assert_eq!(correlation(&[(1.0, 2.0), (2.0, 3.0)]), 0.0);
+        assert_eq!(correlation(&[(1.0, 2.0), (1.0, 3.0), (1.0, 4.0)]), 0.0);
+        let (ts, vs) = ([0.0, 1.0, 3.0], [0.0, 10.0, 30.0]);
+        assert_eq!(interp(&ts, &vs, 2.0), Some(20.0));
+        assert_eq!(interp(&ts, &vs, 0.0), Some(0.0));
+        assert_eq!(interp(&ts, &vs, 3.0), Some(30.0));
+        assert_eq!(interp(&ts, &vs, 3.5), None);
+        assert_eq!(interp(&[], &[], 0.0), None);
+    }
 }

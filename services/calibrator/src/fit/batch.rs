@@ -17,8 +17,8 @@
 
 use crate::config::{CalibrationConfig, TrackWidthMode};
 use crate::error::CalibrationError;
-use crate::fit::ekf::{dr_deviation, Slip};
-use crate::fit::lm::{fit, stages, SlipGain, StepModel, MAX_GLOBAL};
+use crate::fit::ekf::{dr_deviation, DrDeviation, Slip};
+use crate::fit::lm::{fit, stages, Fit, SlipGain, StepModel, MAX_GLOBAL};
 use crate::fit::track_width::{decide_track, implausible_track};
 use crate::fit::MethodResult;
 use crate::method::Method;
@@ -128,37 +128,9 @@ pub fn run(
     progress: &mut dyn FnMut(f64),
 ) -> Result<MethodResult, CalibrationError> {
     let mut estimate_track = decide_track(p, r, config, warnings)?;
+    let (model, g0, fit) =
+        fit_deciding_track(p, r, config, warnings, progress, &mut estimate_track)?;
     let slip_gain = config.side_slip;
-    let lever = config.estimate_lever_arm;
-    let lengths = stages(config.segment_length_s);
-    let (model, g0, fit) = loop {
-        let model = TwoWheelModel::new(p, (!estimate_track).then_some(p.track), slip_gain, lever);
-        let start = config
-            .initial_circumference_m
-            .unwrap_or([p.nominal_c, p.nominal_c]);
-        let mut g0 = start.to_vec();
-        if estimate_track {
-            g0.push(p.track);
-        }
-        if slip_gain {
-            g0.push(0.0);
-        }
-        if lever {
-            g0.extend_from_slice(&p.lever_arm);
-        }
-        let fit = fit(&model, p, r, &g0, &lengths, &|_| false, progress)?;
-        if estimate_track {
-            let t = fit.g[2];
-            if let Some(w) = implausible_track(t, p.track, config.track_width) {
-                warnings.push(w);
-                if config.track_width == TrackWidthMode::Auto {
-                    estimate_track = false;
-                    continue;
-                }
-            }
-        }
-        break (model, g0, fit);
-    };
     let track = if estimate_track { fit.g[2] } else { p.track };
     let slip_index = 2 + usize::from(estimate_track);
     let slip_value = slip_gain.then(|| fit.g[slip_index]);
@@ -169,26 +141,7 @@ pub fn run(
         )
     });
     let c = [fit.g[0], fit.g[1]];
-    for (name, v) in [("c_RL", c[0]), ("c_RR", c[1])] {
-        if !(v.is_finite() && v > 0.5 * p.nominal_c && v < 1.5 * p.nominal_c) {
-            return Err(CalibrationError::Implausible {
-                method: Method::Batch,
-                detail: format!(
-                    "{name} = {v:.4} m, more than 50 % from the nominal {:.4} m (the wheel data and the GNSS do not describe the same motion)",
-                    p.nominal_c
-                ),
-            });
-        }
-    }
-    if estimate_track && !(track > 0.5 * p.track && track < 1.5 * p.track) {
-        return Err(CalibrationError::Implausible {
-            method: Method::Batch,
-            detail: format!(
-                "track width {track:.3} m, more than 50 % from the nominal {:.3} m",
-                p.track
-            ),
-        });
-    }
+    check_plausible(p, c, track, estimate_track)?;
     let slip = slip_value.map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
     let params = |g: &[f64]| TwoWheelParams {
         c_rl: g[0],
@@ -196,29 +149,9 @@ pub fn run(
         track_width: if estimate_track { g[2] } else { p.track },
     };
     let before = dr_deviation(p, r, &params(&g0), Slip::None, TRACK_POINTS);
-    let mut iterations = vec![IterationRecord {
-        n: 0,
-        circumference_m: RearPair {
-            rl: g0[0],
-            rr: g0[1],
-        },
-        track_width_m: p.track,
-        dr_error_mean_m: before.mean_m,
-        dr_error_max_m: before.max_m,
-    }];
-    for (i, (_, g)) in fit.steps.iter().enumerate() {
-        let s = slip_gain
-            .then(|| g[slip_index])
-            .map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
-        let d = dr_deviation(p, r, &params(g), s, 0);
-        iterations.push(IterationRecord {
-            n: i + 1,
-            circumference_m: RearPair { rl: g[0], rr: g[1] },
-            track_width_m: params(g).track_width,
-            dr_error_mean_m: d.mean_m,
-            dr_error_max_m: d.max_m,
-        });
-    }
+    let iterations = iteration_records(
+        p, r, &g0, &before, &fit.steps, &params, slip_index, slip_gain,
+    );
     let after = dr_deviation(p, r, &params(&fit.g), slip, TRACK_POINTS);
     let mut notes = Vec::new();
     if fit.dropped_segments > 0 {
@@ -249,4 +182,120 @@ pub fn run(
         model_track: Some(fit.model_track),
         notes,
     })
+}
+
+/// The batch fit from the nominal start (track width, side-slip gain and
+/// lever arm appended as estimated), with the track width's decision: in
+/// auto mode, an implausible estimate is warned of and the fit run again
+/// with the nominal track (`estimate_track` set false). The model, the
+/// start and the fit.
+fn fit_deciding_track<'a>(
+    p: &'a Series,
+    r: &Reference,
+    config: &CalibrationConfig,
+    warnings: &mut Vec<Warning>,
+    progress: &mut dyn FnMut(f64),
+    estimate_track: &mut bool,
+) -> Result<(TwoWheelModel<'a>, Vec<f64>, Fit), CalibrationError> {
+    let slip_gain = config.side_slip;
+    let lever = config.estimate_lever_arm;
+    let lengths = stages(config.segment_length_s);
+    loop {
+        let model = TwoWheelModel::new(p, (!*estimate_track).then_some(p.track), slip_gain, lever);
+        let start = config
+            .initial_circumference_m
+            .unwrap_or([p.nominal_c, p.nominal_c]);
+        let mut g0 = start.to_vec();
+        if *estimate_track {
+            g0.push(p.track);
+        }
+        if slip_gain {
+            g0.push(0.0);
+        }
+        if lever {
+            g0.extend_from_slice(&p.lever_arm);
+        }
+        let fit = fit(&model, p, r, &g0, &lengths, &|_| false, progress)?;
+        if *estimate_track {
+            let t = fit.g[2];
+            if let Some(w) = implausible_track(t, p.track, config.track_width) {
+                warnings.push(w);
+                if config.track_width == TrackWidthMode::Auto {
+                    *estimate_track = false;
+                    continue;
+                }
+            }
+        }
+        break Ok((model, g0, fit));
+    }
+}
+
+/// Refuse circumferences (or an estimated track width) more than 50 % from
+/// the nominal.
+fn check_plausible(
+    p: &Series,
+    c: [f64; 2],
+    track: f64,
+    estimate_track: bool,
+) -> Result<(), CalibrationError> {
+    for (name, v) in [("c_RL", c[0]), ("c_RR", c[1])] {
+        if !(v.is_finite() && v > 0.5 * p.nominal_c && v < 1.5 * p.nominal_c) {
+            return Err(CalibrationError::Implausible {
+                method: Method::Batch,
+                detail: format!(
+                    "{name} = {v:.4} m, more than 50 % from the nominal {:.4} m (the wheel data and the GNSS do not describe the same motion)",
+                    p.nominal_c
+                ),
+            });
+        }
+    }
+    if estimate_track && !(track > 0.5 * p.track && track < 1.5 * p.track) {
+        return Err(CalibrationError::Implausible {
+            method: Method::Batch,
+            detail: format!(
+                "track width {track:.3} m, more than 50 % from the nominal {:.3} m",
+                p.track
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The per-iteration records: the start (`before`, its deviation) and each
+/// fit step's dead-reckoning deviation.
+#[allow(clippy::too_many_arguments)]
+fn iteration_records(
+    p: &Series,
+    r: &Reference,
+    g0: &[f64],
+    before: &DrDeviation,
+    steps: &[(f64, Vec<f64>)],
+    params: &dyn Fn(&[f64]) -> TwoWheelParams,
+    slip_index: usize,
+    slip_gain: bool,
+) -> Vec<IterationRecord> {
+    let mut iterations = vec![IterationRecord {
+        n: 0,
+        circumference_m: RearPair {
+            rl: g0[0],
+            rr: g0[1],
+        },
+        track_width_m: p.track,
+        dr_error_mean_m: before.mean_m,
+        dr_error_max_m: before.max_m,
+    }];
+    for (i, (_, g)) in steps.iter().enumerate() {
+        let s = slip_gain
+            .then(|| g[slip_index])
+            .map_or(Slip::None, |k| Slip::Gain(k, &p.lateral_accel));
+        let d = dr_deviation(p, r, &params(g), s, 0);
+        iterations.push(IterationRecord {
+            n: i + 1,
+            circumference_m: RearPair { rl: g[0], rr: g[1] },
+            track_width_m: params(g).track_width,
+            dr_error_mean_m: d.mean_m,
+            dr_error_max_m: d.max_m,
+        });
+    }
+    iterations
 }

@@ -731,6 +731,9 @@ fn robust_scale(evals: &[SegEval]) -> f64 {
     (u[u.len() / 2] / 1.1774).max(1.0)
 }
 
+/// The fit's covariances at its solution `g` (formal, jackknife,
+/// error-model) and its track and residual, from the segments evaluated
+/// once more with the Jacobians.
 #[allow(clippy::too_many_arguments)]
 fn covariance(
     model: &dyn StepModel,
@@ -760,49 +763,14 @@ fn covariance(
         .zip(poses)
         .map(|(s, pose)| eval_segment(model, g, s, *pose, fixes, &settings, p))
         .collect();
-    let mut sum_sq = 0.0;
-    let mut n_res = 0usize;
-    let (mut lag_num, mut lag_den) = (0.0, 0.0);
-    let mut sum_sq_m = 0.0;
-    for e in &evals {
-        sum_sq_m += e.sum_sq_m;
-        for (i, r) in e.residuals.iter().enumerate() {
-            sum_sq += r[0] * r[0] + r[1] * r[1];
-            n_res += 1;
-            if i > 0 {
-                let q = e.residuals[i - 1];
-                lag_num += r[0] * q[0] + r[1] * q[1];
-            }
-            lag_den += r[0] * r[0] + r[1] * r[1];
-        }
-    }
+    let sums = ResidualSums::of(&evals);
+    let n_res = sums.n_res;
     let n_params = ng + 3 * segs.len();
     let dof = (2 * n_res).saturating_sub(n_params).max(1);
-    let chi2 = sum_sq / dof as f64;
-    let rho = if lag_den > 0.0 {
-        (lag_num / lag_den).clamp(0.0, 0.95)
-    } else {
-        0.0
-    };
-    let inflation = (1.0 + rho) / (1.0 - rho);
+    let chi2 = sums.sum_sq / dof as f64;
+    let inflation = sums.inflation();
     let accs: Vec<Acc> = evals.iter().filter_map(|e| e.acc.clone()).collect();
-    let reduced = |accs: &[Acc]| -> Option<(DMatrix<f64>, DVector<f64>)> {
-        let mut s = DMatrix::zeros(ng, ng);
-        let mut rhs = DVector::zeros(ng);
-        for a in accs {
-            s += &a.hgg;
-            rhs += &a.bg;
-            let inv = a.hll.try_inverse()?;
-            let hgl_inv = &a.hgl * DMatrix::from_iterator(3, 3, inv.iter().copied());
-            s -= &hgl_inv * a.hgl.transpose();
-            rhs -= &hgl_inv * DVector::from_iterator(3, a.bl.iter().copied());
-        }
-        for &(i, _, sigma) in &model.priors() {
-            s[(i, i)] += 1.0 / (sigma * sigma);
-        }
-        Some((s, rhs))
-    };
-    let Some((info, _)) = reduced(&accs) else {
+    let Some((info, _)) = reduced(model, &accs) else {
         return Err(CalibrationError::Numerical {
             stage: "batch covariance",
             detail: "a segment's pose information is singular".to_string(),
@@ -820,11 +788,112 @@ fn covariance(
         Some((c, m)) => (Some(c), Some(m)),
         None => (None, None),
     };
+    let jackknife = jackknife(model, &evals, &accs);
+    let model_track = ModelTrack::from_evals(&mut evals);
+    Ok(Fit {
+        model_track,
+        g: g.to_vec(),
+        formal,
+        jackknife,
+        correlated,
+        error_model,
+        residual_rms_m: (sums.sum_sq_m / n_res.max(1) as f64).sqrt(),
+        segments: segs.len(),
+        dropped_segments: dropped,
+        steps,
+    })
+}
+
+/// Sums over the normalised residuals of all segments.
+struct ResidualSums {
+    /// Sum of squares of the normalised residuals.
+    sum_sq: f64,
+    /// Residuals (2-D each).
+    n_res: usize,
+    /// Lag-1 products of neighbouring residuals within a segment.
+    lag_num: f64,
+    /// Squares, for the lag-1 correlation.
+    lag_den: f64,
+    /// Sum of squares of the residuals in metres.
+    sum_sq_m: f64,
+}
+
+impl ResidualSums {
+    fn of(evals: &[SegEval]) -> ResidualSums {
+        let mut sum_sq = 0.0;
+        let mut n_res = 0usize;
+        let (mut lag_num, mut lag_den) = (0.0, 0.0);
+        let mut sum_sq_m = 0.0;
+        for e in evals {
+            sum_sq_m += e.sum_sq_m;
+            for (i, r) in e.residuals.iter().enumerate() {
+                sum_sq += r[0] * r[0] + r[1] * r[1];
+                n_res += 1;
+                if i > 0 {
+                    let q = e.residuals[i - 1];
+                    lag_num += r[0] * q[0] + r[1] * q[1];
+                }
+                lag_den += r[0] * r[0] + r[1] * r[1];
+            }
+        }
+        ResidualSums {
+            sum_sq,
+            n_res,
+            lag_num,
+            lag_den,
+            sum_sq_m,
+        }
+    }
+
+    /// The variance inflation of the residuals' lag-1 correlation rho
+    /// (clamped to 0..0.95): (1 + rho) / (1 - rho).
+    fn inflation(&self) -> f64 {
+        let rho = if self.lag_den > 0.0 {
+            (self.lag_num / self.lag_den).clamp(0.0, 0.95)
+        } else {
+            0.0
+        };
+        (1.0 + rho) / (1.0 - rho)
+    }
+}
+
+/// The global parameters' reduced normal equations (information and
+/// right-hand side, the segments' poses eliminated, the priors added) of
+/// the segments' accumulations `accs`; `None` when a pose's information is
+/// singular.
+fn reduced(model: &dyn StepModel, accs: &[Acc]) -> Option<(DMatrix<f64>, DVector<f64>)> {
+    let ng = model.n_global();
+    let mut s = DMatrix::zeros(ng, ng);
+    let mut rhs = DVector::zeros(ng);
+    for a in accs {
+        s += &a.hgg;
+        rhs += &a.bg;
+        let inv = a.hll.try_inverse()?;
+        let hgl_inv = &a.hgl * DMatrix::from_iterator(3, 3, inv.iter().copied());
+        s -= &hgl_inv * a.hgl.transpose();
+        rhs -= &hgl_inv * DVector::from_iterator(3, a.bl.iter().copied());
+    }
+    for &(i, _, sigma) in &model.priors() {
+        s[(i, i)] += 1.0 / (sigma * sigma);
+    }
+    Some((s, rhs))
+}
+
+/// The solution's step with `accs` (`None` when singular).
+fn solve_reduced(model: &dyn StepModel, accs: &[Acc]) -> Option<DVector<f64>> {
+    let (s, rhs) = reduced(model, accs)?;
+    s.lu().solve(&rhs)
+}
+
+/// The linearised jackknife covariance: of the blocks of fixes left out,
+/// and of the whole segments left out, the larger by the circumferences'
+/// variance.
+fn jackknife(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<DMatrix<f64>> {
     // Linearised block jackknife: leave each block of fixes out.
     let mut estimates = Vec::new();
     for (si, e) in evals.iter().enumerate() {
         for b in &e.blocks {
-            let mut left = accs.clone();
+            let mut left = accs.to_vec();
             let rest = left[si].sub(b);
             let singular =
                 rest.hll.try_inverse().is_none() || rest.hll.trace() < 1e-9 * left[si].hll.trace();
@@ -833,10 +902,8 @@ fn covariance(
             } else {
                 left[si] = rest;
             }
-            if let Some((s, rhs)) = reduced(&left) {
-                if let Some(d) = s.lu().solve(&rhs) {
-                    estimates.push(d);
-                }
+            if let Some(d) = solve_reduced(model, &left) {
+                estimates.push(d);
             }
         }
     }
@@ -849,34 +916,19 @@ fn covariance(
     // variance) is kept.
     let mut by_segment = Vec::new();
     for si in 0..accs.len() {
-        let mut left = accs.clone();
+        let mut left = accs.to_vec();
         left.remove(si);
-        if let Some((s, rhs)) = reduced(&left) {
-            if let Some(d) = s.lu().solve(&rhs) {
-                by_segment.push(d);
-            }
+        if let Some(d) = solve_reduced(model, &left) {
+            by_segment.push(d);
         }
     }
     let segments = jackknife_covariance(&by_segment).filter(|c| c.iter().all(|v| v.is_finite()));
     let scale_var = |c: &DMatrix<f64>| c[(0, 0)] + c[(1, 1)];
-    let jackknife = match (blocks, segments) {
+    match (blocks, segments) {
         (Some(b), Some(s)) if scale_var(&s) > scale_var(&b) => Some(s),
         (Some(b), _) => Some(b),
         (None, s) => s,
-    };
-    let model_track = ModelTrack::from_evals(&mut evals);
-    Ok(Fit {
-        model_track,
-        g: g.to_vec(),
-        formal,
-        jackknife,
-        correlated,
-        error_model,
-        residual_rms_m: (sum_sq_m / n_res.max(1) as f64).sqrt(),
-        segments: segs.len(),
-        dropped_segments: dropped,
-        steps,
-    })
+    }
 }
 
 /// The covariance of the global parameters from an error model of the

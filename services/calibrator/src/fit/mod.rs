@@ -132,22 +132,7 @@ pub fn run(
         Vec::new()
     };
     if let (true, Some(a), Some(b)) = (config.compare, paper.as_ref(), batch.as_ref()) {
-        for (name, i) in [("c_RL", 0usize), ("c_RR", 1)] {
-            let sa = if i == 0 { a.sigmas.rl } else { a.sigmas.rr };
-            let sb = if i == 0 { b.sigmas.rl } else { b.sigmas.rr };
-            let d = (a.c[i] - b.c[i]).abs();
-            let s = (sa * sa + sb * sb).sqrt();
-            if d > 3.0 * s && d > 2e-4 {
-                warnings.push(Warning::new(
-                    WarningCode::MethodsDisagree,
-                    format!(
-                        "paper and batch disagree on {name} by {:.2} mm (combined sigma {:.2} mm)",
-                        1000.0 * d,
-                        1000.0 * s
-                    ),
-                ));
-            }
-        }
+        warn_disagreement(a, b, warnings);
     }
     let primary = match config.method {
         Method::Paper => paper.take(),
@@ -185,6 +170,48 @@ pub fn run(
     } else {
         None
     };
+    let (c, sigma_m, scale_from_gyro) = gyro_scale(&primary, gyro, &mut later);
+    Ok(Fits {
+        primary,
+        comparison,
+        gyro,
+        scale_from_gyro,
+        c,
+        sigma_m,
+        warnings: later,
+    })
+}
+
+/// Warn where the paper and batch methods disagree on a circumference by
+/// more than 3 combined sigmas (and 0.2 mm).
+fn warn_disagreement(a: &MethodResult, b: &MethodResult, warnings: &mut Vec<Warning>) {
+    for (name, i) in [("c_RL", 0usize), ("c_RR", 1)] {
+        let sa = if i == 0 { a.sigmas.rl } else { a.sigmas.rr };
+        let sb = if i == 0 { b.sigmas.rl } else { b.sigmas.rr };
+        let d = (a.c[i] - b.c[i]).abs();
+        let s = (sa * sa + sb * sb).sqrt();
+        if d > 3.0 * s && d > 2e-4 {
+            warnings.push(Warning::new(
+                WarningCode::MethodsDisagree,
+                format!(
+                    "paper and batch disagree on {name} by {:.2} mm (combined sigma {:.2} mm)",
+                    1000.0 * d,
+                    1000.0 * s
+                ),
+            ));
+        }
+    }
+}
+
+/// The circumferences and their sigmas: the primary's, or, where the
+/// wheel + gyro model fits the GNSS far better than the 2W model, scaled by
+/// its common distance factor (with its warnings into `later`); and
+/// whether the scale came from the gyro model.
+fn gyro_scale(
+    primary: &MethodResult,
+    gyro: Option<GyroEstimate>,
+    later: &mut Vec<Warning>,
+) -> ([f64; 2], RearSigma, bool) {
     // Where the wheel + gyro model fits the GNSS far better than the 2W model,
     // its common distance factor is the better measure of the scale.
     let mut c = primary.c;
@@ -226,15 +253,7 @@ pub fn run(
             ));
         }
     }
-    Ok(Fits {
-        primary,
-        comparison,
-        gyro,
-        scale_from_gyro,
-        c,
-        sigma_m,
-        warnings: later,
-    })
+    (c, sigma_m, scale_from_gyro)
 }
 
 /// One method's result in short, for the comparison.

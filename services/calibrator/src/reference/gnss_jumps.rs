@@ -36,6 +36,14 @@ const MAX_EDGES_INSIDE: usize = 50;
 /// Fix pairs further apart than this are not compared, s.
 const MAX_PAIR_DT_S: f64 = 1.5;
 
+/// A displacement pair: the later fix's index, the GNSS displacement and
+/// the dead-reckoned one, m.
+type Pair = (usize, [f64; 2], [f64; 2]);
+
+/// A pair's residual displacement, m, with the wheels' unit direction of
+/// travel (where they moved).
+type Residual = (usize, [f64; 2], Option<[f64; 2]>);
+
 /// One jump found and set aside.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Jump {
@@ -84,9 +92,41 @@ pub fn find(
         return out;
     }
     let dr: Vec<Option<(usize, [f64; 2])>> = fix_t.iter().map(|&t| dr_at(t)).collect();
-    // Displacement pairs (j-1, j): GNSS and dead-reckoned.
-    let mut pairs: Vec<(usize, [f64; 2], [f64; 2])> = Vec::new();
-    for j in 1..n {
+    let pairs = displacement_pairs(fix_t, fix_xy, &dr);
+    if pairs.len() < 20 {
+        return out;
+    }
+    let scale = wheel_scale(&pairs);
+    let e = residuals(&pairs, scale);
+    let Some(noise) = Noise::of(&e) else {
+        return out;
+    };
+    out.sigma_e_m = Some(noise.e);
+    let edges: Vec<(usize, [f64; 2])> = e
+        .into_iter()
+        .filter(|(_, v, u)| noise.sigmas(*v, *u) > EDGE_SIGMAS)
+        .map(|(j, v, _)| (j, v))
+        .collect();
+    let track = Track {
+        fix_t,
+        fix_xy,
+        dr: &dr,
+        scale,
+        sigma_max: noise.max(),
+    };
+    track.pair_edges(&edges, &mut out);
+    out
+}
+
+/// Displacement pairs (j-1, j) of fixes at most [`MAX_PAIR_DT_S`] apart on
+/// one wheel piece: (j, GNSS displacement, dead-reckoned displacement).
+fn displacement_pairs(
+    fix_t: &[f64],
+    fix_xy: &[[f64; 2]],
+    dr: &[Option<(usize, [f64; 2])>],
+) -> Vec<Pair> {
+    let mut pairs: Vec<Pair> = Vec::new();
+    for j in 1..fix_t.len() {
         let dt = fix_t[j] - fix_t[j - 1];
         if !(dt > 0.0 && dt <= MAX_PAIR_DT_S) {
             continue;
@@ -104,11 +144,12 @@ pub fn find(
         let dd = [b[0] - a[0], b[1] - a[1]];
         pairs.push((j, dz, dd));
     }
-    if pairs.len() < 20 {
-        return out;
-    }
-    // The wheels' scale against the GNSS (the nominal circumference is a
-    // percent off): a robust ratio of the longer displacements.
+    pairs
+}
+
+/// The wheels' scale against the GNSS (the nominal circumference is a
+/// percent off): a robust ratio of the longer displacements.
+fn wheel_scale(pairs: &[Pair]) -> f64 {
     let mut ratios: Vec<f64> = pairs
         .iter()
         .filter_map(|(_, dz, dd)| {
@@ -116,64 +157,107 @@ pub fn find(
             (l > 0.3).then(|| (dz[0] * dd[0] + dz[1] * dd[1]) / (l * l))
         })
         .collect();
-    let scale = stats::upper_median(&mut ratios).unwrap_or(1.0);
-    // Residual displacement per pair, and the wheels' direction of travel
-    // (where they moved): stamp jitter and the wheels' scale err along it,
-    // the heading across it, so each has its own spread.
-    let e: Vec<(usize, [f64; 2], Option<[f64; 2]>)> = pairs
+    stats::upper_median(&mut ratios).unwrap_or(1.0)
+}
+
+/// Residual displacement per pair, and the wheels' direction of travel
+/// (where they moved): stamp jitter and the wheels' scale err along it,
+/// the heading across it, so each has its own spread.
+fn residuals(pairs: &[Pair], scale: f64) -> Vec<Residual> {
+    pairs
         .iter()
         .map(|(j, dz, dd)| {
             let l = dd[0].hypot(dd[1]);
             let u = (l > 0.05).then(|| [dd[0] / l, dd[1] / l]);
             (*j, [dz[0] - scale * dd[0], dz[1] - scale * dd[1]], u)
         })
-        .collect();
-    let split = |v: [f64; 2], u: [f64; 2]| (v[0] * u[0] + v[1] * u[1], -v[0] * u[1] + v[1] * u[0]);
-    let mut along: Vec<f64> = Vec::new();
-    let mut across: Vec<f64> = Vec::new();
-    let mut comps: Vec<f64> = Vec::new();
-    for (_, v, u) in &e {
-        comps.extend([v[0].abs(), v[1].abs()]);
-        if let Some(u) = u {
-            let (a, c) = split(*v, *u);
-            along.push(a.abs());
-            across.push(c.abs());
+        .collect()
+}
+
+/// `v` along and across the unit direction `u`.
+fn split(v: [f64; 2], u: [f64; 2]) -> (f64, f64) {
+    (v[0] * u[0] + v[1] * u[1], -v[0] * u[1] + v[1] * u[0])
+}
+
+/// The robust 1-sigmas of the residual displacements, m.
+struct Noise {
+    /// Per axis.
+    e: f64,
+    /// Along the travel.
+    along: f64,
+    /// Across the travel.
+    across: f64,
+}
+
+impl Noise {
+    /// From the residuals (`None` when there are none); along and across
+    /// the travel apart when at least 20 residuals have a direction.
+    fn of(e: &[Residual]) -> Option<Noise> {
+        let mut along: Vec<f64> = Vec::new();
+        let mut across: Vec<f64> = Vec::new();
+        let mut comps: Vec<f64> = Vec::new();
+        for (_, v, u) in e {
+            comps.extend([v[0].abs(), v[1].abs()]);
+            if let Some(u) = u {
+                let (a, c) = split(*v, *u);
+                along.push(a.abs());
+                across.push(c.abs());
+            }
+        }
+        let mad = stats::upper_median(&mut comps)?;
+        // A floor of 1 mm: fixes rounded to the millimetre have no finer noise.
+        let sigma_e = (1.4826 * mad).max(1e-3);
+        let (sigma_al, sigma_cr) = if along.len() >= 20 {
+            (
+                stats::upper_median(&mut along).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
+                stats::upper_median(&mut across).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
+            )
+        } else {
+            (sigma_e, sigma_e)
+        };
+        Some(Noise {
+            e: sigma_e,
+            along: sigma_al,
+            across: sigma_cr,
+        })
+    }
+
+    /// The larger of the along and across sigmas.
+    fn max(&self) -> f64 {
+        self.along.max(self.across)
+    }
+
+    /// Size of a residual in sigmas: along and across the travel apart.
+    fn sigmas(&self, v: [f64; 2], u: Option<[f64; 2]>) -> f64 {
+        match u {
+            Some(u) => {
+                let (a, c) = split(v, u);
+                (a / self.along).hypot(c / self.across)
+            }
+            None => v[0].hypot(v[1]) / self.e,
         }
     }
-    let Some(mad) = stats::upper_median(&mut comps) else {
-        return out;
-    };
-    // A floor of 1 mm: fixes rounded to the millimetre have no finer noise.
-    let sigma_e = (1.4826 * mad).max(1e-3);
-    let (sigma_al, sigma_cr) = if along.len() >= 20 {
-        (
-            stats::upper_median(&mut along).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
-            stats::upper_median(&mut across).map_or(sigma_e, |m| (1.4826 * m).max(1e-3)),
-        )
-    } else {
-        (sigma_e, sigma_e)
-    };
-    let sigma_max = sigma_al.max(sigma_cr);
-    out.sigma_e_m = Some(sigma_e);
-    // Size of a residual in sigmas: along and across the travel apart.
-    let sigmas = |v: [f64; 2], u: Option<[f64; 2]>| match u {
-        Some(u) => {
-            let (a, c) = split(v, u);
-            (a / sigma_al).hypot(c / sigma_cr)
-        }
-        None => v[0].hypot(v[1]) / sigma_e,
-    };
-    let edges: Vec<(usize, [f64; 2])> = e
-        .into_iter()
-        .filter(|(_, v, u)| sigmas(*v, *u) > EDGE_SIGMAS)
-        .map(|(j, v, _)| (j, v))
-        .collect();
-    // The fixes of a candidate jump from `a` (first fix off) to `b` (first
-    // fix back) must sit off by the jump, not return after the edge: each
-    // fix's offset against the track through fixes a-1 and b (the wheels'
-    // shape between, their slow drift spread linearly) within half the jump
-    // plus 3 sigma_e of it, for at least three quarters of them.
-    let holds = |a: usize, b: usize, jump: [f64; 2]| -> bool {
+}
+
+/// The fixes against the wheels' track, for pairing edges into jumps.
+struct Track<'a> {
+    fix_t: &'a [f64],
+    fix_xy: &'a [[f64; 2]],
+    dr: &'a [Option<(usize, [f64; 2])>],
+    /// The wheels' scale against the GNSS.
+    scale: f64,
+    /// [`Noise::max`].
+    sigma_max: f64,
+}
+
+impl Track<'_> {
+    /// The fixes of a candidate jump from `a` (first fix off) to `b` (first
+    /// fix back) must sit off by the jump, not return after the edge: each
+    /// fix's offset against the track through fixes a-1 and b (the wheels'
+    /// shape between, their slow drift spread linearly) within half the
+    /// jump plus 3 sigma_e of it, for at least three quarters of them.
+    fn holds(&self, a: usize, b: usize, jump: [f64; 2]) -> bool {
+        let (fix_t, fix_xy, dr, scale) = (self.fix_t, self.fix_xy, self.dr, self.scale);
         let (Some((_, d0)), Some((_, d1))) = (dr[a - 1], dr[b]) else {
             return false;
         };
@@ -183,7 +267,7 @@ pub fn find(
             fix_xy[b][0] - z0[0] - scale * (d1[0] - d0[0]),
             fix_xy[b][1] - z0[1] - scale * (d1[1] - d0[1]),
         ];
-        let tol = 0.5 * jump[0].hypot(jump[1]) + 3.0 * sigma_max;
+        let tol = 0.5 * jump[0].hypot(jump[1]) + 3.0 * self.sigma_max;
         let mut good = 0usize;
         for j in a..b {
             let Some((_, dj)) = dr[j] else {
@@ -199,45 +283,53 @@ pub fn find(
             }
         }
         4 * good >= 3 * (b - a)
-    };
-    let mut i = 0;
-    while i < edges.len() {
-        let (ja, ea) = edges[i];
-        // The first later edge (within the longest jump, and the next
-        // MAX_EDGES_INSIDE edges) that cancels this one and whose fixes
-        // between hold the offset; smaller jumps and noise edges may lie
-        // between.
-        let closing = (i + 1..edges.len().min(i + 1 + MAX_EDGES_INSIDE)).find(|&m| {
-            let (jb, eb) = edges[m];
-            let (la, lb) = (ea[0].hypot(ea[1]), eb[0].hypot(eb[1]));
-            let rest = (ea[0] + eb[0]).hypot(ea[1] + eb[1]);
-            let tol = (4.0 * std::f64::consts::SQRT_2 * sigma_max + 0.25 * la.min(lb))
-                .min(0.5 * la.min(lb));
-            let jump = [0.5 * (ea[0] - eb[0]), 0.5 * (ea[1] - eb[1])];
-            rest <= tol && fix_t[jb] - fix_t[ja] <= MAX_JUMP_S && ja >= 1 && holds(ja, jb, jump)
-        });
-        match closing {
-            Some(m) => {
+    }
+
+    /// Pair the edges (in time order) into jumps: set their fixes aside in
+    /// `out`, count the edges left unpaired.
+    fn pair_edges(&self, edges: &[(usize, [f64; 2])], out: &mut JumpSearch) {
+        let (fix_t, sigma_max) = (self.fix_t, self.sigma_max);
+        let mut i = 0;
+        while i < edges.len() {
+            let (ja, ea) = edges[i];
+            // The first later edge (within the longest jump, and the next
+            // MAX_EDGES_INSIDE edges) that cancels this one and whose fixes
+            // between hold the offset; smaller jumps and noise edges may lie
+            // between.
+            let closing = (i + 1..edges.len().min(i + 1 + MAX_EDGES_INSIDE)).find(|&m| {
                 let (jb, eb) = edges[m];
-                for s in &mut out.set_aside[ja..jb] {
-                    *s = true;
+                let (la, lb) = (ea[0].hypot(ea[1]), eb[0].hypot(eb[1]));
+                let rest = (ea[0] + eb[0]).hypot(ea[1] + eb[1]);
+                let tol = (4.0 * std::f64::consts::SQRT_2 * sigma_max + 0.25 * la.min(lb))
+                    .min(0.5 * la.min(lb));
+                let jump = [0.5 * (ea[0] - eb[0]), 0.5 * (ea[1] - eb[1])];
+                rest <= tol
+                    && fix_t[jb] - fix_t[ja] <= MAX_JUMP_S
+                    && ja >= 1
+                    && self.holds(ja, jb, jump)
+            });
+            match closing {
+                Some(m) => {
+                    let (jb, eb) = edges[m];
+                    for s in &mut out.set_aside[ja..jb] {
+                        *s = true;
+                    }
+                    out.jumps.push(Jump {
+                        t_start: fix_t[ja],
+                        t_end: fix_t[jb],
+                        size_m: 0.5 * (ea[0].hypot(ea[1]) + eb[0].hypot(eb[1])),
+                        fixes: jb - ja,
+                    });
+                    out.unpaired_edges += m - i - 1;
+                    i = m + 1;
                 }
-                out.jumps.push(Jump {
-                    t_start: fix_t[ja],
-                    t_end: fix_t[jb],
-                    size_m: 0.5 * (ea[0].hypot(ea[1]) + eb[0].hypot(eb[1])),
-                    fixes: jb - ja,
-                });
-                out.unpaired_edges += m - i - 1;
-                i = m + 1;
-            }
-            None => {
-                out.unpaired_edges += 1;
-                i += 1;
+                None => {
+                    out.unpaired_edges += 1;
+                    i += 1;
+                }
             }
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -34,7 +34,7 @@ use crate::smoother::{
     smooth_positions, Input, PosTrack, COURSE_MIN_SPEED, Q_ACCEL_FREE, Q_ACCEL_IMU,
 };
 use crate::warnings::{Warning, WarningCode};
-use gnss_jumps::JumpSearch;
+use gnss_jumps::{Jump, JumpSearch};
 use interfaces::drive::{Drive, ImuSample};
 use nalgebra::{Matrix3, Vector3};
 use vehicle_model::two_wheel::wrap_angle;
@@ -430,24 +430,113 @@ pub fn build(
     let g = &a.gnss;
     let (gnss_sigma_m, estimated, claim) = (g.sigma_m, g.sigma_estimated, g.claim);
     let mut fixes = g.fixes.clone();
-    let antenna: &[[f64; 2]] = &g.antenna;
-    let mut pass1 = g.alone.clone();
     let gate = config.outlier_gate_sigma;
-    // Heading: gyro + GNSS course (+ absolute heading).
     let gyro = p.gyro.as_ref();
-    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
-    let [lx, ly] = p.lever_arm;
+    let Screened {
+        course_meas,
+        heading,
+        jumps,
+        outliers,
+        set_aside_count,
+    } = screen_fixes(p, &mut fixes, &g.antenna, g.alone.clone(), gate, warnings)?;
+    let (side_slip_gain, beta_track) = side_slip(p, &course_meas, &heading, config, warnings);
+    let pass2 = smooth_axle(p, drive, &fixes, &heading, &jumps, config)?;
+
+    // Everything at the wheel times.
+    let acc_t: Vec<f64> = fixes.iter().filter(|f| f.accepted).map(|f| f.t).collect();
+    let want_beta = config.side_slip && gyro.is_some();
+    let AtWheels {
+        x,
+        y,
+        yaw,
+        beta,
+        valid,
+    } = at_wheel_times(
+        p,
+        &pass2,
+        &heading,
+        beta_track.as_ref(),
+        &acc_t,
+        want_beta,
+        config.max_gnss_gap_s,
+    )?;
+    let outages = warn_outages(&acc_t, config.max_gnss_gap_s, warnings);
+    let bridged = bridged(&p.t, &valid, &jumps.jumps);
+    let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &bridged);
+    check_distance(
+        p,
+        distance_m,
+        &acc_t,
+        config.max_gnss_gap_s,
+        fixes.len(),
+        outliers,
+        set_aside_count,
+    )?;
+    let heading_filter_gyro_bias =
+        gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
+    Ok(Reference {
+        x,
+        y,
+        yaw,
+        beta,
+        valid,
+        fixes,
+        gnss_sigma_m,
+        gnss_sigma_estimated: estimated,
+        gnss_sigma_claim: claim,
+        outliers,
+        jumps: jumps.jumps,
+        time_offset: g.time_offset,
+        gnss_clock: g.clock.clone(),
+        clock_pairs: g.pairs.clone(),
+        side_slip_gain,
+        heading_filter_gyro_bias,
+        distance_m,
+        total_turn_rad,
+        outages,
+    })
+}
+
+/// The GNSS fixes screened: the course measurements and the heading on
+/// them, the jumps found against the wheels, the outliers.
+struct Screened {
+    /// The GNSS course measurements with the speed.
+    course_meas: Vec<(HeadingMeas, f64)>,
+    /// The heading filter's track.
+    heading: HeadingTrack,
+    /// The jumps of more than one fix, and the fixes set aside.
+    jumps: JumpSearch,
+    /// Fixes rejected as outliers (not counting those set aside in jumps).
+    outliers: usize,
+    /// Fixes set aside in jumps of more than one fix.
+    set_aside_count: usize,
+}
+
+/// Screen the fixes: the course and heading on the fixes smoothed alone
+/// (`pass1`), the GNSS jumps against the wheels' dead-reckoning on that
+/// heading set aside (then the course and the heading again without them),
+/// each fix's `accepted` set, too few usable fixes refused, and the jump
+/// and outlier warnings.
+fn screen_fixes(
+    p: &Series,
+    fixes: &mut [RefFix],
+    antenna: &[[f64; 2]],
+    mut pass1: PosTrack,
+    gate: f64,
+    warnings: &mut Vec<Warning>,
+) -> Result<Screened, CalibrationError> {
+    // Heading: gyro + GNSS course (+ absolute heading).
     let (mut course_meas, mut heading) = course_and_heading(p, &pass1)?;
 
     // GNSS jumps, against the wheels' dead-reckoning on that heading: set
     // aside, then the course and the heading again without them.
-    let mut jumps = find_jumps(p, &fixes, &heading);
+    let mut jumps = find_jumps(p, fixes, &heading);
     // A jump of one fix is an outlier (counted with the gate's).
     let single_fix = jumps.jumps.iter().filter(|j| j.fixes == 1).count();
     jumps.jumps.retain(|j| j.fixes > 1);
     if jumps.set_aside.iter().any(|a| *a) {
         pass1 = smooth_positions(
-            &fixes,
+            fixes,
             antenna,
             Q_ACCEL_FREE,
             gate,
@@ -499,15 +588,35 @@ pub fn build(
             ),
         ));
     }
+    Ok(Screened {
+        course_meas,
+        heading,
+        jumps,
+        outliers,
+        set_aside_count,
+    })
+}
 
-    // Side-slip at the course epochs: course - heading, Markov-filtered.
+/// Side-slip at the course epochs: course - heading, Markov-filtered
+/// (nothing without a gyro), and the side-slip gain against the lateral
+/// acceleration (when it was excited enough). Warns when side-slip is
+/// asked for without a gyro.
+fn side_slip(
+    p: &Series,
+    course_meas: &[(HeadingMeas, f64)],
+    heading: &HeadingTrack,
+    config: &CalibrationConfig,
+    warnings: &mut Vec<Warning>,
+) -> (Option<f64>, Option<SlipTrack>) {
+    let gyro = p.gyro.as_ref();
+    let omega_at = |t: f64| p.gyro_mean_rate(t - 0.1, t + 0.1);
     let mut slip_t = Vec::new();
     let mut slip_z = Vec::new();
     let mut slip_var = Vec::new();
     let mut cursor = 0usize;
     let (mut s_aa, mut s_ab) = (0.0, 0.0);
     if gyro.is_some() {
-        for (m, v) in &course_meas {
+        for (m, v) in course_meas {
             let g_t = p.gyro_cum_at(m.t).unwrap_or(f64::NAN);
             let th = heading.at(m.t, g_t, &mut cursor);
             let b = wrap_angle(m.z - th);
@@ -529,8 +638,21 @@ pub fn build(
             "side-slip needs a yaw-rate gyro (imu.csv gz_rad_s): running with beta = 0".to_string(),
         ));
     }
+    (side_slip_gain, beta_track)
+}
 
-    // Pass 2: lever arm removed with the heading, accelerations as input.
+/// Pass 2 of the position smoother: the lever arm removed with the
+/// heading, the IMU accelerations as input (when used), the jumps' fixes
+/// set aside.
+fn smooth_axle(
+    p: &Series,
+    drive: &Drive,
+    fixes: &[RefFix],
+    heading: &HeadingTrack,
+    jumps: &JumpSearch,
+    config: &CalibrationConfig,
+) -> Result<PosTrack, CalibrationError> {
+    let [lx, ly] = p.lever_arm;
     let mut hcur = 0usize;
     let axle: Vec<[f64; 2]> = fixes
         .iter()
@@ -541,40 +663,58 @@ pub fn build(
             [f.x - (c * lx - s * ly), f.y - (s * lx + c * ly)]
         })
         .collect();
-    drop(pass1);
     let use_accel = config.use_imu_acceleration && p.has_accel;
     let inputs = if use_accel {
-        Some(accel_inputs(&fixes, p, drive, &heading))
+        Some(accel_inputs(fixes, p, drive, heading))
     } else {
         None
     };
-    let pass2 = smooth_positions(
-        &fixes,
+    smooth_positions(
+        fixes,
         &axle,
         if use_accel { Q_ACCEL_IMU } else { Q_ACCEL_FREE },
-        gate,
+        config.outlier_gate_sigma,
         inputs.as_deref(),
         jumps
             .set_aside
             .iter()
             .any(|a| *a)
             .then_some(jumps.set_aside.as_slice()),
-    )?;
+    )
+}
 
-    // Everything at the wheel times.
+/// The reference sampled at the wheel times.
+struct AtWheels {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    yaw: Vec<f64>,
+    beta: Vec<f64>,
+    valid: Vec<bool>,
+}
+
+/// Sample the smoothed position, the heading and (when wanted) the
+/// side-slip at each wheel time, and mark where the accepted fixes
+/// (`acc_t`) are close enough for a reference. Refuses a non-finite pose.
+fn at_wheel_times(
+    p: &Series,
+    pass2: &PosTrack,
+    heading: &HeadingTrack,
+    beta_track: Option<&SlipTrack>,
+    acc_t: &[f64],
+    want_beta: bool,
+    max_gnss_gap_s: f64,
+) -> Result<AtWheels, CalibrationError> {
     let n = p.len();
     let mut x = Vec::with_capacity(n);
     let mut y = Vec::with_capacity(n);
     let mut yaw = Vec::with_capacity(n);
-    let want_beta = config.side_slip && gyro.is_some();
     let mut beta = Vec::with_capacity(if want_beta { n } else { 0 });
     let mut valid = Vec::with_capacity(n);
-    let acc_t: Vec<f64> = fixes.iter().filter(|f| f.accepted).map(|f| f.t).collect();
     let mut j = 0usize;
     let mut a = 0usize;
     let mut hc = 0usize;
     let mut bc = 0usize;
-    let half = 0.5 * config.max_gnss_gap_s;
+    let half = 0.5 * max_gnss_gap_s;
     for k in 0..n {
         let t = p.t[k];
         while j + 1 < pass2.t.len() && pass2.t[j + 1] <= t {
@@ -586,7 +726,7 @@ pub fn build(
         let g_t = p.gyro.as_ref().map_or(f64::NAN, |g| g[k]);
         yaw.push(heading.at(t, g_t, &mut hc));
         if want_beta {
-            beta.push(beta_track.as_ref().map_or(0.0, |b| b.at(t, &mut bc)));
+            beta.push(beta_track.map_or(0.0, |b| b.at(t, &mut bc)));
         }
         while a + 1 < acc_t.len() && acc_t[a + 1] <= t {
             a += 1;
@@ -596,7 +736,7 @@ pub fn build(
         } else if a + 1 >= acc_t.len() {
             t - acc_t[a] <= half.min(0.5)
         } else {
-            acc_t[a + 1] - acc_t[a] <= config.max_gnss_gap_s
+            acc_t[a + 1] - acc_t[a] <= max_gnss_gap_s
         };
         valid.push(ok);
     }
@@ -606,9 +746,21 @@ pub fn build(
             detail: "non-finite reference pose".to_string(),
         });
     }
+    Ok(AtWheels {
+        x,
+        y,
+        yaw,
+        beta,
+        valid,
+    })
+}
+
+/// The GNSS outages (gaps between accepted fixes longer than
+/// `max_gnss_gap_s`), counted; warns of them with the longest.
+fn warn_outages(acc_t: &[f64], max_gnss_gap_s: f64, warnings: &mut Vec<Warning>) -> usize {
     let outages = acc_t
         .windows(2)
-        .filter(|w| w[1] - w[0] > config.max_gnss_gap_s)
+        .filter(|w| w[1] - w[0] > max_gnss_gap_s)
         .count();
     if outages > 0 {
         let longest = acc_t
@@ -619,40 +771,58 @@ pub fn build(
             WarningCode::GnssOutage,
             format!(
                 "gnss: {outages} outage(s) longer than {:.1} s (longest {:.1} s at t = {:.1} s): no reference there, the model bridges them",
-                config.max_gnss_gap_s, longest.0, longest.1
+                max_gnss_gap_s, longest.0, longest.1
             ),
         ));
     }
-    // A jump set aside is bridged by fixes on both sides (the fits' segments
-    // run through it): its motion counts as observed, unlike an outage's.
-    let bridged: Vec<bool> = if jumps.jumps.is_empty() {
-        valid.clone()
+    outages
+}
+
+/// Where the motion counts as observed: the valid reference, and the jumps
+/// set aside, which are bridged by fixes on both sides (the fits' segments
+/// run through them), unlike an outage.
+fn bridged(t: &[f64], valid: &[bool], jumps: &[Jump]) -> Vec<bool> {
+    if jumps.is_empty() {
+        valid.to_vec()
     } else {
         let mut j = 0usize;
-        p.t.iter()
-            .zip(&valid)
+        t.iter()
+            .zip(valid)
             .map(|(&t, &v)| {
-                while j < jumps.jumps.len() && jumps.jumps[j].t_end < t {
+                while j < jumps.len() && jumps[j].t_end < t {
                     j += 1;
                 }
                 v || jumps
-                    .jumps
                     .get(j)
                     .is_some_and(|jp| t >= jp.t_start && t <= jp.t_end)
             })
             .collect()
-    };
-    let (distance_m, total_turn_rad) = motion_summary(p, &yaw, &bridged);
+    }
+}
+
+/// Refuse a reference shorter than [`MIN_REFERENCE_M`] when the wheels
+/// went that far, with why: of the `fixes` GNSS fixes, how many were
+/// rejected as outliers, set aside in jumps, and left (`acc_t`).
+fn check_distance(
+    p: &Series,
+    distance_m: f64,
+    acc_t: &[f64],
+    max_gnss_gap_s: f64,
+    fixes: usize,
+    outliers: usize,
+    set_aside_count: usize,
+) -> Result<(), CalibrationError> {
+    let n = p.len();
     let wheel_distance_m: f64 = (0..n)
         .map(|k| 0.5 * (p.dn_rl[k] + p.dn_rr[k]).abs() * p.nominal_c)
         .sum();
     if distance_m < MIN_REFERENCE_M && wheel_distance_m >= MIN_REFERENCE_M {
         let mut gaps: Vec<f64> = acc_t.windows(2).map(|w| w[1] - w[0]).collect();
         let median_gap = stats::upper_median(&mut gaps).unwrap_or(f64::NAN);
-        let hint = if median_gap > config.max_gnss_gap_s {
+        let hint = if median_gap > max_gnss_gap_s {
             format!(
                 "the accepted fixes are a median {median_gap:.1} s apart, more than max_gnss_gap_s ({:.1} s): every interval counts as an outage (raise max_gnss_gap_s if the receiver logs this slowly)",
-                config.max_gnss_gap_s
+                max_gnss_gap_s
             )
         } else {
             format!(
@@ -664,35 +834,12 @@ pub fn build(
             wheel_distance_m,
             needed_m: MIN_REFERENCE_M,
             detail: format!(
-                "of {} GNSS fixes, {outliers} were rejected as outliers and {set_aside_count} set aside in jumps; {} are left and {hint}",
-                fixes.len(),
+                "of {fixes} GNSS fixes, {outliers} were rejected as outliers and {set_aside_count} set aside in jumps; {} are left and {hint}",
                 acc_t.len()
             ),
         });
     }
-    let heading_filter_gyro_bias =
-        gyro.map(|_| heading.bias.iter().sum::<f64>() / heading.bias.len() as f64);
-    Ok(Reference {
-        x,
-        y,
-        yaw,
-        beta,
-        valid,
-        fixes,
-        gnss_sigma_m,
-        gnss_sigma_estimated: estimated,
-        gnss_sigma_claim: claim,
-        outliers,
-        jumps: jumps.jumps,
-        time_offset: g.time_offset,
-        gnss_clock: g.clock.clone(),
-        clock_pairs: g.pairs.clone(),
-        side_slip_gain,
-        heading_filter_gyro_bias,
-        distance_m,
-        total_turn_rad,
-        outages,
-    })
+    Ok(())
 }
 
 /// Distance and absolute turning where the reference is valid (heading

@@ -6,7 +6,8 @@ use crate::clocks::offsets::ClockOffsets;
 use crate::clocks::Aligned;
 use crate::config::CalibrationConfig;
 use crate::error::CalibrationError;
-use crate::fit::{batch, gyro, lm, Fits};
+use crate::fit::lm::ModelTrack;
+use crate::fit::{batch, gyro, lm, Fits, MethodResult};
 use crate::reference::Reference;
 use crate::result::{Calibration, Diagnostics, FitQuality, Nominal, RearPair, Tracks};
 use crate::result::{FIT_WARN_RATIO, TRACK_POINTS};
@@ -41,22 +42,7 @@ pub fn assemble(
     } = fits;
     warnings.extend(sigmas.warnings);
     warnings.extend(fit_warnings);
-    // The model the estimate came from, for the report: the batch fit's
-    // own segments, or the paper's estimate on segments of the same length
-    // started from the reference.
-    let (model, model_fitted) = match primary.model_track.take() {
-        Some(m) => (m, true),
-        None => (
-            lm::anchored_track(
-                &batch::TwoWheelModel::new(p, Some(primary.track), false, false),
-                &primary.c,
-                p,
-                r,
-                config.segment_length_s,
-            ),
-            false,
-        ),
-    };
+    let (model, model_fitted) = report_model(&mut primary, p, r, config);
     let n = p.len();
     let reference = thin((0..n).map(|k| [r.x[k], r.y[k]]), n, TRACK_POINTS);
     let gnss: Vec<[f64; 2]> = r
@@ -65,8 +51,7 @@ pub fn assemble(
         .filter(|f| f.accepted)
         .map(|f| [f.x, f.y])
         .collect();
-    // fold from +0.0: an empty f64 `sum()` is -0.0, which prints as "-0".
-    let standstill_s = p.standstill.iter().fold(0.0, |acc, (a, b)| acc + (b - a));
+    let diagnostics = diagnostics(p, r, &primary);
     let mut cal = Calibration {
         circumference_m: RearPair { rl: c[0], rr: c[1] },
         sigma_m,
@@ -93,25 +78,7 @@ pub fn assemble(
             track_width_m: p.track,
         },
         vehicle: None,
-        diagnostics: Diagnostics {
-            duration_s: p.t.last().copied().unwrap_or(0.0) - p.t.first().copied().unwrap_or(0.0),
-            distance_m: r.distance_m,
-            total_turn_deg: r.total_turn_rad.to_degrees(),
-            gnss_fixes: r.fixes.len(),
-            gnss_outliers: r.outliers,
-            gnss_jumps: r.jumps.clone(),
-            gnss_outages: r.outages,
-            gnss_sigma_m: r.gnss_sigma_m,
-            gnss_sigma_estimated: r.gnss_sigma_estimated,
-            time_offset: r.time_offset,
-            lever_arm_m: p.lever_arm,
-            reference_side_slip_gain: r.side_slip_gain,
-            standstill_s,
-            residual_rms_m: primary.residual_rms_m,
-            segments: primary.segments,
-            wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
-            sigma_basis: primary.sigma_basis.clone(),
-        },
+        diagnostics,
         fit_quality: fit_quality(primary.residual_rms_m, gyro.as_ref(), r, config),
         clock_offsets: ClockOffsets {
             gnss_s: r.gnss_clock.clone(),
@@ -133,6 +100,64 @@ pub fn assemble(
     cal.vehicle = Some(drive.vehicle.clone());
     cal.clock_offsets.gnss_s.drift = a.drifts.gnss.clone();
     cal.clock_offsets.imu_s.drift = a.drifts.imu.clone();
+    check_fit_quality(&mut cal)?;
+    Ok(cal)
+}
+
+/// The model the estimate came from, for the report, and whether it is
+/// the fit's own (taken out of `primary`).
+fn report_model(
+    primary: &mut MethodResult,
+    p: &Series,
+    r: &Reference,
+    config: &CalibrationConfig,
+) -> (ModelTrack, bool) {
+    // The model the estimate came from, for the report: the batch fit's
+    // own segments, or the paper's estimate on segments of the same length
+    // started from the reference.
+    match primary.model_track.take() {
+        Some(m) => (m, true),
+        None => (
+            lm::anchored_track(
+                &batch::TwoWheelModel::new(p, Some(primary.track), false, false),
+                &primary.c,
+                p,
+                r,
+                config.segment_length_s,
+            ),
+            false,
+        ),
+    }
+}
+
+/// The drive's facts and the fit's, for the report.
+fn diagnostics(p: &Series, r: &Reference, primary: &MethodResult) -> Diagnostics {
+    // fold from +0.0: an empty f64 `sum()` is -0.0, which prints as "-0".
+    let standstill_s = p.standstill.iter().fold(0.0, |acc, (a, b)| acc + (b - a));
+    Diagnostics {
+        duration_s: p.t.last().copied().unwrap_or(0.0) - p.t.first().copied().unwrap_or(0.0),
+        distance_m: r.distance_m,
+        total_turn_deg: r.total_turn_rad.to_degrees(),
+        gnss_fixes: r.fixes.len(),
+        gnss_outliers: r.outliers,
+        gnss_jumps: r.jumps.clone(),
+        gnss_outages: r.outages,
+        gnss_sigma_m: r.gnss_sigma_m,
+        gnss_sigma_estimated: r.gnss_sigma_estimated,
+        time_offset: r.time_offset,
+        lever_arm_m: p.lever_arm,
+        reference_side_slip_gain: r.side_slip_gain,
+        standstill_s,
+        residual_rms_m: primary.residual_rms_m,
+        segments: primary.segments,
+        wheel_rate_offsets: p.wheel_offsets.map(|o| [o.0, o.1]),
+        sigma_basis: primary.sigma_basis.clone(),
+    }
+}
+
+/// A fit far worse than the GNSS noise is a warning, beyond the limit an
+/// error.
+fn check_fit_quality(cal: &mut Calibration) -> Result<(), CalibrationError> {
     if let Some(q) = cal
         .fit_quality
         .as_ref()
@@ -154,7 +179,7 @@ pub fn assemble(
             limit: q.limit,
         });
     }
-    Ok(cal)
+    Ok(())
 }
 
 /// The fit quality of the model the estimate came from: the wheel + gyro

@@ -22,6 +22,22 @@ pub fn calibration_html(
     reading: &[String],
 ) -> String {
     let mut page = Page::new(&format!("Calibration of {drive}"));
+    headline(&mut page, c, reading);
+    warnings(&mut page, c, reading);
+    page.heading("Result");
+    page.numbers(&result_rows(c));
+    comparison(&mut page, c);
+    iterations(&mut page, c);
+    page.heading("Figures");
+    for f in figures {
+        page.figure(&f.name, &f.svg, &f.caption);
+    }
+    page.render()
+}
+
+/// The headline (the circumferences, the method, how many warnings) and
+/// the note of the drive's facts.
+fn headline(page: &mut Page, c: &Calibration, reading: &[String]) {
     let d = &c.diagnostics;
     page.headline(
         &format!(
@@ -45,7 +61,11 @@ pub fn calibration_html(
          {:.0} s standing still; {} GNSS fixes, {} rejected as outliers.",
         d.duration_s, d.distance_m, d.total_turn_deg, d.standstill_s, d.gnss_fixes, d.gnss_outliers
     ));
+}
 
+/// The warnings in plain words, the calibration's and those of reading
+/// the drive.
+fn warnings(page: &mut Page, c: &Calibration, reading: &[String]) {
     page.heading("Warnings");
     let mut warnings: Vec<String> = c.warnings.iter().map(|w| w.message.clone()).collect();
     warnings.extend(reading.iter().map(|w| format!("reading the drive: {w}")));
@@ -53,8 +73,12 @@ pub fn calibration_html(
         &warnings,
         "None: the drive determines every estimated value, and nothing was skipped or assumed.",
     );
+}
 
-    page.heading("Result");
+/// The result's numbers: circumferences, sigmas, track width, gyro,
+/// side-slip, antenna, residual and GNSS sigma (label, value).
+fn result_rows(c: &Calibration) -> Vec<(String, String)> {
+    let d = &c.diagnostics;
     let mut rows = vec![
         (
             "rear-left circumference c_RL, m".to_string(),
@@ -136,8 +160,11 @@ pub fn calibration_html(
         ),
         format!("{:.3}", d.gnss_sigma_m),
     ));
-    page.numbers(&rows);
+    rows
+}
 
+/// The table of both methods (nothing when there is no comparison).
+fn comparison(page: &mut Page, c: &Calibration) {
     if !c.comparison.is_empty() {
         page.heading("Both methods");
         let rows: Vec<Vec<Cell>> = c
@@ -166,7 +193,10 @@ pub fn calibration_html(
             &rows,
         );
     }
+}
 
+/// The per-iteration table (the kept one marked).
+fn iterations(page: &mut Page, c: &Calibration) {
     page.heading("Iterations");
     let rows: Vec<Vec<Cell>> = c
         .iterations
@@ -201,10 +231,4 @@ pub fn calibration_html(
         ],
         &rows,
     );
-
-    page.heading("Figures");
-    for f in figures {
-        page.figure(&f.name, &f.svg, &f.caption);
-    }
-    page.render()
 }

@@ -40,6 +40,17 @@ fn clock_offset(o: &StreamOffset) -> String {
 /// with sigmas, the comparison and the warnings.
 pub fn render_text(c: &Calibration) -> String {
     let mut s = String::new();
+    write_drive(&mut s, c);
+    write_iterations(&mut s, c);
+    write_result(&mut s, c);
+    write_comparison(&mut s, c);
+    write_warnings(&mut s, c);
+    s
+}
+
+/// The drive facts: the method, the drive, the GNSS, the wheels' rate
+/// offsets and the clocks' offsets and drifts.
+fn write_drive(s: &mut String, c: &Calibration) {
     let d = &c.diagnostics;
     let _ = writeln!(
         s,
@@ -96,6 +107,10 @@ pub fn render_text(c: &Calibration) -> String {
             clock_offset(&p.offset).replace("relative to the wheels ", "")
         );
     }
+}
+
+/// The per-iteration table (the kept one starred).
+fn write_iterations(s: &mut String, c: &Calibration) {
     let _ = writeln!(s);
     let _ = writeln!(
         s,
@@ -119,6 +134,11 @@ pub fn render_text(c: &Calibration) -> String {
         );
     }
     let _ = writeln!(s, "(* = kept; DR = the 2W model integrated over the whole drive without fusion, against the reference)");
+}
+
+/// The result with sigmas, the fit's residual and quality.
+fn write_result(s: &mut String, c: &Calibration) {
+    let d = &c.diagnostics;
     let _ = writeln!(s);
     let _ = writeln!(s, "result:");
     let _ = writeln!(
@@ -198,6 +218,10 @@ pub fn render_text(c: &Calibration) -> String {
             q.model, q.residual_rms_m, q.ratio, q.gnss_noise_m, q.gnss_noise_source, q.limit
         );
     }
+}
+
+/// The comparison of the methods (nothing when there is none).
+fn write_comparison(s: &mut String, c: &Calibration) {
     if !c.comparison.is_empty() {
         let _ = writeln!(s);
         let _ = writeln!(s, "comparison:");
@@ -224,6 +248,10 @@ pub fn render_text(c: &Calibration) -> String {
             );
         }
     }
+}
+
+/// The warnings with their codes.
+fn write_warnings(s: &mut String, c: &Calibration) {
     let _ = writeln!(s);
     if c.warnings.is_empty() {
         let _ = writeln!(s, "warnings: none");
@@ -234,5 +262,4 @@ pub fn render_text(c: &Calibration) -> String {
             let _ = writeln!(s, "  - [{}] {}", code.trim_matches('"'), w.message);
         }
     }
-    s
 }

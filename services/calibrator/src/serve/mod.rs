@@ -196,7 +196,81 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
         c_rr: cfg.vehicle.nominal_circumference_m,
         track_width: cfg.vehicle.track_width_m,
     };
-    let mut current: Option<Accepted> = match &cfg.state_file {
+    let mut current = start_from_state(cfg, &mut publisher)?;
+
+    let waitset = bus.waitset()?;
+    let _guards = subs.wake_on_all(&waitset)?;
+    // The tick delivers the history to late subscribers, collects finished
+    // attempts and notices signals taken by the worker thread.
+    let _tick = bus::tick_every(&waitset, Duration::from_millis(100))?;
+
+    let mut drive = Collection::new(cfg);
+    let mut running: Option<Running> = None;
+    let mut ended = false;
+
+    loop {
+        let result = bus::wait_once(&waitset, None, |_| CallbackProgression::Continue)?;
+        let outcome = subs.drain_into(&mut drive.builder)?;
+        drive.take_resets(cfg);
+        drive.count_new_wheels(cfg);
+        publisher.update_connections()?;
+        if outcome.end_of_stream() && !ended {
+            ended = true;
+            drive.report_end(cfg);
+        }
+
+        // A finished attempt?
+        collect_finished(
+            &mut running,
+            cfg,
+            &mut current,
+            &mut publisher,
+            &mut summary,
+        )?;
+
+        // Enough for a (new) attempt?
+        if drive.enough(cfg)
+            && running.is_none()
+            && drive.coverage.distance_m - drive.last_attempt_distance >= cfg.recalibrate_distance_m
+        {
+            let params = current.map_or(nominal, |a| a.estimate.two_wheel());
+            running = Some(drive.start_attempt(cfg, params, summary.attempts + 1)?);
+        }
+
+        if bus::stop_requested_by(result) {
+            if let Some(run) = &running {
+                tracing::info!(
+                    "calibrator: stopping; attempt #{} on {:.0} s of drive abandoned",
+                    run.number,
+                    run.span_s
+                );
+            }
+            break;
+        }
+        if cfg.exit_on_end && ended && running.is_none() {
+            break;
+        }
+    }
+    summary.current = current;
+    summary.wheel_samples = drive.wheel_samples;
+    // What the collector refused (the resets were logged as they happened).
+    let builder = &drive.builder;
+    for warning in builder.warnings() {
+        if !builder.reset_log().contains(&warning) {
+            tracing::warn!("calibrator: {warning}");
+        }
+    }
+    summary.lost = subs.lost();
+    Ok(summary)
+}
+
+/// The estimate kept in the state file (if any), published at the start;
+/// logs what the service starts from.
+fn start_from_state(
+    cfg: &ServeConfig,
+    publisher: &mut TopicPublisher<CircumferenceEstimate>,
+) -> Result<Option<Accepted>, ServeError> {
+    let current: Option<Accepted> = match &cfg.state_file {
         Some(path) => load_state(path)?,
         None => None,
     };
@@ -216,191 +290,203 @@ pub fn run(bus: &Bus, cfg: &ServeConfig) -> Result<ServeSummary, ServeError> {
             cfg.vehicle.nominal_circumference_m
         );
     }
+    Ok(current)
+}
 
-    let waitset = bus.waitset()?;
-    let _guards = subs.wake_on_all(&waitset)?;
-    // The tick delivers the history to late subscribers, collects finished
-    // attempts and notices signals taken by the worker thread.
-    let _tick = bus::tick_every(&waitset, Duration::from_millis(100))?;
+/// A finished attempt, if the running one has finished: counted, judged
+/// and (when accepted) published; an attempt that ended without a result
+/// is logged and forgotten.
+fn collect_finished(
+    running: &mut Option<Running>,
+    cfg: &ServeConfig,
+    current: &mut Option<Accepted>,
+    publisher: &mut TopicPublisher<CircumferenceEstimate>,
+    summary: &mut ServeSummary,
+) -> Result<(), ServeError> {
+    if let Some(run) = running {
+        match run.rx.try_recv() {
+            Ok(outcome) => {
+                let number = run.number;
+                *running = None;
+                summary.attempts += 1;
+                handle_attempt(number, outcome, cfg, current, publisher, summary)?;
+            }
+            Err(mpsc::TryRecvError::Empty) => {}
+            Err(mpsc::TryRecvError::Disconnected) => {
+                tracing::warn!("calibrator: attempt #{} ended without a result", run.number);
+                *running = None;
+            }
+        }
+    }
+    Ok(())
+}
 
-    let mut builder = DriveBuilder::new(cfg.vehicle.clone());
-    let mut coverage = Coverage::new(&cfg.vehicle);
-    // Time of the last wheel sample counted into `coverage`, and the
-    // collector's resets seen so far.
-    let mut seen_t: Option<f64> = None;
-    let mut resets_seen = 0u64;
-    let mut wheel_samples = 0usize;
-    let mut last_attempt_distance = f64::NEG_INFINITY;
-    let mut running: Option<Running> = None;
-    let mut ended = false;
-    let mut announced_ready = false;
+/// The drive being collected, and what the loop has counted of it.
+struct Collection {
+    builder: DriveBuilder,
+    coverage: Coverage,
+    /// Time of the last wheel sample counted into `coverage`.
+    seen_t: Option<f64>,
+    /// The collector's resets seen so far.
+    resets_seen: u64,
+    wheel_samples: usize,
+    /// The coverage's distance at the last attempt started, m.
+    last_attempt_distance: f64,
+    /// Whether "enough data" has been logged for this drive.
+    announced_ready: bool,
+}
 
-    loop {
-        let result = bus::wait_once(&waitset, None, |_| CallbackProgression::Continue)?;
-        let outcome = subs.drain_into(&mut builder)?;
-        if builder.resets() > resets_seen {
+impl Collection {
+    /// Nothing collected yet.
+    fn new(cfg: &ServeConfig) -> Collection {
+        Collection {
+            builder: DriveBuilder::new(cfg.vehicle.clone()),
+            coverage: Coverage::new(&cfg.vehicle),
+            seen_t: None,
+            resets_seen: 0,
+            wheel_samples: 0,
+            last_attempt_distance: f64::NEG_INFINITY,
+            announced_ready: false,
+        }
+    }
+
+    /// When the collector reset (a new drive): log why and set what was
+    /// counted before aside.
+    fn take_resets(&mut self, cfg: &ServeConfig) {
+        let builder = &self.builder;
+        if builder.resets() > self.resets_seen {
             // A new drive: what was collected before is set aside.
-            let new = (builder.resets() - resets_seen) as usize;
+            let new = (builder.resets() - self.resets_seen) as usize;
             let log = builder.reset_log();
             for line in &log[log.len().saturating_sub(new)..] {
                 tracing::warn!("calibrator: {line}");
             }
-            resets_seen = builder.resets();
-            coverage = Coverage::new(&cfg.vehicle);
-            seen_t = None;
-            wheel_samples = 0;
-            last_attempt_distance = f64::NEG_INFINITY;
-            announced_ready = false;
+            self.resets_seen = builder.resets();
+            self.coverage = Coverage::new(&cfg.vehicle);
+            self.seen_t = None;
+            self.wheel_samples = 0;
+            self.last_attempt_distance = f64::NEG_INFINITY;
+            self.announced_ready = false;
         }
-        let wheels = builder.wheels();
-        let from = seen_t.map_or(0, |t| wheels.partition_point(|w| w.t_s <= t));
+    }
+
+    /// Count the wheel samples new since the last call into the coverage,
+    /// then keep only the last `window_s` of the drive.
+    fn count_new_wheels(&mut self, cfg: &ServeConfig) {
+        let wheels = self.builder.wheels();
+        let from = self
+            .seen_t
+            .map_or(0, |t| wheels.partition_point(|w| w.t_s <= t));
         for s in &wheels[from..] {
-            coverage.add(s.t_s, s.rl, s.rr);
+            self.coverage.add(s.t_s, s.rl, s.rr);
         }
-        wheel_samples += wheels.len() - from;
-        seen_t = wheels.last().map(|w| w.t_s).or(seen_t);
-        if keep_window(&mut builder, cfg.window_s) > 0 {
+        self.wheel_samples += wheels.len() - from;
+        self.seen_t = wheels.last().map(|w| w.t_s).or(self.seen_t);
+        if keep_window(&mut self.builder, cfg.window_s) > 0 {
             tracing::debug!(
                 "calibrator: keeping the last {:.0} s of the drive ({:.1} MB of samples)",
                 cfg.window_s,
-                sample_bytes(builder.sample_counts()) as f64 / 1e6
+                sample_bytes(self.builder.sample_counts()) as f64 / 1e6
             );
         }
-        publisher.update_connections()?;
-        if outcome.end_of_stream() && !ended {
-            ended = true;
-            tracing::info!(
-                "calibrator: sensor stream ended after {:.0} m, {:.0} deg of turning",
-                coverage.distance_m,
-                coverage.turn_deg()
+    }
+
+    /// Log the end of the sensor stream, and, when the drive never had
+    /// enough for an attempt, which threshold it fell short of.
+    fn report_end(&self, cfg: &ServeConfig) {
+        let coverage = &self.coverage;
+        let builder = &self.builder;
+        tracing::info!(
+            "calibrator: sensor stream ended after {:.0} m, {:.0} deg of turning",
+            coverage.distance_m,
+            coverage.turn_deg()
+        );
+        if !self.announced_ready {
+            let mut short = Vec::new();
+            if coverage.distance_m < cfg.min_distance_m {
+                short.push(format!(
+                    "{:.0} m of the {:.0} m (--min-distance)",
+                    coverage.distance_m, cfg.min_distance_m
+                ));
+            }
+            if coverage.turn_deg() < cfg.min_turn_deg {
+                short.push(format!(
+                    "{:.0} deg of turning of the {:.0} (--min-turn)",
+                    coverage.turn_deg(),
+                    cfg.min_turn_deg
+                ));
+            }
+            if builder.gnss_count() < cfg.min_gnss_fixes {
+                short.push(format!(
+                    "{} GNSS fixes of the {} (--min-fixes)",
+                    builder.gnss_count(),
+                    cfg.min_gnss_fixes
+                ));
+            }
+            tracing::warn!(
+                "calibrator: the drive is too short for an attempt: {}; lower the thresholds \
+                 for short drives",
+                short.join(", ")
             );
-            if !announced_ready {
-                let mut short = Vec::new();
-                if coverage.distance_m < cfg.min_distance_m {
-                    short.push(format!(
-                        "{:.0} m of the {:.0} m (--min-distance)",
-                        coverage.distance_m, cfg.min_distance_m
-                    ));
-                }
-                if coverage.turn_deg() < cfg.min_turn_deg {
-                    short.push(format!(
-                        "{:.0} deg of turning of the {:.0} (--min-turn)",
-                        coverage.turn_deg(),
-                        cfg.min_turn_deg
-                    ));
-                }
-                if builder.gnss_count() < cfg.min_gnss_fixes {
-                    short.push(format!(
-                        "{} GNSS fixes of the {} (--min-fixes)",
-                        builder.gnss_count(),
-                        cfg.min_gnss_fixes
-                    ));
-                }
-                tracing::warn!(
-                    "calibrator: the drive is too short for an attempt: {}; lower the thresholds \
-                     for short drives",
-                    short.join(", ")
-                );
-            }
         }
+    }
 
-        // A finished attempt?
-        if let Some(run) = &running {
-            match run.rx.try_recv() {
-                Ok(outcome) => {
-                    let number = run.number;
-                    running = None;
-                    summary.attempts += 1;
-                    handle_attempt(
-                        number,
-                        outcome,
-                        cfg,
-                        &mut current,
-                        &mut publisher,
-                        &mut summary,
-                    )?;
-                }
-                Err(mpsc::TryRecvError::Empty) => {}
-                Err(mpsc::TryRecvError::Disconnected) => {
-                    tracing::warn!("calibrator: attempt #{} ended without a result", run.number);
-                    running = None;
-                }
-            }
-        }
-
-        // Enough for a (new) attempt?
+    /// Whether the drive has enough distance, turning and GNSS fixes for an
+    /// attempt; logs it the first time.
+    fn enough(&mut self, cfg: &ServeConfig) -> bool {
+        let coverage = &self.coverage;
         let enough = coverage.distance_m >= cfg.min_distance_m
             && coverage.turn_deg() >= cfg.min_turn_deg
-            && builder.gnss_count() >= cfg.min_gnss_fixes;
-        if enough && !announced_ready {
-            announced_ready = true;
+            && self.builder.gnss_count() >= cfg.min_gnss_fixes;
+        if enough && !self.announced_ready {
+            self.announced_ready = true;
             tracing::info!(
                 "calibrator: enough data: {:.0} m, {:.0} deg of turning, {} GNSS fixes",
                 coverage.distance_m,
                 coverage.turn_deg(),
-                builder.gnss_count()
+                self.builder.gnss_count()
             );
         }
-        if running.is_none()
-            && enough
-            && coverage.distance_m - last_attempt_distance >= cfg.recalibrate_distance_m
-        {
-            last_attempt_distance = coverage.distance_m;
-            let drive = builder.snapshot();
-            let span_s = drive.wheel_duration_s();
-            let params = current.map_or(nominal, |a| a.estimate.two_wheel());
-            let worker_cfg = cfg.clone();
-            let (tx, rx) = mpsc::channel();
-            let number = summary.attempts + 1;
-            tracing::info!(
-                "calibrator: attempt #{number} on {span_s:.0} s of drive ({:.0} m), {:.0} % held out",
-                coverage.distance_m,
-                cfg.holdout_fraction * 100.0
-            );
-            std::thread::Builder::new()
-                .name(format!("calibration-{number}"))
-                .spawn(move || {
-                    let diagnose = DiagnoseConfig::default();
-                    let _ = tx.send(attempt(
-                        &drive,
-                        &params,
-                        &worker_cfg.calibration,
-                        worker_cfg.holdout_fraction,
-                        worker_cfg.holdout_window_s,
-                        worker_cfg.diagnose.then_some(&diagnose),
-                    ));
-                })
-                .map_err(|e| StateError {
-                    path: PathBuf::from("<worker thread>"),
-                    detail: e.to_string(),
-                })?;
-            running = Some(Running { rx, number, span_s });
-        }
+        enough
+    }
 
-        if bus::stop_requested_by(result) {
-            if let Some(run) = &running {
-                tracing::info!(
-                    "calibrator: stopping; attempt #{} on {:.0} s of drive abandoned",
-                    run.number,
-                    run.span_s
-                );
-            }
-            break;
-        }
-        if cfg.exit_on_end && ended && running.is_none() {
-            break;
-        }
+    /// Start attempt `number` on a snapshot of the drive, from `params`, on
+    /// a worker thread.
+    fn start_attempt(
+        &mut self,
+        cfg: &ServeConfig,
+        params: TwoWheelParams,
+        number: usize,
+    ) -> Result<Running, ServeError> {
+        self.last_attempt_distance = self.coverage.distance_m;
+        let drive = self.builder.snapshot();
+        let span_s = drive.wheel_duration_s();
+        let worker_cfg = cfg.clone();
+        let (tx, rx) = mpsc::channel();
+        tracing::info!(
+            "calibrator: attempt #{number} on {span_s:.0} s of drive ({:.0} m), {:.0} % held out",
+            self.coverage.distance_m,
+            cfg.holdout_fraction * 100.0
+        );
+        std::thread::Builder::new()
+            .name(format!("calibration-{number}"))
+            .spawn(move || {
+                let diagnose = DiagnoseConfig::default();
+                let _ = tx.send(attempt(
+                    &drive,
+                    &params,
+                    &worker_cfg.calibration,
+                    worker_cfg.holdout_fraction,
+                    worker_cfg.holdout_window_s,
+                    worker_cfg.diagnose.then_some(&diagnose),
+                ));
+            })
+            .map_err(|e| StateError {
+                path: PathBuf::from("<worker thread>"),
+                detail: e.to_string(),
+            })?;
+        Ok(Running { rx, number, span_s })
     }
-    summary.current = current;
-    summary.wheel_samples = wheel_samples;
-    // What the collector refused (the resets were logged as they happened).
-    for warning in builder.warnings() {
-        if !builder.reset_log().contains(&warning) {
-            tracing::warn!("calibrator: {warning}");
-        }
-    }
-    summary.lost = subs.lost();
-    Ok(summary)
 }
 
 fn handle_attempt(
