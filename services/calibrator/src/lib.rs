@@ -37,7 +37,8 @@
 //!
 //! Beside the stages, used by any of them and using none (inside the
 //! crate; their public types are re-exported here or by the stages):
-//! `config`, `error`, `method`, `products` (the circumferences, sigmas and
+//! `config`, `error`, `error_model` (the GNSS error model of the fits'
+//! residuals, which the fits and the diagnosis use), `method`, `products` (the circumferences, sigmas and
 //! per-iteration table as types), `series` (the arrays every stage reads),
 //! `smoother` (the GNSS position smoother), `streams` (building the arrays
 //! from a drive's streams) and `warnings`. Beside the driver: [`live`]
@@ -55,6 +56,7 @@
 // The shared modules, beside the stages.
 pub(crate) mod config;
 pub(crate) mod error;
+pub mod error_model;
 pub(crate) mod method;
 pub(crate) mod products;
 pub(crate) mod series;

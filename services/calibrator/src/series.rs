@@ -189,3 +189,14 @@ pub(crate) fn gnss_scatter_sigma_robust(fixes: &[(f64, f64, f64)]) -> Option<(f6
     let n = d.len();
     Some((1.4826 * stats::upper_median(&mut d)? / 70f64.sqrt(), n))
 }
+
+/// Median sample interval of increasing times, s.
+pub fn median_interval(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t
+        .windows(2)
+        .take(10_000)
+        .map(|w| w[1] - w[0])
+        .filter(|d| *d > 0.0)
+        .collect();
+    stats::upper_median(&mut d)
+}

@@ -915,16 +915,7 @@ pub fn first_determined<'a>(
     o
 }
 
-/// Median sample interval of increasing times, s.
-pub fn median_interval(t: &[f64]) -> Option<f64> {
-    let mut d: Vec<f64> = t
-        .windows(2)
-        .take(10_000)
-        .map(|w| w[1] - w[0])
-        .filter(|d| *d > 0.0)
-        .collect();
-    stats::upper_median(&mut d)
-}
+pub use crate::series::median_interval;
 
 /// Times closer than this are the same instant (a double holds UNIX seconds
 /// to about 0.2 us): a sample exactly one window length away is in the

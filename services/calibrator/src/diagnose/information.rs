@@ -4,7 +4,7 @@
 //! information limit).
 //!
 //! The GNSS error of each axis is white noise plus a first-order
-//! Gauss-Markov wander ([`PositionNoise`], what `crate::sigmas::error_model` fits to
+//! Gauss-Markov wander ([`PositionNoise`], what `crate::error_model` fits to
 //! a drive's residuals). Its covariance `sigma_w^2 I + sigma_g^2
 //! exp(-|t_i - t_j| / tau)` is whitened exactly in O(n) by the innovations
 //! of a scalar Kalman filter on the wander ([`whiten`]): the innovations

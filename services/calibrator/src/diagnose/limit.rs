@@ -25,7 +25,7 @@
 use super::design::{Channel, Design};
 use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
-use crate::sigmas::error_model::{nnls2, variogram, Normal};
+use crate::error_model::{nnls2, variogram, Normal};
 use interfaces::effects::{Effect, Param};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -1094,7 +1094,7 @@ mod tests {
 
     /// A small deterministic sequence of standard normal numbers.
     fn normals(n: usize, seed: u64) -> Vec<f64> {
-        let mut rng = crate::sigmas::error_model::Normal::new(seed);
+        let mut rng = crate::error_model::Normal::new(seed);
         (0..n).map(|_| rng.next()).collect()
     }
 

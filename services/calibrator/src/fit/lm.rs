@@ -19,7 +19,7 @@
 //! start) and lengthens them to the configured length, each stage starting
 //! from the last ([`stages`]).
 //!
-//! Uncertainty: an error model of the residuals ([`crate::sigmas::error_model`]:
+//! Uncertainty: an error model of the residuals ([`crate::error_model`]:
 //! white + Gauss-Markov per axis, fitted through the linearised fit, the
 //! exact covariance over every pair of fixes), with the formal covariance
 //! (residual variance and its lag-1 autocorrelation) as a floor. Where the
@@ -27,13 +27,13 @@
 //! blocks of fixes and over whole segments takes its place.
 
 use crate::error::CalibrationError;
+use crate::error_model::{
+    conservative_covariance, fit_error_model, ErrorModel, FixLin, Linearisation, SegmentLin,
+};
 use crate::fit::jackknife::jackknife_covariance;
 use crate::products::{SigmaBasis, Sigmas};
 use crate::reference::{RefFix, Reference};
 use crate::series::Series;
-use crate::sigmas::error_model::{
-    conservative_covariance, fit_error_model, ErrorModel, FixLin, Linearisation, SegmentLin,
-};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use vehicle_model::two_wheel::Pose2;
 
@@ -44,7 +44,7 @@ const EARLY_STAGE_S: f64 = 600.0;
 pub const REPORT_POINTS: usize = 3000;
 
 /// Largest number of global parameters of any model.
-pub const MAX_GLOBAL: usize = crate::sigmas::error_model::MAX_PARAMS;
+pub const MAX_GLOBAL: usize = crate::error_model::MAX_PARAMS;
 
 /// One step of a dead-reckoning model with its parameter derivatives.
 pub trait StepModel {
@@ -932,7 +932,7 @@ fn jackknife(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<D
 }
 
 /// The covariance of the global parameters from an error model of the
-/// residuals ([`crate::sigmas::error_model`]): the fit linearised at its solution,
+/// residuals ([`crate::error_model`]): the fit linearised at its solution,
 /// the model fitted through it, the covariance under the least favourable
 /// plausible model. Takes the evaluations' recorded rows.
 fn error_model_covariance(

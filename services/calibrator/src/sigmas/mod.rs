@@ -1,12 +1,13 @@
-//! Stage 5, the sigmas: the error model of the fits' residuals
-//! ([`error_model`]) and the sigmas and observability warnings
-//! ([`uncertainty`]).
+//! Stage 5, the sigmas: the sigmas and observability warnings
+//! ([`uncertainty`]). The GNSS error model of the fits' residuals the
+//! sigmas rest on is a shared module beside the stages
+//! ([`crate::error_model`]): the fits compute their sigmas from it as
+//! they go, and the diagnosis's information limit whitens with it.
 //!
 //! The fits compute their sigmas as they go (the batch fit from the error
 //! model, the paper's from a block jackknife); [`of`] reads what the
 //! primary method's sigmas say is not determined on the drive.
 
-pub mod error_model;
 pub mod uncertainty;
 
 use crate::fit::Fits;

@@ -3,7 +3,7 @@
 //! GNSS errors are correlated in time, so a formal least-squares covariance
 //! over thousands of samples is far too optimistic. The batch fit (and the
 //! gyro fit) take their sigmas from an error model of the drive's own
-//! residuals ([`crate::sigmas::error_model`], described in the result by
+//! residuals ([`crate::error_model`], described in the result by
 //! [`SigmaBasis`]). The paper's least squares uses a *block jackknife*
 //! ([`crate::fit::jackknife`], which the fits run as they go): the drive is
 //! cut into contiguous time blocks, the estimate is recomputed without
@@ -18,7 +18,7 @@ pub use crate::products::{AxisNoise, SigmaBasis, Sigmas};
 
 impl SigmaBasis {
     /// Sigmas from the error model `m` (east, north).
-    pub fn error_model(m: &[crate::sigmas::error_model::ErrorModel; 2]) -> SigmaBasis {
+    pub fn error_model(m: &[crate::error_model::ErrorModel; 2]) -> SigmaBasis {
         SigmaBasis {
             method: "GNSS error model of the fit residuals (white + correlated, per axis)"
                 .to_string(),

@@ -230,7 +230,7 @@ impl Linearisation {
     /// The median interval between fixes, s.
     fn fix_interval(&self) -> Option<f64> {
         let t: Vec<f64> = self.fixes.iter().map(|f| f.t).collect();
-        crate::clocks::offsets::median_interval(&t)
+        crate::series::median_interval(&t)
     }
 
     /// One axis of `values` as the variogram's series: per segment, the
