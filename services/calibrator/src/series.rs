@@ -200,3 +200,38 @@ pub fn median_interval(t: &[f64]) -> Option<f64> {
         .collect();
     stats::upper_median(&mut d)
 }
+
+/// Mean gyro rate over the standstill intervals: (bias, standard error, seconds).
+pub fn standstill_gyro_bias(p: &Series) -> Option<(f64, f64, f64)> {
+    p.gyro.as_ref()?;
+    let (mut sum_angle, mut sum_t) = (0.0, 0.0);
+    let mut rates = Vec::new();
+    for &(a, b) in &p.standstill {
+        // Stay clear of the moments the car starts and stops.
+        let (a, b) = (a + 0.3, b - 0.3);
+        if b - a < 0.5 {
+            continue;
+        }
+        if let Some(rate) = p.gyro_mean_rate(a, b) {
+            let (ga, gb) = (0.0, rate * (b - a));
+            sum_angle += gb - ga;
+            sum_t += b - a;
+            rates.push((gb - ga) / (b - a));
+        }
+    }
+    if sum_t < 2.0 {
+        return None;
+    }
+    let mean = sum_angle / sum_t;
+    // Standard error from the spread of the intervals, with a floor for white noise.
+    let spread = if rates.len() > 1 {
+        let m = rates.iter().sum::<f64>() / rates.len() as f64;
+        (rates.iter().map(|r| (r - m).powi(2)).sum::<f64>()
+            / (rates.len() - 1) as f64
+            / rates.len() as f64)
+            .sqrt()
+    } else {
+        0.0
+    };
+    Some((mean, spread.max(2e-4 / sum_t.sqrt()), sum_t))
+}

@@ -26,7 +26,8 @@
 
 use crate::error::CalibrationError;
 use crate::fit::lm::{fit, SlipGain, StepModel, MAX_GLOBAL};
-use crate::reference::{standstill_gyro_bias, Reference};
+use crate::reference::Reference;
+use crate::series::standstill_gyro_bias;
 use crate::series::Series;
 use crate::warnings::{Warning, WarningCode};
 use serde::{Deserialize, Serialize};
