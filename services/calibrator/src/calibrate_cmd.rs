@@ -375,17 +375,8 @@ fn estimate_file(
     reading: &[String],
     effects: Option<EffectTerms>,
 ) -> Result<EstimateFile> {
-    // What reading the files said belongs with the result too.
-    let mut with_reading = cal.clone();
-    with_reading.warnings.extend(
-        reading
-            .iter()
-            .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
-    );
-    let mut file = EstimateFile::from_report(&with_reading)
-        .context("cannot encode the calibration as JSON")?;
-    file.effects = effects;
-    Ok(file)
+    calibrator::result::estimate_file(cal, reading, effects)
+        .context("cannot encode the calibration as JSON")
 }
 
 /// Write `file` to `path`.

@@ -7,11 +7,8 @@
 //! calibration would be refused for it.
 
 use anyhow::{Context, Result};
-use calibrator::result::FitQuality;
-use calibrator::{calibrate, CalibrationConfig, ClockOffsets, OffsetStatus, StreamOffset};
+use calibrator::{OffsetStatus, StreamOffset};
 use clap::Args;
-use drive_io::DriveSummary;
-use serde::Serialize;
 use std::path::PathBuf;
 
 /// `calibrator info` arguments.
@@ -24,19 +21,6 @@ pub struct InfoArgs {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
-}
-
-/// The JSON `calibrator info --json` prints.
-#[derive(Debug, Serialize)]
-struct InfoJson<'a> {
-    drive: &'a DriveSummary,
-    clock_offsets: Option<&'a ClockOffsets>,
-    gnss_jumps: Option<&'a [calibrator::reference::gnss_jumps::Jump]>,
-    fit_quality: Option<&'a FitQuality>,
-    /// What the sigmas rest on (the GNSS error model fitted to the drive).
-    sigma_basis: Option<&'a calibrator::sigmas::uncertainty::SigmaBasis>,
-    /// Why a calibration would be refused (`None`: it would be published).
-    refused: Option<String>,
 }
 
 fn offset_line(name: &str, o: &StreamOffset) -> String {
@@ -73,42 +57,12 @@ pub fn run_info(args: &InfoArgs) -> Result<()> {
         .input
         .read(&args.drive, false)?
         .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
-    let summary = DriveSummary::of_loaded(&loaded);
-    // Calibrate without the fit refusal, to report the offsets and the fit
-    // of a drive that would be refused, and say so.
-    let config = CalibrationConfig {
-        max_fit_ratio: f64::INFINITY,
-        ..CalibrationConfig::default()
-    };
-    let limit = CalibrationConfig::default().max_fit_ratio;
-    let cal = calibrate(&loaded.drive, &config);
-    let refused = match &cal {
-        Err(e) => Some(e.to_string()),
-        Ok(c) => c.fit_quality.as_ref().filter(|q| q.ratio > limit).map(|q| {
-            format!(
-                "the fit is {:.1} times the GNSS noise, beyond {limit:.0}: calibrate refuses it",
-                q.ratio
-            )
-        }),
-    };
-    let ok = cal.as_ref().ok();
-    // The limit `calibrate` applies, not the one this run switched off.
-    let quality = ok.and_then(|c| c.fit_quality.clone()).map(|mut q| {
-        q.limit = limit;
-        q
-    });
+    let (info, cal) = calibrator::info::info(&loaded);
     if args.json {
-        let out = InfoJson {
-            drive: &summary,
-            clock_offsets: ok.map(|c| &c.clock_offsets),
-            gnss_jumps: ok.map(|c| c.diagnostics.gnss_jumps.as_slice()),
-            fit_quality: quality.as_ref(),
-            sigma_basis: ok.and_then(|c| c.diagnostics.sigma_basis.as_ref()),
-            refused,
-        };
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", serde_json::to_string_pretty(&info)?);
         return Ok(());
     }
+    let (summary, refused, ok) = (&info.drive, info.refused.clone(), cal.as_ref());
     println!("drive:     {}", args.drive.display());
     print!("{summary}");
     println!();

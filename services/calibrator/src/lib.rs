@@ -74,6 +74,7 @@ pub mod sigmas;
 
 // The driver, and what stays beside the stages.
 pub mod diagnose;
+pub mod info;
 pub mod live;
 pub(crate) mod pipeline;
 

@@ -6,6 +6,7 @@
 //! `gyro_scale`, `method`, `selected_iteration`, `iterations`, `warnings`.
 
 mod assembly;
+mod estimate;
 pub mod export;
 pub mod page;
 pub mod plots;
@@ -22,6 +23,7 @@ use serde::{Deserialize, Serialize};
 pub use crate::fit::MethodResult;
 pub use crate::products::{IterationRecord, MethodSummary, RearPair, RearSigma, TRACK_POINTS};
 pub use assembly::assemble;
+pub use estimate::estimate_file;
 
 /// A fit worse than this many times the GNSS noise is a warning
 /// ([`crate::WarningCode::FitWorseThanNoise`]).
