@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 use std::path::PathBuf;
 
 create_exception!(
-    _native,
+    wheelcal._native,
     WheelcalError,
     PyException,
     "A drive that cannot be read, calibrated, diagnosed or evaluated: the message is the command-line tool's."

@@ -60,11 +60,13 @@ def _num(v) -> float:
     return float(v) if v is not None else math.nan
 
 
-def drive_row(vehicle: str, drive: str, date: str, odometer_km: float) -> dict:
+def drive_row(vehicle: str, drive: str, date: str, odometer_km: float, *, with_diagnosis: bool = True) -> dict:
     """Calibrate and diagnose one drive: its result row. A drive that
     cannot be read or calibrated is a row with ``refused`` set to the
     calibrator's message; one that cannot be diagnosed keeps its
-    calibration and says why in ``diagnosis_refused``."""
+    calibration and says why in ``diagnosis_refused``. Without
+    ``with_diagnosis`` the row's ``effects`` stay empty and
+    ``diagnosis_refused`` says the diagnosis did not run."""
     row = {
         "vehicle": str(vehicle),
         "drive": str(drive),
@@ -97,6 +99,9 @@ def drive_row(vehicle: str, drive: str, date: str, odometer_km: float) -> dict:
         track_width_m=float(cal["track_width_m"]),
         warnings=[f"[{w.get('code')}] {w.get('message')}" for w in cal.get("warnings", [])],
     )
+    if not with_diagnosis:
+        row["diagnosis_refused"] = "not run (with_diagnosis=False)"
+        return row
     try:
         row["effects"] = diagnose(d).effects
     except WheelcalError as e:
@@ -232,7 +237,11 @@ def run(
         else:
             ray.init(num_cpus=num_cpus, include_dashboard=False)
         try:
-            task = ray.remote(num_cpus=1, max_retries=max_retries)(run_one)
+            # By reference to the importable module (not `__main__`, which
+            # `python -m wheelcal.fleet` runs), so workers import it.
+            from wheelcal import fleet as importable
+
+            task = ray.remote(num_cpus=1, max_retries=max_retries)(importable.run_one)
             refs = [task.remote(i, row, str(parts), crash_once.get(i)) for i, row in enumerate(rows)]
             ray.get(refs)
         finally:

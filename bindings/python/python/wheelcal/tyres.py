@@ -242,3 +242,32 @@ def circumference_table(table: pd.DataFrame) -> pd.DataFrame:
         p["sigma_m"] = t[s].astype(float)
         parts.append(p)
     return pd.concat(parts, ignore_index=True).sort_values(["vehicle", "wheel", "odometer_km"]).reset_index(drop=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m wheelcal.tyres RESULTS.parquet``: the alerts and the wear trends."""
+    import argparse
+    import sys
+
+    p = argparse.ArgumentParser(prog="python -m wheelcal.tyres", description="Tyres across a fleet's drives")
+    p.add_argument("results", help="the Parquet file of python -m wheelcal.fleet")
+    a = p.parse_args(argv)
+    table = pd.read_parquet(a.results)
+    refused = table[table["refused"].notna()]
+    for _, r in refused.iterrows():
+        print(f"refused: {r['vehicle']} {r['drive']}: {r['refused']}")
+    alerts = step_alerts(table)
+    for al in alerts:
+        print("ALERT", al.message())
+    if not alerts:
+        print("no tyre alert")
+    shown = {d for al in alerts for d in al.drives}
+    trends = wear_trends(table, exclude=shown)
+    with pd.option_context("display.width", 200, "display.max_columns", 20):
+        print(trends.to_string(index=False))
+    sys.stdout.flush()
+    return 1 if alerts else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
