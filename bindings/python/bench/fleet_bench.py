@@ -52,11 +52,14 @@ def tyre_report(rows: pd.DataFrame, truth: pd.DataFrame) -> None:
         a = next((a for a in alerts if a.vehicle == car), None)
         alerted = int(s.loc[s["drive"] == a.first_drive, "index"].iloc[0]) if a else None
         size_mm = 2 * math.pi * float(s.loc[s["index"] == alerted, "leak_mm"].iloc[0]) if a else float("nan")
+        wheel = s["leak_wheel"].iloc[-1]
+        said = "no alert" if a is None else ("the wheel named right" if a.wheel == wheel else "THE WRONG WHEEL")
         print(
-            f"leak {car} ({s['leak_wheel'].iloc[-1].upper()}): starts drive {start}, passes 5 sigma of the test at drive "
-            f"{first_shown}, alerted at drive {alerted} ({'wheel right' if a and a.wheel == s['leak_wheel'].iloc[-1] else 'WRONG WHEEL'}); "
+            f"leak {car} ({wheel.upper()}): starts drive {start}, passes 5 sigma of the test at drive "
+            f"{first_shown}, alerted at drive {alerted} ({said}); "
             f"latency {alerted - first_shown if a and first_shown is not None else 'n/a'} drives; "
-            f"leak at the alert {size_mm:.3f} mm of circumference"
+            f"leak at the alert {size_mm:.3f} mm of circumference; z of each leak drive: "
+            + ", ".join(f"{z:.1f}" for z in s.loc[s["leak_mm"] > 0, "z"])
         )
     false = [a for a in alerts if a.vehicle not in leaking]
     print(f"alerts on cars without a leak: {len(false)} (of {rows['vehicle'].nunique() - len(leaking)} cars)")
@@ -87,6 +90,7 @@ def main() -> int:
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--work", type=Path, default=ROOT / "target" / "fleet-bench")
     p.add_argument("--no-ray", action="store_true")
+    p.add_argument("--no-diagnosis", action="store_true", help="calibrate only")
     a = p.parse_args()
     shutil.rmtree(a.work, ignore_errors=True)
     a.work.mkdir(parents=True)
@@ -107,9 +111,10 @@ def main() -> int:
     hours = n * a.duration / 3600
 
     t = time.perf_counter()
-    serial = fleet.run(manifest, a.work / "serial.parquet", serial=True)
+    serial = fleet.run(manifest, a.work / "serial.parquet", serial=True, with_diagnosis=not a.no_diagnosis)
     ts = time.perf_counter() - t
-    print(f"\n## serial (1 core): {n} drives in {ts:.1f} s: {n / ts * 3600:.0f} drives/hour/core; "
+    what = "calibrate" if a.no_diagnosis else "calibrate + diagnose"
+    print(f"\n## serial (1 core, {what}): {n} drives in {ts:.1f} s: {n / ts * 3600:.0f} drives/hour/core; "
           f"{hours / ts * 3600:.1f} hours of driving per hour per core ({ts / n:.2f} s per {a.duration:.0f} s drive)")
 
     if not a.no_ray:
@@ -117,7 +122,8 @@ def main() -> int:
         t = time.perf_counter()
         done = subprocess.run(
             [sys.executable, "-m", "wheelcal.fleet", str(manifest), "--out", str(a.work / "ray.parquet"),
-             "--num-cpus", str(a.workers), "--crash-once", f"{n // 2}={marker}"],
+             "--num-cpus", str(a.workers), "--crash-once", f"{n // 2}={marker}"]
+            + (["--no-diagnosis"] if a.no_diagnosis else []),
             capture_output=True, text=True,
         )
         tr = time.perf_counter() - t

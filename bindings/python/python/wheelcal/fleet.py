@@ -175,7 +175,7 @@ def write_part(row: dict, path: Path) -> None:
     os.replace(tmp, path)
 
 
-def run_one(index: int, row: dict, parts: str, crash_once: str | None = None) -> str:
+def run_one(index: int, row: dict, parts: str, crash_once: str | None = None, with_diagnosis: bool = True) -> str:
     """One task: the drive's row into its part file, unless already there.
     ``crash_once`` (testing only): a marker path; when it does not exist
     yet, the task creates it and kills its own process halfway, as a
@@ -183,7 +183,7 @@ def run_one(index: int, row: dict, parts: str, crash_once: str | None = None) ->
     path = Path(parts) / part_name(index, row)
     if path.exists():
         return str(path)
-    result = drive_row(row["vehicle"], row["drive"], row["date"], row["odometer_km"])
+    result = drive_row(row["vehicle"], row["drive"], row["date"], row["odometer_km"], with_diagnosis=with_diagnosis)
     if crash_once is not None and not os.path.exists(crash_once):
         Path(crash_once).write_text(f"{os.getpid()}\n")
         os._exit(17)
@@ -219,6 +219,7 @@ def run(
     num_cpus: int | None = None,
     max_retries: int = 3,
     crash_once: dict[int, str] | None = None,
+    with_diagnosis: bool = True,
 ) -> pd.DataFrame:
     """Run the batch; the merged rows."""
     manifest = read_manifest(manifest_path)
@@ -228,7 +229,7 @@ def run(
     crash_once = crash_once or {}
     if serial:
         for i, row in enumerate(rows):
-            run_one(i, row, str(parts))
+            run_one(i, row, str(parts), None, with_diagnosis)
     else:
         import ray
 
@@ -242,7 +243,7 @@ def run(
             from wheelcal import fleet as importable
 
             task = ray.remote(num_cpus=1, max_retries=max_retries)(importable.run_one)
-            refs = [task.remote(i, row, str(parts), crash_once.get(i)) for i, row in enumerate(rows)]
+            refs = [task.remote(i, row, str(parts), crash_once.get(i), with_diagnosis) for i, row in enumerate(rows)]
             ray.get(refs)
         finally:
             ray.shutdown()
@@ -257,6 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--num-cpus", type=int, help="CPUs of the local Ray cluster (default: all)")
     p.add_argument("--max-retries", type=int, default=3, help="retries of a task whose worker dies")
     p.add_argument("--serial", action="store_true", help="no Ray: one drive after the other in this process")
+    p.add_argument("--no-diagnosis", action="store_true", help="calibrate only (the rows' effects stay empty)")
     p.add_argument(
         "--crash-once",
         action="append",
@@ -278,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
         num_cpus=a.num_cpus,
         max_retries=a.max_retries,
         crash_once=crash,
+        with_diagnosis=not a.no_diagnosis,
     )
     took = time.perf_counter() - start
     refused = rows["refused"].notna().sum()

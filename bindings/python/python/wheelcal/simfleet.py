@@ -50,7 +50,8 @@ class FleetPlan:
     common_mm: float = 0.15
     #: The leak's growth of the radius loss per drive, mm.
     leak_mm_per_drive: float = 0.06
-    #: The drive (index within the car's drives) the leak starts with.
+    #: The drive (index within the car's drives) the leak starts with
+    #: (default: half-way, and not before the fifth).
     leak_start: int | None = None
 
 
@@ -68,7 +69,8 @@ def plan_drives(plan: FleetPlan) -> pd.DataFrame:
         odo = float(rng.uniform(5000, 40000))
         day = start + dt.timedelta(days=int(rng.integers(0, 3)))
         leak_wheel = ("rl" if plan.leak.index(v) % 2 == 0 else "rr") if v in plan.leak else ""
-        leak_start = plan.leak_start if plan.leak_start is not None else max(plan.drives // 2, 1)
+        # By default after the drives the step test needs as history.
+        leak_start = plan.leak_start if plan.leak_start is not None else min(max(plan.drives // 2, 4), plan.drives - 1)
         for k in range(plan.drives):
             if k > 0:
                 odo += float(rng.uniform(250, 450))

@@ -18,7 +18,10 @@ temperature or load, widens it instead of hiding).
 Steps (:func:`step_alerts`): temperature and load move both rear tyres
 alike, a leak one. So the test is on the difference ``d = c_rr - c_rl``:
 each drive's ``d`` against the line of the vehicle's own earlier drives
-(differential wear is slow and linear in the odometer; a leak is not), in
+(differential wear is slow and linear in the odometer; a leak is not),
+and against the same line without the last LAG of them when there are
+enough (so a leak growing slowly does not drag the baseline with it; the
+larger |z| of the two counts), in
 units of ``sigma = sqrt(s_drive^2 + s_line^2)``, where ``s_drive`` is the
 larger of the drive's reported difference sigma and the scatter of the
 history about its line, and ``s_line`` is the line's prediction sigma.
@@ -39,6 +42,11 @@ import pandas as pd
 ALERT_Z = 5.0
 #: Earlier drives needed before a drive is tested.
 MIN_HISTORY = 4
+#: The most recent drives of the history left out of the baseline when the
+#: history is long enough (it keeps MIN_HISTORY): a leak growing by less
+#: than ALERT_Z sigma per drive would otherwise enter the baseline drive by
+#: drive and be followed by it; against the settled history it adds up.
+LAG = 3
 
 
 def _rows(table: pd.DataFrame) -> pd.DataFrame:
@@ -176,13 +184,21 @@ def step_table(table: pd.DataFrame) -> pd.DataFrame:
             r = g.iloc[i]
             z = pred = s = s_drive = float("nan")
             if len(history) >= MIN_HISTORY:
-                h = g.iloc[history]
-                line = fit_line(h["odometer_km"], h["d_m"], h["sigma_d_m"])
-                pred, s_line = line.predict(float(r["odometer_km"]))
-                scatter = line.scatter if math.isfinite(line.scatter) else 0.0
-                s_drive = max(float(r["sigma_d_m"]), scatter)
-                s = math.hypot(s_drive, s_line)
-                z = (float(r["d_m"]) - pred) / s
+                # Against the whole history, and against it without its last
+                # LAG drives (when long enough): the larger |z| counts.
+                lag = min(LAG, len(history) - MIN_HISTORY)
+                best = None
+                for keep in sorted({len(history), len(history) - lag}):
+                    h = g.iloc[history[:keep]]
+                    line = fit_line(h["odometer_km"], h["d_m"], h["sigma_d_m"])
+                    p, s_line = line.predict(float(r["odometer_km"]))
+                    scatter = line.scatter if math.isfinite(line.scatter) else 0.0
+                    sd = max(float(r["sigma_d_m"]), scatter)
+                    sg = math.hypot(sd, s_line)
+                    zz = (float(r["d_m"]) - p) / sg
+                    if best is None or abs(zz) > abs(best[0]):
+                        best = (zz, p, sd, sg)
+                z, pred, s_drive, s = best
             alert = math.isfinite(z) and abs(z) > ALERT_Z
             if not alert:
                 history.append(i)
