@@ -13,7 +13,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
-SHARED = ROOT.parent / "shared"
+# `../shared` beside the repository (WHEELCAL_SHARED_DIR: elsewhere, e.g.
+# a folder that does not exist, to see the tests skip).
+SHARED = Path(os.environ.get("WHEELCAL_SHARED_DIR", ROOT.parent / "shared"))
 RELEASE = ROOT / "target" / "release"
 
 
