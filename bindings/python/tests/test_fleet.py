@@ -103,3 +103,17 @@ def test_a_manifest_without_its_columns_is_refused_naming_them(tmp_path):
     done = run_cli(str(bad), "--out", str(tmp_path / "o.parquet"), "--serial")
     assert done.returncode != 0
     assert "date" in done.stderr and "odometer_km" in done.stderr and str(bad) in done.stderr
+
+
+def test_ray_by_address_joins_a_running_cluster(serial, manifest, tmp_path):
+    """`--address`: the batch joins a cluster this test starts (and stops)."""
+    ray = pytest.importorskip("ray", reason="ray is not installed")
+    ray.init(num_cpus=2, include_dashboard=False)
+    try:
+        address = ray.get_runtime_context().gcs_address
+        out = tmp_path / "rows.parquet"
+        done = run_cli(str(manifest), "--out", str(out), "--address", address)
+        assert done.returncode == 0, done.stderr[-3000:]
+        pd.testing.assert_frame_equal(pd.read_parquet(out), serial)
+    finally:
+        ray.shutdown()
