@@ -8,9 +8,8 @@ use anyhow::{Context, Result};
 use calibrator::diagnose::{diagnose as run_diagnosis, terms_beside, DiagnoseConfig};
 use calibrator::{calibrate as run_calibration, CalibrationConfig, Warning, WarningCode};
 use drive_io::LoadedDrive;
-use odometry::evaluate::{choose_truth_point, EvaluateConfig, TruthPointChoice};
+use odometry::evaluate::{choose_truth_point, EvaluateConfig, Parameters, TruthPointChoice};
 use std::path::Path;
-use vehicle_model::estimate::{OdometryParams, StreamClocks};
 use vehicle_model::estimate_file::EstimateFile;
 
 /// Read the drive at `path` as the tools read it (their options).
@@ -88,48 +87,29 @@ pub(crate) fn evaluate(
         .vehicle
         .check_plausible()
         .map_err(|e| anyhow::anyhow!("{name}: vehicle.toml: {e}"))?;
-    let mut other_vehicle = None;
-    let (params, antenna, effects, clocks) = match estimate {
+    let parameters = match estimate {
         Some((text, source)) => {
             let file =
                 EstimateFile::from_json_str(text, source).context("cannot use the estimate")?;
             let est = file.estimate(source).context("cannot use the estimate")?;
-            other_vehicle = file.made_for().and_then(|v| {
-                vehicle_model::estimate_vehicle::other_vehicle_warning(
-                    &v,
-                    &drive.vehicle,
-                    source,
-                    name,
-                )
-            });
-            vehicle_model::estimate_gate::EstimateGate::new(&drive.vehicle)
-                .check(0, None, &est)
-                .map_err(|e| {
-                    anyhow::anyhow!("{source}: not an estimate of the vehicle of {name}: {e}")
-                })?;
-            (est.params, est.antenna_m, est.effects.into(), est.clocks)
+            Parameters::of_estimate(est, file.made_for(), source, drive, name)?
         }
-        None => (
-            OdometryParams::nominal(&drive.vehicle),
-            None,
-            vehicle_model::effects::EffectTerms::default(),
-            StreamClocks::default(),
-        ),
+        None => Parameters::nominal(drive),
     };
-    let truth_point =
-        choose_truth_point(drive, TruthPointChoice::Auto, antenna).context("--truth-point")?;
+    let truth_point = choose_truth_point(drive, TruthPointChoice::Auto, parameters.antenna)
+        .context("--truth-point")?;
     let config = EvaluateConfig {
         outage_s,
         spacing_s,
         truth_point,
-        effects,
-        clocks,
+        effects: parameters.effects,
+        clocks: parameters.clocks,
         keep_tracks: false,
         ..EvaluateConfig::default()
     };
-    let mut report = odometry::evaluate::evaluate(drive, &params, &config)
+    let mut report = odometry::evaluate::evaluate(drive, &parameters.params, &config)
         .with_context(|| format!("cannot evaluate {name}"))?;
-    if let Some(w) = other_vehicle {
+    if let Some(w) = parameters.other_vehicle {
         report.warnings.insert(0, w);
     }
     Ok(serde_json::to_string_pretty(&report).context("cannot serialise the report")? + "\n")

@@ -196,3 +196,15 @@ def test_bad_columns_are_named(sim_drive):
         wheelcal.calibrate(cols, vehicle=sim_drive)
     with pytest.raises(wheelcal.WheelcalError, match="vehicle"):
         wheelcal.calibrate(columns_of(sim_drive))
+
+
+def test_an_estimate_of_another_vehicle_is_refused_with_the_cli_message(tmp_path):
+    wid, comma = real_drive("wid-trial02"), real_drive("comma2k19-seg40")
+    est_path = tmp_path / "est.json"
+    cli_json([str(binary("calibrator")), "calibrate", str(wid), "--json", str(est_path), "--no-progress"], est_path)
+    stderr = cli_error([str(binary("odometry")), "evaluate", str(comma), "--estimate", str(est_path)])
+    line = stderr.split("Stack backtrace:")[0].strip().splitlines()[0].removeprefix("Error: ")
+    assert "not an estimate of the vehicle" in line, stderr
+    with pytest.raises(wheelcal.WheelcalError) as e:
+        wheelcal.evaluate(comma, est_path)
+    assert str(e.value) == line

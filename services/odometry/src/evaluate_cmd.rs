@@ -6,12 +6,12 @@
 use crate::odometer_args::OdometerArgs;
 use anyhow::{Context, Result};
 use odometry::evaluate::{
-    choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, TruthPointChoice,
+    choose_truth_point, evaluate, EvaluateConfig, EvaluationReport, Parameters, TruthPointChoice,
     TruthPointSource,
 };
 use odometry::evaluation_page;
 use std::path::PathBuf;
-use vehicle_model::estimate::{OdometryParams, MAX_FUSED_ANTENNA_SIGMA_M};
+use vehicle_model::estimate::MAX_FUSED_ANTENNA_SIGMA_M;
 
 /// Arguments of `odometry evaluate`.
 #[derive(Debug, clap::Args)]
@@ -120,75 +120,22 @@ pub(crate) fn run_evaluate(args: &EvaluateArgs) -> Result<()> {
     Ok(())
 }
 
-/// The parameters dead-reckoned with: the estimate's (checked against the
-/// drive's vehicle), else the vehicle's nominal values.
-struct Parameters {
-    params: OdometryParams,
-    /// Where they come from, as the report names it.
-    source: String,
-    /// The estimate's GNSS antenna position, m.
-    antenna: Option<[f64; 2]>,
-    /// Its 1-sigma, m.
-    antenna_sigma: Option<[f64; 2]>,
-    /// The effect terms the estimate carries.
-    effects: vehicle_model::effects::EffectTerms,
-    /// The estimate's sensor clocks.
-    clocks: vehicle_model::estimate::StreamClocks,
-    /// A warning when the estimate was made for another vehicle.
-    other_vehicle: Option<String>,
-}
-
 /// `--estimate` read and checked against the drive's vehicle, or the nominal values.
 fn parameters(args: &EvaluateArgs, drive: &interfaces::drive::Drive) -> Result<Parameters> {
-    let mut other_vehicle = None;
-    let (params, source, antenna, antenna_sigma, effects, clocks) = match &args.estimate {
+    match &args.estimate {
         Some(path) => {
             let (estimate, made_for) =
                 drive_io::read_estimate_with_vehicle(path).context("cannot use the estimate")?;
-            other_vehicle = made_for.and_then(|v| {
-                vehicle_model::estimate_vehicle::other_vehicle_warning(
-                    &v,
-                    &drive.vehicle,
-                    &path.display().to_string(),
-                    &args.drive.display().to_string(),
-                )
-            });
-            vehicle_model::estimate_gate::EstimateGate::new(&drive.vehicle)
-                .check(0, None, &estimate)
-                .map_err(|e| {
-                    anyhow::anyhow!(
-                        "{}: not an estimate of the vehicle of {}: {e}",
-                        path.display(),
-                        args.drive.display()
-                    )
-                })?;
-            (
-                estimate.params,
-                path.display().to_string(),
-                estimate.antenna_m,
-                estimate.antenna_sigma_m,
-                estimate.effects.into(),
-                estimate.clocks,
-            )
+            Ok(Parameters::of_estimate(
+                estimate,
+                made_for,
+                &path.display().to_string(),
+                drive,
+                &args.drive.display().to_string(),
+            )?)
         }
-        None => (
-            OdometryParams::nominal(&drive.vehicle),
-            "nominal (vehicle.toml)".to_string(),
-            None,
-            None,
-            vehicle_model::effects::EffectTerms::default(),
-            vehicle_model::estimate::StreamClocks::default(),
-        ),
-    };
-    Ok(Parameters {
-        params,
-        source,
-        antenna,
-        antenna_sigma,
-        effects,
-        clocks,
-        other_vehicle,
-    })
+        None => Ok(Parameters::nominal(drive)),
+    }
 }
 
 /// The evaluation's page and figures into `dir`.

@@ -69,6 +69,8 @@
 //! - `outage`: where the outages go, and one outage from its start pose to
 //!   its score;
 //! - `percentile` (from `stats`): the median and the 90th percentile;
+//! - `parameters`: what is dead-reckoned with, an estimate's checked
+//!   against the drive's vehicle or the nominal values;
 //! - `run`: [`evaluate`], a drive from its checks to its report.
 
 mod alignment;
@@ -76,6 +78,7 @@ mod config;
 mod dead_reckon;
 mod error;
 mod outage;
+mod parameters;
 mod report;
 mod run;
 #[cfg(test)]
@@ -86,6 +89,7 @@ mod wheel_clock;
 
 pub use config::EvaluateConfig;
 pub use error::EvaluateError;
+pub use parameters::{NotThisVehicle, Parameters};
 pub use report::{EvaluationReport, OutageResult, ParamsReport, TrackPoint};
 pub use run::evaluate;
 pub use stats::percentile;
