@@ -64,6 +64,15 @@ impl<'a> Columns<'a> {
         })
     }
 
+    /// Keep the rows `keep` says, in every column.
+    fn keep_rows(&mut self, keep: impl Fn(&Columns<'a>, usize) -> bool) {
+        let kept: Vec<usize> = (0..self.rows).filter(|&i| keep(self, i)).collect();
+        for v in self.values.values_mut() {
+            *v = kept.iter().map(|&i| v[i]).collect();
+        }
+        self.rows = kept.len();
+    }
+
     fn required(&self, name: &str) -> Result<&[f64]> {
         self.values
             .get(name)
@@ -109,11 +118,10 @@ pub(crate) fn drive(
     };
     let gnss = match streams.get("gnss") {
         Some(raw) => {
-            let c = Columns::new(
-                "gnss",
-                raw,
-                &["t_s", "x_m", "y_m", "lat_deg", "lon_deg", "sigma_m"],
-            )?;
+            let names = ["t_s", "x_m", "y_m", "lat_deg", "lon_deg", "sigma_m", "fix"];
+            let mut c = Columns::new("gnss", raw, &names)?;
+            // `fix` = 0: no fix, the row is ignored (as in gnss.csv).
+            c.keep_rows(|c, i| c.optional("fix", i) != Some(0.0));
             let (x, y) = positions(&c, &mut frame)?;
             let t = c.required("t_s")?;
             Some(
@@ -340,6 +348,24 @@ mod tests {
         let g = loaded.drive.gnss.unwrap();
         assert_eq!((g[0].x_m, g[0].y_m), (0.0, 0.0));
         assert!((g[2].y_m - 2.22).abs() < 0.01, "{}", g[2].y_m);
+    }
+
+    #[test]
+    fn gnss_rows_without_a_fix_are_left_out() {
+        let mut streams = BTreeMap::new();
+        streams.insert("wheels".to_string(), wheels(50));
+        let gnss: RawColumns = [
+            ("t_s", vec![0.0, 0.1, 0.2]),
+            ("x_m", vec![1.0, 2.0, 3.0]),
+            ("y_m", vec![0.0, 0.0, 0.0]),
+            ("fix", vec![1.0, 0.0, 1.0]),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), bytes(&v)))
+        .collect();
+        streams.insert("gnss".to_string(), gnss);
+        let g = drive("mem", VEHICLE, &streams).unwrap().drive.gnss.unwrap();
+        assert_eq!(g.iter().map(|s| s.x_m).collect::<Vec<_>>(), vec![1.0, 3.0]);
     }
 
     #[test]
