@@ -1129,6 +1129,8 @@ mod tests {
             mismatch_segments: Vec::new(),
             information_limit: None,
             information_limit_missing: None,
+            wald: Vec::new(),
+            information: None,
             fit: Fit {
                 before: metrics(3.2),
                 after: metrics(1.1),
@@ -1166,6 +1168,8 @@ mod tests {
             holdout_rmse_after_m: 1.1,
             holdout_channel_gain: 0.4,
             holdout_gain_z: 7.5,
+            decided_by: super::super::DecidedBy::HeldOut,
+            wald_z: None,
             evidence: evidence.to_string(),
         }
     }
