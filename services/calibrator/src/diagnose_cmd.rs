@@ -2,6 +2,7 @@
 //! what it found, write the JSON and the pictures with their index page.
 
 use anyhow::{Context, Result};
+use calibrator::diagnose::decide::WaldOutcome;
 use calibrator::diagnose::{
     diagnose_with_progress, pictures, DiagnoseConfig, DiagnoseStage, Diagnosis,
 };
@@ -361,4 +362,28 @@ fn information_text(s: &mut String, d: &Diagnosis) {
         };
         let _ = writeln!(s, "  {}: {shows}{joint}{test}{alone}", e.effect);
     }
+    let called: Vec<String> = d
+        .wald
+        .iter()
+        .filter(|w| w.test.significant || w.outcome == WaldOutcome::Ambiguous)
+        .map(|w| {
+            format!(
+                "{} z {:+.1} against {:.1}: {}",
+                w.test.effect,
+                w.test.z,
+                w.test.z_critical,
+                w.outcome.describe()
+            )
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "Holm's procedure on the joint Wald z (family-wise {:.0} %): {}",
+        100.0 * l.family_alpha,
+        if called.is_empty() {
+            "no effect significant".to_string()
+        } else {
+            called.join("; ")
+        }
+    );
 }

@@ -123,6 +123,21 @@ pub enum WaldOutcome {
     Ambiguous,
 }
 
+impl WaldOutcome {
+    /// In words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            WaldOutcome::NotSignificant => "not significant",
+            WaldOutcome::AlreadyFound => "significant; found by the held-out test",
+            WaldOutcome::Accepted => "significant; found",
+            WaldOutcome::Guarded => "significant; refused by the held-out guard",
+            WaldOutcome::Implausible => "significant; implausible size",
+            WaldOutcome::NoModel => "significant; no residual column on this drive",
+            WaldOutcome::Ambiguous => "ambiguous with its partners",
+        }
+    }
+}
+
 /// An effect's Wald test and what the diagnosis made of it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WaldDecision {
