@@ -38,6 +38,10 @@ pub struct DiagnoseArgs {
     /// joint Wald statistics): for comparisons.
     #[arg(long)]
     pub held_out_only: bool,
+    /// Measure the Wald decision's false-alarm rate on N redraws of the
+    /// drive's GNSS errors from its own error model (`null_false_alarm`).
+    #[arg(long, default_value_t = 0)]
+    pub null_draws: usize,
     /// Read a damaged MCAP recording by leaving out each chunk whose records
     /// fail their CRC (a warning names each one) instead of refusing it.
     #[arg(long)]
@@ -56,6 +60,7 @@ pub fn config(args: &DiagnoseArgs) -> Result<DiagnoseConfig> {
     Ok(DiagnoseConfig {
         block_s: args.block,
         wald_decision: !args.held_out_only,
+        null_draws: args.null_draws,
         ..DiagnoseConfig::default()
     })
 }
@@ -376,6 +381,18 @@ fn information_text(s: &mut String, d: &Diagnosis) {
             )
         })
         .collect();
+    if let Some(r) = &d.null_false_alarm {
+        let _ = writeln!(
+            s,
+            "false alarms on {} redraws of this drive's GNSS errors from its own error model: {} \
+             ({:.1} % against the nominal {:.0} %, binomial sigma {:.1} %)",
+            r.draws,
+            r.rejections,
+            100.0 * r.rate,
+            100.0 * r.family_alpha,
+            100.0 * r.sigma
+        );
+    }
     let _ = writeln!(
         s,
         "Holm's procedure on the joint Wald z (family-wise {:.0} %): {}",

@@ -461,7 +461,7 @@ fn pick(
 
 /// The fix times every perturbation sees: those of the segment's span
 /// [t0, t1) that the plain model and the latency's steps all reach.
-fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
+pub(super) fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
     input
         .spans
         .iter()
@@ -492,7 +492,7 @@ fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
 
 /// Whiten stacked columns per axis (east with `noise[0]`, north with
 /// `noise[1]`) and flatten: east values, then north values.
-fn whitened(
+pub(super) fn whitened(
     times: &[f64],
     noise: &[PositionNoise; 2],
     cols: &[Col],
@@ -540,10 +540,10 @@ fn main_kick(effect: Effect) -> Kick {
 /// circumferences' scale (and left/right difference under the wheels'
 /// heading), its effects' fingerprints, the segments' poses (and the gyro's
 /// bias under the gyro's heading).
-struct Columns {
+pub(super) struct Columns {
     heading: HeadingSource,
     effects: Vec<Effect>,
-    cols: Vec<Col>,
+    pub(super) cols: Vec<Col>,
     first_effect: usize,
     /// The segment of each pose column (they follow the effects).
     pose_segment: Vec<usize>,
@@ -551,7 +551,11 @@ struct Columns {
 }
 
 impl Columns {
-    fn build(input: &LimitInput<'_>, heading: HeadingSource, times: &[Vec<f64>]) -> Columns {
+    pub(super) fn build(
+        input: &LimitInput<'_>,
+        heading: HeadingSource,
+        times: &[Vec<f64>],
+    ) -> Columns {
         let total: usize = times.iter().map(Vec::len).sum();
         let src = Source::new(input, heading, times);
         let wheels = matches!(heading, HeadingSource::Wheels);
@@ -600,6 +604,45 @@ impl Columns {
         }
     }
 
+    /// Per effect: the columns of its fit with every other effect of the
+    /// source free (the effect first, then its nuisances, then the other
+    /// effects the drive holds information about), and how many of them
+    /// make its fit alone.
+    pub(super) fn column_sets(
+        &self,
+        w: &[Vec<f64>],
+        gram: &SegmentGram,
+    ) -> Vec<(Effect, Vec<usize>, usize)> {
+        let n_eff = self.effects.len();
+        let first_pose = self.first_effect + n_eff;
+        let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
+        nuisances.extend(first_pose..first_pose + self.pose_segment.len());
+        self.effects
+            .iter()
+            .enumerate()
+            .map(|(k, e)| {
+                let target = self.first_effect + k;
+                let mut cols = vec![target];
+                cols.extend(&nuisances);
+                if *e == Effect::GyroScale && self.gyro_bias {
+                    cols.push(w.len() - 1);
+                }
+                let n_alone = cols.len();
+                // Every other effect of this source free as well (those the
+                // drive holds no information about left out: they are
+                // singular).
+                for j in self.first_effect..first_pose {
+                    let duplicate =
+                        self.gyro_bias && w[j] == w[w.len() - 1] && cols.contains(&(w.len() - 1));
+                    if j != target && !duplicate && gram.total[(j, j)] > 0.0 {
+                        cols.push(j);
+                    }
+                }
+                (*e, cols, n_alone)
+            })
+            .collect()
+    }
+
     /// The effects' limits under `noise`: each effect alone with the
     /// nuisances, and with every other effect of the source free too. The
     /// sigma is the larger of the Fisher information's and a delete-one-
@@ -620,35 +663,16 @@ impl Columns {
         let w = whitened(times, noise, &self.cols)?;
         let gram = SegmentGram::new(&w, segment_sizes);
         let n_eff = self.effects.len();
-        let first_pose = self.first_effect + n_eff;
-        let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
-        nuisances.extend(first_pose..first_pose + self.pose_segment.len());
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
         };
         let mut out = Vec::new();
-        for (k, e) in self.effects.iter().enumerate() {
-            let target = self.first_effect + k;
-            let mut cols = vec![target];
-            cols.extend(&nuisances);
-            if *e == Effect::GyroScale && self.gyro_bias {
-                cols.push(w.len() - 1);
-            }
-            let alone = gram.fit(&cols);
-            let n_alone = cols.len();
-            // Every other effect of this source free as well (those the
-            // drive holds no information about left out: they are singular).
-            for j in self.first_effect..first_pose {
-                let duplicate =
-                    self.gyro_bias && w[j] == w[w.len() - 1] && cols.contains(&(w.len() - 1));
-                if j != target && !duplicate && gram.total[(j, j)] > 0.0 {
-                    cols.push(j);
-                }
-            }
+        for (e, cols, n_alone) in self.column_sets(&w, &gram) {
+            let alone = gram.fit(&cols[..n_alone]);
             let joint = gram.fit(&cols);
-            let mut l = limit_of(*e, alone, z_critical, source);
-            l.joint = joint.map(|fit| Joint::of(*e, fit, z_critical));
+            let mut l = limit_of(e, alone, z_critical, source);
+            l.joint = joint.map(|fit| Joint::of(e, fit, z_critical));
             if let (Some(a), Some(j)) = (alone, l.joint.as_mut()) {
                 let base: Vec<usize> = cols[..n_alone].to_vec();
                 let others: Vec<(Effect, usize)> = cols[n_alone..]
@@ -701,7 +725,7 @@ pub(super) struct SegmentGram {
 }
 
 impl SegmentGram {
-    fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
+    pub(super) fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
         let m = w.len();
         let n: usize = segment_sizes.iter().sum();
         let mut per_segment = vec![DMatrix::zeros(m, m); segment_sizes.len()];
@@ -872,6 +896,49 @@ impl SegmentGram {
         SegmentGram { per_segment, total }
     }
 
+    /// The same Gram with another data column `w0` (whitened, rows as
+    /// [`SegmentGram::new`]'s) in place of column 0 of `w`.
+    pub(super) fn with_data(
+        &self,
+        w0: &[f64],
+        w: &[Vec<f64>],
+        segment_sizes: &[usize],
+    ) -> SegmentGram {
+        let m = w.len();
+        let mut per_segment = self.per_segment.clone();
+        let mut row = 0;
+        for _axis in 0..2 {
+            for (seg, size) in segment_sizes.iter().enumerate() {
+                let rows = row..row + size;
+                let d = &w0[rows.clone()];
+                let g = &mut per_segment[seg];
+                if row < segment_sizes.iter().sum::<usize>() {
+                    // The first axis resets the data row, the second adds.
+                    for b in 0..m {
+                        g[(0, b)] = 0.0;
+                    }
+                }
+                for b in 1..m {
+                    g[(0, b)] += d
+                        .iter()
+                        .zip(&w[b][rows.clone()])
+                        .map(|(x, y)| x * y)
+                        .sum::<f64>();
+                }
+                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
+                row += size;
+            }
+        }
+        let mut total = DMatrix::zeros(m, m);
+        for g in &mut per_segment {
+            for b in 1..m {
+                g[(b, 0)] = g[(0, b)];
+            }
+            total += &*g;
+        }
+        SegmentGram { per_segment, total }
+    }
+
     /// Segments.
     pub(super) fn segments(&self) -> usize {
         self.per_segment.len()
@@ -903,7 +970,7 @@ pub struct DriveInformation {
 }
 
 /// The finite-difference step of a parameter: 5 % of its typical size.
-fn step_of(p: Param) -> f64 {
+pub(super) fn step_of(p: Param) -> f64 {
     0.05 * p.spec().typical.abs().max(1e-9)
 }
 
@@ -1004,7 +1071,7 @@ const REALISATIONS: usize = 4;
 /// The segments' poses are local to their segment, so they are projected
 /// out segment by segment (three columns each) and only the few global
 /// columns go through a QR decomposition: linear in the drive's length.
-fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
+pub(super) fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
     let fit = JointFit::new(times, src)?;
     let n = fit.n;
     let mut gaps: Vec<f64> = times
@@ -1065,7 +1132,7 @@ fn stacked(c: &Col, i: usize, n: usize) -> f64 {
 
 /// Unit Gauss-Markov errors of correlation time `tau` at the times
 /// `all_t`, east then north (`n` each).
-fn gauss_markov(rng: &mut Normal, all_t: &[f64], n: usize, tau: f64) -> DVector<f64> {
+pub(super) fn gauss_markov(rng: &mut Normal, all_t: &[f64], n: usize, tau: f64) -> DVector<f64> {
     let mut v = DVector::zeros(2 * n);
     for axis in 0..2 {
         let mut x = rng.next();

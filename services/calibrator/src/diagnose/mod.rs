@@ -31,6 +31,7 @@ pub mod epochs;
 pub mod information;
 pub mod limit;
 pub mod locate;
+pub mod montecarlo;
 pub mod pictures;
 pub mod pool;
 pub mod select;
@@ -62,6 +63,10 @@ pub struct DiagnoseConfig {
     /// effects to the held-out test's ([`decide`]); off, only the held-out
     /// test decides (for comparisons).
     pub wald_decision: bool,
+    /// Redraws of the drive's GNSS errors from its own error model on
+    /// which the Wald decision's false-alarm rate is measured
+    /// ([`montecarlo`]); 0: none.
+    pub null_draws: usize,
 }
 
 impl Default for DiagnoseConfig {
@@ -71,6 +76,7 @@ impl Default for DiagnoseConfig {
             standstill_speed_m_s: 0.05,
             min_speed_m_s: 2.0,
             wald_decision: true,
+            null_draws: 0,
         }
     }
 }
@@ -512,6 +518,11 @@ pub struct Diagnosis {
     /// Every effect's Wald test in Holm's order and what became of it
     /// (empty without an information limit).
     pub wald: Vec<decide::WaldDecision>,
+    /// The Wald decision's false-alarm rate on redraws of this drive's
+    /// GNSS errors from its own error model, when asked for
+    /// ([`DiagnoseConfig::null_draws`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub null_false_alarm: Option<montecarlo::NullRate>,
     /// What the drive tells of its car's effects, for pooling with other
     /// drives of the car ([`diagnose_drives`]); not written out.
     #[serde(skip)]
@@ -635,11 +646,27 @@ pub fn diagnose_with_progress(
         )));
     }
     progress(DiagnoseStage::Select, 0.4);
+    let limit_input = LimitParts {
+        cal: &cal,
+        cx: &cx,
+        base: &base,
+        design: &design,
+        used: &used,
+        block_s,
+        ep: &ep,
+    };
     let (information_limit, information, information_limit_missing) =
-        match drive_limit(&cal, &cx, &base, &design, &used, block_s, &ep) {
-            Ok((l, i)) => (Some(l), Some(i), None),
+        match drive_limit(&limit_input, 0) {
+            Ok((l, i, _)) => (Some(l), Some(i), None),
             Err(why) => (None, None, Some(why)),
         };
+    let null_false_alarm = if cfg.null_draws > 0 {
+        drive_limit(&limit_input, cfg.null_draws)
+            .ok()
+            .and_then(|(_, _, rate)| rate)
+    } else {
+        None
+    };
     let mut sel = forward_select(&design, &stats);
     let wald_tests = information_limit
         .as_ref()
@@ -934,6 +961,7 @@ pub fn diagnose_with_progress(
         information_limit,
         information_limit_missing,
         wald,
+        null_false_alarm,
         information,
         base_model: base,
         terms,
@@ -945,14 +973,25 @@ pub fn diagnose_with_progress(
 /// The drive's information limit, under the GNSS error model the plain
 /// calibration fitted to its residuals; the reason when there is none.
 fn drive_limit(
-    cal: &crate::Calibration,
-    cx: &locate::Context<'_>,
-    base: &BaseModel,
-    design: &Design,
-    used: &[usize],
-    block_s: f64,
-    ep: &Epochs,
-) -> Result<(limit::InformationLimit, limit::DriveInformation), String> {
+    parts: &LimitParts<'_>,
+    null_draws: usize,
+) -> Result<
+    (
+        limit::InformationLimit,
+        limit::DriveInformation,
+        Option<montecarlo::NullRate>,
+    ),
+    String,
+> {
+    let LimitParts {
+        cal,
+        cx,
+        base,
+        design,
+        used,
+        block_s,
+        ep,
+    } = *parts;
     let noise = cal
         .diagnostics
         .sigma_basis
@@ -987,14 +1026,32 @@ fn drive_limit(
         terms: EffectTerms::default(),
         slip_side: 0,
     };
-    limit::limit_and_information(&limit::LimitInput {
+    let input = limit::LimitInput {
         cx,
         base: &model,
         spans: &spans,
         noise,
         design,
-    })
-    .map_err(|e| format!("the information could not be computed: {e}"))
+    };
+    let (l, i) = limit::limit_and_information(&input)
+        .map_err(|e| format!("the information could not be computed: {e}"))?;
+    let rate = (null_draws > 0)
+        .then(|| montecarlo::null_rejection_rate(&input, null_draws, 0x37_0002))
+        .transpose()
+        .map_err(|e| format!("the false-alarm rate could not be computed: {e}"))?;
+    Ok((l, i, rate))
+}
+
+/// What the information limit is computed from.
+#[derive(Clone, Copy)]
+struct LimitParts<'a> {
+    cal: &'a crate::Calibration,
+    cx: &'a locate::Context<'a>,
+    base: &'a BaseModel,
+    design: &'a Design,
+    used: &'a [usize],
+    block_s: f64,
+    ep: &'a Epochs,
 }
 
 /// Fixes that jump: the step residual far beyond the drive's own spread.

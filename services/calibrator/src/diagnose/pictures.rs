@@ -1143,6 +1143,7 @@ mod tests {
             information_limit: None,
             information_limit_missing: None,
             wald: Vec::new(),
+            null_false_alarm: None,
             information: None,
             fit: Fit {
                 before: metrics(3.2),
