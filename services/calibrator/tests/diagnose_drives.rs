@@ -160,3 +160,65 @@ fn the_wid_trials_together_list_the_car_and_agree_with_calibrate_on_the_antenna(
         "pooled {est} ± {sigma} m against calibrate's {x} ± {sx} m"
     );
 }
+
+#[test]
+fn the_command_diagnoses_a_folder_of_drives_with_json_text_and_pages() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let folder = dir.path().join("car");
+    for (i, seed) in [4, 5].into_iter().enumerate() {
+        drive_io::write_drive(
+            &drive(seed, VehicleKind::Van, Some(0.6)),
+            &folder.join(format!("drive-{i}")),
+        )
+        .expect("write");
+    }
+    let json = dir.path().join("car.json");
+    let plots = dir.path().join("plots");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .arg("diagnose")
+        .arg(&folder)
+        .arg("--json")
+        .arg(&json)
+        .arg("--plots")
+        .arg(&plots)
+        .arg("--no-progress")
+        .output()
+        .expect("run");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("the car over 2 drives"), "{stdout}");
+    assert!(
+        stdout.contains("drive-0") && stdout.contains("drive-1"),
+        "{stdout}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    assert_eq!(v["paths"].as_array().map(Vec::len), Some(2));
+    assert_eq!(v["drives"].as_array().map(Vec::len), Some(2));
+    let antenna = v["car"]["effects"]
+        .as_array()
+        .and_then(|a| a.iter().find(|e| e["effect"] == "gnss_lever_arm"))
+        .expect("the antenna in the car's table");
+    assert_eq!(antenna["verdict"], "found", "{antenna}");
+    let index = std::fs::read_to_string(plots.join("index.html")).expect("index");
+    assert!(index.contains("gnss_lever_arm") && index.contains("drive-1/index.html"));
+    assert!(plots.join("drive-1").join("index.html").is_file());
+    // A folder that holds no drive is refused with its name.
+    let empty = dir.path().join("empty");
+    std::fs::create_dir_all(&empty).expect("mkdir");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .arg("diagnose")
+        .arg(&empty)
+        .arg("--no-progress")
+        .output()
+        .expect("run");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("empty"),
+        "{stderr}"
+    );
+}
