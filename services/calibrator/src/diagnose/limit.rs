@@ -543,6 +543,9 @@ fn main_kick(effect: Effect) -> Kick {
 pub(super) struct Columns {
     heading: HeadingSource,
     effects: Vec<Effect>,
+    /// The effects this source tests: the first `owned` of `effects` (the
+    /// rest are fitted beside them, free).
+    owned: usize,
     pub(super) cols: Vec<Col>,
     first_effect: usize,
     /// The segment of each pose column (they follow the effects).
@@ -559,17 +562,29 @@ impl Columns {
         let total: usize = times.iter().map(Vec::len).sum();
         let src = Source::new(input, heading, times);
         let wheels = matches!(heading, HeadingSource::Wheels);
-        let effects: Vec<Effect> = Effect::ALL
+        let gyro = |e: &Effect| matches!(e, Effect::GyroBias | Effect::GyroScale);
+        let mut effects: Vec<Effect> = Effect::ALL
             .into_iter()
             .filter(|e| {
-                let gyro = matches!(e, Effect::GyroBias | Effect::GyroScale);
                 if wheels {
-                    !gyro && *e != Effect::HeadingBias
+                    !gyro(e) && *e != Effect::HeadingBias
                 } else {
-                    gyro
+                    gyro(e)
                 }
             })
             .collect();
+        let owned = effects.len();
+        // Under the gyro's heading the wheels' effects on the distance, the
+        // course and the antenna still move the positions: they are fitted
+        // beside the gyro's (free, not tested here: the wheels' heading
+        // tests them), else a side-slip would pass for a gyro scale.
+        if !wheels {
+            effects.extend(
+                Effect::ALL
+                    .into_iter()
+                    .filter(|e| !gyro(e) && !matches!(e, Effect::HeadingBias | Effect::TrackWidth)),
+            );
+        }
         let mut cols: Vec<Col> = vec![src.residual()];
         cols.push(src.fingerprint(Kick::Scale, 1e-4));
         // The left/right difference turns the wheels' heading; under the
@@ -597,6 +612,7 @@ impl Columns {
         Columns {
             heading,
             effects,
+            owned,
             cols,
             first_effect,
             pose_segment,
@@ -617,7 +633,7 @@ impl Columns {
         let first_pose = self.first_effect + n_eff;
         let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
         nuisances.extend(first_pose..first_pose + self.pose_segment.len());
-        self.effects
+        self.effects[..self.owned]
             .iter()
             .enumerate()
             .map(|(k, e)| {
@@ -662,7 +678,6 @@ impl Columns {
         }
         let w = whitened(times, noise, &self.cols)?;
         let gram = SegmentGram::new(&w, segment_sizes);
-        let n_eff = self.effects.len();
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
@@ -685,7 +700,7 @@ impl Columns {
         }
         // What the drive tells of the car: its effects of the day (the
         // gyro's bias, the warm-up) profiled out with the nuisances.
-        let car: Vec<usize> = (0..n_eff)
+        let car: Vec<usize> = (0..self.owned)
             .filter(|&k| self.effects[k].spec().scope == Scope::Car)
             .collect();
         let mut keep = vec![0];
