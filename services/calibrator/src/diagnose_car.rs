@@ -221,53 +221,10 @@ fn write_pages(dir: &Path, d: &DrivesDiagnosis, names: &[String]) -> Result<()> 
         links.push((sub, name.clone()));
     }
     let index = dir.join("index.html");
-    std::fs::write(&index, car_html(d, names, &links))
-        .with_context(|| format!("cannot write {}", index.display()))?;
+    let short_names: Vec<String> = names.iter().map(|n| short(n).to_string()).collect();
+    let html = calibrator::diagnose::pool_pictures::car_html(d, &short_names, &links)
+        .context("cannot draw the car's pictures")?;
+    std::fs::write(&index, html).with_context(|| format!("cannot write {}", index.display()))?;
     println!("wrote {}", index.display());
     Ok(())
-}
-
-/// The car's page: its table and a link per drive.
-fn car_html(d: &DrivesDiagnosis, names: &[String], links: &[(String, String)]) -> String {
-    let mut body = String::new();
-    let _ = writeln!(
-        body,
-        "<h1>The car over {} drives</h1>\n<p>Each drive diagnosed on its own (links below) \
-         and the car's effects (tyres, geometry, the sensors' mounting) pooled over all of \
-         them: each drive's terms of the day (circumference scale, gyro bias, warm-up, \
-         segment poses) profiled out, the information added up, Holm's procedure over the \
-         car's effects.</p>",
-        d.drives.len()
-    );
-    match &d.car {
-        Some(car) => {
-            let _ = writeln!(body, "<pre>");
-            for line in car_rows(car, d, names) {
-                let _ = writeln!(body, "{}", report::escape(&line));
-            }
-            let _ = writeln!(body, "</pre>");
-        }
-        None => {
-            let _ = writeln!(
-                body,
-                "<p>The car's effects: not known ({}).</p>",
-                report::escape(d.car_missing.as_deref().unwrap_or("no information"))
-            );
-        }
-    }
-    let _ = writeln!(body, "<h2>The drives</h2>\n<ul>");
-    for (sub, name) in links {
-        let _ = writeln!(
-            body,
-            "<li><a href=\"{}/index.html\">{}</a></li>",
-            report::escape(sub),
-            report::escape(name)
-        );
-    }
-    let _ = writeln!(body, "</ul>");
-    format!(
-        "<!doctype html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
-         <title>wheelcal: the car over {} drives</title></head><body>\n{body}</body></html>\n",
-        d.drives.len()
-    )
 }

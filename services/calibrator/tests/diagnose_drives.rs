@@ -206,6 +206,12 @@ fn the_command_diagnoses_a_folder_of_drives_with_json_text_and_pages() {
     assert_eq!(antenna["verdict"], "found", "{antenna}");
     let index = std::fs::read_to_string(plots.join("index.html")).expect("index");
     assert!(index.contains("gnss_lever_arm") && index.contains("drive-1/index.html"));
+    // A figure per car effect: each drive beside all of them together.
+    assert!(
+        index.matches("<svg").count() >= 7,
+        "{}",
+        index.matches("<svg").count()
+    );
     assert!(plots.join("drive-1").join("index.html").is_file());
     // A folder that holds no drive is refused with its name.
     let empty = dir.path().join("empty");

@@ -34,6 +34,7 @@ pub mod locate;
 pub mod montecarlo;
 pub mod pictures;
 pub mod pool;
+pub mod pool_pictures;
 pub mod select;
 
 use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
