@@ -111,6 +111,19 @@ pub enum Carried {
     DiagnosisOnly,
 }
 
+/// Whose an effect is: what several drives of one car share.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scope {
+    /// The car's: its tyres, geometry and sensors' mounting, the same on
+    /// every drive of the car (side-slip, load transfer, track, antenna,
+    /// latency, gyro scale, compass).
+    Car,
+    /// The drive's: a term of the day (the gyro's bias after power-up,
+    /// the tyres' warm-up, the road's grade).
+    Drive,
+}
+
 /// Everything about one parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ParamSpec {
@@ -161,6 +174,9 @@ pub struct EffectSpec {
     pub fitted: &'static [Param],
     /// How an estimate carries it.
     pub carried: Carried,
+    /// Whether it belongs to the car (the same on every drive) or to the
+    /// drive (a term of the day).
+    pub scope: Scope,
     /// The signal that gives it away, briefly.
     pub fingerprint: &'static str,
     /// What a drive needs to show it.
@@ -479,6 +495,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::SideSlipGain],
         fitted: &[Param::SideSlipGain],
         carried: Carried::Extension,
+        scope: Scope::Car,
         fingerprint: "course offset proportional to v w, outward of the turn",
         needs: "corners at several speeds (lateral acceleration of 2 m/s^2 or more)",
         partners: &[
@@ -498,6 +515,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::LoadTransferGain],
         fitted: &[Param::LoadTransferGain],
         carried: Carried::Extension,
+        scope: Scope::Car,
         fingerprint: "heading error growing with v^2 w",
         needs: "corners at several speeds",
         partners: &[(
@@ -514,6 +532,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::SpeedGrowthGain],
         fitted: &[Param::SpeedGrowthGain],
         carried: Carried::Extension,
+        scope: Scope::Car,
         fingerprint: "speed ratio growing with v^2, on straights too",
         needs: "driving at several speeds, up to 25 m/s or more",
         partners: &[
@@ -533,6 +552,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::LongitudinalSlipGain],
         fitted: &[Param::LongitudinalSlipGain],
         carried: Carried::Extension,
+        scope: Scope::Car,
         fingerprint: "speed ratio proportional to a_x",
         needs: "hard acceleration and braking",
         partners: &[(
@@ -549,6 +569,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::TrackRel],
         fitted: &[Param::TrackRel],
         carried: Carried::Extension,
+        scope: Scope::Car,
         fingerprint: "heading error proportional to the heading change",
         needs: "turns, a few hundred degrees of heading change",
         partners: &[(Effect::GyroScale, "full loops with GNSS course (absolute heading)")],
@@ -562,6 +583,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::GyroBias],
         fitted: &[Param::GyroBias],
         carried: Carried::EstimateField,
+        scope: Scope::Drive,
         fingerprint: "gyro heading drifting with time; rate at standstill",
         needs: "a standstill, or a long drive with GNSS course",
         partners: &[],
@@ -575,6 +597,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::GyroScale],
         fitted: &[Param::GyroScale],
         carried: Carried::EstimateField,
+        scope: Scope::Car,
         fingerprint: "gyro heading error proportional to the heading change",
         needs: "turns, a few hundred degrees of heading change",
         partners: &[],
@@ -588,6 +611,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::GnssLatency],
         fitted: &[Param::GnssLatency],
         carried: Carried::DiagnosisOnly,
+        scope: Scope::Car,
         fingerprint: "speed error ~ tau a_x and course lag ~ tau w at once",
         needs: "acceleration and braking, and corners",
         partners: &[(Effect::GnssLeverArm, SEPARATE_LATENCY)],
@@ -601,6 +625,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::LeverArmX, Param::LeverArmY],
         fitted: &[Param::LeverArmX, Param::LeverArmY],
         carried: Carried::Antenna,
+        scope: Scope::Car,
         fingerprint: "course offset ~ l_x w / v, speed ~ l_y w / v",
         needs: "corners at several speeds",
         partners: &[],
@@ -614,6 +639,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::DriftFraction, Param::DriftTimeConstant],
         fitted: &[Param::DriftFraction],
         carried: Carried::Extension,
+        scope: Scope::Drive,
         fingerprint: "speed ratio trending with time since the start",
         needs: "a drive of 20 minutes or more",
         partners: &[],
@@ -627,6 +653,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::GradeGain],
         fitted: &[Param::GradeGain],
         carried: Carried::DiagnosisOnly,
+        scope: Scope::Drive,
         fingerprint: "speed ratio following the squared IMU grade",
         needs: "slopes and a forward accelerometer",
         partners: &[],
@@ -646,6 +673,7 @@ pub const EFFECTS: [EffectSpec; 12] = [
         model: &[Param::HeadingA, Param::HeadingB, Param::HeadingC],
         fitted: &[Param::HeadingA, Param::HeadingB, Param::HeadingC],
         carried: Carried::DiagnosisOnly,
+        scope: Scope::Car,
         fingerprint: "heading residual periodic in heading",
         needs: "an absolute heading sensor and full heading coverage",
         partners: &[],

@@ -27,13 +27,13 @@ from collections import OrderedDict, defaultdict
 DEFAULT_CAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "target", "release", "calibrator")
 
 
-def run(cal, drive, rerun):
-    out = os.path.join(drive, "diagnosis.json")
-    tfile = os.path.join(drive, "diagnosis.time")
+def run(cal, drive, rerun, extra=(), tag=""):
+    out = os.path.join(drive, f"diagnosis{tag}.json")
+    tfile = os.path.join(drive, f"diagnosis{tag}.time")
     if os.path.exists(out) and os.path.exists(tfile) and not rerun:
         return json.load(open(out)), float(open(tfile).read())
     t0 = time.time()
-    p = subprocess.run(["nice", "-n", "10", cal, "diagnose", drive, "--json", out, "--no-progress"],
+    p = subprocess.run(["nice", "-n", "10", cal, "diagnose", drive, "--json", out, "--no-progress", *extra],
                        capture_output=True, text=True)
     dt = time.time() - t0
     if p.returncode != 0:
@@ -85,6 +85,8 @@ def main():
     ap.add_argument("out_dir")
     ap.add_argument("--calibrator", default=os.path.normpath(DEFAULT_CAL))
     ap.add_argument("--rerun", action="store_true")
+    ap.add_argument("--held-out-only", action="store_true",
+                    help="only the held-out test decides (diagnosis-held-out.json): the figures before Holm's Wald decision")
     a = ap.parse_args()
     manifest = json.load(open(os.path.join(a.out_dir, "manifest.json")))
     rows = OrderedDict()
@@ -97,7 +99,9 @@ def main():
     null_limit = []
     for case in manifest:
         drive = os.path.join(a.out_dir, case["drive"])
-        d, dt = run(a.calibrator, drive, a.rerun)
+        d, dt = run(a.calibrator, drive, a.rerun,
+                    ("--held-out-only",) if a.held_out_only else (),
+                    "-held-out" if a.held_out_only else "")
         if d is None:
             continue
         times.append(dt)

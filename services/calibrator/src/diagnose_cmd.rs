@@ -2,6 +2,7 @@
 //! what it found, write the JSON and the pictures with their index page.
 
 use anyhow::{Context, Result};
+use calibrator::diagnose::decide::WaldOutcome;
 use calibrator::diagnose::{
     diagnose_with_progress, pictures, DiagnoseConfig, DiagnoseStage, Diagnosis,
 };
@@ -14,8 +15,11 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
     /// Drive folder or MCAP recording (ours, compressed or not, or a ROS 2
-    /// bag with --vehicle).
-    pub drive: PathBuf,
+    /// bag with --vehicle). Several drives of one car (or one folder of
+    /// drive folders) are diagnosed each on its own and together: the
+    /// car's effects pooled over them.
+    #[arg(required = true, num_args = 1..)]
+    pub drives: Vec<PathBuf>,
     #[command(flatten)]
     pub input: crate::drive_input::DriveInput,
     /// Write the diagnosis JSON here.
@@ -30,6 +34,14 @@ pub struct DiagnoseArgs {
     /// No progress display.
     #[arg(long)]
     pub no_progress: bool,
+    /// Only the held-out test decides (without Holm's procedure on the
+    /// joint Wald statistics): for comparisons.
+    #[arg(long)]
+    pub held_out_only: bool,
+    /// Measure the Wald decision's false-alarm rate on N redraws of the
+    /// drive's GNSS errors from its own error model (`null_false_alarm`).
+    #[arg(long, default_value_t = 0)]
+    pub null_draws: usize,
     /// Read a damaged MCAP recording by leaving out each chunk whose records
     /// fail their CRC (a warning names each one) instead of refusing it.
     #[arg(long)]
@@ -40,24 +52,44 @@ pub struct DiagnoseArgs {
     pub allow_truncated: bool,
 }
 
-/// Run `calibrator diagnose`.
-pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
-    let loaded = drive_io::cli::accept_truncated(
-        args.input.read(&args.drive, args.skip_corrupt_chunks)?,
-        args.allow_truncated,
-    )
-    .with_context(|| format!("cannot read drive {}", args.drive.display()))?;
-    for w in &loaded.warnings {
-        tracing::warn!("{w}");
-    }
-    let drive = loaded.drive;
-    let cfg = DiagnoseConfig {
-        block_s: args.block,
-        ..DiagnoseConfig::default()
-    };
+/// The settings `args` ask for.
+pub fn config(args: &DiagnoseArgs) -> Result<DiagnoseConfig> {
     if let Some(b) = args.block {
         anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
     }
+    Ok(DiagnoseConfig {
+        block_s: args.block,
+        wald_decision: !args.held_out_only,
+        null_draws: args.null_draws,
+        ..DiagnoseConfig::default()
+    })
+}
+
+/// Read one drive as `args` say, with what reading it warned of.
+pub fn read_drive(args: &DiagnoseArgs, path: &Path) -> Result<drive_io::LoadedDrive> {
+    let loaded = drive_io::cli::accept_truncated(
+        args.input.read(path, args.skip_corrupt_chunks)?,
+        args.allow_truncated,
+    )
+    .with_context(|| format!("cannot read drive {}", path.display()))?;
+    for w in &loaded.warnings {
+        tracing::warn!("{w}");
+    }
+    Ok(loaded)
+}
+
+/// What reading a drive warned of, as the diagnosis's warnings.
+pub fn reading_warnings(loaded: &[String]) -> impl Iterator<Item = calibrator::Warning> + '_ {
+    loaded
+        .iter()
+        .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone()))
+}
+
+/// `calibrator diagnose DRIVE`: one drive.
+pub fn run_one(args: &DiagnoseArgs, path: &Path) -> Result<()> {
+    let loaded = read_drive(args, path)?;
+    let drive = loaded.drive;
+    let cfg = config(args)?;
     // A carriage-return progress line only on a terminal.
     let show =
         !args.no_progress && drive.wheel_duration_s() > 300.0 && std::io::stderr().is_terminal();
@@ -80,14 +112,9 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     if shown {
         eprintln!();
     }
-    let mut d = result.with_context(|| format!("cannot diagnose {}", args.drive.display()))?;
+    let mut d = result.with_context(|| format!("cannot diagnose {}", path.display()))?;
     // What reading the files said belongs with the result too.
-    d.warnings.extend(
-        loaded
-            .warnings
-            .iter()
-            .map(|w| calibrator::Warning::new(calibrator::WarningCode::Reading, w.clone())),
-    );
+    d.warnings.extend(reading_warnings(&loaded.warnings));
     print!("{}", render_text(&d));
     if let Some(path) = &args.json {
         let text = serde_json::to_string_pretty(&d).context("cannot encode the diagnosis")?;
@@ -101,7 +128,8 @@ pub fn run_diagnose(args: &DiagnoseArgs) -> Result<()> {
     Ok(())
 }
 
-fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
+/// The drive's pictures and their index page, into `dir`.
+pub fn write_pictures(dir: &Path, d: &Diagnosis) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let draw = "cannot draw the diagnosis's pictures";
     let mut pictures: Vec<(String, String)> = vec![
@@ -339,4 +367,40 @@ fn information_text(s: &mut String, d: &Diagnosis) {
         };
         let _ = writeln!(s, "  {}: {shows}{joint}{test}{alone}", e.effect);
     }
+    let called: Vec<String> = d
+        .wald
+        .iter()
+        .filter(|w| w.test.significant || w.outcome == WaldOutcome::Ambiguous)
+        .map(|w| {
+            format!(
+                "{} z {:+.1} against {:.1}: {}",
+                w.test.effect,
+                w.test.z,
+                w.test.z_critical,
+                w.outcome.describe()
+            )
+        })
+        .collect();
+    if let Some(r) = &d.null_false_alarm {
+        let _ = writeln!(
+            s,
+            "false alarms on {} redraws of this drive's GNSS errors from its own error model: {} \
+             ({:.1} % against the nominal {:.0} %, binomial sigma {:.1} %)",
+            r.draws,
+            r.rejections,
+            100.0 * r.rate,
+            100.0 * r.family_alpha,
+            100.0 * r.sigma
+        );
+    }
+    let _ = writeln!(
+        s,
+        "Holm's procedure on the joint Wald z (family-wise {:.0} %): {}",
+        100.0 * l.family_alpha,
+        if called.is_empty() {
+            "no effect significant".to_string()
+        } else {
+            called.join("; ")
+        }
+    );
 }

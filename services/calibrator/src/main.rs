@@ -4,7 +4,9 @@
 //! Each subcommand is one variant of [`Command`] dispatching to one function:
 //! - [`calibrate_cmd`]: `calibrate`, read a drive, print the report, write the JSON and
 //!   the pictures;
-//! - [`diagnose_cmd`]: `diagnose`, read a drive, print the findings, write
+//! - [`diagnose_car`]: `diagnose`, one drive or several of one car (the
+//!   car's effects pooled over them, a page linking each drive's);
+//! - [`diagnose_cmd`]: `diagnose` of one drive, print the findings, write
 //!   the JSON, the pictures and their index page;
 //! - [`info_cmd`]: `info`, the drive summary with the clock offsets, the
 //!   GNSS jumps and the fit quality the calibration finds;
@@ -13,6 +15,7 @@
 //! - [`serve`]: the live loop over the bus, with its state file.
 
 mod calibrate_cmd;
+mod diagnose_car;
 mod diagnose_cmd;
 mod drive_input;
 mod info_cmd;
@@ -54,7 +57,7 @@ fn main() -> Result<()> {
     interfaces::logging::init();
     match cli.command {
         Command::Calibrate(args) => calibrate_cmd::run_calibrate(&args),
-        Command::Diagnose(args) => diagnose_cmd::run_diagnose(&args),
+        Command::Diagnose(args) => diagnose_car::run_diagnose(&args),
         Command::Info(args) => info_cmd::run_info(&args),
         Command::Serve(args) => serve_cmd::run_serve(&args),
     }

@@ -111,3 +111,31 @@ fn on_drives_with_nothing_left_out_no_effect_passes_the_family_level() {
         "{drives_with_a_discovery:?}"
     );
 }
+
+#[test]
+fn the_wald_decision_holds_its_level_on_redraws_of_a_null_drive() {
+    // Issue 37, item 2: the drive's GNSS errors redrawn from its own
+    // fitted error model, the recorded (quantised) inputs kept, the
+    // decision run on each redraw: the share with any effect called stays
+    // at or below the nominal 5 % (allowing 2.5 binomial sigmas).
+    let drive = drive_with(None, 11, VehicleKind::Saloon);
+    let cfg = DiagnoseConfig {
+        null_draws: 300,
+        ..DiagnoseConfig::default()
+    };
+    let d = diagnose(&drive, &cfg).expect("diagnose");
+    let r = d.null_false_alarm.expect("the redraws ran");
+    assert_eq!(r.draws, 300);
+    assert!(
+        r.rate <= r.family_alpha + 2.5 * r.sigma,
+        "false-alarm rate {} on {} redraws ({:?})",
+        r.rate,
+        r.draws,
+        r.per_effect
+    );
+    let called: usize = r.per_effect.values().sum();
+    assert!(called >= r.rejections, "{r:?}");
+    // Without asking, none is computed.
+    let plain = diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose");
+    assert!(plain.null_false_alarm.is_none());
+}

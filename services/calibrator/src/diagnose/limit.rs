@@ -26,7 +26,7 @@ use super::design::{Channel, Design};
 use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
 use crate::error_model::{nnls2, variogram, Normal};
-use interfaces::effects::{Effect, Param};
+use interfaces::effects::{Effect, Param, Scope};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -130,10 +130,54 @@ pub struct Joint {
     /// `estimate / sigma`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wald_z: Option<f64>,
+    /// Where the effect alone is beyond the critical z and is not with
+    /// every other effect free: the effects beside which (each alone) it
+    /// no longer is, those the drive cannot tell it from.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub partners: Vec<Partner>,
+}
+
+/// An effect the drive cannot tell another from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Partner {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// By how much fitting it alongside inflates the other's variance.
+    pub vif: f64,
+}
+
+/// The effects (`others`: each with its column) beside which the first of
+/// `base`, beyond `z_critical` alone (`alone`), no longer is, with the
+/// variance inflation each causes, largest first; empty when it is not
+/// beyond alone.
+pub(super) fn partners_of(
+    gram: &SegmentGram,
+    base: &[usize],
+    alone: &CoefFit,
+    others: &[(Effect, usize)],
+    z_critical: f64,
+) -> Vec<Partner> {
+    if (alone.estimate / alone.sigma()).abs() <= z_critical {
+        return Vec::new();
+    }
+    let mut out: Vec<Partner> = others
+        .iter()
+        .filter_map(|&(effect, c)| {
+            let mut cols = base.to_vec();
+            cols.push(c);
+            let f = gram.fit(&cols)?;
+            ((f.estimate / f.sigma()).abs() <= z_critical).then(|| Partner {
+                effect,
+                vif: (f.sigma() / alone.sigma()).powi(2),
+            })
+        })
+        .collect();
+    out.sort_by(|a, b| b.vif.total_cmp(&a.vif));
+    out
 }
 
 impl Joint {
-    fn of(effect: Effect, fit: CoefFit, z_critical: f64) -> Joint {
+    pub(super) fn of(effect: Effect, fit: CoefFit, z_critical: f64) -> Joint {
         let l = limit_of(
             effect,
             Some(fit),
@@ -147,6 +191,7 @@ impl Joint {
             sigma_fisher: l.sigma_fisher,
             sigma_segments: l.sigma_segments,
             wald_z: l.wald_z,
+            partners: Vec::new(),
         }
     }
 }
@@ -416,7 +461,7 @@ fn pick(
 
 /// The fix times every perturbation sees: those of the segment's span
 /// [t0, t1) that the plain model and the latency's steps all reach.
-fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
+pub(super) fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
     input
         .spans
         .iter()
@@ -447,7 +492,7 @@ fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
 
 /// Whiten stacked columns per axis (east with `noise[0]`, north with
 /// `noise[1]`) and flatten: east values, then north values.
-fn whitened(
+pub(super) fn whitened(
     times: &[f64],
     noise: &[PositionNoise; 2],
     cols: &[Col],
@@ -495,10 +540,13 @@ fn main_kick(effect: Effect) -> Kick {
 /// circumferences' scale (and left/right difference under the wheels'
 /// heading), its effects' fingerprints, the segments' poses (and the gyro's
 /// bias under the gyro's heading).
-struct Columns {
+pub(super) struct Columns {
     heading: HeadingSource,
     effects: Vec<Effect>,
-    cols: Vec<Col>,
+    /// The effects this source tests: the first `owned` of `effects` (the
+    /// rest are fitted beside them, free).
+    owned: usize,
+    pub(super) cols: Vec<Col>,
     first_effect: usize,
     /// The segment of each pose column (they follow the effects).
     pose_segment: Vec<usize>,
@@ -506,21 +554,37 @@ struct Columns {
 }
 
 impl Columns {
-    fn build(input: &LimitInput<'_>, heading: HeadingSource, times: &[Vec<f64>]) -> Columns {
+    pub(super) fn build(
+        input: &LimitInput<'_>,
+        heading: HeadingSource,
+        times: &[Vec<f64>],
+    ) -> Columns {
         let total: usize = times.iter().map(Vec::len).sum();
         let src = Source::new(input, heading, times);
         let wheels = matches!(heading, HeadingSource::Wheels);
-        let effects: Vec<Effect> = Effect::ALL
+        let gyro = |e: &Effect| matches!(e, Effect::GyroBias | Effect::GyroScale);
+        let mut effects: Vec<Effect> = Effect::ALL
             .into_iter()
             .filter(|e| {
-                let gyro = matches!(e, Effect::GyroBias | Effect::GyroScale);
                 if wheels {
-                    !gyro && *e != Effect::HeadingBias
+                    !gyro(e) && *e != Effect::HeadingBias
                 } else {
-                    gyro
+                    gyro(e)
                 }
             })
             .collect();
+        let owned = effects.len();
+        // Under the gyro's heading the wheels' effects on the distance, the
+        // course and the antenna still move the positions: they are fitted
+        // beside the gyro's (free, not tested here: the wheels' heading
+        // tests them), else a side-slip would pass for a gyro scale.
+        if !wheels {
+            effects.extend(
+                Effect::ALL
+                    .into_iter()
+                    .filter(|e| !gyro(e) && !matches!(e, Effect::HeadingBias | Effect::TrackWidth)),
+            );
+        }
         let mut cols: Vec<Col> = vec![src.residual()];
         cols.push(src.fingerprint(Kick::Scale, 1e-4));
         // The left/right difference turns the wheels' heading; under the
@@ -548,11 +612,51 @@ impl Columns {
         Columns {
             heading,
             effects,
+            owned,
             cols,
             first_effect,
             pose_segment,
             gyro_bias: !wheels,
         }
+    }
+
+    /// Per effect: the columns of its fit with every other effect of the
+    /// source free (the effect first, then its nuisances, then the other
+    /// effects the drive holds information about), and how many of them
+    /// make its fit alone.
+    pub(super) fn column_sets(
+        &self,
+        w: &[Vec<f64>],
+        gram: &SegmentGram,
+    ) -> Vec<(Effect, Vec<usize>, usize)> {
+        let n_eff = self.effects.len();
+        let first_pose = self.first_effect + n_eff;
+        let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
+        nuisances.extend(first_pose..first_pose + self.pose_segment.len());
+        self.effects[..self.owned]
+            .iter()
+            .enumerate()
+            .map(|(k, e)| {
+                let target = self.first_effect + k;
+                let mut cols = vec![target];
+                cols.extend(&nuisances);
+                if *e == Effect::GyroScale && self.gyro_bias {
+                    cols.push(w.len() - 1);
+                }
+                let n_alone = cols.len();
+                // Every other effect of this source free as well (those the
+                // drive holds no information about left out: they are
+                // singular).
+                for j in self.first_effect..first_pose {
+                    let duplicate =
+                        self.gyro_bias && w[j] == w[w.len() - 1] && cols.contains(&(w.len() - 1));
+                    if j != target && !duplicate && gram.total[(j, j)] > 0.0 {
+                        cols.push(j);
+                    }
+                }
+                (*e, cols, n_alone)
+            })
+            .collect()
     }
 
     /// The effects' limits under `noise`: each effect alone with the
@@ -566,7 +670,7 @@ impl Columns {
         segment_sizes: &[usize],
         noise: &[PositionNoise; 2],
         z_critical: f64,
-    ) -> Result<Vec<EffectLimit>, InformationError> {
+    ) -> Result<(Vec<EffectLimit>, SourceGram), InformationError> {
         if self.cols.iter().any(|c| c.len() != times.len()) {
             return Err(InformationError::BadData(
                 "the segments' fixes and fingerprints disagree in number".into(),
@@ -574,53 +678,54 @@ impl Columns {
         }
         let w = whitened(times, noise, &self.cols)?;
         let gram = SegmentGram::new(&w, segment_sizes);
-        let n_eff = self.effects.len();
-        let first_pose = self.first_effect + n_eff;
-        let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
-        nuisances.extend(first_pose..first_pose + self.pose_segment.len());
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
         };
         let mut out = Vec::new();
-        for (k, e) in self.effects.iter().enumerate() {
-            let target = self.first_effect + k;
-            let mut cols = vec![target];
-            cols.extend(&nuisances);
-            if *e == Effect::GyroScale && self.gyro_bias {
-                cols.push(w.len() - 1);
-            }
-            let alone = gram.fit(&cols);
-            // Every other effect of this source free as well (those the
-            // drive holds no information about left out: they are singular).
-            for j in self.first_effect..first_pose {
-                let duplicate =
-                    self.gyro_bias && w[j] == w[w.len() - 1] && cols.contains(&(w.len() - 1));
-                if j != target && !duplicate && gram.total[(j, j)] > 0.0 {
-                    cols.push(j);
-                }
-            }
+        for (e, cols, n_alone) in self.column_sets(&w, &gram) {
+            let alone = gram.fit(&cols[..n_alone]);
             let joint = gram.fit(&cols);
-            let mut l = limit_of(*e, alone, z_critical, source);
-            l.joint = joint.map(|fit| Joint::of(*e, fit, z_critical));
+            let mut l = limit_of(e, alone, z_critical, source);
+            l.joint = joint.map(|fit| Joint::of(e, fit, z_critical));
+            if let (Some(a), Some(j)) = (alone, l.joint.as_mut()) {
+                let base: Vec<usize> = cols[..n_alone].to_vec();
+                let others: Vec<(Effect, usize)> = cols[n_alone..]
+                    .iter()
+                    .map(|&c| (self.effects[c - self.first_effect], c))
+                    .collect();
+                j.partners = partners_of(&gram, &base, &a, &others, z_critical);
+            }
             out.push(l);
         }
-        Ok(out)
+        // What the drive tells of the car: its effects of the day (the
+        // gyro's bias, the warm-up) profiled out with the nuisances.
+        let car: Vec<usize> = (0..self.owned)
+            .filter(|&k| self.effects[k].spec().scope == Scope::Car)
+            .collect();
+        let mut keep = vec![0];
+        keep.extend(car.iter().map(|k| self.first_effect + k));
+        let gram = SourceGram {
+            source,
+            effects: car.iter().map(|&k| self.effects[k]).collect(),
+            gram: gram.profiled(&keep),
+        };
+        Ok((out, gram))
     }
 }
 
 /// A model's fit of one coefficient: its estimate, its Fisher sigma and the
 /// segments' scatter's (model units).
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct CoefFit {
-    estimate: f64,
-    sigma_fisher: f64,
-    sigma_segments: Option<f64>,
+pub(super) struct CoefFit {
+    pub(super) estimate: f64,
+    pub(super) sigma_fisher: f64,
+    pub(super) sigma_segments: Option<f64>,
 }
 
 impl CoefFit {
     /// The honest sigma: the larger of the two.
-    fn sigma(&self) -> f64 {
+    pub(super) fn sigma(&self) -> f64 {
         self.sigma_fisher.max(self.sigma_segments.unwrap_or(0.0))
     }
 }
@@ -628,13 +733,14 @@ impl CoefFit {
 /// The Gram matrix of whitened columns (the data first), per segment and
 /// in total: every sub-model's least squares and its sandwich over
 /// segments come from it without touching the rows again.
-struct SegmentGram {
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct SegmentGram {
     per_segment: Vec<DMatrix<f64>>,
     total: DMatrix<f64>,
 }
 
 impl SegmentGram {
-    fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
+    pub(super) fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
         let m = w.len();
         let n: usize = segment_sizes.iter().sum();
         let mut per_segment = vec![DMatrix::zeros(m, m); segment_sizes.len()];
@@ -673,7 +779,7 @@ impl SegmentGram {
     /// it: the cluster-robust (sandwich) variance over segments,
     /// `k / (k - 1) sum_s (v' g_s)^2` with `v` the first row of the
     /// inverse normal matrix and `g_s` the segment's score at the fit.
-    fn fit(&self, cols: &[usize]) -> Option<CoefFit> {
+    pub(super) fn fit(&self, cols: &[usize]) -> Option<CoefFit> {
         let a = DMatrix::from_fn(cols.len(), cols.len(), |i, j| {
             self.total[(cols[i], cols[j])]
         });
@@ -715,13 +821,184 @@ impl SegmentGram {
     }
 }
 
+impl SegmentGram {
+    /// The Gram of the columns `keep` (the data column 0 first), every
+    /// other column profiled out over the whole drive (Frisch-Waugh: each
+    /// segment's rows of `keep` less their fit on the others), in the order
+    /// of `keep`. Columns without information are left out of the fit.
+    pub(super) fn profiled(&self, keep: &[usize]) -> SegmentGram {
+        let m = self.total.nrows();
+        let others: Vec<usize> = (0..m)
+            .filter(|c| !keep.contains(c) && self.total[(*c, *c)] > 0.0)
+            .collect();
+        let (k, o) = (keep.len(), others.len());
+        // T maps the kept columns to their residuals on the others.
+        let mut t = DMatrix::zeros(m, k);
+        for (j, &c) in keep.iter().enumerate() {
+            t[(c, j)] = 1.0;
+        }
+        if o > 0 {
+            let g_oo = DMatrix::from_fn(o, o, |i, j| self.total[(others[i], others[j])]);
+            let g_ok = DMatrix::from_fn(o, k, |i, j| self.total[(others[i], keep[j])]);
+            let scale = (0..o).map(|i| g_oo[(i, i)]).fold(0.0, f64::max);
+            if let Ok(inv) = g_oo.pseudo_inverse(1e-12 * scale) {
+                let a = inv * g_ok;
+                for (i, &c) in others.iter().enumerate() {
+                    for j in 0..k {
+                        t[(c, j)] = -a[(i, j)];
+                    }
+                }
+            }
+        }
+        let per_segment: Vec<DMatrix<f64>> = self
+            .per_segment
+            .iter()
+            .map(|g| t.transpose() * g * &t)
+            .collect();
+        let mut total = DMatrix::zeros(k, k);
+        for g in &per_segment {
+            total += g;
+        }
+        SegmentGram { per_segment, total }
+    }
+
+    /// Several drives' Grams of the same columns as one: their segments
+    /// side by side, their information summed.
+    pub(super) fn pooled<'g>(
+        grams: impl IntoIterator<Item = &'g SegmentGram>,
+    ) -> Option<SegmentGram> {
+        let mut out: Option<SegmentGram> = None;
+        for g in grams {
+            match &mut out {
+                None => out = Some(g.clone()),
+                Some(o) if o.total.shape() == g.total.shape() => {
+                    o.total += &g.total;
+                    o.per_segment.extend(g.per_segment.iter().cloned());
+                }
+                Some(_) => return None,
+            }
+        }
+        out
+    }
+
+    /// The Gram of columns (the data first) whose rows belong to the
+    /// segments `segment_of_row` (each below `segments`); segments without
+    /// rows are left out.
+    fn from_rows(cols: &[Vec<f64>], segment_of_row: &[usize], segments: usize) -> SegmentGram {
+        let m = cols.len();
+        let mut per_segment = vec![DMatrix::zeros(m, m); segments];
+        let mut seen = vec![false; segments];
+        for (r, &seg) in segment_of_row.iter().enumerate() {
+            let Some(g) = per_segment.get_mut(seg) else {
+                continue;
+            };
+            seen[seg] = true;
+            for a in 0..m {
+                for b in 0..m {
+                    g[(a, b)] += cols[a][r] * cols[b][r];
+                }
+            }
+        }
+        let per_segment: Vec<DMatrix<f64>> = per_segment
+            .into_iter()
+            .zip(seen)
+            .filter_map(|(g, s)| s.then_some(g))
+            .collect();
+        let mut total = DMatrix::zeros(m, m);
+        for g in &per_segment {
+            total += g;
+        }
+        SegmentGram { per_segment, total }
+    }
+
+    /// The same Gram with another data column `w0` (whitened, rows as
+    /// [`SegmentGram::new`]'s) in place of column 0 of `w`.
+    pub(super) fn with_data(
+        &self,
+        w0: &[f64],
+        w: &[Vec<f64>],
+        segment_sizes: &[usize],
+    ) -> SegmentGram {
+        let m = w.len();
+        let mut per_segment = self.per_segment.clone();
+        let mut row = 0;
+        for _axis in 0..2 {
+            for (seg, size) in segment_sizes.iter().enumerate() {
+                let rows = row..row + size;
+                let d = &w0[rows.clone()];
+                let g = &mut per_segment[seg];
+                if row < segment_sizes.iter().sum::<usize>() {
+                    // The first axis resets the data row, the second adds.
+                    for b in 0..m {
+                        g[(0, b)] = 0.0;
+                    }
+                }
+                for b in 1..m {
+                    g[(0, b)] += d
+                        .iter()
+                        .zip(&w[b][rows.clone()])
+                        .map(|(x, y)| x * y)
+                        .sum::<f64>();
+                }
+                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
+                row += size;
+            }
+        }
+        let mut total = DMatrix::zeros(m, m);
+        for g in &mut per_segment {
+            for b in 1..m {
+                g[(b, 0)] = g[(0, b)];
+            }
+            total += &*g;
+        }
+        SegmentGram { per_segment, total }
+    }
+
+    /// Segments.
+    pub(super) fn segments(&self) -> usize {
+        self.per_segment.len()
+    }
+
+    /// The information of column `c` with nothing else fitted.
+    pub(super) fn information(&self, c: usize) -> f64 {
+        self.total[(c, c)]
+    }
+}
+
+/// What one drive tells of the car's effects of one information source:
+/// the data column first, then the effects, the drive's own nuisances and
+/// effects of the day profiled out.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct SourceGram {
+    pub(super) source: InformationSource,
+    pub(super) effects: Vec<Effect>,
+    pub(super) gram: SegmentGram,
+}
+
+/// What a drive tells of its car, for pooling with other drives of it
+/// ([`super::pool`]): per source, the car's effects with the drive's own
+/// terms profiled out; the heading sensor's bias from its channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DriveInformation {
+    pub(super) grams: Vec<SourceGram>,
+    pub(super) heading: Option<CoefFit>,
+}
+
 /// The finite-difference step of a parameter: 5 % of its typical size.
-fn step_of(p: Param) -> f64 {
+pub(super) fn step_of(p: Param) -> f64 {
     0.05 * p.spec().typical.abs().max(1e-9)
 }
 
 /// The information limit of every effect on this drive.
 pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, InformationError> {
+    limit_and_information(input).map(|(l, _)| l)
+}
+
+/// [`information_limit`], with what the drive tells of the car's effects
+/// for pooling it with other drives of the same car ([`super::pool`]).
+pub fn limit_and_information(
+    input: &LimitInput<'_>,
+) -> Result<(InformationLimit, DriveInformation), InformationError> {
     let alpha = FAMILY_ALPHA / Effect::ALL.len() as f64;
     let times = common_times(input, step_of(Param::GnssLatency));
     let all_t: Vec<f64> = times.iter().flatten().copied().collect();
@@ -738,6 +1015,7 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
     );
     let mut limits = BTreeMap::new();
     let mut noises = Vec::new();
+    let mut grams = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
         let src = Columns::build(input, heading, &times);
         // The calibration's error model was fitted to the plain model's
@@ -751,24 +1029,27 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
                     .into(),
             )
         })?;
-        for l in src.limits(&all_t, &segment_sizes, &noise, z_critical)? {
+        let (ls, gram) = src.limits(&all_t, &segment_sizes, &noise, z_critical)?;
+        for l in ls {
             limits.insert(l.effect, l);
         }
+        grams.push(gram);
         noises.push((noise, refit.is_some()));
     }
     let (noise, refitted) = noises[0];
     // Without a heading sensor the drive holds nothing about its bias.
+    let heading = heading_channel(input.design);
     limits.insert(
         Effect::HeadingBias,
         limit_of(
             Effect::HeadingBias,
-            heading_channel(input.design),
+            heading,
             z_critical,
             InformationSource::HeadingChannel,
         ),
     );
     let arr = |n: &PositionNoise| [n.white_sigma_m, n.gm_sigma_m, n.gm_tau_s];
-    Ok(InformationLimit {
+    let limit = InformationLimit {
         family_alpha: FAMILY_ALPHA,
         alpha_per_effect: alpha,
         power: POWER,
@@ -786,7 +1067,8 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
             .iter()
             .filter_map(|e| limits.remove(e))
             .collect(),
-    })
+    };
+    Ok((limit, DriveInformation { grams, heading }))
 }
 
 /// Realisations of simulated errors per candidate model.
@@ -804,7 +1086,7 @@ const REALISATIONS: usize = 4;
 /// The segments' poses are local to their segment, so they are projected
 /// out segment by segment (three columns each) and only the few global
 /// columns go through a QR decomposition: linear in the drive's length.
-fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
+pub(super) fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
     let fit = JointFit::new(times, src)?;
     let n = fit.n;
     let mut gaps: Vec<f64> = times
@@ -865,7 +1147,7 @@ fn stacked(c: &Col, i: usize, n: usize) -> f64 {
 
 /// Unit Gauss-Markov errors of correlation time `tau` at the times
 /// `all_t`, east then north (`n` each).
-fn gauss_markov(rng: &mut Normal, all_t: &[f64], n: usize, tau: f64) -> DVector<f64> {
+pub(super) fn gauss_markov(rng: &mut Normal, all_t: &[f64], n: usize, tau: f64) -> DVector<f64> {
     let mut v = DVector::zeros(2 * n);
     for axis in 0..2 {
         let mut x = rng.next();
@@ -998,7 +1280,7 @@ impl<'a> JointFit<'a> {
 
 /// The limit of one effect from its profiled information and estimate
 /// (model units).
-fn limit_of(
+pub(super) fn limit_of(
     effect: Effect,
     fit: Option<CoefFit>,
     z_critical: f64,
@@ -1069,10 +1351,19 @@ fn heading_channel(d: &Design) -> Option<CoefFit> {
     let rho = lag1(&resid).clamp(0.0, 0.99);
     let factor = (1.0 - rho) / (1.0 + rho);
     let info = info * factor;
+    // The blocks' own scatter of the estimate: a heading residual that
+    // wanders slower than one lag (a mean side-slip in the corners of one
+    // stretch) shows there and not in the lag-1 correlation.
+    let mut cols = vec![y, target];
+    cols.extend(nuisances);
+    let block: Vec<usize> = rows.iter().map(|&i| d.rows[i].2).collect();
+    let sigma_segments = SegmentGram::from_rows(&cols, &block, d.blocks)
+        .fit(&(1..cols.len()).collect::<Vec<_>>())
+        .and_then(|f| f.sigma_segments);
     (info > 0.0).then(|| CoefFit {
         estimate,
         sigma_fisher: info.powf(-0.5),
-        sigma_segments: None,
+        sigma_segments,
     })
 }
 

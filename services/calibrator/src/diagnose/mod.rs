@@ -25,12 +25,16 @@
 //! scatter, each channel's noise from its own differences, significance from
 //! the spread over blocks.
 
+pub mod decide;
 pub mod design;
 pub mod epochs;
 pub mod information;
 pub mod limit;
 pub mod locate;
+pub mod montecarlo;
 pub mod pictures;
+pub mod pool;
+pub mod pool_pictures;
 pub mod select;
 
 use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
@@ -56,6 +60,14 @@ pub struct DiagnoseConfig {
     pub standstill_speed_m_s: f64,
     /// Course and speed residuals are used above this speed, m/s.
     pub min_speed_m_s: f64,
+    /// Whether Holm's procedure on the joint Wald statistics may add
+    /// effects to the held-out test's ([`decide`]); off, only the held-out
+    /// test decides (for comparisons).
+    pub wald_decision: bool,
+    /// Redraws of the drive's GNSS errors from its own error model on
+    /// which the Wald decision's false-alarm rate is measured
+    /// ([`montecarlo`]); 0: none.
+    pub null_draws: usize,
 }
 
 impl Default for DiagnoseConfig {
@@ -64,6 +76,8 @@ impl Default for DiagnoseConfig {
             block_s: None,
             standstill_speed_m_s: 0.05,
             min_speed_m_s: 2.0,
+            wald_decision: true,
+            null_draws: 0,
         }
     }
 }
@@ -95,6 +109,99 @@ pub enum DiagnoseError {
     /// Too little data to decide anything.
     #[error("the drive is too short to diagnose: {0}")]
     TooShort(String),
+    /// One of several drives could not be diagnosed.
+    #[error("drive {} of {}: {source}", .index + 1, .of)]
+    Drive {
+        /// Its index among the drives given (0-based).
+        index: usize,
+        /// Drives given.
+        of: usize,
+        /// Why.
+        source: Box<DiagnoseError>,
+    },
+}
+
+/// Several drives of one car diagnosed each on its own and together.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DrivesDiagnosis {
+    /// Each drive's own diagnosis, in the order given.
+    pub drives: Vec<Diagnosis>,
+    /// The car's effects over every drive ([`pool`]): estimates, sigmas,
+    /// the smallest sizes the drives together show, Holm's procedure, and
+    /// each drive's share of the information.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub car: Option<pool::PooledLimit>,
+    /// Why `car` is missing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub car_missing: Option<String>,
+    /// The drives in `car` (indices into `drives`), in the order of its
+    /// information shares.
+    pub pooled: Vec<usize>,
+    /// Drives left out of `car` (they hold no information limit), with
+    /// the reason; their own diagnoses are in `drives`.
+    pub left_out: Vec<String>,
+}
+
+/// Several drives of one car: each diagnosed on its own, the car's effects
+/// over all of them together. A drive that cannot be diagnosed stops it
+/// with the reason and the drive's index.
+pub fn diagnose_drives(
+    drives: &[Drive],
+    cfg: &DiagnoseConfig,
+) -> Result<DrivesDiagnosis, DiagnoseError> {
+    let of = drives.len();
+    let each = drives
+        .iter()
+        .enumerate()
+        .map(|(index, d)| {
+            diagnose(d, cfg).map_err(|e| DiagnoseError::Drive {
+                index,
+                of,
+                source: Box::new(e),
+            })
+        })
+        .collect::<Result<Vec<Diagnosis>, DiagnoseError>>()?;
+    let missing: Vec<String> = each
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.information.is_none())
+        .map(|(i, d)| {
+            format!(
+                "drive {}: {}",
+                i + 1,
+                d.information_limit_missing
+                    .as_deref()
+                    .unwrap_or("no information")
+            )
+        })
+        .collect();
+    let infos: Vec<&limit::DriveInformation> =
+        each.iter().filter_map(|d| d.information.as_ref()).collect();
+    let pooled: Vec<usize> = each
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.information.is_some())
+        .map(|(i, _)| i)
+        .collect();
+    let (car, car_missing) = match pool::pool(&infos) {
+        Some(mut p) => {
+            let walds: Vec<&[decide::WaldDecision]> =
+                pooled.iter().map(|&i| each[i].wald.as_slice()).collect();
+            pool::guard(&mut p, &walds);
+            (Some(p), None)
+        }
+        None => (
+            None,
+            Some("the drives hold no information about the car's effects".to_string()),
+        ),
+    };
+    Ok(DrivesDiagnosis {
+        drives: each,
+        car,
+        car_missing,
+        pooled,
+        left_out: missing,
+    })
 }
 
 /// An accepted effect.
@@ -120,6 +227,12 @@ pub struct Finding {
     pub holdout_channel_gain: f64,
     /// Wilcoxon signed-rank z of that gain over the blocks.
     pub holdout_gain_z: f64,
+    /// Which test let it in.
+    pub decided_by: DecidedBy,
+    /// Its Wald z from the information limit (joint where there is one),
+    /// whichever test let it in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wald_z: Option<f64>,
     /// Why it is believed, in words.
     pub evidence: String,
 }
@@ -135,6 +248,17 @@ impl Finding {
     pub fn sigma(&self, param: Param) -> Option<f64> {
         self.sigmas.get(param.spec().name).copied()
     }
+}
+
+/// Which test let a finding in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DecidedBy {
+    /// The held-out test: a lower held-out error on most blocks.
+    HeldOut,
+    /// Holm's procedure on the joint Wald statistics of the positions
+    /// under their own error model, with the held-out guard.
+    Wald,
 }
 
 /// Effects this drive cannot tell apart.
@@ -392,6 +516,18 @@ pub struct Diagnosis {
     /// Why there is no information limit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub information_limit_missing: Option<String>,
+    /// Every effect's Wald test in Holm's order and what became of it
+    /// (empty without an information limit).
+    pub wald: Vec<decide::WaldDecision>,
+    /// The Wald decision's false-alarm rate on redraws of this drive's
+    /// GNSS errors from its own error model, when asked for
+    /// ([`DiagnoseConfig::null_draws`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub null_false_alarm: Option<montecarlo::NullRate>,
+    /// What the drive tells of its car's effects, for pooling with other
+    /// drives of the car ([`diagnose_drives`]); not written out.
+    #[serde(skip)]
+    pub information: Option<limit::DriveInformation>,
     /// What the plain model's calibration warned of (values set aside, a
     /// dead sensor, ...): the diagnosis reads the drive as it did.
     #[serde(default)]
@@ -511,12 +647,40 @@ pub fn diagnose_with_progress(
         )));
     }
     progress(DiagnoseStage::Select, 0.4);
-    let (information_limit, information_limit_missing) =
-        match drive_limit(&cal, &cx, &base, &design, &used, block_s, &ep) {
-            Ok(l) => (Some(l), None),
-            Err(why) => (None, Some(why)),
+    let limit_input = LimitParts {
+        cal: &cal,
+        cx: &cx,
+        base: &base,
+        design: &design,
+        used: &used,
+        block_s,
+        ep: &ep,
+    };
+    let (information_limit, information, information_limit_missing) =
+        match drive_limit(&limit_input, 0) {
+            Ok((l, i, _)) => (Some(l), Some(i), None),
+            Err(why) => (None, None, Some(why)),
         };
-    let sel = forward_select(&design, &stats);
+    let null_false_alarm = if cfg.null_draws > 0 {
+        drive_limit(&limit_input, cfg.null_draws)
+            .ok()
+            .and_then(|(_, _, rate)| rate)
+    } else {
+        None
+    };
+    let mut sel = forward_select(&design, &stats);
+    let wald_tests = information_limit
+        .as_ref()
+        .map(decide::holm)
+        .unwrap_or_default();
+    let wald = match (&information_limit, cfg.wald_decision) {
+        (Some(limit), true) => decide::apply(&design, &stats, &mut sel, &wald_tests, limit),
+        // Reported (for the guard over several drives), not applied.
+        (Some(limit), false) => {
+            decide::apply(&design, &stats, &mut sel.clone(), &wald_tests, limit)
+        }
+        (None, _) => Vec::new(),
+    };
     progress(DiagnoseStage::Fit, 0.6);
 
     // Final coefficients, sigmas, and the effect terms.
@@ -614,18 +778,47 @@ pub fn diagnose_with_progress(
             units.insert(spec.name.to_string(), spec.unit.to_string());
         }
         let g = sel.gains[k];
-        let evidence = format!(
-            "{} lowers the held-out residual of {} by {:.1} % (signed-rank z = {:.1} over {} blocks of {:.0} s; \
-             threshold {:.1}); fingerprint: {}",
-            cand.effect,
-            channels_of(&design, cand),
-            100.0 * g.relative,
-            g.z,
-            used.len(),
-            block_s,
-            sel.thresholds[k],
-            cand.effect.spec().fingerprint
-        );
+        let fingerprint = cand.effect.spec().fingerprint;
+        let (decided_by, evidence) = match &sel.how[k] {
+            How::HeldOut => (
+                DecidedBy::HeldOut,
+                format!(
+                    "{} lowers the held-out residual of {} by {:.1} % (signed-rank z = {:.1} over {} blocks of {:.0} s; \
+                     threshold {:.1}); fingerprint: {fingerprint}",
+                    cand.effect,
+                    channels_of(&design, cand),
+                    100.0 * g.relative,
+                    g.z,
+                    used.len(),
+                    block_s,
+                    sel.thresholds[k],
+                ),
+            ),
+            How::Wald(t) => (
+                DecidedBy::Wald,
+                format!(
+                    "{} is shown by the GNSS positions under their own error model: Wald z = {:.1} {} \
+                     (Holm's critical {:.1} at rank {} of {}); it lowers the aggregate held-out residual \
+                     of {} by {:.1} %; fingerprint: {fingerprint}",
+                    cand.effect,
+                    t.z,
+                    if t.joint {
+                        "with every other effect of its source free"
+                    } else {
+                        "alone"
+                    },
+                    t.z_critical,
+                    t.rank + 1,
+                    wald_tests.len(),
+                    channels_of(&design, cand),
+                    100.0 * g.relative,
+                ),
+            ),
+        };
+        let wald_z = wald_tests
+            .iter()
+            .find(|t| t.effect == cand.effect)
+            .map(|t| t.z);
         findings.push(Finding {
             effect: cand.effect,
             variant: cand.variant.clone(),
@@ -636,6 +829,8 @@ pub fn diagnose_with_progress(
             holdout_rmse_after_m: rmse_now,
             holdout_channel_gain: g.relative,
             holdout_gain_z: g.z,
+            decided_by,
+            wald_z,
             evidence,
         });
         rmse_prev = rmse_now;
@@ -766,6 +961,9 @@ pub fn diagnose_with_progress(
         },
         information_limit,
         information_limit_missing,
+        wald,
+        null_false_alarm,
+        information,
         base_model: base,
         terms,
         residual_plots,
@@ -776,14 +974,25 @@ pub fn diagnose_with_progress(
 /// The drive's information limit, under the GNSS error model the plain
 /// calibration fitted to its residuals; the reason when there is none.
 fn drive_limit(
-    cal: &crate::Calibration,
-    cx: &locate::Context<'_>,
-    base: &BaseModel,
-    design: &Design,
-    used: &[usize],
-    block_s: f64,
-    ep: &Epochs,
-) -> Result<limit::InformationLimit, String> {
+    parts: &LimitParts<'_>,
+    null_draws: usize,
+) -> Result<
+    (
+        limit::InformationLimit,
+        limit::DriveInformation,
+        Option<montecarlo::NullRate>,
+    ),
+    String,
+> {
+    let LimitParts {
+        cal,
+        cx,
+        base,
+        design,
+        used,
+        block_s,
+        ep,
+    } = *parts;
     let noise = cal
         .diagnostics
         .sigma_basis
@@ -818,14 +1027,32 @@ fn drive_limit(
         terms: EffectTerms::default(),
         slip_side: 0,
     };
-    limit::information_limit(&limit::LimitInput {
+    let input = limit::LimitInput {
         cx,
         base: &model,
         spans: &spans,
         noise,
         design,
-    })
-    .map_err(|e| format!("the information could not be computed: {e}"))
+    };
+    let (l, i) = limit::limit_and_information(&input)
+        .map_err(|e| format!("the information could not be computed: {e}"))?;
+    let rate = (null_draws > 0)
+        .then(|| montecarlo::null_rejection_rate(&input, null_draws, 0x37_0002))
+        .transpose()
+        .map_err(|e| format!("the false-alarm rate could not be computed: {e}"))?;
+    Ok((l, i, rate))
+}
+
+/// What the information limit is computed from.
+#[derive(Clone, Copy)]
+struct LimitParts<'a> {
+    cal: &'a crate::Calibration,
+    cx: &'a locate::Context<'a>,
+    base: &'a BaseModel,
+    design: &'a Design,
+    used: &'a [usize],
+    block_s: f64,
+    ep: &'a Epochs,
 }
 
 /// Fixes that jump: the step residual far beyond the drive's own spread.
@@ -854,16 +1081,28 @@ fn gnss_jumps(ep: &Epochs) -> Vec<bool> {
     out
 }
 
+#[derive(Clone)]
 struct Selection {
     accepted: Vec<usize>,
     gains: Vec<select::Gain>,
     thresholds: Vec<f64>,
+    /// Which test let each accepted candidate in.
+    how: Vec<How>,
     ambiguous: Vec<Ambiguous>,
     rejected: Vec<Rejected>,
     /// Effects collinear with the calibration's own terms, with the VIF.
     untestable: Vec<(Effect, f64)>,
     /// The candidates of the last round, none of which passed.
     last_round: Vec<NotAccepted>,
+}
+
+/// Which test let an effect in.
+#[derive(Debug, Clone)]
+enum How {
+    /// The held-out forward selection (signed-rank over blocks).
+    HeldOut,
+    /// Holm's procedure on the joint Wald statistics, with the guard.
+    Wald(decide::WaldTest),
 }
 
 fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {
@@ -878,6 +1117,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
     let mut accepted: Vec<usize> = Vec::new();
     let mut gains = Vec::new();
     let mut thresholds = Vec::new();
+    let mut how = Vec::new();
     let mut ambiguous = Vec::new();
     let mut rejected = Vec::new();
     let mut remaining: Vec<usize> = (0..design.candidates.len()).collect();
@@ -957,36 +1197,19 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
             remaining.retain(|&i| design.candidates[i].effect != e);
         };
         // Plausibility of the coefficient (on all blocks).
-        let mut cols = base_cols.clone();
-        cols.extend(cand.columns.iter().copied());
-        if let Some(beta) = stats.fit(&cols, |_| true) {
-            let implausible: Vec<String> = cand
-                .params
-                .iter()
-                .filter_map(|p| {
-                    let i = cols.iter().position(|&c| c == p.column)?;
-                    let v = beta[i];
-                    (v < p.range.0 || v > p.range.1).then(|| {
-                        format!(
-                            "{} = {:.4e} {} lies outside the plausible {:.1e}..{:.1e}",
-                            p.name, v, p.unit, p.range.0, p.range.1
-                        )
-                    })
-                })
-                .collect();
-            if !implausible.is_empty() {
-                rejected.push(Rejected {
-                    effect,
-                    reason: format!(
-                        "lowers the held-out error by {:.1} % (signed-rank z = {:.1}) but {}",
-                        100.0 * g.relative,
-                        g.z,
-                        implausible.join("; ")
-                    ),
-                });
-                drop_effect(&mut remaining, effect);
-                continue;
-            }
+        let implausible = decide::implausible(stats, &base_cols, cand);
+        if !implausible.is_empty() {
+            rejected.push(Rejected {
+                effect,
+                reason: format!(
+                    "lowers the held-out error by {:.1} % (signed-rank z = {:.1}) but {}",
+                    100.0 * g.relative,
+                    g.z,
+                    implausible.join("; ")
+                ),
+            });
+            drop_effect(&mut remaining, effect);
+            continue;
         }
         // Others that pass too and that the drive cannot tell from it.
         let twins: Vec<(Effect, f64)> = passing[1..]
@@ -1022,6 +1245,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         accepted.push(ci);
         gains.push(g);
         thresholds.push(t_crit);
+        how.push(How::HeldOut);
         current = errs;
         drop_effect(&mut remaining, effect);
     }
@@ -1032,6 +1256,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
         accepted,
         gains,
         thresholds,
+        how,
         ambiguous,
         rejected,
         untestable,

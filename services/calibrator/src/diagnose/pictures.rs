@@ -456,34 +456,46 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
     let times = |v: Option<f64>, typical: f64| {
         v.map_or("-".to_string(), |v| format!("{:.2}x", v / typical))
     };
-    let rows: Vec<Vec<(bool, String)>> = l
-        .effects
-        .iter()
-        .map(|e| {
-            let joint = e.joint.as_ref();
-            let test = d
-                .not_accepted
-                .iter()
-                .find(|n| n.effect == e.effect)
-                .and_then(|n| n.detectable.as_ref())
-                .map_or("-".to_string(), |det| match det.smallest {
-                    Some(v) => format!("{:.2}x", v / det.typical),
-                    None => "&gt; 64x".to_string(),
-                });
-            let estimate = match joint.and_then(|j| Some((j.estimate?, j.sigma?, j.wald_z?))) {
-                Some((v, sg, z)) => format!("{} {} (z {z:.1})", with_sigma(v, sg), e.unit),
-                None => "-".to_string(),
-            };
-            vec![
-                (false, format!("<code>{}</code>", escape(e.effect.id()))),
-                (true, times(e.smallest, e.typical)),
-                (true, times(joint.and_then(|j| j.smallest), e.typical)),
-                (true, test),
-                (false, escape(&estimate)),
-                (false, escape(e.source.describe())),
-            ]
-        })
-        .collect();
+    let rows: Vec<Vec<(bool, String)>> =
+        l.effects
+            .iter()
+            .map(|e| {
+                let joint = e.joint.as_ref();
+                let test = d
+                    .not_accepted
+                    .iter()
+                    .find(|n| n.effect == e.effect)
+                    .and_then(|n| n.detectable.as_ref())
+                    .map_or("-".to_string(), |det| match det.smallest {
+                        Some(v) => format!("{:.2}x", v / det.typical),
+                        None => "&gt; 64x".to_string(),
+                    });
+                let estimate = match joint.and_then(|j| Some((j.estimate?, j.sigma?, j.wald_z?))) {
+                    Some((v, sg, z)) => format!("{} {} (z {z:.1})", with_sigma(v, sg), e.unit),
+                    None => "-".to_string(),
+                };
+                let verdict = d.wald.iter().find(|w| w.test.effect == e.effect).map_or(
+                    "-".to_string(),
+                    |w| {
+                        format!(
+                            "{} (|z| {:.1} against {:.1})",
+                            w.outcome.describe(),
+                            w.test.z.abs(),
+                            w.test.z_critical
+                        )
+                    },
+                );
+                vec![
+                    (false, format!("<code>{}</code>", escape(e.effect.id()))),
+                    (true, times(e.smallest, e.typical)),
+                    (true, times(joint.and_then(|j| j.smallest), e.typical)),
+                    (true, test),
+                    (false, escape(&estimate)),
+                    (false, escape(&verdict)),
+                    (false, escape(e.source.describe())),
+                ]
+            })
+            .collect();
     table(
         s,
         &[
@@ -492,6 +504,7 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
             "with every other effect free",
             "the held-out test needs",
             "estimate ± sigma",
+            "Holm's procedure",
             "from",
         ],
         &rows,
@@ -1129,6 +1142,9 @@ mod tests {
             mismatch_segments: Vec::new(),
             information_limit: None,
             information_limit_missing: None,
+            wald: Vec::new(),
+            null_false_alarm: None,
+            information: None,
             fit: Fit {
                 before: metrics(3.2),
                 after: metrics(1.1),
@@ -1166,6 +1182,8 @@ mod tests {
             holdout_rmse_after_m: 1.1,
             holdout_channel_gain: 0.4,
             holdout_gain_z: 7.5,
+            decided_by: super::super::DecidedBy::HeldOut,
+            wald_z: None,
             evidence: evidence.to_string(),
         }
     }

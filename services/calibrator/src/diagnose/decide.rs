@@ -1,0 +1,395 @@
+//! The decision on the likelihood: which effects the drive's positions
+//! show beyond their own error model, with the family-wise error held by
+//! Holm's step-down procedure over the effects' Wald statistics.
+//!
+//! Each effect's statistic is its joint Wald z from the information limit
+//! ([`super::limit`]): the effect's estimate over its sigma with every
+//! other effect of its information source free, so that an effect is named
+//! against its partners (a GNSS latency against a side-slip) by the
+//! likelihood, not by the order in which they entered. The sigma is the
+//! larger of the Fisher information's under the drive's refitted GNSS error
+//! model and the segments' own scatter, and the critical values are Student
+//! t quantiles over the segments (the scatter of a dozen segments knows its
+//! own size only roughly).
+//!
+//! Holm's procedure: sort the `m` statistics by size; the k-th largest
+//! (k from 0) is significant when it and every larger one exceed the
+//! two-sided critical value at `alpha / (m - k)`. It holds the family-wise
+//! error at `alpha` whatever the dependence between the statistics, and is
+//! never less powerful than Bonferroni.
+//!
+//! What the statistics cannot say, the guard says: an effect the Wald test
+//! names enters the model only when it also lowers the aggregate held-out
+//! error of the residual channels (the caller's block cross-validation)
+//! with a signed-rank z over the blocks above the one-sided 5 % point
+//! ([`GUARD_Z`]), so that a fingerprint that merely soaks up a model
+//! mismatch elsewhere is not published as physics.
+//!
+//! Pure: the limit in, the decisions out.
+
+use super::design::{Candidate, Design};
+use super::limit::InformationLimit;
+use super::select::{gain, t_quantile, BlockStats, Gain};
+use super::{model_columns, Ambiguous, How, Rejected, Selection};
+use interfaces::effects::Effect;
+use serde::Serialize;
+
+/// One effect's Wald test in Holm's order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WaldTest {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// The Wald z the decision uses (joint where the limit has it).
+    pub z: f64,
+    /// Whether `z` is the joint one (every other effect of its source
+    /// free) or the effect alone (its source has no partners).
+    pub joint: bool,
+    /// Its rank by |z| (0 the largest).
+    pub rank: usize,
+    /// The |z| Holm's procedure asks of this rank.
+    pub z_critical: f64,
+    /// Whether Holm's procedure calls it significant.
+    pub significant: bool,
+}
+
+/// Holm's step-down procedure over the effects of `limit` with a Wald
+/// statistic, at the limit's family-wise level; the tests in the order of
+/// their |z|, largest first.
+pub fn holm(limit: &InformationLimit) -> Vec<WaldTest> {
+    let mut tests: Vec<(Effect, f64, bool)> = limit
+        .effects
+        .iter()
+        .filter_map(|e| match e.joint.as_ref().and_then(|j| j.wald_z) {
+            Some(z) => Some((e.effect, z, true)),
+            None => e.wald_z.map(|z| (e.effect, z, false)),
+        })
+        .filter(|(_, z, _)| z.is_finite())
+        .collect();
+    tests.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    let dof = limit.segments.saturating_sub(1) as f64;
+    step_down(&tests, limit.family_alpha, dof)
+}
+
+/// Holm's procedure on `(effect, z, joint)` sorted by |z| descending.
+pub(super) fn step_down(sorted: &[(Effect, f64, bool)], alpha: f64, dof: f64) -> Vec<WaldTest> {
+    let m = sorted.len();
+    let mut still = true;
+    sorted
+        .iter()
+        .enumerate()
+        .map(|(k, &(effect, z, joint))| {
+            let level = alpha / (m - k) as f64;
+            let z_critical = t_quantile(1.0 - 0.5 * level, dof);
+            still = still && z.abs() > z_critical;
+            WaldTest {
+                effect,
+                z,
+                joint,
+                rank: k,
+                z_critical,
+                significant: still,
+            }
+        })
+        .collect()
+}
+
+/// The guard's level: the held-out gain's signed-rank z one-sided at 5 %
+/// (a veto on what the Wald test called, not a second family: the level
+/// is the conventional one, not split among the effects).
+pub const GUARD_Z: f64 = 1.6448536269514722;
+
+/// What became of an effect's Wald test in the diagnosis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WaldOutcome {
+    /// Holm's procedure does not call it significant.
+    NotSignificant,
+    /// The held-out test had already accepted it.
+    AlreadyFound,
+    /// Significant, and the guard agrees: it entered the model.
+    Accepted,
+    /// Significant, but adding it does not lower the held-out error of
+    /// the residual channels beyond the guard's level ([`GUARD_Z`]): the
+    /// fingerprint may soak up a mismatch the model has elsewhere.
+    Guarded,
+    /// Significant, but its coefficient lies outside the plausible range.
+    Implausible,
+    /// Significant, but the residual channels have no column for it on
+    /// this drive (the manoeuvre it needs is missing from them).
+    NoModel,
+    /// Beyond the critical z alone, but not with its partners free, and
+    /// none of them found: the drive cannot tell them apart (reported in
+    /// `ambiguous` with the manoeuvre that would).
+    Ambiguous,
+}
+
+impl WaldOutcome {
+    /// In words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            WaldOutcome::NotSignificant => "not significant",
+            WaldOutcome::AlreadyFound => "significant; found by the held-out test",
+            WaldOutcome::Accepted => "significant; found",
+            WaldOutcome::Guarded => "significant; refused by the held-out guard",
+            WaldOutcome::Implausible => "significant; implausible size",
+            WaldOutcome::NoModel => "significant; no residual column on this drive",
+            WaldOutcome::Ambiguous => "ambiguous with its partners",
+        }
+    }
+}
+
+/// An effect's Wald test and what the diagnosis made of it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WaldDecision {
+    /// The test.
+    #[serde(flatten)]
+    pub test: WaldTest,
+    /// What became of it.
+    pub outcome: WaldOutcome,
+    /// The relative change of the aggregate held-out error of the residual
+    /// channels when it is added (positive: lower): the guard's, or for an
+    /// effect it did not judge, against the final model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_gain: Option<f64>,
+    /// The signed-rank z of that gain over the blocks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_z: Option<f64>,
+}
+
+/// The variant of `effect` whose addition to the model `base` gains most
+/// on held-out blocks, and its gain; `None` without a candidate.
+fn best_variant(
+    design: &Design,
+    stats: &BlockStats,
+    base: &[usize],
+    effect: Effect,
+) -> Option<(usize, Gain)> {
+    let current = stats.cv_errors(base);
+    design
+        .candidates
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.effect == effect)
+        .map(|(i, c)| {
+            let mut cols = base.to_vec();
+            cols.extend(c.columns.iter().copied());
+            (i, gain(&current, &stats.cv_errors(&cols)))
+        })
+        .max_by(|a, b| a.1.relative.total_cmp(&b.1.relative))
+}
+
+/// Adds to the held-out selection `sel` every effect Holm's procedure
+/// calls significant that the guard lets in (a positive aggregate held-out
+/// gain over the model so far, a plausible coefficient), in the order of
+/// their |z|; an effect the held-out test found ambiguous with partners and
+/// the joint test names is named (its ambiguity dropped). Returns what
+/// became of every test.
+pub(super) fn apply(
+    design: &Design,
+    stats: &BlockStats,
+    sel: &mut Selection,
+    tests: &[WaldTest],
+    limit: &InformationLimit,
+) -> Vec<WaldDecision> {
+    let mut out = Vec::new();
+    for t in tests {
+        let decided = |outcome, g: Option<Gain>| WaldDecision {
+            test: t.clone(),
+            outcome,
+            holdout_gain: g.map(|g| g.relative),
+            holdout_z: g.map(|g| g.z),
+        };
+        let accepted_effect = |sel: &Selection| {
+            sel.accepted
+                .iter()
+                .any(|&i| design.candidates[i].effect == t.effect)
+        };
+        if !t.significant {
+            out.push(decided(WaldOutcome::NotSignificant, None));
+            continue;
+        }
+        if accepted_effect(sel) {
+            out.push(decided(WaldOutcome::AlreadyFound, None));
+            continue;
+        }
+        if sel.rejected.iter().any(|r| r.effect == t.effect) {
+            out.push(decided(WaldOutcome::Implausible, None));
+            continue;
+        }
+        let base = model_columns(design, &sel.accepted);
+        let best = best_variant(design, stats, &base, t.effect);
+        let Some((ci, g)) = best else {
+            out.push(decided(WaldOutcome::NoModel, None));
+            continue;
+        };
+        if !g.passes(GUARD_Z) {
+            out.push(decided(WaldOutcome::Guarded, Some(g)));
+            continue;
+        }
+        let bad = implausible(stats, &base, &design.candidates[ci]);
+        if !bad.is_empty() {
+            sel.rejected.push(Rejected {
+                effect: t.effect,
+                reason: format!(
+                    "its joint Wald z = {:.1} passes Holm's {:.1} but {}",
+                    t.z,
+                    t.z_critical,
+                    bad.join("; ")
+                ),
+            });
+            out.push(decided(WaldOutcome::Implausible, Some(g)));
+            continue;
+        }
+        sel.accepted.push(ci);
+        sel.gains.push(g);
+        sel.thresholds.push(t.z_critical);
+        sel.how.push(How::Wald(t.clone()));
+        sel.ambiguous.retain(|a| !a.effects.contains(&t.effect));
+        sel.last_round.retain(|n| n.effect != t.effect);
+        sel.untestable.retain(|(e, _)| *e != t.effect);
+        out.push(decided(WaldOutcome::Accepted, Some(g)));
+    }
+    // The guard of every other effect against the final model: what
+    // pooling over drives weighs ([`super::pool`]).
+    let base = model_columns(design, &sel.accepted);
+    for d in out.iter_mut().filter(|d| d.holdout_z.is_none()) {
+        let entered = sel
+            .accepted
+            .iter()
+            .position(|&i| design.candidates[i].effect == d.test.effect);
+        let g = match entered {
+            // Found: the gain it entered with.
+            Some(k) => sel.gains.get(k).copied(),
+            None => best_variant(design, stats, &base, d.test.effect).map(|(_, g)| g),
+        };
+        if let Some(g) = g {
+            d.holdout_gain = Some(g.relative);
+            d.holdout_z = Some(g.z);
+        }
+    }
+    // Effects shown alone but not beside partners none of which is found.
+    for d in out
+        .iter_mut()
+        .filter(|d| d.outcome == WaldOutcome::NotSignificant)
+    {
+        let Some(partners) = limit
+            .effects
+            .iter()
+            .find(|l| l.effect == d.test.effect)
+            .and_then(|l| l.joint.as_ref())
+            .map(|j| &j.partners)
+            .filter(|p| !p.is_empty())
+        else {
+            continue;
+        };
+        let found = |e: Effect| {
+            sel.accepted
+                .iter()
+                .any(|&i| design.candidates[i].effect == e)
+                || sel.ambiguous.iter().any(|a| a.effects.contains(&e))
+        };
+        if found(d.test.effect) || partners.iter().any(|p| found(p.effect)) {
+            continue;
+        }
+        let e = d.test.effect;
+        sel.ambiguous.push(Ambiguous {
+            effects: std::iter::once(e)
+                .chain(partners.iter().map(|p| p.effect))
+                .collect(),
+            vif: partners.iter().map(|p| p.vif).fold(0.0, f64::max),
+            separate_by: partners
+                .iter()
+                .map(|p| e.separate_from(p.effect))
+                .collect::<Vec<_>>()
+                .join("; "),
+        });
+        d.outcome = WaldOutcome::Ambiguous;
+    }
+    out
+}
+
+/// The parameters of `cand` whose coefficient, fitted with `base` on all
+/// blocks, lies outside the plausible range, in words.
+pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) -> Vec<String> {
+    let mut cols = base.to_vec();
+    cols.extend(cand.columns.iter().copied());
+    let Some(beta) = stats.fit(&cols, |_| true) else {
+        return Vec::new();
+    };
+    cand.params
+        .iter()
+        .filter_map(|p| {
+            let i = cols.iter().position(|&c| c == p.column)?;
+            let v = beta[i];
+            (v < p.range.0 || v > p.range.1).then(|| {
+                format!(
+                    "{} = {:.4e} {} lies outside the plausible {:.1e}..{:.1e}",
+                    p.name, v, p.unit, p.range.0, p.range.1
+                )
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sorted(zs: &[f64]) -> Vec<(Effect, f64, bool)> {
+        let mut v: Vec<(Effect, f64, bool)> = zs
+            .iter()
+            .zip(Effect::ALL)
+            .map(|(z, e)| (e, *z, true))
+            .collect();
+        v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        v
+    }
+
+    #[test]
+    fn holm_steps_down_and_stops_at_the_first_failure() {
+        // Twelve statistics, 11 degrees of freedom: the first critical value
+        // is Bonferroni's (about 3.6), each next one smaller.
+        let zs = [9.0, -5.0, 3.5, 3.4, 0.5, 0.1, 0.2, 0.3, 0.4, -0.6, 0.7, 0.8];
+        let t = step_down(&sorted(&zs), 0.05, 11.0);
+        let crit: Vec<f64> = t.iter().map(|x| x.z_critical).collect();
+        assert!(crit.windows(2).all(|w| w[0] > w[1]), "{crit:?}");
+        assert!((crit[0] - t_quantile(1.0 - 0.025 / 12.0, 11.0)).abs() < 1e-12);
+        // 3.5 is below Bonferroni's critical value (about 3.6) but above
+        // the third step's (about 3.49): Holm calls it, Bonferroni would not.
+        assert!(crit[0] > 3.5 && crit[2] < 3.5 && crit[3] > 3.4, "{crit:?}");
+        let significant: Vec<bool> = t.iter().map(|x| x.significant).collect();
+        assert_eq!(&significant[..4], &[true, true, true, false]);
+        // Once one fails, none after it is significant.
+        assert!(significant[3..].iter().all(|s| !s));
+        assert_eq!(t[1].z, -5.0, "sorted by |z|, the sign kept");
+    }
+
+    #[test]
+    fn holm_holds_the_family_wise_level_on_independent_nulls() {
+        // Twelve independent null statistics (Student t with 11 dof drawn
+        // as normal over the root of a scaled chi-square): the share of
+        // families with any rejection stays near 5 %, never far above.
+        let mut rng = crate::error_model::Normal::new(7);
+        let families = 4000;
+        let dof = 11usize;
+        let mut any = 0;
+        for _ in 0..families {
+            let zs: Vec<f64> = (0..12)
+                .map(|_| {
+                    let z = rng.next();
+                    let chi: f64 = (0..dof).map(|_| rng.next().powi(2)).sum::<f64>();
+                    z / (chi / dof as f64).sqrt()
+                })
+                .collect();
+            if step_down(&sorted(&zs), 0.05, dof as f64)
+                .iter()
+                .any(|t| t.significant)
+            {
+                any += 1;
+            }
+        }
+        let rate = any as f64 / families as f64;
+        // Binomial sigma at 5 % over 4000 families is 0.34 %.
+        assert!(rate < 0.065 && rate > 0.02, "family-wise rate {rate}");
+    }
+}
