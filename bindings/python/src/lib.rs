@@ -130,6 +130,21 @@ fn diagnose(py: Python<'_>, drive: &Drive, block_s: Option<f64>) -> PyResult<Str
         .map_err(py_err)
 }
 
+/// `calibrator diagnose DRIVE DRIVE... --json` (with `block_s`:
+/// `--block`): several drives of one car, the JSON's text.
+#[pyfunction]
+#[pyo3(signature = (drives, block_s=None))]
+fn diagnose_drives(
+    py: Python<'_>,
+    drives: Vec<PyRef<'_, Drive>>,
+    block_s: Option<f64>,
+) -> PyResult<String> {
+    let loaded: Vec<&drive_io::LoadedDrive> = drives.iter().map(|d| &d.loaded).collect();
+    let names: Vec<String> = drives.iter().map(|d| d.name.clone()).collect();
+    py.detach(|| run::diagnose_drives(&loaded, &names, block_s))
+        .map_err(py_err)
+}
+
 /// `calibrator info DRIVE --json`: the info report's JSON text.
 #[pyfunction]
 fn info(py: Python<'_>, drive: &Drive) -> PyResult<String> {
@@ -173,6 +188,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(drive_from_columns, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose_drives, m)?)?;
     m.add_function(wrap_pyfunction!(info, m)?)?;
     m.add_function(wrap_pyfunction!(evaluate, m)?)?;
     Ok(())

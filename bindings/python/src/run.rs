@@ -5,7 +5,10 @@
 //! released.
 
 use anyhow::{Context, Result};
-use calibrator::diagnose::{diagnose as run_diagnosis, terms_beside, DiagnoseConfig};
+use calibrator::diagnose::{
+    diagnose as run_diagnosis, diagnose_drives as run_diagnoses, terms_beside, DiagnoseConfig,
+    DiagnoseError,
+};
 use calibrator::{calibrate as run_calibration, CalibrationConfig, Warning, WarningCode};
 use drive_io::LoadedDrive;
 use odometry::evaluate::{choose_truth_point, EvaluateConfig, Parameters, TruthPointChoice};
@@ -64,6 +67,44 @@ pub(crate) fn diagnose(loaded: &LoadedDrive, name: &str, block_s: Option<f64>) -
             .map(|w| Warning::new(WarningCode::Reading, w.clone())),
     );
     Ok(serde_json::to_string_pretty(&d).context("cannot encode the diagnosis")? + "\n")
+}
+
+/// `calibrator diagnose DRIVE DRIVE... --json [--block S]`: several
+/// drives of one car, each diagnosed and the car's effects over all of
+/// them; the JSON the tool writes (the drives' `paths` beside the
+/// diagnosis).
+pub(crate) fn diagnose_drives(
+    loaded: &[&LoadedDrive],
+    names: &[String],
+    block_s: Option<f64>,
+) -> Result<String> {
+    if let Some(b) = block_s {
+        anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
+    }
+    let cfg = DiagnoseConfig {
+        block_s,
+        ..DiagnoseConfig::default()
+    };
+    let drives: Vec<interfaces::drive::Drive> = loaded.iter().map(|l| l.drive.clone()).collect();
+    let mut d = run_diagnoses(&drives, &cfg).map_err(|e| match &e {
+        DiagnoseError::Drive { index, .. } => {
+            let name = names.get(*index).map_or("?", String::as_str);
+            anyhow::anyhow!("cannot diagnose {name}: {e}")
+        }
+        _ => anyhow::anyhow!("cannot diagnose the drives: {e}"),
+    })?;
+    for (one, l) in d.drives.iter_mut().zip(loaded) {
+        one.warnings.extend(
+            l.warnings
+                .iter()
+                .map(|w| Warning::new(WarningCode::Reading, w.clone())),
+        );
+    }
+    let mut value = serde_json::to_value(&d).context("cannot encode the diagnosis")?;
+    if let Some(obj) = value.as_object_mut() {
+        obj.insert("paths".to_string(), serde_json::to_value(names)?);
+    }
+    Ok(serde_json::to_string_pretty(&value).context("cannot encode the diagnosis")? + "\n")
 }
 
 /// `calibrator info --json`: the info report's text.

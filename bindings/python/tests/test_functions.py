@@ -53,7 +53,7 @@ def test_calibrate_with_the_diagnosis_equals_the_cli(tmp_path):
     assert wheelcal.calibrate(drive, diagnose=True).to_dict() == cli
 
 
-def test_diagnose_equals_the_cli_on_a_real_drive_and_a_list_gives_a_list(tmp_path):
+def test_diagnose_equals_the_cli_on_a_real_drive_and_on_two_drives_of_the_car(tmp_path):
     drive = real_drive("wid-trial02")
     other = real_drive("wid-trial04")
     cli = cli_json(
@@ -63,10 +63,14 @@ def test_diagnose_equals_the_cli_on_a_real_drive_and_a_list_gives_a_list(tmp_pat
     d = wheelcal.diagnose(drive)
     assert d.to_dict() == cli
     assert d.effects == [f["effect"] for f in cli["findings"]]
+    cli_both = cli_json(
+        [str(binary("calibrator")), "diagnose", str(drive), str(other), "--json", str(tmp_path / "dd.json"), "--no-progress"],
+        tmp_path / "dd.json",
+    )
     both = wheelcal.diagnose([drive, other])
-    assert isinstance(both, list) and len(both) == 2
-    assert both[0].to_dict() == cli
-    assert both[1].drive == str(other)
+    assert isinstance(both, wheelcal.DrivesDiagnosis)
+    assert both.to_dict() == cli_both
+    assert [x.to_dict() for x in both.drives][0]["findings"] == cli["findings"]
 
 
 def test_info_equals_the_cli_on_a_real_drive():

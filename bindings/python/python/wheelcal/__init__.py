@@ -33,6 +33,7 @@ __all__ = [
     "Result",
     "Calibration",
     "Diagnosis",
+    "DrivesDiagnosis",
     "Evaluation",
     "Info",
     "WheelcalError",
@@ -122,6 +123,17 @@ class Diagnosis(Result):
         import pandas as pd
 
         return pd.DataFrame(self._data.get("findings", []))
+
+
+class DrivesDiagnosis(Result):
+    """What ``calibrator diagnose DRIVE DRIVE... --json`` writes: several
+    drives of one car, each diagnosed, and the car's effects pooled over
+    them (``car``)."""
+
+    @property
+    def drives(self) -> list[Diagnosis]:
+        """Each drive's own diagnosis."""
+        return [Diagnosis(d, p) for d, p in zip(self._data["drives"], self._data["paths"])]
 
 
 class Evaluation(Result):
@@ -256,11 +268,18 @@ def diagnose(
     *,
     vehicle: Any = None,
     block_s: float | None = None,
-) -> Union[Diagnosis, list[Diagnosis]]:
-    """``calibrator diagnose DRIVE --json``; a list of drives gives a list,
-    one diagnosis per drive."""
+) -> Union[Diagnosis, DrivesDiagnosis]:
+    """``calibrator diagnose DRIVE --json``; a list (or tuple) of drives of
+    one car is ``calibrator diagnose DRIVE DRIVE... --json``: each drive
+    diagnosed and the car's effects over all of them
+    (:class:`DrivesDiagnosis`; ``.drives`` holds each drive's own)."""
     if isinstance(drive, (list, tuple)):
-        return [diagnose(x, vehicle=vehicle, block_s=block_s) for x in drive]
+        if len(drive) == 1:
+            return diagnose(drive[0], vehicle=vehicle, block_s=block_s)
+        if not drive:
+            raise WheelcalError("diagnose: no drives given")
+        ds = [_drive(x, vehicle) for x in drive]
+        return DrivesDiagnosis(json.loads(_native.diagnose_drives(ds, block_s)), ", ".join(d.name for d in ds))
     d = _drive(drive, vehicle)
     return Diagnosis(json.loads(_native.diagnose(d, block_s)), d.name)
 
