@@ -154,6 +154,10 @@ pub struct WaldDecision {
     /// The signed-rank z of that gain over the blocks.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holdout_z: Option<f64>,
+    /// The t statistic of the blocks' gains (their mean over its standard
+    /// error).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_t: Option<f64>,
 }
 
 /// The variant of `effect` whose addition to the model `base` gains most
@@ -198,6 +202,7 @@ pub(super) fn apply(
             outcome,
             holdout_gain: g.map(|g| g.relative),
             holdout_z: g.map(|g| g.z),
+            holdout_t: g.map(|g| g.t),
         };
         let accepted_effect = |sel: &Selection| {
             sel.accepted
@@ -265,6 +270,7 @@ pub(super) fn apply(
         if let Some(g) = g {
             d.holdout_gain = Some(g.relative);
             d.holdout_z = Some(g.z);
+            d.holdout_t = Some(g.t);
         }
     }
     // Effects shown alone but not beside partners none of which is found.
