@@ -133,7 +133,10 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
         .map(|p| {
             let l = &p.limit;
             let test = car.wald.iter().find(|t| t.effect == l.effect);
-            let (est, sig) = l.shown_fit();
+            let (est, sig) = match &l.joint {
+                Some(j) => (j.estimate, j.sigma),
+                None => (l.estimate, l.sigma),
+            };
             let shares: Vec<String> = p
                 .information_share
                 .iter()
@@ -183,7 +186,10 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
                 l.unit,
                 test.map_or("-".into(), |t| format!("{:+.1}", t.z)),
                 test.map_or("-".into(), |t| format!("{:.1}", t.z_critical)),
-                l.shown_smallest()
+                l.joint
+                    .as_ref()
+                    .and_then(|j| j.smallest)
+                    .or(l.smallest)
                     .map_or("-".into(), |v| format!("{} {}", num(Some(v)), l.unit)),
                 shares.join(", ")
             )

@@ -25,7 +25,6 @@
 use super::design::{Channel, Design};
 use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
-use super::montecarlo::{self, NullRate, Prepared};
 use crate::error_model::{nnls2, variogram, Normal};
 use interfaces::effects::{Effect, Param, Scope};
 use nalgebra::{DMatrix, DVector};
@@ -107,26 +106,6 @@ pub struct EffectLimit {
     /// The same with every other effect of its source free too.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<Joint>,
-}
-
-impl EffectLimit {
-    /// The estimate and sigma to show (reported unit): with every other
-    /// effect of its source free where that fit exists, else alone.
-    pub fn shown_fit(&self) -> (Option<f64>, Option<f64>) {
-        match &self.joint {
-            Some(j) => (j.estimate, j.sigma),
-            None => (self.estimate, self.sigma),
-        }
-    }
-
-    /// The smallest size shown: with every other effect free where known,
-    /// else alone.
-    pub fn shown_smallest(&self) -> Option<f64> {
-        self.joint
-            .as_ref()
-            .and_then(|j| j.smallest)
-            .or(self.smallest)
-    }
 }
 
 /// An effect's limit, estimate and Wald statistic with every other effect
@@ -482,7 +461,7 @@ fn pick(
 
 /// The fix times every perturbation sees: those of the segment's span
 /// [t0, t1) that the plain model and the latency's steps all reach.
-fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
+pub(super) fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
     input
         .spans
         .iter()
@@ -561,13 +540,13 @@ fn main_kick(effect: Effect) -> Kick {
 /// circumferences' scale (and left/right difference under the wheels'
 /// heading), its effects' fingerprints, the segments' poses (and the gyro's
 /// bias under the gyro's heading).
-struct Columns {
+pub(super) struct Columns {
     heading: HeadingSource,
     effects: Vec<Effect>,
     /// The effects this source tests: the first `owned` of `effects` (the
     /// rest are fitted beside them, free).
     owned: usize,
-    cols: Vec<Col>,
+    pub(super) cols: Vec<Col>,
     first_effect: usize,
     /// The segment of each pose column (they follow the effects).
     pose_segment: Vec<usize>,
@@ -575,7 +554,11 @@ struct Columns {
 }
 
 impl Columns {
-    fn build(input: &LimitInput<'_>, heading: HeadingSource, times: &[Vec<f64>]) -> Columns {
+    pub(super) fn build(
+        input: &LimitInput<'_>,
+        heading: HeadingSource,
+        times: &[Vec<f64>],
+    ) -> Columns {
         let total: usize = times.iter().map(Vec::len).sum();
         let src = Source::new(input, heading, times);
         let wheels = matches!(heading, HeadingSource::Wheels);
@@ -641,7 +624,11 @@ impl Columns {
     /// source free (the effect first, then its nuisances, then the other
     /// effects the drive holds information about), and how many of them
     /// make its fit alone.
-    fn column_sets(&self, w: &[Vec<f64>], gram: &SegmentGram) -> Vec<(Effect, Vec<usize>, usize)> {
+    pub(super) fn column_sets(
+        &self,
+        w: &[Vec<f64>],
+        gram: &SegmentGram,
+    ) -> Vec<(Effect, Vec<usize>, usize)> {
         let n_eff = self.effects.len();
         let first_pose = self.first_effect + n_eff;
         let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
@@ -679,19 +666,26 @@ impl Columns {
     /// own scatter of the estimate is larger, that is the honest one).
     fn limits(
         &self,
-        gram: &SegmentGram,
-        sets: &[(Effect, Vec<usize>, usize)],
+        times: &[f64],
+        segment_sizes: &[usize],
+        noise: &[PositionNoise; 2],
         z_critical: f64,
-    ) -> (Vec<EffectLimit>, SourceGram) {
+    ) -> Result<(Vec<EffectLimit>, SourceGram), InformationError> {
+        if self.cols.iter().any(|c| c.len() != times.len()) {
+            return Err(InformationError::BadData(
+                "the segments' fixes and fingerprints disagree in number".into(),
+            ));
+        }
+        let w = whitened(times, noise, &self.cols)?;
+        let gram = SegmentGram::new(&w, segment_sizes);
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
         };
         let mut out = Vec::new();
-        for (e, cols, n_alone) in sets {
-            let (e, n_alone) = (*e, *n_alone);
+        for (e, cols, n_alone) in self.column_sets(&w, &gram) {
             let alone = gram.fit(&cols[..n_alone]);
-            let joint = gram.fit(cols);
+            let joint = gram.fit(&cols);
             let mut l = limit_of(e, alone, z_critical, source);
             l.joint = joint.map(|fit| Joint::of(e, fit, z_critical));
             if let (Some(a), Some(j)) = (alone, l.joint.as_mut()) {
@@ -700,7 +694,7 @@ impl Columns {
                     .iter()
                     .map(|&c| (self.effects[c - self.first_effect], c))
                     .collect();
-                j.partners = partners_of(gram, &base, &a, &others, z_critical);
+                j.partners = partners_of(&gram, &base, &a, &others, z_critical);
             }
             out.push(l);
         }
@@ -716,7 +710,7 @@ impl Columns {
             effects: car.iter().map(|&k| self.effects[k]).collect(),
             gram: gram.profiled(&keep),
         };
-        (out, gram)
+        Ok((out, gram))
     }
 }
 
@@ -746,7 +740,7 @@ pub(super) struct SegmentGram {
 }
 
 impl SegmentGram {
-    fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
+    pub(super) fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
         let m = w.len();
         let n: usize = segment_sizes.iter().sum();
         let mut per_segment = vec![DMatrix::zeros(m, m); segment_sizes.len()];
@@ -927,18 +921,18 @@ impl SegmentGram {
     ) -> SegmentGram {
         let m = w.len();
         let mut per_segment = self.per_segment.clone();
-        for g in &mut per_segment {
-            for b in 0..m {
-                g[(0, b)] = 0.0;
-            }
-        }
-        // Rows: the east values of every fix, then the north values.
         let mut row = 0;
         for _axis in 0..2 {
-            for (g, size) in per_segment.iter_mut().zip(segment_sizes) {
+            for (seg, size) in segment_sizes.iter().enumerate() {
                 let rows = row..row + size;
                 let d = &w0[rows.clone()];
-                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
+                let g = &mut per_segment[seg];
+                if row < segment_sizes.iter().sum::<usize>() {
+                    // The first axis resets the data row, the second adds.
+                    for b in 0..m {
+                        g[(0, b)] = 0.0;
+                    }
+                }
                 for b in 1..m {
                     g[(0, b)] += d
                         .iter()
@@ -946,6 +940,7 @@ impl SegmentGram {
                         .map(|(x, y)| x * y)
                         .sum::<f64>();
                 }
+                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
                 row += size;
             }
         }
@@ -990,24 +985,20 @@ pub struct DriveInformation {
 }
 
 /// The finite-difference step of a parameter: 5 % of its typical size.
-fn step_of(p: Param) -> f64 {
+pub(super) fn step_of(p: Param) -> f64 {
     0.05 * p.spec().typical.abs().max(1e-9)
 }
 
 /// The information limit of every effect on this drive.
 pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, InformationError> {
-    limit_and_information(input, 0).map(|(l, _, _)| l)
+    limit_and_information(input).map(|(l, _)| l)
 }
 
 /// [`information_limit`], with what the drive tells of the car's effects
-/// for pooling it with other drives of the same car ([`super::pool`]),
-/// and with `null_draws` above 0 the decision's false-alarm rate on that
-/// many redraws of the drive's GNSS errors ([`super::montecarlo`]), on the
-/// same whitened columns.
+/// for pooling it with other drives of the same car ([`super::pool`]).
 pub fn limit_and_information(
     input: &LimitInput<'_>,
-    null_draws: usize,
-) -> Result<(InformationLimit, DriveInformation, Option<NullRate>), InformationError> {
+) -> Result<(InformationLimit, DriveInformation), InformationError> {
     let alpha = FAMILY_ALPHA / Effect::ALL.len() as f64;
     let times = common_times(input, step_of(Param::GnssLatency));
     let all_t: Vec<f64> = times.iter().flatten().copied().collect();
@@ -1025,7 +1016,6 @@ pub fn limit_and_information(
     let mut limits = BTreeMap::new();
     let mut noises = Vec::new();
     let mut grams = Vec::new();
-    let mut redraw_from = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
         let src = Columns::build(input, heading, &times);
         // The calibration's error model was fitted to the plain model's
@@ -1039,40 +1029,13 @@ pub fn limit_and_information(
                     .into(),
             )
         })?;
-        if src.cols.iter().any(|c| c.len() != all_t.len()) {
-            return Err(InformationError::BadData(
-                "the segments' fixes and fingerprints disagree in number".into(),
-            ));
-        }
-        let w = whitened(&all_t, &noise, &src.cols)?;
-        let gram = SegmentGram::new(&w, &segment_sizes);
-        let sets = src.column_sets(&w, &gram);
-        let (ls, source_gram) = src.limits(&gram, &sets, z_critical);
+        let (ls, gram) = src.limits(&all_t, &segment_sizes, &noise, z_critical)?;
         for l in ls {
             limits.insert(l.effect, l);
         }
-        grams.push(source_gram);
+        grams.push(gram);
         noises.push((noise, refit.is_some()));
-        if null_draws > 0 {
-            redraw_from.push(Prepared {
-                noise,
-                w,
-                gram,
-                sets,
-            });
-        }
     }
-    let null_rate = if null_draws > 0 {
-        Some(montecarlo::run(
-            &redraw_from,
-            &all_t,
-            &segment_sizes,
-            null_draws,
-            NULL_SEED,
-        )?)
-    } else {
-        None
-    };
     let (noise, refitted) = noises[0];
     // Without a heading sensor the drive holds nothing about its bias.
     let heading = heading_channel(input.design);
@@ -1105,11 +1068,8 @@ pub fn limit_and_information(
             .filter_map(|e| limits.remove(e))
             .collect(),
     };
-    Ok((limit, DriveInformation { grams, heading }, null_rate))
+    Ok((limit, DriveInformation { grams, heading }))
 }
-
-/// The seed of the false-alarm redraws (the same numbers every run).
-const NULL_SEED: u64 = 0x37_0002;
 
 /// Realisations of simulated errors per candidate model.
 const REALISATIONS: usize = 4;
@@ -1126,7 +1086,7 @@ const REALISATIONS: usize = 4;
 /// The segments' poses are local to their segment, so they are projected
 /// out segment by segment (three columns each) and only the few global
 /// columns go through a QR decomposition: linear in the drive's length.
-fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
+pub(super) fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
     let fit = JointFit::new(times, src)?;
     let n = fit.n;
     let mut gaps: Vec<f64> = times
