@@ -133,10 +133,7 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
         .map(|p| {
             let l = &p.limit;
             let test = car.wald.iter().find(|t| t.effect == l.effect);
-            let (est, sig) = match &l.joint {
-                Some(j) => (j.estimate, j.sigma),
-                None => (l.estimate, l.sigma),
-            };
+            let (est, sig) = l.shown_fit();
             let shares: Vec<String> = p
                 .information_share
                 .iter()
@@ -186,10 +183,7 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
                 l.unit,
                 test.map_or("-".into(), |t| format!("{:+.1}", t.z)),
                 test.map_or("-".into(), |t| format!("{:.1}", t.z_critical)),
-                l.joint
-                    .as_ref()
-                    .and_then(|j| j.smallest)
-                    .or(l.smallest)
+                l.shown_smallest()
                     .map_or("-".into(), |v| format!("{} {}", num(Some(v)), l.unit)),
                 shares.join(", ")
             )

@@ -28,7 +28,7 @@
 //! Pure: the limit in, the decisions out.
 
 use super::design::{Candidate, Design};
-use super::limit::InformationLimit;
+use super::limit::{EffectLimit, InformationLimit};
 use super::select::{gain, t_quantile, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
 use interfaces::effects::Effect;
@@ -56,25 +56,36 @@ pub struct WaldTest {
 /// statistic, at the limit's family-wise level; the tests in the order of
 /// their |z|, largest first.
 pub fn holm(limit: &InformationLimit) -> Vec<WaldTest> {
-    let mut tests: Vec<(Effect, f64, bool)> = limit
-        .effects
-        .iter()
+    let dof = limit.segments.saturating_sub(1) as f64;
+    step_down(decisive_tests(&limit.effects), limit.family_alpha, dof)
+}
+
+/// The statistic each effect is decided on: `(effect, z, joint)`, the
+/// joint Wald z where the limit has one, else the effect's alone.
+pub(super) fn decisive_tests<'a>(
+    limits: impl IntoIterator<Item = &'a EffectLimit>,
+) -> Vec<(Effect, f64, bool)> {
+    limits
+        .into_iter()
         .filter_map(|e| match e.joint.as_ref().and_then(|j| j.wald_z) {
             Some(z) => Some((e.effect, z, true)),
             None => e.wald_z.map(|z| (e.effect, z, false)),
         })
         .filter(|(_, z, _)| z.is_finite())
-        .collect();
-    tests.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-    let dof = limit.segments.saturating_sub(1) as f64;
-    step_down(&tests, limit.family_alpha, dof)
+        .collect()
 }
 
-/// Holm's procedure on `(effect, z, joint)` sorted by |z| descending.
-pub(super) fn step_down(sorted: &[(Effect, f64, bool)], alpha: f64, dof: f64) -> Vec<WaldTest> {
-    let m = sorted.len();
+/// Holm's procedure on `(effect, z, joint)`, in the order of |z|,
+/// largest first.
+pub(super) fn step_down(
+    mut tests: Vec<(Effect, f64, bool)>,
+    alpha: f64,
+    dof: f64,
+) -> Vec<WaldTest> {
+    tests.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    let m = tests.len();
     let mut still = true;
-    sorted
+    tests
         .iter()
         .enumerate()
         .map(|(k, &(effect, z, joint))| {
@@ -356,7 +367,7 @@ mod tests {
         // Twelve statistics, 11 degrees of freedom: the first critical value
         // is Bonferroni's (about 3.6), each next one smaller.
         let zs = [9.0, -5.0, 3.5, 3.4, 0.5, 0.1, 0.2, 0.3, 0.4, -0.6, 0.7, 0.8];
-        let t = step_down(&sorted(&zs), 0.05, 11.0);
+        let t = step_down(sorted(&zs), 0.05, 11.0);
         let crit: Vec<f64> = t.iter().map(|x| x.z_critical).collect();
         assert!(crit.windows(2).all(|w| w[0] > w[1]), "{crit:?}");
         assert!((crit[0] - t_quantile(1.0 - 0.025 / 12.0, 11.0)).abs() < 1e-12);
@@ -387,7 +398,7 @@ mod tests {
                     z / (chi / dof as f64).sqrt()
                 })
                 .collect();
-            if step_down(&sorted(&zs), 0.05, dof as f64)
+            if step_down(sorted(&zs), 0.05, dof as f64)
                 .iter()
                 .any(|t| t.significant)
             {

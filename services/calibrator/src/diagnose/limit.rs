@@ -108,6 +108,26 @@ pub struct EffectLimit {
     pub joint: Option<Joint>,
 }
 
+impl EffectLimit {
+    /// The estimate and sigma to show (reported unit): with every other
+    /// effect of its source free where that fit exists, else alone.
+    pub fn shown_fit(&self) -> (Option<f64>, Option<f64>) {
+        match &self.joint {
+            Some(j) => (j.estimate, j.sigma),
+            None => (self.estimate, self.sigma),
+        }
+    }
+
+    /// The smallest size shown: with every other effect free where known,
+    /// else alone.
+    pub fn shown_smallest(&self) -> Option<f64> {
+        self.joint
+            .as_ref()
+            .and_then(|j| j.smallest)
+            .or(self.smallest)
+    }
+}
+
 /// An effect's limit, estimate and Wald statistic with every other effect
 /// of its source fitted alongside.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -461,7 +481,7 @@ fn pick(
 
 /// The fix times every perturbation sees: those of the segment's span
 /// [t0, t1) that the plain model and the latency's steps all reach.
-pub(super) fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
+fn common_times(input: &LimitInput<'_>, h_latency: f64) -> Vec<Vec<f64>> {
     input
         .spans
         .iter()
@@ -540,13 +560,13 @@ fn main_kick(effect: Effect) -> Kick {
 /// circumferences' scale (and left/right difference under the wheels'
 /// heading), its effects' fingerprints, the segments' poses (and the gyro's
 /// bias under the gyro's heading).
-pub(super) struct Columns {
+struct Columns {
     heading: HeadingSource,
     effects: Vec<Effect>,
     /// The effects this source tests: the first `owned` of `effects` (the
     /// rest are fitted beside them, free).
     owned: usize,
-    pub(super) cols: Vec<Col>,
+    cols: Vec<Col>,
     first_effect: usize,
     /// The segment of each pose column (they follow the effects).
     pose_segment: Vec<usize>,
@@ -554,11 +574,7 @@ pub(super) struct Columns {
 }
 
 impl Columns {
-    pub(super) fn build(
-        input: &LimitInput<'_>,
-        heading: HeadingSource,
-        times: &[Vec<f64>],
-    ) -> Columns {
+    fn build(input: &LimitInput<'_>, heading: HeadingSource, times: &[Vec<f64>]) -> Columns {
         let total: usize = times.iter().map(Vec::len).sum();
         let src = Source::new(input, heading, times);
         let wheels = matches!(heading, HeadingSource::Wheels);
@@ -624,11 +640,7 @@ impl Columns {
     /// source free (the effect first, then its nuisances, then the other
     /// effects the drive holds information about), and how many of them
     /// make its fit alone.
-    pub(super) fn column_sets(
-        &self,
-        w: &[Vec<f64>],
-        gram: &SegmentGram,
-    ) -> Vec<(Effect, Vec<usize>, usize)> {
+    fn column_sets(&self, w: &[Vec<f64>], gram: &SegmentGram) -> Vec<(Effect, Vec<usize>, usize)> {
         let n_eff = self.effects.len();
         let first_pose = self.first_effect + n_eff;
         let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
@@ -666,26 +678,19 @@ impl Columns {
     /// own scatter of the estimate is larger, that is the honest one).
     fn limits(
         &self,
-        times: &[f64],
-        segment_sizes: &[usize],
-        noise: &[PositionNoise; 2],
+        gram: &SegmentGram,
+        sets: &[(Effect, Vec<usize>, usize)],
         z_critical: f64,
-    ) -> Result<(Vec<EffectLimit>, SourceGram), InformationError> {
-        if self.cols.iter().any(|c| c.len() != times.len()) {
-            return Err(InformationError::BadData(
-                "the segments' fixes and fingerprints disagree in number".into(),
-            ));
-        }
-        let w = whitened(times, noise, &self.cols)?;
-        let gram = SegmentGram::new(&w, segment_sizes);
+    ) -> (Vec<EffectLimit>, SourceGram) {
         let source = match self.heading {
             HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
         };
         let mut out = Vec::new();
-        for (e, cols, n_alone) in self.column_sets(&w, &gram) {
+        for (e, cols, n_alone) in sets {
+            let (e, n_alone) = (*e, *n_alone);
             let alone = gram.fit(&cols[..n_alone]);
-            let joint = gram.fit(&cols);
+            let joint = gram.fit(cols);
             let mut l = limit_of(e, alone, z_critical, source);
             l.joint = joint.map(|fit| Joint::of(e, fit, z_critical));
             if let (Some(a), Some(j)) = (alone, l.joint.as_mut()) {
@@ -694,7 +699,7 @@ impl Columns {
                     .iter()
                     .map(|&c| (self.effects[c - self.first_effect], c))
                     .collect();
-                j.partners = partners_of(&gram, &base, &a, &others, z_critical);
+                j.partners = partners_of(gram, &base, &a, &others, z_critical);
             }
             out.push(l);
         }
@@ -710,7 +715,7 @@ impl Columns {
             effects: car.iter().map(|&k| self.effects[k]).collect(),
             gram: gram.profiled(&keep),
         };
-        Ok((out, gram))
+        (out, gram)
     }
 }
 
@@ -740,7 +745,7 @@ pub(super) struct SegmentGram {
 }
 
 impl SegmentGram {
-    pub(super) fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
+    fn new(w: &[Vec<f64>], segment_sizes: &[usize]) -> SegmentGram {
         let m = w.len();
         let n: usize = segment_sizes.iter().sum();
         let mut per_segment = vec![DMatrix::zeros(m, m); segment_sizes.len()];
@@ -921,18 +926,18 @@ impl SegmentGram {
     ) -> SegmentGram {
         let m = w.len();
         let mut per_segment = self.per_segment.clone();
+        for g in &mut per_segment {
+            for b in 0..m {
+                g[(0, b)] = 0.0;
+            }
+        }
+        // Rows: the east values of every fix, then the north values.
         let mut row = 0;
         for _axis in 0..2 {
-            for (seg, size) in segment_sizes.iter().enumerate() {
+            for (g, size) in per_segment.iter_mut().zip(segment_sizes) {
                 let rows = row..row + size;
                 let d = &w0[rows.clone()];
-                let g = &mut per_segment[seg];
-                if row < segment_sizes.iter().sum::<usize>() {
-                    // The first axis resets the data row, the second adds.
-                    for b in 0..m {
-                        g[(0, b)] = 0.0;
-                    }
-                }
+                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
                 for b in 1..m {
                     g[(0, b)] += d
                         .iter()
@@ -940,7 +945,6 @@ impl SegmentGram {
                         .map(|(x, y)| x * y)
                         .sum::<f64>();
                 }
-                g[(0, 0)] += d.iter().map(|x| x * x).sum::<f64>();
                 row += size;
             }
         }
@@ -985,20 +989,42 @@ pub struct DriveInformation {
 }
 
 /// The finite-difference step of a parameter: 5 % of its typical size.
-pub(super) fn step_of(p: Param) -> f64 {
+fn step_of(p: Param) -> f64 {
     0.05 * p.spec().typical.abs().max(1e-9)
 }
 
 /// The information limit of every effect on this drive.
 pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, InformationError> {
-    limit_and_information(input).map(|(l, _)| l)
+    limit_and_information(input, false).map(|(l, _, _)| l)
+}
+
+/// One heading source's fixed parts, as the information limit computed
+/// them: the noise to redraw from, the whitened columns, their Gram and
+/// the fits' columns per effect.
+pub(super) struct RedrawSource {
+    pub(super) noise: [PositionNoise; 2],
+    pub(super) w: Vec<Vec<f64>>,
+    pub(super) gram: SegmentGram,
+    pub(super) sets: Vec<(Effect, Vec<usize>, usize)>,
+}
+
+/// What the false-alarm redraws ([`super::montecarlo`]) reuse of the
+/// limit's computation: each heading source's whitened columns and error
+/// model, at the fix times of the segments.
+pub struct RedrawBasis {
+    pub(super) sources: Vec<RedrawSource>,
+    pub(super) all_t: Vec<f64>,
+    pub(super) segment_sizes: Vec<usize>,
 }
 
 /// [`information_limit`], with what the drive tells of the car's effects
-/// for pooling it with other drives of the same car ([`super::pool`]).
+/// for pooling it with other drives of the same car ([`super::pool`]),
+/// and with `keep_redraw_basis` the whitened columns the false-alarm
+/// redraws reuse ([`super::montecarlo`]).
 pub fn limit_and_information(
     input: &LimitInput<'_>,
-) -> Result<(InformationLimit, DriveInformation), InformationError> {
+    keep_redraw_basis: bool,
+) -> Result<(InformationLimit, DriveInformation, Option<RedrawBasis>), InformationError> {
     let alpha = FAMILY_ALPHA / Effect::ALL.len() as f64;
     let times = common_times(input, step_of(Param::GnssLatency));
     let all_t: Vec<f64> = times.iter().flatten().copied().collect();
@@ -1016,6 +1042,7 @@ pub fn limit_and_information(
     let mut limits = BTreeMap::new();
     let mut noises = Vec::new();
     let mut grams = Vec::new();
+    let mut redraw_from = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
         let src = Columns::build(input, heading, &times);
         // The calibration's error model was fitted to the plain model's
@@ -1029,12 +1056,28 @@ pub fn limit_and_information(
                     .into(),
             )
         })?;
-        let (ls, gram) = src.limits(&all_t, &segment_sizes, &noise, z_critical)?;
+        if src.cols.iter().any(|c| c.len() != all_t.len()) {
+            return Err(InformationError::BadData(
+                "the segments' fixes and fingerprints disagree in number".into(),
+            ));
+        }
+        let w = whitened(&all_t, &noise, &src.cols)?;
+        let gram = SegmentGram::new(&w, &segment_sizes);
+        let sets = src.column_sets(&w, &gram);
+        let (ls, source_gram) = src.limits(&gram, &sets, z_critical);
         for l in ls {
             limits.insert(l.effect, l);
         }
-        grams.push(gram);
+        grams.push(source_gram);
         noises.push((noise, refit.is_some()));
+        if keep_redraw_basis {
+            redraw_from.push(RedrawSource {
+                noise,
+                w,
+                gram,
+                sets,
+            });
+        }
     }
     let (noise, refitted) = noises[0];
     // Without a heading sensor the drive holds nothing about its bias.
@@ -1068,7 +1111,12 @@ pub fn limit_and_information(
             .filter_map(|e| limits.remove(e))
             .collect(),
     };
-    Ok((limit, DriveInformation { grams, heading }))
+    let basis = keep_redraw_basis.then_some(RedrawBasis {
+        sources: redraw_from,
+        all_t,
+        segment_sizes,
+    });
+    Ok((limit, DriveInformation { grams, heading }, basis))
 }
 
 /// Realisations of simulated errors per candidate model.
@@ -1086,7 +1134,7 @@ const REALISATIONS: usize = 4;
 /// The segments' poses are local to their segment, so they are projected
 /// out segment by segment (three columns each) and only the few global
 /// columns go through a QR decomposition: linear in the drive's length.
-pub(super) fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
+fn refit_noise(times: &[Vec<f64>], src: &Columns) -> Option<[PositionNoise; 2]> {
     let fit = JointFit::new(times, src)?;
     let n = fit.n;
     let mut gaps: Vec<f64> = times

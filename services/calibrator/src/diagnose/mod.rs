@@ -656,18 +656,11 @@ pub fn diagnose_with_progress(
         block_s,
         ep: &ep,
     };
-    let (information_limit, information, information_limit_missing) =
-        match drive_limit(&limit_input, 0) {
-            Ok((l, i, _)) => (Some(l), Some(i), None),
-            Err(why) => (None, None, Some(why)),
+    let (information_limit, information, null_false_alarm, information_limit_missing) =
+        match drive_limit(&limit_input, cfg.null_draws) {
+            Ok((l, i, rate)) => (Some(l), Some(i), rate, None),
+            Err(why) => (None, None, None, Some(why)),
         };
-    let null_false_alarm = if cfg.null_draws > 0 {
-        drive_limit(&limit_input, cfg.null_draws)
-            .ok()
-            .and_then(|(_, _, rate)| rate)
-    } else {
-        None
-    };
     let mut sel = forward_select(&design, &stats);
     let wald_tests = information_limit
         .as_ref()
@@ -1034,10 +1027,10 @@ fn drive_limit(
         noise,
         design,
     };
-    let (l, i) = limit::limit_and_information(&input)
+    let (l, i, basis) = limit::limit_and_information(&input, null_draws > 0)
         .map_err(|e| format!("the information could not be computed: {e}"))?;
-    let rate = (null_draws > 0)
-        .then(|| montecarlo::null_rejection_rate(&input, null_draws, 0x37_0002))
+    let rate = basis
+        .map(|b| montecarlo::run(&b, null_draws, montecarlo::NULL_SEED))
         .transpose()
         .map_err(|e| format!("the false-alarm rate could not be computed: {e}"))?;
     Ok((l, i, rate))

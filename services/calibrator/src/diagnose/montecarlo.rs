@@ -17,13 +17,9 @@
 
 use super::decide::step_down;
 use super::information::{InformationError, PositionNoise};
-use super::limit::{
-    common_times, gauss_markov, refit_noise, step_of, whitened, Columns, LimitInput, SegmentGram,
-    FAMILY_ALPHA,
-};
-use super::locate::HeadingSource;
+use super::limit::{gauss_markov, whitened, RedrawBasis, FAMILY_ALPHA};
 use crate::error_model::Normal;
-use interfaces::effects::{Effect, Param};
+use interfaces::effects::Effect;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -44,49 +40,19 @@ pub struct NullRate {
     pub per_effect: BTreeMap<Effect, usize>,
 }
 
-/// One heading source's fixed parts: the whitened columns, their Gram, the
-/// noise to redraw from and the fits' columns per effect.
-struct Prepared {
-    noise: [PositionNoise; 2],
-    w: Vec<Vec<f64>>,
-    gram: SegmentGram,
-    sets: Vec<(Effect, Vec<usize>, usize)>,
-}
+/// The seed of the false-alarm redraws (the same numbers every run).
+pub(super) const NULL_SEED: u64 = 0x37_0002;
 
-/// `draws` redraws of the drive's GNSS errors from its refitted error
-/// model, each tested as the diagnosis tests the drive (seeded: the same
-/// numbers for the same seed).
-pub fn null_rejection_rate(
-    input: &LimitInput<'_>,
+/// `draws` redraws of the drive's GNSS errors from each heading source's
+/// error model, on the information limit's whitened columns, each tested
+/// as the diagnosis tests the drive (seeded: the same numbers for the same
+/// seed).
+pub(super) fn run(
+    basis: &RedrawBasis,
     draws: usize,
     seed: u64,
 ) -> Result<NullRate, InformationError> {
-    let times = common_times(input, step_of(Param::GnssLatency));
-    let all_t: Vec<f64> = times.iter().flatten().copied().collect();
-    let segment_sizes: Vec<usize> = times.iter().map(Vec::len).filter(|n| *n > 0).collect();
-    if all_t.len() < 10 || segment_sizes.len() < 2 {
-        return Err(InformationError::BadData(format!(
-            "{} fixes in {} segments; at least 10 in 2",
-            all_t.len(),
-            segment_sizes.len()
-        )));
-    }
-    let mut sources = Vec::new();
-    for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
-        let src = Columns::build(input, heading, &times);
-        let noise = refit_noise(&times, &src).or(input.noise).ok_or_else(|| {
-            InformationError::BadNoise("no GNSS error model to redraw from".into())
-        })?;
-        let w = whitened(&all_t, &noise, &src.cols)?;
-        let gram = SegmentGram::new(&w, &segment_sizes);
-        let sets = src.column_sets(&w, &gram);
-        sources.push(Prepared {
-            noise,
-            w,
-            gram,
-            sets,
-        });
-    }
+    let (all_t, segment_sizes) = (&basis.all_t[..], &basis.segment_sizes[..]);
     let n = all_t.len();
     let dof = segment_sizes.len().saturating_sub(1) as f64;
     let mut rng = Normal::new(seed);
@@ -94,14 +60,14 @@ pub fn null_rejection_rate(
     let mut per_effect: BTreeMap<Effect, usize> = BTreeMap::new();
     for _ in 0..draws {
         let mut tests: Vec<(Effect, f64, bool)> = Vec::new();
-        for p in &sources {
-            let err = redraw(&mut rng, &all_t, &p.noise);
+        for p in &basis.sources {
+            let err = redraw(&mut rng, all_t, &p.noise);
             let col: Vec<[f64; 2]> = (0..n).map(|i| [err[i], err[n + i]]).collect();
-            let w0 = whitened(&all_t, &p.noise, &[col])?;
+            let w0 = whitened(all_t, &p.noise, &[col])?;
             let Some(w0) = w0.first() else {
                 continue;
             };
-            let g = p.gram.with_data(w0, &p.w, &segment_sizes);
+            let g = p.gram.with_data(w0, &p.w, segment_sizes);
             for (e, cols, n_alone) in &p.sets {
                 let fit = g.fit(cols).or_else(|| g.fit(&cols[..*n_alone]));
                 if let Some(f) = fit {
@@ -112,8 +78,7 @@ pub fn null_rejection_rate(
                 }
             }
         }
-        tests.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-        let called: Vec<Effect> = step_down(&tests, FAMILY_ALPHA, dof)
+        let called: Vec<Effect> = step_down(tests, FAMILY_ALPHA, dof)
             .into_iter()
             .filter(|t| t.significant)
             .map(|t| t.effect)

@@ -12,7 +12,7 @@
 //!
 //! Pure: the drives' information in, the pooled verdict out.
 
-use super::decide::{step_down, WaldDecision, WaldTest, GUARD_Z};
+use super::decide::{decisive_tests, step_down, WaldDecision, WaldTest, GUARD_Z};
 use super::limit::{
     limit_of, partners_of, CoefFit, DriveInformation, EffectLimit, InformationSource, Joint,
     Partner, SegmentGram, FAMILY_ALPHA,
@@ -229,19 +229,11 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
         })
         .collect();
     effects.sort_by_key(|p| car.iter().position(|e| *e == p.limit.effect));
-    let mut tests: Vec<(Effect, f64, bool)> = effects
-        .iter()
-        .filter_map(|p| {
-            let l = &p.limit;
-            match l.joint.as_ref().and_then(|j| j.wald_z) {
-                Some(z) => Some((l.effect, z, true)),
-                None => l.wald_z.map(|z| (l.effect, z, false)),
-            }
-        })
-        .filter(|t| t.1.is_finite())
-        .collect();
-    tests.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-    let wald = step_down(&tests, FAMILY_ALPHA, dof);
+    let wald = step_down(
+        decisive_tests(effects.iter().map(|p| &p.limit)),
+        FAMILY_ALPHA,
+        dof,
+    );
     for p in &mut effects {
         p.verdict = verdict(p, &wald);
     }
@@ -321,7 +313,7 @@ fn verdict(p: &PooledEffect, wald: &[WaldTest]) -> CarVerdict {
     let spec = l.effect.main_fitted().spec();
     let shown = |v: f64| l.effect.main_fitted().to_display(v);
     let (lo, hi) = (shown(spec.plausible.0), shown(spec.plausible.1));
-    let estimate = l.joint.as_ref().and_then(|j| j.estimate).or(l.estimate);
+    let estimate = l.shown_fit().0.or(l.estimate);
     match (estimate, p.heterogeneity) {
         (Some(e), _) if e < lo.min(hi) || e > lo.max(hi) => CarVerdict::Implausible,
         (_, Some([q, limit])) if q > limit => CarVerdict::Inconsistent,

@@ -37,10 +37,7 @@ pub fn effect_svg(p: &PooledEffect, names: &[String]) -> Result<String, FigureEr
             own_bars.push(bar((i + 1) as f64, *e, *s));
         }
     }
-    let (pe, ps) = match &l.joint {
-        Some(j) => (j.estimate, j.sigma),
-        None => (l.estimate, l.sigma),
-    };
+    let (pe, ps) = l.shown_fit();
     let pooled_x = (n + 1) as f64;
     let span = [0.5, pooled_x + 0.5];
     let mut fig = Figure::new(
@@ -73,7 +70,7 @@ pub fn effect_svg(p: &PooledEffect, names: &[String]) -> Result<String, FigureEr
                     .with_mark(Mark::Dots { radius: 5 }),
             );
     }
-    if let Some(v) = l.joint.as_ref().and_then(|j| j.smallest).or(l.smallest) {
+    if let Some(v) = l.shown_smallest() {
         fig = fig.with(Series::lines(
             "smallest size the drives together show",
             vec![
@@ -120,10 +117,7 @@ pub fn car_html(
         .map(|p| {
             let l = &p.limit;
             let test = car.wald.iter().find(|t| t.effect == l.effect);
-            let (e, s) = match &l.joint {
-                Some(j) => (j.estimate, j.sigma),
-                None => (l.estimate, l.sigma),
-            };
+            let (e, s) = l.shown_fit();
             let num = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3e}"));
             vec![
                 Cell::Html(format!("<code>{}</code>", escape(l.effect.id()))),
@@ -132,11 +126,7 @@ pub fn car_html(
                 Cell::Number(test.map_or("-".into(), |t| {
                     format!("{:+.1} (Holm {:.1})", t.z, t.z_critical)
                 })),
-                Cell::Number(format!(
-                    "{} {}",
-                    num(l.joint.as_ref().and_then(|j| j.smallest).or(l.smallest)),
-                    l.unit
-                )),
+                Cell::Number(format!("{} {}", num(l.shown_smallest()), l.unit)),
                 Cell::Text(
                     p.information_share
                         .iter()
