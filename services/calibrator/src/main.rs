@@ -4,6 +4,9 @@
 //! Each subcommand is one variant of [`Command`] dispatching to one function:
 //! - [`calibrate_cmd`]: `calibrate`, read a drive, print the report, write the JSON and
 //!   the pictures;
+//! - [`compare_cmd`]: `compare`, a recording and a simulation of the same
+//!   path diagnosed alike, the physics they differ in, where they part,
+//!   how alike their residual channels are;
 //! - [`diagnose_car`]: `diagnose`, one drive or several of one car (the
 //!   car's effects pooled over them, a page linking each drive's);
 //! - [`diagnose_cmd`]: `diagnose` of one drive, print the findings, write
@@ -15,6 +18,7 @@
 //! - [`serve`]: the live loop over the bus, with its state file.
 
 mod calibrate_cmd;
+mod compare_cmd;
 mod diagnose_car;
 mod diagnose_cmd;
 mod drive_input;
@@ -42,6 +46,11 @@ enum Command {
     /// and the drive part ways, which catalogue effects explain it (tested on
     /// held-out blocks), the extended model and the fit before and after.
     Diagnose(diagnose_cmd::DiagnoseArgs),
+    /// A simulation against a recording of the same path: the physics the
+    /// simulation lacks (or has too much of), where the two part, how alike
+    /// their residual channels are; the JSON's findings mend the simulation
+    /// (`sensor-bridge simulate --like RECORDING --effects-from`).
+    Compare(compare_cmd::CompareArgs),
     /// What a recording holds, and what the calibration finds about its
     /// sensors: every stream's clock offset against the wheels, the GNSS
     /// jumps set aside, the fit quality, and whether a calibration would be
@@ -58,6 +67,7 @@ fn main() -> Result<()> {
     match cli.command {
         Command::Calibrate(args) => calibrate_cmd::run_calibrate(&args),
         Command::Diagnose(args) => diagnose_car::run_diagnose(&args),
+        Command::Compare(args) => compare_cmd::run_compare(&args),
         Command::Info(args) => info_cmd::run_info(&args),
         Command::Serve(args) => serve_cmd::run_serve(&args),
     }

@@ -25,6 +25,8 @@
 //! scatter, each channel's noise from its own differences, significance from
 //! the spread over blocks.
 
+pub mod compare;
+pub mod compare_pictures;
 pub mod decide;
 pub mod design;
 pub mod epochs;
@@ -478,6 +480,34 @@ pub struct ResidualPlot {
     pub points: Vec<(f64, f64, f64)>,
 }
 
+/// One block of the drive as the plain model sees it (for comparing two
+/// drives of one path block by block, [`compare`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockSummary {
+    /// Block number (from the drive's first epoch).
+    pub block: usize,
+    /// Start, s.
+    pub t_start_s: f64,
+    /// End, s.
+    pub t_end_s: f64,
+    /// Position RMSE of the plain model over the block (rigidly aligned), m;
+    /// `None` where the block has too few fixes.
+    pub plain_rms_m: Option<f64>,
+    /// What the car does there.
+    pub manoeuvre: String,
+}
+
+/// A residual channel of the plain model, fix by fix: what the diagnosis
+/// fits its effects to (block means removed where the channel says so;
+/// the position channels whitened).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChannelSeries {
+    /// The channel.
+    pub channel: Channel,
+    /// Per row: block, time (s), residual (the channel's unit).
+    pub rows: Vec<(usize, f64, f64)>,
+}
+
 /// The tracks of the blocks, before and after, for pictures.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct TrackPlot {
@@ -542,6 +572,12 @@ pub struct Diagnosis {
     /// Picture data (not in the JSON).
     #[serde(skip)]
     pub tracks: TrackPlot,
+    /// The drive's blocks under the plain model (not in the JSON).
+    #[serde(skip)]
+    pub blocks: Vec<BlockSummary>,
+    /// The plain model's residual channels (not in the JSON).
+    #[serde(skip)]
+    pub channels: Vec<ChannelSeries>,
 }
 
 /// Diagnose a drive.
@@ -889,6 +925,33 @@ pub fn diagnose_with_progress(
         t_first,
     );
 
+    let blocks: Vec<BlockSummary> = used
+        .iter()
+        .map(|&b| {
+            let (t0, t1) = span(b);
+            BlockSummary {
+                block: b,
+                t_start_s: t0,
+                t_end_s: t1,
+                plain_rms_m: before_blocks[b],
+                manoeuvre: manoeuvre(&epochs_in(b)),
+            }
+        })
+        .collect();
+    let channels: Vec<ChannelSeries> = Channel::ALL
+        .iter()
+        .map(|&c| ChannelSeries {
+            channel: c,
+            rows: design
+                .rows
+                .iter()
+                .zip(&design.y)
+                .filter(|((ch, _, _), _)| *ch == c)
+                .filter_map(|(&(_, i, b), &y)| Some((b, ep.epochs.get(i)?.t_s, y)))
+                .collect(),
+        })
+        .filter(|c| !c.rows.is_empty())
+        .collect();
     let residual_plots = residual_plots(&design, &ep, &stats, &sel.accepted, &resid_after);
     let mut tracks = TrackPlot::default();
     for &b in &used {
@@ -961,6 +1024,8 @@ pub fn diagnose_with_progress(
         terms,
         residual_plots,
         tracks,
+        blocks,
+        channels,
     })
 }
 

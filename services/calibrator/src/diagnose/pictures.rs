@@ -1168,6 +1168,8 @@ mod tests {
             terms: EffectTerms::default(),
             residual_plots: Vec::new(),
             tracks: TrackPlot::default(),
+            blocks: Vec::new(),
+            channels: Vec::new(),
         }
     }
 

@@ -1,0 +1,345 @@
+//! The `compare` subcommand: read a recording and a simulation of the same
+//! path, diagnose both the same way, print what differs, write the JSON
+//! and the page ([`calibrator::diagnose::compare`]).
+
+use anyhow::{Context, Result};
+use calibrator::diagnose::compare::{compare, CompareConfig, Comparison};
+use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
+use clap::Args;
+use interfaces::drive::Drive;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `calibrator compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// The recording: a drive folder or MCAP recording.
+    pub recording: PathBuf,
+    /// The simulation of the same path (any simulator that writes the drive
+    /// format or MCAP; e.g. `sensor-bridge simulate --like RECORDING`).
+    pub simulation: PathBuf,
+    #[command(flatten)]
+    pub input: crate::drive_input::DriveInput,
+    /// Write the comparison as JSON here (its `findings` are what
+    /// `sensor-bridge simulate --like RECORDING --effects-from` reads to
+    /// mend the simulation).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the pictures and index.html into this folder.
+    #[arg(long)]
+    pub plots: Option<PathBuf>,
+    /// The comparison JSON from before a mend: the page and the text show
+    /// each channel's distance before and now.
+    #[arg(long, value_name = "COMPARISON.json")]
+    pub before: Option<PathBuf>,
+    /// Block length for both diagnoses, s (default: the recording's, a
+    /// twelfth of it, 5-60 s).
+    #[arg(long)]
+    pub block: Option<f64>,
+}
+
+/// What the JSON holds: the comparison and the two paths.
+#[derive(serde::Serialize)]
+struct Written<'a> {
+    recording: String,
+    simulation: String,
+    #[serde(flatten)]
+    comparison: &'a Comparison,
+}
+
+/// The parts of an earlier comparison the page and the text use.
+#[derive(serde::Deserialize)]
+struct Earlier {
+    #[serde(default)]
+    effects: Vec<EarlierEffect>,
+    #[serde(default)]
+    channels: Vec<EarlierChannel>,
+}
+
+#[derive(serde::Deserialize)]
+struct EarlierEffect {
+    effect: interfaces::effects::Effect,
+    verdict: calibrator::diagnose::compare::DifferenceVerdict,
+}
+
+#[derive(serde::Deserialize)]
+struct EarlierChannel {
+    channel: String,
+    distance: f64,
+    noise_level: f64,
+    within_noise: bool,
+}
+
+/// `calibrator compare RECORDING SIMULATION`.
+pub fn run_compare(args: &CompareArgs) -> Result<()> {
+    let read = |p: &Path| -> Result<Drive> {
+        let loaded = drive_io::cli::accept_truncated(args.input.read(p, false)?, false)
+            .with_context(|| format!("cannot read drive {}", p.display()))?;
+        for w in &loaded.warnings {
+            tracing::warn!("{}: {w}", p.display());
+        }
+        Ok(loaded.drive)
+    };
+    if let Some(b) = args.block {
+        anyhow::ensure!(b.is_finite() && b >= 2.0, "--block {b}: at least 2 s");
+    }
+    let before = args.before.as_deref().map(read_earlier).transpose()?;
+    let (real, sim) = (read(&args.recording)?, read(&args.simulation)?);
+    let mut cfg = DiagnoseConfig {
+        block_s: args.block,
+        ..DiagnoseConfig::default()
+    };
+    let dr = diagnose(&real, &cfg)
+        .with_context(|| format!("cannot diagnose the recording {}", args.recording.display()))?;
+    cfg.block_s = Some(dr.noise.block_s);
+    let ds = diagnose(&sim, &cfg).with_context(|| {
+        format!(
+            "cannot diagnose the simulation {}",
+            args.simulation.display()
+        )
+    })?;
+    let c = compare(&dr, &ds, &CompareConfig::default());
+    print!("{}", render_text(&c, before.as_ref().map(|b| &b.1)));
+    if let Some(path) = &args.json {
+        let w = Written {
+            recording: args.recording.display().to_string(),
+            simulation: args.simulation.display().to_string(),
+            comparison: &c,
+        };
+        let text = serde_json::to_string_pretty(&w).context("cannot encode the comparison")?;
+        std::fs::write(path, text + "\n")
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    if let Some(dir) = &args.plots {
+        write_page(args, dir, &c, [&real, &sim], [&dr, &ds], before.as_ref())?;
+    }
+    Ok(())
+}
+
+/// An earlier comparison: as a [`Comparison`] for the page (its effects and
+/// channels; the rest empty) and as read.
+fn read_earlier(path: &Path) -> Result<(Comparison, Earlier)> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let e: Earlier = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a comparison JSON", path.display()))?;
+    let as_comparison = Comparison {
+        family_alpha: 0.05,
+        block_s: 0.0,
+        effects: e
+            .effects
+            .iter()
+            .map(|x| calibrator::diagnose::compare::EffectDifference {
+                effect: x.effect,
+                parameter: "",
+                unit: "",
+                typical: f64::NAN,
+                recording: None,
+                simulation: None,
+                difference: None,
+                sigma: None,
+                z: None,
+                z_critical: None,
+                guard_z: None,
+                verdict: x.verdict,
+                evidence: String::new(),
+            })
+            .collect(),
+        parting: Vec::new(),
+        matched_blocks: 0,
+        channels: e
+            .channels
+            .iter()
+            .map(|c| calibrator::diagnose::compare::ChannelDistance {
+                channel: calibrator::diagnose::design::Channel::ALL
+                    .iter()
+                    .map(|k| k.name())
+                    .find(|n| *n == c.channel)
+                    .unwrap_or("unknown"),
+                unit: "",
+                samples: [0, 0],
+                rms: [f64::NAN; 2],
+                distance: c.distance,
+                noise_level: c.noise_level,
+                p_value: f64::NAN,
+                within_noise: c.within_noise,
+            })
+            .collect(),
+        channels_within_noise: e.channels.iter().filter(|c| c.within_noise).count(),
+        holdout_rmse_m: [f64::NAN; 2],
+        findings: Vec::new(),
+        effects_missing: None,
+    };
+    Ok((as_comparison, e))
+}
+
+/// The pictures and the index page.
+fn write_page(
+    args: &CompareArgs,
+    dir: &Path,
+    c: &Comparison,
+    drives: [&Drive; 2],
+    diagnoses: [&Diagnosis; 2],
+    before: Option<&(Comparison, Earlier)>,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let draw = "cannot draw the comparison's pictures";
+    let fixes = |d: &Drive| -> Vec<[f64; 2]> {
+        let g = d.gnss.as_deref().unwrap_or(&[]);
+        let step = g.len().div_ceil(2500).max(1);
+        g.iter().step_by(step).map(|f| [f.x_m, f.y_m]).collect()
+    };
+    let mut pictures: Vec<(String, String)> = vec![
+        (
+            "tracks.svg".into(),
+            pics::tracks_svg(&fixes(drives[0]), &fixes(drives[1])).context(draw)?,
+        ),
+        ("effects.svg".into(), pics::effects_svg(c).context(draw)?),
+        (
+            "blocks.svg".into(),
+            pics::blocks_svg(c, diagnoses[0], diagnoses[1]).context(draw)?,
+        ),
+    ];
+    if let Some((b, _)) = before {
+        pictures.push(("mend.svg".into(), pics::mend_svg(b, c).context(draw)?));
+    }
+    for ch in &c.channels {
+        pictures.push((
+            format!("channel_{}.svg", ch.channel),
+            pics::channel_svg(ch, diagnoses[0], diagnoses[1]).context(draw)?,
+        ));
+    }
+    for (name, svg) in &pictures {
+        let path = dir.join(name);
+        std::fs::write(&path, svg).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    let names = [
+        args.recording.display().to_string(),
+        args.simulation.display().to_string(),
+    ];
+    let index = dir.join("index.html");
+    std::fs::write(
+        &index,
+        pics::index_html(c, [&names[0], &names[1]], before.map(|b| &b.0), &pictures),
+    )
+    .with_context(|| format!("cannot write {}", index.display()))?;
+    println!("wrote {} pictures and {}", pictures.len(), index.display());
+    Ok(())
+}
+
+/// The comparison as text for the terminal.
+fn render_text(c: &Comparison, before: Option<&Earlier>) -> String {
+    let mut s = String::new();
+    let named: Vec<_> = c.named().collect();
+    if let Some(why) = &c.effects_missing {
+        let _ = writeln!(s, "the effects could not be compared: {why}");
+    }
+    if named.is_empty() {
+        let _ = writeln!(s, "physics: no effect differs beyond the noise");
+    } else {
+        let _ = writeln!(s, "physics the two differ in (Holm's procedure, 5 %):");
+        for e in &named {
+            let _ = writeln!(s, "  - {}: {}; {}", e.effect, e.verdict.words(), e.evidence);
+        }
+    }
+    for e in c.effects.iter().filter(|e| {
+        matches!(
+            e.verdict,
+            calibrator::diagnose::compare::DifferenceVerdict::Guarded
+                | calibrator::diagnose::compare::DifferenceVerdict::Implausible
+        )
+    }) {
+        let _ = writeln!(
+            s,
+            "  not named: {}: {}; {}",
+            e.effect,
+            e.verdict.words(),
+            e.evidence
+        );
+    }
+    if c.parting.is_empty() {
+        let _ = writeln!(
+            s,
+            "where they part: nowhere beyond the simulation's block-to-block scatter ({} blocks matched)",
+            c.matched_blocks
+        );
+    } else {
+        let _ = writeln!(s, "where they part ({} blocks matched):", c.matched_blocks);
+        for p in &c.parting {
+            let _ = writeln!(
+                s,
+                "  - {:.0}-{:.0} s: plain-model error {:.2} m on the recording, {:.2} m on the simulation (z {:.1}); {}",
+                p.t_start_s, p.t_end_s, p.recording_rms_m, p.simulation_rms_m, p.z, p.manoeuvre
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "residual channels within their noise level: {} of {}",
+        c.channels_within_noise,
+        c.channels.len()
+    );
+    for ch in &c.channels {
+        let was = before
+            .and_then(|b| b.channels.iter().find(|x| x.channel == ch.channel))
+            .map_or(String::new(), |b| {
+                format!(
+                    " (before: {} against {}, {})",
+                    pics::sig3(b.distance),
+                    pics::sig3(b.noise_level),
+                    if b.within_noise { "within" } else { "beyond" }
+                )
+            });
+        let _ = writeln!(
+            s,
+            "  - {}: distance {} {} against a noise level of {} (p {:.3}): {}{was}",
+            ch.channel,
+            pics::sig3(ch.distance),
+            ch.unit,
+            pics::sig3(ch.noise_level),
+            ch.p_value,
+            if ch.within_noise { "within" } else { "beyond" }
+        );
+    }
+    if let Some(b) = before {
+        let was: Vec<String> = b
+            .effects
+            .iter()
+            .filter(|e| e.verdict.named())
+            .map(|e| e.effect.to_string())
+            .collect();
+        let _ = writeln!(
+            s,
+            "before the mend: {} named ({}); now {}",
+            was.len(),
+            if was.is_empty() {
+                "none".into()
+            } else {
+                was.join(", ")
+            },
+            named.len()
+        );
+    }
+    let _ = writeln!(
+        s,
+        "the mended simulation should carry: {}",
+        if c.findings.is_empty() {
+            "no effect".to_string()
+        } else {
+            c.findings
+                .iter()
+                .map(|f| {
+                    let p: Vec<String> = f
+                        .parameters
+                        .iter()
+                        .map(|(k, v)| format!("{k} {}", pics::sig3(*v)))
+                        .collect();
+                    format!("{} ({})", f.effect, p.join(", "))
+                })
+                .collect::<Vec<_>>()
+                .join("; ")
+        }
+    );
+    s
+}

@@ -1,0 +1,641 @@
+//! A simulation against a recording of the same path (issue 38): which
+//! physics the recording shows and the simulation lacks (or has too much
+//! of), where along the drive the two part ways, and how alike their
+//! residual channels are.
+//!
+//! Both drives are diagnosed the same way (the same block length) and the
+//! comparison is made of the two diagnoses:
+//!
+//! - **Per effect**, the difference of the two estimates from the
+//!   information limit (each with every other effect of its source free
+//!   where the drive allows, else alone), its sigma from the two sigmas
+//!   (the two drives' noise is independent), and Holm's procedure over
+//!   the effects at the family's 5 % ([`super::decide::step_down`]). A
+//!   significant difference is named when the side with more of the
+//!   effect passes its own held-out guard for it (as `diagnose` asks of a
+//!   finding) and the size is plausible; otherwise it is `guarded` or
+//!   `implausible`, with the reason.
+//! - **Where they part**: block by block (matched by time), the plain
+//!   model's position error on the recording against the simulation's; a
+//!   block whose log ratio lies beyond what the simulation's own
+//!   block-to-block scatter allows (Bonferroni over the blocks) is listed
+//!   with its manoeuvre.
+//! - **How alike** per residual channel: the Wasserstein-1 distance of the
+//!   two residual distributions, and its noise level from swapping whole
+//!   matched blocks between the two (the GNSS error is correlated within
+//!   a block, not across): the distance is within its noise level when it
+//!   is below the swaps' 95 % point.
+//!
+//! `next_twin` is the physics a mended simulation should carry: the
+//! recording's estimate of every effect named lacking, and what the
+//! simulation already holds of the rest (unless it has too much of it),
+//! in the shape `sensor-bridge simulate --effects-from` reads.
+//!
+//! Pure: two diagnoses in, a comparison out.
+
+use super::decide::{step_down, GUARD_Z};
+use super::limit::{EffectLimit, FAMILY_ALPHA};
+use super::select::normal_quantile;
+use super::Diagnosis;
+use crate::error_model::Normal;
+use interfaces::effects::Effect;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Settings of a comparison.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CompareConfig {
+    /// Block swaps for each channel's noise level.
+    pub swaps: usize,
+    /// Seed of the swaps.
+    pub seed: u64,
+}
+
+impl Default for CompareConfig {
+    fn default() -> Self {
+        CompareConfig {
+            swaps: 199,
+            seed: 0x38_0001,
+        }
+    }
+}
+
+/// What became of an effect's difference.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DifferenceVerdict {
+    /// The recording shows more of it than the simulation: the simulation
+    /// lacks it.
+    Lacking,
+    /// The simulation shows more of it than the recording.
+    Excess,
+    /// Significant, but the side with more of it does not pass its own
+    /// held-out guard for it (a fingerprint that may soak up a model
+    /// mismatch).
+    Guarded,
+    /// Significant, with a size outside the catalogue's plausible range.
+    Implausible,
+    /// Within the noise.
+    Alike,
+    /// One of the two drives holds no information about it.
+    NotShown,
+}
+
+impl DifferenceVerdict {
+    /// In words.
+    pub fn words(self) -> &'static str {
+        match self {
+            DifferenceVerdict::Lacking => "the simulation lacks it",
+            DifferenceVerdict::Excess => "the simulation has too much of it",
+            DifferenceVerdict::Guarded => "significant; the held-out guard disagrees",
+            DifferenceVerdict::Implausible => "significant; implausible size",
+            DifferenceVerdict::Alike => "alike",
+            DifferenceVerdict::NotShown => "not shown by both drives",
+        }
+    }
+
+    /// Whether the comparison names the effect as a difference.
+    pub fn named(self) -> bool {
+        matches!(self, DifferenceVerdict::Lacking | DifferenceVerdict::Excess)
+    }
+}
+
+/// One effect in both drives.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectDifference {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// The main parameter's name and unit (the table's, as reported).
+    pub parameter: &'static str,
+    /// Its unit.
+    pub unit: &'static str,
+    /// The catalogue's typical size.
+    pub typical: f64,
+    /// The recording's estimate and sigma.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording: Option<[f64; 2]>,
+    /// The simulation's estimate and sigma.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub simulation: Option<[f64; 2]>,
+    /// Recording minus simulation.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub difference: Option<f64>,
+    /// Its sigma.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+    /// `difference / sigma`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
+    /// Holm's critical |z| at its rank.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z_critical: Option<f64>,
+    /// The held-out guard's signed-rank z on the side with more of it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guard_z: Option<f64>,
+    /// The verdict.
+    pub verdict: DifferenceVerdict,
+    /// Why, in words.
+    pub evidence: String,
+}
+
+/// A stretch of the drive where the recording and the simulation part.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PartingSpan {
+    /// Start (the recording's clock), s.
+    pub t_start_s: f64,
+    /// End, s.
+    pub t_end_s: f64,
+    /// The plain model's position RMSE there on the recording, m.
+    pub recording_rms_m: f64,
+    /// The same on the simulation, m.
+    pub simulation_rms_m: f64,
+    /// The largest of the blocks' log-ratio z.
+    pub z: f64,
+    /// What the car does there.
+    pub manoeuvre: String,
+}
+
+/// One residual channel in both drives.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ChannelDistance {
+    /// Channel name.
+    pub channel: &'static str,
+    /// Its unit.
+    pub unit: &'static str,
+    /// Residuals in the recording and in the simulation.
+    pub samples: [usize; 2],
+    /// Their RMS, recording and simulation.
+    pub rms: [f64; 2],
+    /// Wasserstein-1 distance of the two residual distributions (unit).
+    pub distance: f64,
+    /// Its noise level: the 95 % point of the distance over swaps of
+    /// matched blocks between the two.
+    pub noise_level: f64,
+    /// The share of swaps at or beyond the distance (a p-value).
+    pub p_value: f64,
+    /// `distance <= noise_level`.
+    pub within_noise: bool,
+}
+
+/// An effect the mended simulation should carry, as
+/// `sensor-bridge simulate --effects-from` reads it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TwinEffect {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// Parameter values (reported units).
+    pub parameters: BTreeMap<String, f64>,
+    /// Their units.
+    pub units: BTreeMap<String, String>,
+    /// Where the values come from.
+    pub from: String,
+}
+
+/// A recording and a simulation compared.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// The family-wise level of the effects' test.
+    pub family_alpha: f64,
+    /// Block length both were diagnosed with, s.
+    pub block_s: f64,
+    /// Every effect, in catalogue order.
+    pub effects: Vec<EffectDifference>,
+    /// Where the two part.
+    pub parting: Vec<PartingSpan>,
+    /// Blocks matched in time.
+    pub matched_blocks: usize,
+    /// Per residual channel.
+    pub channels: Vec<ChannelDistance>,
+    /// Channels within their noise level.
+    pub channels_within_noise: usize,
+    /// The plain model's held-out position RMSE, recording and
+    /// simulation, m.
+    pub holdout_rmse_m: [f64; 2],
+    /// The physics the mended simulation should carry (the shape of a
+    /// diagnosis's `findings`).
+    pub findings: Vec<TwinEffect>,
+    /// Why the effects' test could not run, if it could not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub effects_missing: Option<String>,
+}
+
+impl Comparison {
+    /// The effects named as differences.
+    pub fn named(&self) -> impl Iterator<Item = &EffectDifference> {
+        self.effects.iter().filter(|e| e.verdict.named())
+    }
+
+    /// Whether the two are alike: no effect named, every channel within its
+    /// noise level.
+    pub fn alike(&self) -> bool {
+        self.named().next().is_none() && self.channels_within_noise == self.channels.len()
+    }
+}
+
+/// Compare `recording` with `simulation` (both diagnosed with the same
+/// block length).
+pub fn compare(recording: &Diagnosis, simulation: &Diagnosis, cfg: &CompareConfig) -> Comparison {
+    let (effects, effects_missing) = effect_differences(recording, simulation);
+    let pairs = matched_blocks(recording, simulation);
+    let parting = parting_spans(recording, simulation, &pairs);
+    let channels = channel_distances(recording, simulation, &pairs, cfg);
+    let findings = next_twin(recording, simulation, &effects);
+    Comparison {
+        family_alpha: FAMILY_ALPHA,
+        block_s: recording.noise.block_s,
+        parting,
+        matched_blocks: pairs.len(),
+        channels_within_noise: channels.iter().filter(|c| c.within_noise).count(),
+        channels,
+        holdout_rmse_m: [
+            recording.fit.before.holdout_position_rmse_m,
+            simulation.fit.before.holdout_position_rmse_m,
+        ],
+        findings,
+        effects,
+        effects_missing,
+    }
+}
+
+/// Per effect: both fits, their difference and Holm's decision.
+fn effect_differences(
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+) -> (Vec<EffectDifference>, Option<String>) {
+    let (Some(lr), Some(ls)) = (&recording.information_limit, &simulation.information_limit) else {
+        let why = recording
+            .information_limit_missing
+            .as_ref()
+            .map(|w| format!("the recording: {w}"))
+            .or_else(|| {
+                simulation
+                    .information_limit_missing
+                    .as_ref()
+                    .map(|w| format!("the simulation: {w}"))
+            })
+            .unwrap_or_else(|| "no information limit".into());
+        return (Vec::new(), Some(why));
+    };
+    let fit = |l: Option<&EffectLimit>| -> Option<[f64; 2]> {
+        let (e, s) = l?.shown_fit();
+        let (e, s) = (e?, s?);
+        (e.is_finite() && s.is_finite() && s > 0.0).then_some([e, s])
+    };
+    let mut rows: Vec<EffectDifference> = Vec::new();
+    let mut tests = Vec::new();
+    for er in &lr.effects {
+        let es = ls.effects.iter().find(|e| e.effect == er.effect);
+        let (r, s) = (fit(Some(er)), fit(es));
+        let (difference, sigma, z) = match (r, s) {
+            (Some(r), Some(s)) => {
+                let sigma = r[1].hypot(s[1]);
+                (Some(r[0] - s[0]), Some(sigma), Some((r[0] - s[0]) / sigma))
+            }
+            _ => (None, None, None),
+        };
+        if let Some(z) = z {
+            tests.push((er.effect, z, er.joint.is_some()));
+        }
+        rows.push(EffectDifference {
+            effect: er.effect,
+            parameter: er.parameter,
+            unit: er.unit,
+            typical: er.typical,
+            recording: r,
+            simulation: s,
+            difference,
+            sigma,
+            z,
+            z_critical: None,
+            guard_z: None,
+            verdict: DifferenceVerdict::NotShown,
+            evidence: String::new(),
+        });
+    }
+    let dof = lr.segments.min(ls.segments).saturating_sub(1) as f64;
+    let holm = step_down(tests, FAMILY_ALPHA, dof);
+    for row in &mut rows {
+        let Some(t) = holm.iter().find(|t| t.effect == row.effect) else {
+            row.evidence = "one of the two drives holds no information about it".into();
+            continue;
+        };
+        row.z_critical = Some(t.z_critical);
+        let (Some(r), Some(s)) = (row.recording, row.simulation) else {
+            continue;
+        };
+        if !t.significant {
+            row.verdict = DifferenceVerdict::Alike;
+            row.evidence = format!(
+                "difference {:+.3} ± {:.3} {} (z {:+.1}, Holm's critical {:.1})",
+                r[0] - s[0],
+                row.sigma.unwrap_or(f64::NAN),
+                row.unit,
+                t.z,
+                t.z_critical
+            );
+            continue;
+        }
+        let recording_more = r[0].abs() > s[0].abs();
+        let (side, value) = if recording_more {
+            (recording, r[0])
+        } else {
+            (simulation, s[0])
+        };
+        let guard = guard_of(side, row.effect);
+        row.guard_z = guard;
+        let spec = row.effect.main_fitted().spec();
+        let shown = |v: f64| row.effect.main_fitted().to_display(v);
+        let (lo, hi) = (shown(spec.plausible.0), shown(spec.plausible.1));
+        let found_there = side.findings.iter().any(|f| f.effect == row.effect);
+        row.verdict = if value < lo.min(hi) || value > lo.max(hi) {
+            DifferenceVerdict::Implausible
+        } else if !(found_there || guard.is_some_and(|z| z > GUARD_Z)) {
+            DifferenceVerdict::Guarded
+        } else if recording_more {
+            DifferenceVerdict::Lacking
+        } else {
+            DifferenceVerdict::Excess
+        };
+        row.evidence = format!(
+            "recording {:+.3} ± {:.3}, simulation {:+.3} ± {:.3} {}: difference z {:+.1} beyond Holm's {:.1}; \
+             the {} side's held-out guard z {}{}",
+            r[0],
+            r[1],
+            s[0],
+            s[1],
+            row.unit,
+            t.z,
+            t.z_critical,
+            if recording_more { "recording" } else { "simulation" },
+            guard.map_or("-".to_string(), |z| format!("{z:.1}")),
+            if found_there { " (found there)" } else { "" },
+        );
+    }
+    (rows, None)
+}
+
+/// The held-out guard's signed-rank z for `effect` in `d`.
+fn guard_of(d: &Diagnosis, effect: Effect) -> Option<f64> {
+    d.wald
+        .iter()
+        .find(|w| w.test.effect == effect)
+        .and_then(|w| w.holdout_z)
+}
+
+/// The blocks of the two drives that cover the same time: (index into the
+/// recording's blocks, index into the simulation's).
+fn matched_blocks(recording: &Diagnosis, simulation: &Diagnosis) -> Vec<(usize, usize)> {
+    let half = 0.5 * recording.noise.block_s;
+    recording
+        .blocks
+        .iter()
+        .enumerate()
+        .filter_map(|(i, b)| {
+            let (j, s) = simulation.blocks.iter().enumerate().min_by(|a, c| {
+                (a.1.t_start_s - b.t_start_s)
+                    .abs()
+                    .total_cmp(&(c.1.t_start_s - b.t_start_s).abs())
+            })?;
+            ((s.t_start_s - b.t_start_s).abs() < half).then_some((i, j))
+        })
+        .collect()
+}
+
+/// Blocks whose plain-model error on the recording is beyond the
+/// simulation's by more than the simulation's own block-to-block scatter
+/// allows, merged into spans.
+fn parting_spans(
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+    pairs: &[(usize, usize)],
+) -> Vec<PartingSpan> {
+    let logs: Vec<(usize, f64, f64)> = pairs
+        .iter()
+        .filter_map(|&(i, j)| {
+            let r = recording.blocks[i].plain_rms_m?;
+            let s = simulation.blocks[j].plain_rms_m?;
+            (r > 0.0 && s > 0.0).then_some((i, r, s))
+        })
+        .collect();
+    if logs.len() < 3 {
+        return Vec::new();
+    }
+    let sim_logs: Vec<f64> = logs.iter().map(|x| x.2.ln()).collect();
+    // The null spread of a log ratio of two independent blocks alike.
+    let sigma = std::f64::consts::SQRT_2 * stats::mad_sigma(&sim_logs);
+    if !(sigma.is_finite() && sigma > 0.0) {
+        return Vec::new();
+    }
+    let z_crit = normal_quantile(1.0 - 0.05 / logs.len() as f64);
+    let mut spans: Vec<PartingSpan> = Vec::new();
+    let mut last_block = None;
+    for &(i, r, s) in &logs {
+        let z = (r / s).ln() / sigma;
+        if z <= z_crit {
+            continue;
+        }
+        let b = &recording.blocks[i];
+        match spans.last_mut() {
+            Some(p) if last_block == Some(b.block.wrapping_sub(1)) => {
+                p.t_end_s = b.t_end_s;
+                p.recording_rms_m = p.recording_rms_m.max(r);
+                p.simulation_rms_m = p.simulation_rms_m.max(s);
+                p.z = p.z.max(z);
+                if !p.manoeuvre.contains(&b.manoeuvre) {
+                    p.manoeuvre = format!("{}; {}", p.manoeuvre, b.manoeuvre);
+                }
+            }
+            _ => spans.push(PartingSpan {
+                t_start_s: b.t_start_s,
+                t_end_s: b.t_end_s,
+                recording_rms_m: r,
+                simulation_rms_m: s,
+                z,
+                manoeuvre: b.manoeuvre.clone(),
+            }),
+        }
+        last_block = Some(b.block);
+    }
+    spans
+}
+
+/// Per channel in both drives: the distance of the residual distributions
+/// and its noise level from swapping matched blocks.
+fn channel_distances(
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+    pairs: &[(usize, usize)],
+    cfg: &CompareConfig,
+) -> Vec<ChannelDistance> {
+    let mut rng = Normal::new(cfg.seed);
+    let mut out = Vec::new();
+    for cr in &recording.channels {
+        let Some(cs) = simulation.channels.iter().find(|c| c.channel == cr.channel) else {
+            continue;
+        };
+        // Residuals per matched block pair.
+        let per_block = |rows: &[(usize, f64, f64)], block: usize| -> Vec<f64> {
+            rows.iter()
+                .filter(|r| r.0 == block && r.2.is_finite())
+                .map(|r| r.2)
+                .collect()
+        };
+        let groups: Vec<(Vec<f64>, Vec<f64>)> = pairs
+            .iter()
+            .map(|&(i, j)| {
+                (
+                    per_block(&cr.rows, recording.blocks[i].block),
+                    per_block(&cs.rows, simulation.blocks[j].block),
+                )
+            })
+            .filter(|(a, b)| !a.is_empty() && !b.is_empty())
+            .collect();
+        if groups.len() < 2 {
+            continue;
+        }
+        let gather = |swap: &[bool]| -> (Vec<f64>, Vec<f64>) {
+            let mut a = Vec::new();
+            let mut b = Vec::new();
+            for ((x, y), &s) in groups.iter().zip(swap) {
+                let (p, q) = if s { (y, x) } else { (x, y) };
+                a.extend_from_slice(p);
+                b.extend_from_slice(q);
+            }
+            (a, b)
+        };
+        let (mut a, mut b) = gather(&vec![false; groups.len()]);
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let rms_pair = [rms(&a), rms(&b)];
+        let samples = [a.len(), b.len()];
+        let distance = wasserstein1(&mut a, &mut b);
+        let mut swapped: Vec<f64> = (0..cfg.swaps)
+            .map(|_| {
+                let swap: Vec<bool> = (0..groups.len()).map(|_| rng.next() > 0.0).collect();
+                let (mut a, mut b) = gather(&swap);
+                wasserstein1(&mut a, &mut b)
+            })
+            .collect();
+        swapped.sort_by(f64::total_cmp);
+        let noise_level = stats::percentile_sorted(&swapped, 0.95).unwrap_or(f64::NAN);
+        let beyond = swapped.iter().filter(|d| **d >= distance).count();
+        out.push(ChannelDistance {
+            channel: cr.channel.name(),
+            unit: cr.channel.unit(),
+            samples,
+            rms: rms_pair,
+            distance,
+            noise_level,
+            p_value: (beyond + 1) as f64 / (cfg.swaps + 1) as f64,
+            within_noise: distance <= noise_level,
+        });
+    }
+    out
+}
+
+/// The Wasserstein-1 distance of two samples' empirical distributions (the
+/// area between their distribution functions); sorts both.
+pub fn wasserstein1(a: &mut [f64], b: &mut [f64]) -> f64 {
+    if a.is_empty() || b.is_empty() {
+        return f64::NAN;
+    }
+    a.sort_by(f64::total_cmp);
+    b.sort_by(f64::total_cmp);
+    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let (mut i, mut j) = (0, 0);
+    let mut x = a[0].min(b[0]);
+    let mut area = 0.0;
+    while i < a.len() || j < b.len() {
+        let next = match (a.get(i), b.get(j)) {
+            (Some(&p), Some(&q)) => p.min(q),
+            (Some(&p), None) => p,
+            (None, Some(&q)) => q,
+            (None, None) => break,
+        };
+        area += (i as f64 / na - j as f64 / nb).abs() * (next - x);
+        x = next;
+        while a.get(i).is_some_and(|&p| p <= x) {
+            i += 1;
+        }
+        while b.get(j).is_some_and(|&q| q <= x) {
+            j += 1;
+        }
+    }
+    area
+}
+
+/// The physics a mended simulation should carry.
+fn next_twin(
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+    effects: &[EffectDifference],
+) -> Vec<TwinEffect> {
+    let verdict = |e: Effect| effects.iter().find(|d| d.effect == e);
+    let mut out: Vec<TwinEffect> = Vec::new();
+    for d in effects
+        .iter()
+        .filter(|d| d.verdict == DifferenceVerdict::Lacking)
+    {
+        if let Some(f) = recording.findings.iter().find(|f| f.effect == d.effect) {
+            out.push(TwinEffect {
+                effect: d.effect,
+                parameters: f.parameters.clone(),
+                units: f.units.clone(),
+                from: "the recording's finding".into(),
+            });
+        } else if let Some([v, _]) = d.recording {
+            out.push(TwinEffect {
+                effect: d.effect,
+                parameters: BTreeMap::from([(d.parameter.to_string(), v)]),
+                units: BTreeMap::from([(d.parameter.to_string(), d.unit.to_string())]),
+                from: "the recording's estimate (information limit)".into(),
+            });
+        }
+    }
+    // What the simulation holds already and does not have too much of.
+    for f in &simulation.findings {
+        let keep = verdict(f.effect).is_none_or(|d| {
+            !matches!(
+                d.verdict,
+                DifferenceVerdict::Excess | DifferenceVerdict::Lacking
+            )
+        });
+        if keep && !out.iter().any(|t| t.effect == f.effect) {
+            // The recording's own finding where it has one (the target),
+            // else what the simulation shows of it.
+            let (src, from) = match recording.findings.iter().find(|r| r.effect == f.effect) {
+                Some(r) => (r, "the recording's finding (alike in both)"),
+                None => (f, "the simulation's own finding (alike in both)"),
+            };
+            out.push(TwinEffect {
+                effect: f.effect,
+                parameters: src.parameters.clone(),
+                units: src.units.clone(),
+                from: from.into(),
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wasserstein_of_shifted_samples_is_the_shift() {
+        let mut a: Vec<f64> = (0..100).map(|i| i as f64 * 0.01).collect();
+        let mut b: Vec<f64> = a.iter().map(|x| x + 0.3).collect();
+        assert!((wasserstein1(&mut a, &mut b) - 0.3).abs() < 1e-9);
+        let mut c = a.clone();
+        assert!(wasserstein1(&mut a, &mut c).abs() < 1e-12);
+    }
+
+    #[test]
+    fn wasserstein_of_unequal_sizes() {
+        // Two points at 0 and 1 against one at 0.5: half a unit of mass
+        // moves half a unit each way.
+        let mut a = vec![0.0, 1.0];
+        let mut b = vec![0.5];
+        assert!((wasserstein1(&mut a, &mut b) - 0.5).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,432 @@
+//! The comparison's page ([`super::compare`]): the two tracks, every
+//! effect in both drives with 2-sigma bars, the plain model's error block
+//! by block with the spans where the two part, each residual channel's two
+//! distributions (quantile against quantile), and, given the comparison
+//! before a mend, each channel's distance before and after against its
+//! noise level.
+//!
+//! Pure: the comparison (and the fixes) in, SVG and HTML out.
+
+use super::compare::{ChannelDistance, Comparison};
+use super::Diagnosis;
+use report::{Axis, Band, Cell, Colour, Figure, FigureError, Mark, Page, Series};
+
+/// The two drives' GNSS fixes, one on the other.
+pub fn tracks_svg(recording: &[[f64; 2]], simulation: &[[f64; 2]]) -> Result<String, FigureError> {
+    Figure::new(
+        "The recording and the simulation: GNSS fixes",
+        Axis::linear("east", "m"),
+        Axis::linear("north", "m"),
+    )
+    .map((720, 560))
+    .describe(
+        "GNSS fixes of the recording (blue) and of the simulation (orange), in the recording's \
+         local frame: the simulation should follow the same path.",
+    )
+    .with(
+        Series::dots("recording", recording.to_vec(), Colour::BLUE)
+            .with_mark(Mark::Dots { radius: 1 }),
+    )
+    .with(
+        Series::dots("simulation", simulation.to_vec(), Colour::ORANGE)
+            .with_mark(Mark::Dots { radius: 1 }),
+    )
+    .svg()
+}
+
+/// Every effect both drives hold information about: the recording's and
+/// the simulation's estimates over the catalogue's typical size, with
+/// their 2-sigma bars.
+pub fn effects_svg(c: &Comparison) -> Result<String, FigureError> {
+    let mut rec = Vec::new();
+    let mut rec_bars = Vec::new();
+    let mut sim = Vec::new();
+    let mut sim_bars = Vec::new();
+    let mut named = Vec::new();
+    let mut names = Vec::new();
+    let rows: Vec<_> = c
+        .effects
+        .iter()
+        .filter(|e| e.recording.is_some() && e.simulation.is_some() && e.typical != 0.0)
+        .collect();
+    for (k, e) in rows.iter().enumerate() {
+        let x = (k + 1) as f64;
+        let t = e.typical.abs();
+        names.push(format!("{} {}", k + 1, e.effect));
+        if let Some([v, s]) = e.recording {
+            rec.push([x - 0.12, v / t]);
+            rec_bars.push(vec![
+                [x - 0.12, (v - 2.0 * s) / t],
+                [x - 0.12, (v + 2.0 * s) / t],
+            ]);
+        }
+        if let Some([v, s]) = e.simulation {
+            sim.push([x + 0.12, v / t]);
+            sim_bars.push(vec![
+                [x + 0.12, (v - 2.0 * s) / t],
+                [x + 0.12, (v + 2.0 * s) / t],
+            ]);
+        }
+        if e.verdict.named() {
+            named.push([x, 0.0]);
+        }
+    }
+    let n = rows.len().max(1) as f64;
+    // The range the informative estimates need (an effect the drives
+    // hardly show has bars many times its typical size).
+    let reach = rows
+        .iter()
+        .flat_map(|e| [e.recording, e.simulation])
+        .flatten()
+        .zip(rows.iter().flat_map(|e| [e.typical.abs(); 2]))
+        .filter(|([_, s], t)| s / t < 1.0)
+        .map(|([v, s], t)| (v.abs() + 2.0 * s) / t)
+        .fold(1.5_f64, f64::max)
+        .min(10.0)
+        * 1.15;
+    let mut y = Axis::linear("estimate / typical size", "");
+    y.range = Some((-reach, reach));
+    Figure::new(
+        "Each effect in the recording and in the simulation",
+        Axis::linear("effect (numbered as in the caption)", ""),
+        y,
+    )
+    .describe(&format!(
+        "Estimates over the catalogue's typical size with 2-sigma bars: recording blue (left), \
+         simulation orange (right); a vermillion ring marks a named difference; bars beyond \
+         the frame are cut. Effects: {}.",
+        names.join(", ")
+    ))
+    .with(Series::line(
+        "zero",
+        vec![[0.5, 0.0], [n + 0.5, 0.0]],
+        Colour::GREY,
+    ))
+    .with(Series::lines("recording, 2 sigma", rec_bars, Colour::BLUE))
+    .with(Series::dots("recording", rec, Colour::BLUE).with_mark(Mark::Dots { radius: 4 }))
+    .with(Series::lines(
+        "simulation, 2 sigma",
+        sim_bars,
+        Colour::ORANGE,
+    ))
+    .with(Series::dots("simulation", sim, Colour::ORANGE).with_mark(Mark::Dots { radius: 4 }))
+    .with(
+        Series::dots("named difference", named, Colour::VERMILLION)
+            .with_mark(Mark::Dots { radius: 7 }),
+    )
+    .svg()
+}
+
+/// The plain model's position RMSE block by block in both drives, the
+/// spans where they part shaded.
+pub fn blocks_svg(
+    c: &Comparison,
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+) -> Result<String, FigureError> {
+    let t0 = recording.blocks.first().map_or(0.0, |b| b.t_start_s);
+    let points = |d: &Diagnosis| -> Vec<[f64; 2]> {
+        d.blocks
+            .iter()
+            .filter_map(|b| Some([0.5 * (b.t_start_s + b.t_end_s) - t0, b.plain_rms_m?]))
+            .collect()
+    };
+    let top = recording
+        .blocks
+        .iter()
+        .chain(&simulation.blocks)
+        .filter_map(|b| b.plain_rms_m)
+        .fold(0.0_f64, f64::max);
+    let mut fig = Figure::new(
+        "Where the recording and the simulation part",
+        Axis::linear("time since the recording's first block", "s"),
+        Axis::linear("plain model's position RMSE over the block", "m"),
+    )
+    .describe(&format!(
+        "Per block of {:.0} s, the calibrated plain 2W model's position error on the recording \
+         (blue) and on the simulation (orange). Shaded: the spans where the recording's error is \
+         beyond what the simulation's own block-to-block scatter allows ({} span(s)).",
+        c.block_s,
+        c.parting.len()
+    ))
+    .with(
+        Series::line("recording", points(recording), Colour::BLUE).with_mark(Mark::LineAndDots {
+            width: 2,
+            radius: 3,
+        }),
+    )
+    .with(
+        Series::line("simulation", points(simulation), Colour::ORANGE).with_mark(
+            Mark::LineAndDots {
+                width: 2,
+                radius: 3,
+            },
+        ),
+    );
+    for (k, p) in c.parting.iter().enumerate() {
+        fig = fig.with_band(Band {
+            label: if k == 0 {
+                "they part".into()
+            } else {
+                String::new()
+            },
+            points: vec![[p.t_start_s - t0, 0.0, top], [p.t_end_s - t0, 0.0, top]],
+            colour: Colour::VERMILLION,
+        });
+    }
+    fig.svg()
+}
+
+/// One residual channel: the recording's quantiles against the
+/// simulation's (alike distributions lie on the diagonal).
+pub fn channel_svg(
+    ch: &ChannelDistance,
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+) -> Result<String, FigureError> {
+    let values = |d: &Diagnosis| -> Vec<f64> {
+        let mut v: Vec<f64> = d
+            .channels
+            .iter()
+            .filter(|c| c.channel.name() == ch.channel)
+            .flat_map(|c| c.rows.iter().map(|r| r.2))
+            .filter(|x| x.is_finite())
+            .collect();
+        v.sort_by(f64::total_cmp);
+        v
+    };
+    let (r, s) = (values(recording), values(simulation));
+    let q: Vec<[f64; 2]> = (1..100)
+        .filter_map(|k| {
+            let p = k as f64 / 100.0;
+            Some([
+                stats::percentile_sorted(&s, p)?,
+                stats::percentile_sorted(&r, p)?,
+            ])
+        })
+        .collect();
+    let lo = q
+        .iter()
+        .flat_map(|p| p.iter())
+        .copied()
+        .fold(f64::INFINITY, f64::min);
+    let hi = q
+        .iter()
+        .flat_map(|p| p.iter())
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    Figure::new(
+        &format!(
+            "Residual channel {}: recording against simulation",
+            ch.channel
+        ),
+        Axis::linear("simulation's residual quantile", ch.unit),
+        Axis::linear("recording's residual quantile", ch.unit),
+    )
+    .describe(&format!(
+        "Percentiles 1-99 of the plain model's {} residual in the recording against the \
+         simulation's; alike distributions lie on the diagonal. Wasserstein distance {} {} \
+         against a noise level of {} (95 % of block swaps; p = {:.3}): {}.",
+        ch.channel,
+        sig3(ch.distance),
+        ch.unit,
+        sig3(ch.noise_level),
+        ch.p_value,
+        if ch.within_noise {
+            "within the noise"
+        } else {
+            "beyond the noise"
+        }
+    ))
+    .with(Series::line(
+        "alike",
+        vec![[lo, lo], [hi, hi]],
+        Colour::GREY,
+    ))
+    .with(
+        Series::line("percentiles", q, Colour::BLUE).with_mark(Mark::LineAndDots {
+            width: 1,
+            radius: 2,
+        }),
+    )
+    .svg()
+}
+
+/// Each channel's distance over its noise level, before a mend and now.
+pub fn mend_svg(before: &Comparison, now: &Comparison) -> Result<String, FigureError> {
+    let mut b = Vec::new();
+    let mut n = Vec::new();
+    let mut names = Vec::new();
+    for (k, ch) in now.channels.iter().enumerate() {
+        let x = (k + 1) as f64;
+        names.push(format!("{} {}", k + 1, ch.channel));
+        n.push([x + 0.1, ch.distance / ch.noise_level]);
+        if let Some(p) = before.channels.iter().find(|c| c.channel == ch.channel) {
+            b.push([x - 0.1, p.distance / p.noise_level]);
+        }
+    }
+    let m = now.channels.len().max(1) as f64;
+    Figure::new(
+        "Before and after the mend: each channel's distance over its noise level",
+        Axis::linear("channel (numbered as in the caption)", ""),
+        Axis::log("distance / noise level", ""),
+    )
+    .describe(&format!(
+        "Wasserstein distance of each residual channel over its noise level (95 % of block swaps): \
+         before the mend (grey) and now (blue); at or below 1 (the line) the two are alike within \
+         the noise. Channels: {}.",
+        names.join(", ")
+    ))
+    .with(Series::line(
+        "noise level",
+        vec![[0.5, 1.0], [m + 0.5, 1.0]],
+        Colour::VERMILLION,
+    ))
+    .with(Series::dots("before", b, Colour::GREY).with_mark(Mark::Dots { radius: 5 }))
+    .with(Series::dots("now", n, Colour::BLUE).with_mark(Mark::Dots { radius: 5 }))
+    .svg()
+}
+
+/// The page: headline, the effects' table, the spans, the channels, the
+/// pictures.
+pub fn index_html(
+    c: &Comparison,
+    names: [&str; 2],
+    before: Option<&Comparison>,
+    pictures: &[(String, String)],
+) -> String {
+    let mut page = Page::new("A simulation against a recording");
+    let named: Vec<String> = c
+        .named()
+        .map(|e| format!("{} ({})", e.effect, e.verdict.words()))
+        .collect();
+    page.headline(
+        &if named.is_empty() {
+            format!(
+                "No physics differs; {} of {} residual channels within their noise level.",
+                c.channels_within_noise,
+                c.channels.len()
+            )
+        } else {
+            format!(
+                "Differs in: {}; {} of {} residual channels within their noise level.",
+                named.join(", "),
+                c.channels_within_noise,
+                c.channels.len()
+            )
+        },
+        Some(c.alike()),
+    );
+    page.paragraph(&format!(
+        "Recording: {}. Simulation: {}. Both diagnosed with blocks of {:.0} s; {} blocks matched in time.",
+        names[0],
+        names[1],
+        c.block_s,
+        c.matched_blocks
+    ));
+    if let Some(b) = before {
+        let was: Vec<String> = b.named().map(|e| e.effect.to_string()).collect();
+        page.paragraph(&format!(
+            "Before the mend: {} named ({}); {} of {} channels within their noise level. Now: {} named; {} of {}.",
+            was.len(),
+            if was.is_empty() { "none".to_string() } else { was.join(", ") },
+            b.channels_within_noise,
+            b.channels.len(),
+            c.named().count(),
+            c.channels_within_noise,
+            c.channels.len()
+        ));
+    }
+    page.heading("Physics: recording against simulation");
+    if let Some(why) = &c.effects_missing {
+        page.note(&format!("The effects could not be compared: {why}"));
+    }
+    let fmt = |v: Option<[f64; 2]>| v.map_or("-".to_string(), |[e, s]| format!("{e:+.4} ± {s:.4}"));
+    let rows: Vec<Vec<Cell>> = c
+        .effects
+        .iter()
+        .map(|e| {
+            vec![
+                Cell::Text(e.effect.to_string()),
+                Cell::Text(format!("{} ({})", e.parameter, e.unit)),
+                Cell::Text(fmt(e.recording)),
+                Cell::Text(fmt(e.simulation)),
+                Cell::Text(e.z.map_or("-".into(), |z| format!("{z:+.1}"))),
+                Cell::Text(e.z_critical.map_or("-".into(), |z| format!("{z:.1}"))),
+                Cell::Text(e.verdict.words().to_string()),
+            ]
+        })
+        .collect();
+    page.table(
+        &[
+            "effect",
+            "parameter",
+            "recording",
+            "simulation",
+            "difference z",
+            "Holm's critical",
+            "verdict",
+        ],
+        &rows,
+    );
+    page.heading("Where they part");
+    if c.parting.is_empty() {
+        page.paragraph("Nowhere beyond the simulation's own block-to-block scatter.");
+    } else {
+        let items: Vec<String> = c
+            .parting
+            .iter()
+            .map(|p| {
+                format!(
+                    "{:.0}-{:.0} s: {:.2} m against {:.2} m (z {:.1}); {}",
+                    p.t_start_s, p.t_end_s, p.recording_rms_m, p.simulation_rms_m, p.z, p.manoeuvre
+                )
+            })
+            .collect();
+        page.list(&items);
+    }
+    page.heading("How alike: the residual channels");
+    let rows: Vec<Vec<Cell>> = c
+        .channels
+        .iter()
+        .map(|ch| {
+            vec![
+                Cell::Text(ch.channel.to_string()),
+                Cell::Text(format!(
+                    "{} / {} {}",
+                    sig3(ch.rms[0]),
+                    sig3(ch.rms[1]),
+                    ch.unit
+                )),
+                Cell::Number(sig3(ch.distance)),
+                Cell::Number(sig3(ch.noise_level)),
+                Cell::Text(format!("{:.3}", ch.p_value)),
+                Cell::Text(if ch.within_noise { "yes" } else { "no" }.into()),
+            ]
+        })
+        .collect();
+    page.table(
+        &[
+            "channel",
+            "RMS recording / simulation",
+            "distance",
+            "noise level",
+            "p",
+            "within noise",
+        ],
+        &rows,
+    );
+    for (name, svg) in pictures {
+        page.figure(name, svg, "");
+    }
+    page.render()
+}
+
+/// `x` with three significant digits.
+pub fn sig3(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 {
+        return format!("{x}");
+    }
+    let digits = (2 - x.abs().log10().floor() as i32).max(0) as usize;
+    format!("{x:.digits$}")
+}
