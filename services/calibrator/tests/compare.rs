@@ -1,0 +1,168 @@
+//! A simulation against a recording of the same path (issue 38, item 2
+//! and 3): a planted effect named and gone after the mend, a null pair
+//! with nothing named, and the command's files.
+
+use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, DifferenceVerdict};
+use calibrator::diagnose::{diagnose, DiagnoseConfig};
+use interfaces::drive::Drive;
+use interfaces::effects::{Effect, Param};
+use simulator::{simulate, EffectSettings, Scenario, SimConfig};
+use std::process::Command;
+
+/// A 10-minute `mixed` drive of the saloon (the same route and driving
+/// for every seed; other sensor noise) with `effects` (`ID.PARAM=VALUE`).
+fn drive(seed: u64, effects: &[String]) -> Drive {
+    let mut cfg = SimConfig::new(Scenario::Mixed, seed);
+    cfg.effects = EffectSettings::none();
+    cfg.duration_s = Some(600.0);
+    for e in effects {
+        cfg.effects.apply_spec(e).expect("effect");
+    }
+    simulate(&cfg).expect("simulate")
+}
+
+fn compared(recording: &Drive, simulation: &Drive) -> Comparison {
+    let dr = diagnose(recording, &DiagnoseConfig::default()).expect("diagnose the recording");
+    let cfg = DiagnoseConfig {
+        block_s: Some(dr.noise.block_s),
+        ..DiagnoseConfig::default()
+    };
+    let ds = diagnose(simulation, &cfg).expect("diagnose the simulation");
+    compare(&dr, &ds, &CompareConfig::default())
+}
+
+/// The mended simulation's effect knobs from the comparison's findings
+/// (reported units are the table's: the antenna's are metres).
+fn knobs(c: &Comparison) -> Vec<String> {
+    c.findings
+        .iter()
+        .flat_map(|f| {
+            f.parameters
+                .iter()
+                .map(move |(name, v)| format!("{}.{name}={v}", f.effect))
+        })
+        .collect()
+}
+
+#[test]
+fn a_planted_antenna_is_named_then_gone_after_the_mend() {
+    let recording = drive(1, &["gnss_lever_arm.x_m=0.6".to_string()]);
+    let before = compared(&recording, &drive(2, &[]));
+    let named: Vec<Effect> = before.named().map(|e| e.effect).collect();
+    assert_eq!(named, vec![Effect::GnssLeverArm], "{:#?}", before.effects);
+    let arm = before
+        .effects
+        .iter()
+        .find(|e| e.effect == Effect::GnssLeverArm)
+        .expect("antenna row");
+    assert_eq!(arm.verdict, DifferenceVerdict::Lacking);
+    let [v, s] = arm.recording.expect("the recording's estimate");
+    assert!((v - 0.6).abs() < 3.0 * s, "{v} ± {s} against 0.6 m");
+    // The mend carries the recording's antenna.
+    let f = before
+        .findings
+        .iter()
+        .find(|f| f.effect == Effect::GnssLeverArm)
+        .expect("the antenna in the findings");
+    let x = f.parameters[Param::LeverArmX.spec().name];
+    assert!((x - 0.6).abs() < 3.0 * s, "{x}");
+    // Before: the courses part (the antenna swings the course in turns).
+    assert!(before.channels_within_noise < before.channels.len());
+    assert!(!before.alike());
+
+    let mended = drive(4, &knobs(&before));
+    let after = compared(&recording, &mended);
+    assert_eq!(after.named().count(), 0, "{:#?}", after.effects);
+    assert!(after.alike(), "{:#?}", after.channels);
+    assert!(after.channels_within_noise > before.channels_within_noise);
+    // The next mend keeps the antenna (the recording's own finding).
+    assert!(after
+        .findings
+        .iter()
+        .any(|f| f.effect == Effect::GnssLeverArm));
+}
+
+#[test]
+fn a_null_pair_names_nothing() {
+    let c = compared(&drive(3, &[]), &drive(2, &[]));
+    assert_eq!(c.named().count(), 0, "{:#?}", c.effects);
+    assert!(c.effects_missing.is_none());
+    // Every effect was tested on both.
+    assert!(
+        c.effects.iter().filter(|e| e.z.is_some()).count() >= 10,
+        "{:#?}",
+        c.effects
+    );
+    assert!(c.parting.is_empty(), "{:?}", c.parting);
+    assert_eq!(c.matched_blocks, 12);
+    assert!(c.findings.is_empty(), "{:?}", c.findings);
+}
+
+#[test]
+fn the_command_writes_the_comparison_and_its_page() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (rec, sim) = (dir.path().join("rec"), dir.path().join("sim"));
+    drive_io::write_drive(&drive(1, &["gnss_lever_arm.x_m=0.6".to_string()]), &rec).expect("write");
+    drive_io::write_drive(&drive(2, &[]), &sim).expect("write");
+    let (json, plots) = (dir.path().join("c.json"), dir.path().join("plots"));
+    let out = Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .args(["compare"])
+        .arg(&rec)
+        .arg(&sim)
+        .arg("--json")
+        .arg(&json)
+        .arg("--plots")
+        .arg(&plots)
+        .output()
+        .expect("run");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("gnss_lever_arm: the simulation lacks it"),
+        "{text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    assert_eq!(v["findings"][0]["effect"], "gnss_lever_arm", "{v}");
+    assert!(v["findings"][0]["parameters"]["x_m"].as_f64().is_some());
+    assert_eq!(v["recording"], rec.display().to_string());
+    let page = std::fs::read_to_string(plots.join("index.html")).expect("page");
+    assert!(page.contains("gnss_lever_arm"));
+    for f in [
+        "tracks.svg",
+        "effects.svg",
+        "blocks.svg",
+        "channel_course_wheel.svg",
+    ] {
+        assert!(plots.join(f).exists(), "{f}");
+    }
+    // Against itself with the first as "before": the page draws the mend.
+    let out = Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .args(["compare"])
+        .arg(&rec)
+        .arg(&sim)
+        .arg("--before")
+        .arg(&json)
+        .arg("--plots")
+        .arg(&plots)
+        .output()
+        .expect("run");
+    assert!(out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("before the mend: 1 named (gnss_lever_arm)")
+    );
+    assert!(plots.join("mend.svg").exists());
+    // A missing simulation is named.
+    let out = Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .args(["compare"])
+        .arg(&rec)
+        .arg(dir.path().join("nowhere"))
+        .output()
+        .expect("run");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nowhere"));
+}
