@@ -786,3 +786,53 @@ pub fn apply_finding(
     }
     Ok(notes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{simulate, SimConfig};
+
+    fn params(pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
+        pairs.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+    }
+
+    #[test]
+    fn findings_keep_their_reported_units_which_are_the_simulators() {
+        let mut e = EffectSettings::none();
+        // The diagnosis reports the gyro bias in deg/h (display scale of
+        // rad/s), the heading terms in degrees: the simulator's own units.
+        apply_finding(&mut e, "gyro_bias", &params(&[("b_deg_h", 3600.0)])).unwrap();
+        apply_finding(
+            &mut e,
+            "heading_bias",
+            &params(&[("a_deg", 2.0), ("b_deg", 0.0)]),
+        )
+        .unwrap();
+        apply_finding(&mut e, "track_width", &params(&[("rel", 0.01)])).unwrap();
+        apply_finding(
+            &mut e,
+            "radius_drift",
+            &params(&[("d", 0.002), ("time_constant_s", 300.0)]),
+        )
+        .unwrap();
+        assert_eq!(e.gyro_bias.map(|b| b.b_deg_h), Some(3600.0));
+        assert_eq!(e.heading_bias.map(|h| (h.a_deg, h.b_deg)), Some((2.0, 0.0)));
+        assert_eq!(e.track_width.map(|t| t.rel), Some(0.01));
+        assert_eq!(e.radius_drift.map(|d| d.time_constant_s), Some(300.0));
+        // 3600 deg/h is 1 deg/s on the gyro: the IMU at standstill shows it.
+        let mut c = SimConfig::new(Scenario::Garage, 1);
+        c.duration_s = Some(1.0);
+        c.effects = EffectSettings::none();
+        c.effects.gyro_bias = e.gyro_bias;
+        c.sensors.imu.gz_sigma_rad_s = 0.0;
+        let d = simulate(&c).unwrap();
+        let gz = d.imu.unwrap()[0].gz_rad_s;
+        assert!((gz - 1.0f64.to_radians()).abs() < 1e-9, "{gz}");
+        // road_grade's gain has no simulated counterpart: a note, level road.
+        let notes = apply_finding(&mut e, "road_grade", &params(&[("gain", 1.2)])).unwrap();
+        assert_eq!(notes.len(), 1);
+        assert!(e.road_grade.is_none());
+        assert!(apply_finding(&mut e, "side_slip", &params(&[("k_beta", -0.01)])).is_err());
+        assert!(apply_finding(&mut e, "nope", &params(&[])).is_err());
+    }
+}
