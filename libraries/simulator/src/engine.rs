@@ -78,8 +78,7 @@ struct State {
 }
 
 impl Model {
-    fn new(config: &SimConfig) -> Model {
-        let spec = config.vehicle.spec();
+    fn new(config: &SimConfig, spec: VehicleSpec) -> Model {
         let (a, l, m) = (spec.cg_to_front_m, spec.wheelbase_m, spec.mass_kg);
         let b = spec.cg_to_rear_m();
         let c = config.true_circumferences();
@@ -101,7 +100,7 @@ impl Model {
             b,
             l,
             m,
-            track_rear_true: config.true_track_width(),
+            track_rear_true: true_track_width(config, &spec),
             c_static: [c.rl, c.rr, c.fl, c.fr],
             fz0_front: spec.static_load_front(),
             fz0_rear: spec.static_load_rear(),
@@ -506,6 +505,53 @@ struct Driver {
 }
 
 impl Driver {
+    /// Steering as [`Driver::act`], and the force that keeps the vehicle
+    /// on a prescribed progress `(s, v, a)` (arc length, speed and
+    /// acceleration now): a position and speed loop around the
+    /// acceleration's feed-forward; held on the brakes where the
+    /// prescription stands.
+    fn follow(
+        &mut self,
+        model: &Model,
+        st: &State,
+        route: &Route,
+        (s_p, v_p, a_p): (f64, f64, f64),
+    ) -> PathPoint {
+        let spec = &model.spec;
+        self.s_along = route.nearest_s(st.x, st.y, self.s_along, 12.0);
+        let here = route.at(self.s_along);
+        self.steer(model, st, route);
+        let e_s = s_p - self.s_along;
+        let grade_force = model.m * G * here.grade / (1.0 + here.grade * here.grade).sqrt();
+        let resist = spec.resistance_n(st.vx) + grade_force;
+        let hold = v_p < 0.05 && st.vx < 0.3 && e_s < 0.3;
+        self.force_cmd = if hold {
+            -0.3 * model.m * G
+        } else {
+            let v_target = (v_p + 1.0 * e_s).max(0.0);
+            let a_cmd = (2.0 * (v_target - st.vx) + a_p).clamp(-8.0, spec.max_drive_accel_m_s2);
+            model.m * a_cmd + resist
+        };
+        here
+    }
+
+    /// Pure pursuit on the rear axle with understeer feed-forward.
+    fn steer(&mut self, model: &Model, st: &State, route: &Route) {
+        let spec = &model.spec;
+        let lookahead = (3.0 + 0.45 * st.vx).clamp(3.0, 25.0);
+        let target = route.at(self.s_along + lookahead);
+        let (dx, dy) = (target.x - st.x, target.y - st.y);
+        let dist = dx.hypot(dy).max(0.5);
+        let alpha = dy.atan2(dx) - st.psi;
+        let kappa = 2.0 * alpha.sin() / dist;
+        let understeer = if model.cornering.is_some() {
+            spec.understeer_rad_per_m_s2 * st.vx * st.vx * kappa
+        } else {
+            0.0
+        };
+        self.delta_cmd = (model.l * kappa).atan() + understeer;
+    }
+
     /// Steering (pure pursuit on the rear axle with understeer feed-forward)
     /// and the longitudinal force for the speed profile and stops.
     fn act(
@@ -519,18 +565,7 @@ impl Driver {
         let spec = &model.spec;
         self.s_along = route.nearest_s(st.x, st.y, self.s_along, 12.0);
         let here = route.at(self.s_along);
-        let lookahead = (3.0 + 0.45 * st.vx).clamp(3.0, 25.0);
-        let target = route.at(self.s_along + lookahead);
-        let (dx, dy) = (target.x - st.x, target.y - st.y);
-        let dist = dx.hypot(dy).max(0.5);
-        let alpha = dy.atan2(dx) - st.psi;
-        let kappa = 2.0 * alpha.sin() / dist;
-        let understeer = if model.cornering.is_some() {
-            spec.understeer_rad_per_m_s2 * st.vx * st.vx * kappa
-        } else {
-            0.0
-        };
-        self.delta_cmd = (model.l * kappa).atan() + understeer;
+        self.steer(model, st, route);
 
         // Speed: the profile, or the approach to the next stop.
         let mut v_ref = here.v_ref;
@@ -576,24 +611,120 @@ impl Driver {
     }
 }
 
+/// The true effective rear track of `spec` under the `track_width` effect.
+fn true_track_width(config: &SimConfig, spec: &VehicleSpec) -> f64 {
+    config
+        .effects
+        .track_width
+        .map_or(spec.track_rear_m, |t| spec.track_rear_m * (1.0 + t.rel))
+}
+
+/// A prescribed progress along the route over time (the twin of a
+/// recording): the driver follows it instead of the route's speed profile.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Prescribed {
+    /// Time step of the samples, s (the first is at t = 0).
+    pub dt: f64,
+    /// Arc length along the route at each sample, m (non-decreasing).
+    pub s: Vec<f64>,
+    /// Speed at each sample, m/s.
+    pub v: Vec<f64>,
+    /// Time intervals (simulation time, s) without GNSS fixes.
+    pub gnss_denied: Vec<(f64, f64)>,
+}
+
+impl Prescribed {
+    /// Arc length, speed and acceleration at `t`.
+    fn at(&self, t: f64) -> (f64, f64, f64) {
+        let n = self.s.len();
+        if n == 0 {
+            return (0.0, 0.0, 0.0);
+        }
+        let f = (t / self.dt).max(0.0);
+        let i = (f.floor() as usize).min(n.saturating_sub(2));
+        let j = (i + 1).min(n - 1);
+        let w = (f - i as f64).clamp(0.0, 1.0);
+        let s = self.s[i] + w * (self.s[j] - self.s[i]);
+        let v = self.v[i] + w * (self.v[j] - self.v[i]);
+        let a = if j > i {
+            (self.v[j] - self.v[i]) / self.dt
+        } else {
+            0.0
+        };
+        (s, v, a)
+    }
+
+    /// Length of the prescribed drive, s.
+    pub(crate) fn duration_s(&self) -> f64 {
+        self.s.len().saturating_sub(1) as f64 * self.dt
+    }
+}
+
+/// What a simulation drives besides the configuration's scenario: a
+/// route, a vehicle, optionally a prescribed progress over time and an
+/// antenna offset (the twin of a recording).
+pub(crate) struct Custom {
+    /// The route and how the drive starts.
+    pub route: ScenarioRoute,
+    /// The vehicle.
+    pub spec: VehicleSpec,
+    /// Progress over time the driver follows (instead of `v_ref`).
+    pub prescribed: Option<Prescribed>,
+    /// Antenna position (body x, y from the rear-axle centre) declared in
+    /// the vehicle.toml written, m; the fixes are taken there (on top of
+    /// a `gnss_lever_arm` effect).
+    pub antenna: Option<(f64, f64)>,
+    /// The vehicle.toml's name.
+    pub name: String,
+}
+
 /// Run one simulation.
 pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
-    validate(config)?;
     let grade_mag = config.effects.road_grade.map_or(0.0, |g| g.grade);
+    let route = scenarios::build(config.scenario, grade_mag)?;
+    let custom = Custom {
+        route,
+        spec: config.vehicle.spec(),
+        prescribed: None,
+        antenna: None,
+        name: format!(
+            "simulated {} ({} scenario)",
+            config.vehicle.name(),
+            config.scenario.name()
+        ),
+    };
+    run_custom(config, &custom)
+}
+
+/// Run one simulation on a given route and vehicle.
+pub(crate) fn run_custom(config: &SimConfig, custom: &Custom) -> Result<Drive, SimError> {
+    validate(config)?;
     let ScenarioRoute {
         route,
         start_moving,
         default_duration_s,
-    } = scenarios::build(config.scenario, grade_mag)?;
-    let model = Model::new(config);
+    } = &custom.route;
+    let (route, start_moving) = (route, *start_moving);
+    let prescribed = custom.prescribed.as_ref();
+    let model = Model::new(config, custom.spec);
     let dt = config.step_s;
     let periods = Periods::new(&config.sensors, dt)?;
-    let duration = config.duration_s.or(default_duration_s);
+    let duration = config
+        .duration_s
+        .or(*default_duration_s)
+        .or(prescribed.map(Prescribed::duration_s));
     let end_step = duration.map(|d| (d / dt).round() as u64);
     let limit_steps = (DEFAULT_TIME_LIMIT_S / dt) as u64;
     let mut rec = Recorder::new(config, &periods, end_step);
+    rec.denied = prescribed
+        .map(|p| p.gnss_denied.clone())
+        .unwrap_or_default();
+    if let Some((x, y)) = custom.antenna {
+        rec.lever.0 += x;
+        rec.lever.1 += y;
+    }
 
-    let (mut st, mut driver) = start(&model, &route, start_moving);
+    let (mut st, mut driver) = start(&model, route, start_moving);
     let mut stops = Stops {
         next: 0,
         standing_s: 0.0,
@@ -605,13 +736,16 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
         let t = k as f64 * dt;
         let mut done = false;
         if k.is_multiple_of(periods.driver) {
-            here = driver.act(&model, &st, &route, &mut stops, periods.driver as f64 * dt);
+            here = match prescribed {
+                Some(p) => driver.follow(&model, &st, route, p.at(t)),
+                None => driver.act(&model, &st, route, &mut stops, periods.driver as f64 * dt),
+            };
         }
         if k.is_multiple_of(periods.wheel) {
             rec.wheels_and_truth(t, &st)?;
             done = match end_step {
                 Some(end) => k >= end,
-                None => route_done(&route, &driver, &stops),
+                None => route_done(route, &driver, &stops),
             };
             if !done && end_step.is_none() && k >= limit_steps {
                 return Err(SimError::Stuck {
@@ -644,7 +778,7 @@ pub(crate) fn run(config: &SimConfig) -> Result<Drive, SimError> {
         );
         k += 1;
     }
-    Ok(rec.into_drive(config, &model, &route))
+    Ok(rec.into_drive(config, &model, route, custom))
 }
 
 /// The sampling periods of the sensors and of the driver, in steps.
@@ -730,6 +864,8 @@ struct Recorder<'a> {
     latency: f64,
     lever: (f64, f64),
     ticks: Option<f64>,
+    /// Time intervals without fixes (a twin's recorded outages).
+    denied: Vec<(f64, f64)>,
     wheels: Vec<WheelSample>,
     truth: Vec<TruthSample>,
     gnss: Vec<GnssSample>,
@@ -778,6 +914,7 @@ impl<'a> Recorder<'a> {
             latency: e.gnss_latency.map_or(0.0, |l| l.tau_s),
             lever: e.gnss_lever_arm.map_or((0.0, 0.0), |l| (l.x_m, l.y_m)),
             ticks: sensors.wheels.ticks_per_rev.map(f64::from),
+            denied: Vec::new(),
             wheels: Vec::with_capacity(capacity(periods.wheel)),
             truth: Vec::with_capacity(capacity(periods.wheel)),
             gnss: Vec::with_capacity(capacity(periods.gnss)),
@@ -848,7 +985,8 @@ impl<'a> Recorder<'a> {
         let wx = white * gauss(&mut self.gnss_rng);
         let wy = white * gauss(&mut self.gnss_rng);
         let out = self.outages.active(t, &mut self.outage_rng);
-        if !here.attrs.gnss_denied && !out {
+        let denied = self.denied.iter().any(|&(a, b)| t >= a && t <= b);
+        if !here.attrs.gnss_denied && !out && !denied {
             let (s, c) = st.psi.sin_cos();
             let sigma = self.sensors.gnss.sigma_m();
             let lever = self.lever;
@@ -876,7 +1014,13 @@ impl<'a> Recorder<'a> {
     }
 
     /// The drive the samples make, with its vehicle.toml and truth.toml.
-    fn into_drive(mut self, config: &SimConfig, model: &Model, route: &Route) -> Drive {
+    fn into_drive(
+        mut self,
+        config: &SimConfig,
+        model: &Model,
+        route: &Route,
+        custom: &Custom,
+    ) -> Drive {
         let t_end = self.wheels.last().map_or(0.0, |w| w.t_s);
         // A late-stamped fix after the recording stopped would not be in the log.
         self.gnss.retain(|g| g.t_s <= t_end + 1e-9);
@@ -891,23 +1035,23 @@ impl<'a> Recorder<'a> {
             WheelUnit::Rev
         };
         let truth_params = TruthParams {
-            track_width_m: config.true_track_width(),
+            track_width_m: model.track_rear_true,
             circumference_m: config.true_circumferences(),
             effects: config.effects.to_truth_map(),
-            extra: extra_keys(config, route, t_end),
+            extra: extra_keys(config, route, t_end, spec),
         };
         Drive {
             vehicle: VehicleParams {
-                name: Some(format!(
-                    "simulated {} ({} scenario)",
-                    config.vehicle.name(),
-                    config.scenario.name()
-                )),
+                name: Some(custom.name.clone()),
                 track_width_m: spec.track_rear_m,
                 nominal_circumference_m: config.nominal_circumference(),
                 wheelbase_m: Some(spec.wheelbase_m),
                 ticks_per_rev: self.ticks,
-                gnss: GnssAntenna::default(),
+                gnss: GnssAntenna {
+                    antenna_x_m: custom.antenna.map(|a| a.0),
+                    antenna_y_m: custom.antenna.map(|a| a.1),
+                    ..GnssAntenna::default()
+                },
             },
             wheels: WheelSeries {
                 units: WheelUnits::all(unit),
@@ -922,14 +1066,18 @@ impl<'a> Recorder<'a> {
     }
 }
 
-fn extra_keys(config: &SimConfig, route: &Route, t_end: f64) -> BTreeMap<String, Value> {
+fn extra_keys(
+    config: &SimConfig,
+    route: &Route,
+    t_end: f64,
+    spec: &VehicleSpec,
+) -> BTreeMap<String, Value> {
     let f = Value::Float;
     let table = |pairs: Vec<(&str, Value)>| {
         Value::Table(pairs.into_iter().map(|(k, v)| (k.to_string(), v)).collect())
     };
     let s = &config.sensors;
     let w = &config.wear_mm;
-    let spec = config.vehicle.spec();
     let mut extra = BTreeMap::new();
     extra.insert(
         "scenario".into(),

@@ -31,6 +31,8 @@ pub mod faults;
 mod route;
 mod scenarios;
 mod sensors;
+pub mod twin;
+pub mod twin_noise;
 mod vehicle;
 
 pub use effects::{
@@ -41,6 +43,7 @@ pub use effects::{
 pub use sensors::{
     GnssSettings, HeadingSettings, ImuSettings, SensorSettings, WheelEncoderSettings, SENSOR_KEYS,
 };
+pub use twin::{simulate_twin, TwinConfig, TwinOptions};
 pub use vehicle::{VehicleKind, VehicleSpec};
 
 use interfaces::drive::Drive;

@@ -9,7 +9,7 @@ use super::SimError;
 use std::f64::consts::TAU;
 
 /// Grid spacing of the sampled path, m.
-const DS: f64 = 0.25;
+pub(crate) const DS: f64 = 0.25;
 /// Largest lateral acceleration the speed profile allows, m/s^2.
 const LATERAL_LIMIT: f64 = 4.0;
 /// Wavelength of the rolling hills of `road_grade` on open roads, m.
@@ -469,6 +469,63 @@ impl Route {
             attr_index: grid.attr_index,
             attrs: grid.attrs,
             stops: grid.stops,
+        })
+    }
+
+    /// An open route through points already sampled every `ds` m of arc
+    /// length (a recorded track, smoothed and resampled): heading from the
+    /// differences, `v_ref` as given, one set of attributes, the rolling
+    /// hills of `road_grade` (magnitude `grade_mag`) as on other open
+    /// roads, no stops.
+    pub(crate) fn from_points(
+        x: Vec<f64>,
+        y: Vec<f64>,
+        v_ref: Vec<f64>,
+        ds: f64,
+        attrs: Attrs,
+        grade_mag: f64,
+    ) -> Result<Route, String> {
+        let n = x.len();
+        if n < 8 || y.len() != n || v_ref.len() != n {
+            return Err(format!(
+                "a route needs at least 8 points with x, y and v_ref each (got {n})"
+            ));
+        }
+        if !(ds > 0.0 && ds.is_finite()) {
+            return Err(format!("grid spacing {ds} m is not positive"));
+        }
+        if x.iter().chain(&y).chain(&v_ref).any(|v| !v.is_finite()) {
+            return Err("a route point is not finite".into());
+        }
+        let heading: Vec<f64> = (0..n)
+            .map(|i| {
+                let (a, b) = if i + 1 < n { (i, i + 1) } else { (i - 1, i) };
+                (y[b] - y[a]).atan2(x[b] - x[a])
+            })
+            .collect();
+        let half = (GRADE_SMOOTHING_M / ds / 2.0) as usize;
+        let raw: Vec<f64> = (0..n)
+            .map(|i| grade_mag * (TAU * i as f64 * ds / HILL_WAVELENGTH_M).sin())
+            .collect();
+        let grade = (0..n)
+            .map(|i| {
+                let lo = i.saturating_sub(half);
+                let hi = (i + half + 1).min(n);
+                raw[lo..hi].iter().sum::<f64>() / (hi - lo) as f64
+            })
+            .collect();
+        Ok(Route {
+            closed: false,
+            length: (n - 1) as f64 * ds,
+            ds,
+            x,
+            y,
+            heading,
+            v_ref,
+            grade,
+            attr_index: vec![0; n],
+            attrs: vec![attrs],
+            stops: Vec::new(),
         })
     }
 

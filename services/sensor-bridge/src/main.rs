@@ -5,6 +5,7 @@
 mod drive_input;
 mod graph_cmds;
 mod simulate_cmd;
+mod twin_cmd;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
@@ -38,6 +39,7 @@ enum Command {
     /// Simulate a drive with its own truth (truth.csv, truth.toml): scenario
     /// paper, garage, mixed or long; every physics-catalogue effect is a knob.
     /// With --publish [--speed F | --max] it is also published live, as by `replay`.
+    /// With --like DRIVE [--effects-from DIAGNOSIS.json]: the twin of a recorded drive.
     Simulate(simulate_cmd::SimulateArgs),
 }
 
@@ -124,7 +126,12 @@ fn main() -> Result<()> {
         Command::Info(args) => info(&args),
         Command::Replay(args) => graph_cmds::run_replay(&args),
         Command::Record(args) => graph_cmds::run_record(&args),
-        Command::Simulate(args) => simulate_cmd::run(&args).map(|_| ()).context("simulate"),
+        Command::Simulate(args) => match &args.like {
+            Some(like) => twin_cmd::run(&args, like)
+                .map(|_| ())
+                .context("simulate --like"),
+            None => simulate_cmd::run(&args).map(|_| ()).context("simulate"),
+        },
     }
 }
 

@@ -10,8 +10,18 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, clap::Args)]
 pub struct SimulateArgs {
     /// Scenario: paper, garage, mixed or long.
-    #[arg(long)]
-    pub scenario: String,
+    #[arg(long, required_unless_present = "like", conflicts_with = "like")]
+    pub scenario: Option<String>,
+    /// The twin of a recorded drive (a drive folder or .mcap): its path and
+    /// speed over time, vehicle, sensor rates and noise, GNSS outages; the
+    /// physics of --effects-from and --effect only (none by default).
+    #[arg(long, value_name = "DRIVE", conflicts_with_all = ["vehicle", "wear", "duration", "unworn_circumference", "nominal_circumference", "no_default_effects"])]
+    pub like: Option<PathBuf>,
+    /// With --like: a diagnosis's JSON (`calibrator diagnose --json`): its
+    /// `findings` become the twin's effects, its `information_limit`'s GNSS
+    /// noise and its `base_model`'s circumferences and track are used.
+    #[arg(long, value_name = "JSON", requires = "like")]
+    pub effects_from: Option<PathBuf>,
     /// Seed of the sensor noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -90,7 +100,10 @@ pub enum SimulateError {
 impl SimulateArgs {
     /// The simulation configuration these arguments describe.
     pub fn config(&self) -> Result<SimConfig, SimError> {
-        let mut c = SimConfig::new(Scenario::from_name(&self.scenario)?, self.seed);
+        let name = self.scenario.as_deref().ok_or_else(|| {
+            SimError::InvalidConfig("a scenario is needed (or --like DRIVE)".into())
+        })?;
+        let mut c = SimConfig::new(Scenario::from_name(name)?, self.seed);
         if let Some(v) = &self.vehicle {
             c.vehicle = VehicleKind::from_name(v)?;
         }

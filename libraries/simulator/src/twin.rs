@@ -1,0 +1,838 @@
+//! The twin of a recorded drive: the same path and the same progress over
+//! time, the same vehicle numbers, sensor rates and noise, the same GNSS
+//! outages, and the physics a list of findings names (or none), driven by
+//! the engine so every effect acts as in any other simulated drive.
+//!
+//! The path: the GNSS fixes smoothed as functions of the wheels' distance
+//! (a local quadratic fit with a Gaussian kernel of [`TwinConfig::smoothing_m`]
+//! metres, widened across GNSS gaps), so that a standstill is one point
+//! and cannot make a heading spike; moved from the antenna to the
+//! rear-axle centre; resampled every 0.25 m of arc length. The progress:
+//! the wheels' distance over time mapped onto the path's arc length, which
+//! the engine's driver follows (`Prescribed`) instead of a speed profile.
+
+use super::engine::{self, Custom, Prescribed};
+use super::route::{Attrs, Route, DS};
+use super::scenarios::ScenarioRoute;
+use super::twin_noise::{drive_numbers, interp, DriveNumbers, Odometer};
+use super::{
+    EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind, VehicleSpec,
+    WheelWear,
+};
+use interfaces::drive::{toml_value::Value, Drive};
+use interfaces::effects::Effect;
+use std::collections::BTreeMap;
+use std::f64::consts::TAU;
+
+/// Time step of the prescribed progress, s.
+const PROGRESS_DT_S: f64 = 0.01;
+/// Straight added beyond the path's end so the driver's look-ahead has
+/// somewhere to aim, m.
+const RUN_OUT_M: f64 = 30.0;
+/// Default smoothing of GNSS fixes along the path, m.
+pub const DEFAULT_SMOOTHING_M: f64 = 4.0;
+/// Gauss-Markov GNSS noise when nothing says otherwise: the same sigma as
+/// the white noise estimated from the fixes, with this correlation time, s.
+pub const DEFAULT_GM_TAU_S: f64 = 60.0;
+
+/// One position of a recorded track (local ENU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackPoint {
+    /// Time, s.
+    pub t_s: f64,
+    /// East, m.
+    pub x_m: f64,
+    /// North, m.
+    pub y_m: f64,
+}
+
+/// A path and the progress along it over time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinPath {
+    /// Grid spacing, m.
+    pub ds: f64,
+    /// East of the rear-axle centre every `ds` m, m.
+    pub x: Vec<f64>,
+    /// North, m.
+    pub y: Vec<f64>,
+    /// Start of the progress on the drive's clock, s.
+    pub t0_s: f64,
+    /// Step of the progress, s.
+    pub dt_s: f64,
+    /// Arc length along the path every `dt_s` from `t0_s`, m.
+    pub s: Vec<f64>,
+    /// Speed every `dt_s`, m/s.
+    pub v: Vec<f64>,
+    /// The fixes minus the smoothed track at their distance (east, north), m.
+    pub residuals: Vec<(f64, f64)>,
+}
+
+impl TwinPath {
+    /// The path's length, m.
+    pub fn length_m(&self) -> f64 {
+        self.x.len().saturating_sub(1) as f64 * self.ds
+    }
+
+    /// The distance of (x, y) from the path (the nearest of its segments), m.
+    pub fn distance_to(&self, x: f64, y: f64) -> f64 {
+        polyline_distance(&self.x, &self.y, x, y)
+    }
+}
+
+/// The distance of (x, y) from the polyline through `xs`, `ys`, m.
+pub fn polyline_distance(xs: &[f64], ys: &[f64], x: f64, y: f64) -> f64 {
+    let n = xs.len().min(ys.len());
+    if n == 1 {
+        return (xs[0] - x).hypot(ys[0] - y);
+    }
+    (0..n.saturating_sub(1))
+        .map(|i| {
+            let (ex, ey) = (xs[i + 1] - xs[i], ys[i + 1] - ys[i]);
+            let l2 = ex * ex + ey * ey;
+            let f = if l2 > 0.0 {
+                (((x - xs[i]) * ex + (y - ys[i]) * ey) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            (xs[i] + f * ex - x).hypot(ys[i] + f * ey - y)
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Local quadratic fit of (d, x) and (d, y) with Gaussian weights of
+/// bandwidth `h` around d = 0: the fitted values at 0. Falls back to a
+/// local line, then a weighted mean, where the points do not determine
+/// a quadratic.
+fn local_fit(d: &[f64], x: &[f64], y: &[f64], h: f64) -> Option<(f64, f64)> {
+    let mut m = [0.0f64; 5];
+    let (mut tx, mut ty) = ([0.0f64; 3], [0.0f64; 3]);
+    for ((&di, &xi), &yi) in d.iter().zip(x).zip(y) {
+        let u = di / h;
+        let w = (-0.5 * u * u).exp();
+        let mut p = w;
+        for (k, mk) in m.iter_mut().enumerate() {
+            *mk += p;
+            if k < 3 {
+                tx[k] += p * xi;
+                ty[k] += p * yi;
+            }
+            p *= u;
+        }
+    }
+    if m[0] <= 1e-12 {
+        return None;
+    }
+    let det3 = |a: [[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let a = [[m[0], m[1], m[2]], [m[1], m[2], m[3]], [m[2], m[3], m[4]]];
+    let det = det3(a);
+    if det.abs() > 1e-9 * m[0].powi(3) {
+        let solve = |t: [f64; 3]| {
+            let mut b = a;
+            for (row, tv) in b.iter_mut().zip(t) {
+                row[0] = tv;
+            }
+            det3(b) / det
+        };
+        return Some((solve(tx), solve(ty)));
+    }
+    let det2 = m[0] * m[2] - m[1] * m[1];
+    if det2.abs() > 1e-9 * m[0] * m[0] {
+        let f = |t: [f64; 3]| (t[0] * m[2] - m[1] * t[1]) / det2;
+        return Some((f(tx), f(ty)));
+    }
+    Some((tx[0] / m[0], ty[0] / m[0]))
+}
+
+/// The path and progress of a recorded track.
+///
+/// `track`: positions (the antenna's) over time; `odometer`: the wheels'
+/// distance over time; `smoothing_m`: the kernel's bandwidth along the
+/// path (about the fixes' noise times a few; 0.5 m for a noiseless
+/// track); `antenna`: the antenna's body position (x forward, y left)
+/// from the rear-axle centre, which the path is moved by; `t_start`,
+/// `t_end`: the progress's span on the drive's clock.
+pub fn path_from_track(
+    track: &[TrackPoint],
+    odometer: &Odometer,
+    smoothing_m: f64,
+    antenna: (f64, f64),
+    (t_start, t_end): (f64, f64),
+) -> Result<TwinPath, SimError> {
+    let bad = |reason: String| SimError::Route {
+        scenario: "twin".into(),
+        reason,
+    };
+    if track.len() < 4 {
+        return Err(bad(format!("{} track points are too few", track.len())));
+    }
+    if !(smoothing_m > 0.0 && smoothing_m.is_finite()) {
+        return Err(bad(format!("smoothing {smoothing_m} m is not positive")));
+    }
+    if track
+        .iter()
+        .any(|p| !(p.t_s.is_finite() && p.x_m.is_finite() && p.y_m.is_finite()))
+    {
+        return Err(bad("a track point is not finite".into()));
+    }
+    // Each point's wheel distance; sorted by it (it never decreases in time).
+    let mut pts: Vec<(f64, f64, f64)> = track
+        .iter()
+        .map(|p| (odometer.distance_at(p.t_s), p.x_m, p.y_m))
+        .collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let d: Vec<f64> = pts.iter().map(|p| p.0).collect();
+    let px: Vec<f64> = pts.iter().map(|p| p.1).collect();
+    let py: Vec<f64> = pts.iter().map(|p| p.2).collect();
+    let (u0, u1) = (d[0], d[d.len() - 1]);
+    if u1 - u0 < 2.0 {
+        return Err(bad(format!(
+            "the wheels cover only {:.1} m while there are fixes",
+            u1 - u0
+        )));
+    }
+
+    // The smoothed track on a grid of wheel distance.
+    let nu = ((u1 - u0) / DS).ceil() as usize + 1;
+    let du = (u1 - u0) / (nu - 1) as f64;
+    let (mut sx, mut sy) = (Vec::with_capacity(nu), Vec::with_capacity(nu));
+    let (mut lo, mut hi) = (0usize, 0usize);
+    for k in 0..nu {
+        let u = u0 + k as f64 * du;
+        // Widen the kernel across a gap: to the nearest points on each side.
+        let right = d.partition_point(|v| *v < u);
+        let left_d = if right > 0 { u - d[right - 1] } else { 0.0 };
+        let right_d = if right < d.len() { d[right] - u } else { 0.0 };
+        let h = smoothing_m.max(0.75 * left_d.max(right_d));
+        let reach = 4.0 * h;
+        while lo < d.len() && d[lo] < u - reach {
+            lo += 1;
+        }
+        while hi < d.len() && d[hi] <= u + reach {
+            hi += 1;
+        }
+        let (lo_k, hi_k) = if lo < hi {
+            (lo, hi)
+        } else {
+            let j = right.min(d.len() - 1);
+            (j, j + 1)
+        };
+        let rel: Vec<f64> = d[lo_k..hi_k].iter().map(|v| v - u).collect();
+        let (x, y) = local_fit(&rel, &px[lo_k..hi_k], &py[lo_k..hi_k], h)
+            .ok_or_else(|| bad(format!("no fix near wheel distance {u:.1} m")))?;
+        sx.push(x);
+        sy.push(y);
+    }
+    let residuals = pts
+        .iter()
+        .map(|&(s, x, y)| {
+            let f = ((s - u0) / du).clamp(0.0, (nu - 1) as f64);
+            let i = (f.floor() as usize).min(nu - 2);
+            let w = f - i as f64;
+            (
+                x - (sx[i] + w * (sx[i + 1] - sx[i])),
+                y - (sy[i] + w * (sy[i + 1] - sy[i])),
+            )
+        })
+        .collect();
+
+    // From the antenna to the rear axle.
+    if antenna != (0.0, 0.0) {
+        let heading: Vec<f64> = (0..nu)
+            .map(|i| {
+                let (a, b) = (i.saturating_sub(2), (i + 2).min(nu - 1));
+                (sy[b] - sy[a]).atan2(sx[b] - sx[a])
+            })
+            .collect();
+        for ((x, y), h) in sx.iter_mut().zip(sy.iter_mut()).zip(heading) {
+            let (s, c) = h.sin_cos();
+            *x -= c * antenna.0 - s * antenna.1;
+            *y -= s * antenna.0 + c * antenna.1;
+        }
+    }
+
+    // Arc length of the smoothed path at each wheel distance.
+    let mut arc = Vec::with_capacity(nu);
+    arc.push(0.0);
+    for k in 1..nu {
+        let step = (sx[k] - sx[k - 1]).hypot(sy[k] - sy[k - 1]);
+        arc.push(arc[k - 1] + step);
+    }
+    let length = arc[nu - 1];
+    let n = ((length / DS).round() as usize).max(8);
+    let ds = length / n as f64;
+    let mut x = Vec::with_capacity(n + 1);
+    let mut y = Vec::with_capacity(n + 1);
+    for i in 0..=n {
+        let a = i as f64 * ds;
+        x.push(interp(&arc, &sx, a));
+        y.push(interp(&arc, &sy, a));
+    }
+
+    // Progress over time: wheel distance -> arc length.
+    let grid_u: Vec<f64> = (0..nu).map(|k| u0 + k as f64 * du).collect();
+    let steps = ((t_end - t_start) / PROGRESS_DT_S).round().max(1.0) as usize;
+    let s: Vec<f64> = (0..=steps)
+        .map(|k| {
+            let t = t_start + k as f64 * PROGRESS_DT_S;
+            interp(&grid_u, &arc, odometer.distance_at(t))
+        })
+        .collect();
+    let half = (0.1 / PROGRESS_DT_S).round() as usize;
+    let v = (0..s.len())
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(half), (k + half).min(s.len() - 1));
+            if b > a {
+                (s[b] - s[a]) / ((b - a) as f64 * PROGRESS_DT_S)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    Ok(TwinPath {
+        ds,
+        x,
+        y,
+        t0_s: t_start,
+        dt_s: PROGRESS_DT_S,
+        s,
+        v,
+        residuals,
+    })
+}
+
+/// The vehicle of a twin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwinVehicle {
+    /// True rear-left circumference, m.
+    pub c_rl_m: f64,
+    /// True rear-right circumference, m.
+    pub c_rr_m: f64,
+    /// Rear track (vehicle.toml's and the simulated one), m.
+    pub track_width_m: f64,
+    /// Wheelbase, m (`None`: the saloon's).
+    pub wheelbase_m: Option<f64>,
+    /// vehicle.toml's nominal circumference, m.
+    pub nominal_circumference_m: f64,
+    /// vehicle.toml's antenna position (x forward, y left), m.
+    pub antenna: Option<(f64, f64)>,
+}
+
+/// The GNSS error model per axis: white sigma (m), Gauss-Markov sigma
+/// (m), its correlation time (s).
+pub type GnssNoise = [f64; 3];
+
+/// Everything a twin needs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinConfig {
+    /// Where the recording came from (written as `twin_of` in truth.toml).
+    pub source: String,
+    /// The path and progress.
+    pub path: TwinPath,
+    /// The vehicle.
+    pub vehicle: TwinVehicle,
+    /// Sensor rates and noise.
+    pub sensors: SensorSettings,
+    /// GNSS outages on the drive's clock, s.
+    pub gnss_gaps: Vec<(f64, f64)>,
+    /// The physics.
+    pub effects: EffectSettings,
+    /// Seed of the sensor noise.
+    pub seed: u64,
+    /// Internal integration step, s.
+    pub step_s: f64,
+}
+
+/// What is taken from elsewhere than the drive: a diagnosis's GNSS noise
+/// and calibrated plain model, the effects, the seed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TwinOptions {
+    /// Where the recording came from.
+    pub source: String,
+    /// GNSS error model (east, north) from a diagnosis; `None`: estimated.
+    pub gnss_noise: Option<(GnssNoise, GnssNoise)>,
+    /// Calibrated rear circumferences and track (c_rl, c_rr, track), m.
+    pub base_model: Option<(f64, f64, f64)>,
+    /// The physics.
+    pub effects: EffectSettings,
+    /// Seed.
+    pub seed: u64,
+    /// Smoothing of the fixes along the path, m.
+    pub smoothing_m: f64,
+}
+
+impl TwinOptions {
+    /// No diagnosis, no effects, seed 1, the default smoothing.
+    pub fn new(source: &str) -> TwinOptions {
+        TwinOptions {
+            source: source.to_string(),
+            gnss_noise: None,
+            base_model: None,
+            effects: EffectSettings::none(),
+            seed: 1,
+            smoothing_m: DEFAULT_SMOOTHING_M,
+        }
+    }
+}
+
+/// A twin configuration and what was derived, in words (for the log).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DerivedTwin {
+    /// The configuration.
+    pub config: TwinConfig,
+    /// The drive's numbers.
+    pub numbers: DriveNumbers,
+    /// One line per derived figure or choice.
+    pub notes: Vec<String>,
+}
+
+/// Robust sigma (1.4826 median absolute deviation about the median).
+fn robust_sigma(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(f64::total_cmp);
+    let med = v[v.len() / 2];
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    1.4826 * dev[dev.len() / 2]
+}
+
+impl TwinConfig {
+    /// The twin configuration of `drive`: its path and progress, vehicle,
+    /// sensors and outages, with `options`' diagnosis numbers and effects.
+    pub fn from_drive(drive: &Drive, options: &TwinOptions) -> Result<DerivedTwin, SimError> {
+        let step_s = 0.001;
+        let odometer = Odometer::from_drive(drive)?;
+        let numbers = drive_numbers(drive, &odometer, step_s)?;
+        let mut notes = Vec::new();
+        let fixes = drive.gnss.as_deref().unwrap_or_default();
+        // The fixes are the antenna's, stamped late by any latency.
+        let latency = options.effects.gnss_latency.map_or(0.0, |l| l.tau_s);
+        let track: Vec<TrackPoint> = fixes
+            .iter()
+            .map(|g| TrackPoint {
+                t_s: g.t_s - latency,
+                x_m: g.x_m,
+                y_m: g.y_m,
+            })
+            .collect();
+        let declared = match (
+            drive.vehicle.gnss.antenna_x_m,
+            drive.vehicle.gnss.antenna_y_m,
+        ) {
+            (None, None) => None,
+            (x, y) => Some((x.unwrap_or(0.0), y.unwrap_or(0.0))),
+        };
+        let lever = options
+            .effects
+            .gnss_lever_arm
+            .map_or((0.0, 0.0), |l| (l.x_m, l.y_m));
+        let antenna = declared.unwrap_or((0.0, 0.0));
+        let physical = (antenna.0 + lever.0, antenna.1 + lever.1);
+        let t_start = odometer.t_s[0];
+        let t_end = odometer.t_s[odometer.t_s.len() - 1];
+        let path = path_from_track(
+            &track,
+            &odometer,
+            options.smoothing_m,
+            physical,
+            (t_start, t_end),
+        )?;
+        notes.push(format!(
+            "path: {} fixes smoothed over {:.1} m of wheel distance, {:.1} m long, {:.1} s from t = {:.2} s; the wheels' distance {:.1} m",
+            fixes.len(),
+            options.smoothing_m,
+            path.length_m(),
+            t_end - t_start,
+            t_start,
+            odometer.s_m.last().copied().unwrap_or(0.0),
+        ));
+
+        // GNSS noise.
+        let (east, north) = match options.gnss_noise {
+            Some(n) => {
+                notes.push(format!(
+                    "GNSS noise from the diagnosis: east {:?}, north {:?} (white m, Gauss-Markov m, tau s); mean used",
+                    n.0, n.1
+                ));
+                n
+            }
+            None => {
+                let mut ex: Vec<f64> = path.residuals.iter().map(|r| r.0).collect();
+                let mut ny: Vec<f64> = path.residuals.iter().map(|r| r.1).collect();
+                let w = 0.5 * (robust_sigma(&mut ex) + robust_sigma(&mut ny));
+                notes.push(format!(
+                    "GNSS noise estimated: white {w:.3} m (fixes minus the smoothed track); Gauss-Markov by default: {w:.3} m, tau {DEFAULT_GM_TAU_S} s (no diagnosis given)"
+                ));
+                ([w, w, DEFAULT_GM_TAU_S], [w, w, DEFAULT_GM_TAU_S])
+            }
+        };
+        let mut sensors = SensorSettings::default();
+        sensors.wheels.rate_hz = numbers.wheel_rate_hz;
+        sensors.wheels.ticks_per_rev = numbers.ticks_per_rev;
+        sensors.gnss.rate_hz = numbers.gnss_rate_hz;
+        sensors.gnss.white_sigma_m = 0.5 * (east[0] + north[0]);
+        sensors.gnss.gm_sigma_m = 0.5 * (east[1] + north[1]);
+        sensors.gnss.gm_tau_s = 0.5 * (east[2] + north[2]);
+        sensors.gnss.outage_rate_per_h = 0.0;
+        sensors.imu.enabled = numbers.imu_rate_hz.is_some();
+        sensors.imu.rate_hz = numbers.imu_rate_hz.unwrap_or(sensors.imu.rate_hz);
+        if let Some(g) = numbers.gyro_sigma_rad_s {
+            sensors.imu.gz_sigma_rad_s = g;
+        }
+        if let Some(a) = numbers.accel_sigma_m_s2 {
+            sensors.imu.accel_sigma_m_s2 = a;
+        }
+        sensors.heading.enabled = numbers.heading_rate_hz.is_some();
+        sensors.heading.rate_hz = numbers.heading_rate_hz.unwrap_or(sensors.heading.rate_hz);
+        if let Some(h) = numbers.heading_sigma_deg {
+            sensors.heading.sigma_deg = h;
+        }
+        notes.push(format!(
+            "rates: wheels {:.1} Hz{}, GNSS {:.2} Hz, IMU {}, heading {}",
+            numbers.wheel_rate_hz,
+            numbers
+                .ticks_per_rev
+                .map_or(String::new(), |t| format!(" ({t} ticks/rev)")),
+            numbers.gnss_rate_hz,
+            numbers
+                .imu_rate_hz
+                .map_or("none".into(), |r| format!("{r:.1} Hz")),
+            numbers
+                .heading_rate_hz
+                .map_or("none".into(), |r| format!("{r:.1} Hz")),
+        ));
+        let mut effects = options.effects;
+        match (numbers.gyro_bias_rad_s, numbers.gyro_sigma_rad_s) {
+            (Some(b), Some(s)) => {
+                notes.push(format!(
+                    "gyro at standstill ({:.0} s): bias {:.1} deg/h, noise {:.4} rad/s{}",
+                    numbers.standstill_s,
+                    b.to_degrees() * 3600.0,
+                    s,
+                    if effects.gyro_bias.is_some() {
+                        "; the effects' gyro_bias is kept"
+                    } else {
+                        "; simulated as gyro_bias"
+                    }
+                ));
+                if effects.gyro_bias.is_none() && b != 0.0 {
+                    effects.set(Effect::GyroBias, None, b.to_degrees() * 3600.0)?;
+                }
+            }
+            _ if sensors.imu.enabled => notes.push(
+                "gyro: no standstill of 2 s or more; the simulator's default noise, no bias".into(),
+            ),
+            _ => {}
+        }
+        if let Some(h) = numbers.heading_sigma_deg {
+            notes.push(format!("compass noise {h:.2} deg"));
+        }
+        notes.push(format!(
+            "GNSS outages (longer than 3 fix periods): {}",
+            if numbers.gnss_gaps.is_empty() {
+                "none".to_string()
+            } else {
+                numbers
+                    .gnss_gaps
+                    .iter()
+                    .map(|(a, b)| format!("{a:.1}-{b:.1} s"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        ));
+        let v = &drive.vehicle;
+        let (c_rl_m, c_rr_m, track_width_m) = match options.base_model {
+            Some(b) => {
+                notes.push(format!(
+                    "vehicle from the diagnosis's base model: c_rl {:.4} m, c_rr {:.4} m, track {:.3} m",
+                    b.0, b.1, b.2
+                ));
+                b
+            }
+            None => {
+                notes.push(format!(
+                    "vehicle from vehicle.toml: circumference {:.4} m, track {:.3} m",
+                    v.nominal_circumference_m, v.track_width_m
+                ));
+                (
+                    v.nominal_circumference_m,
+                    v.nominal_circumference_m,
+                    v.track_width_m,
+                )
+            }
+        };
+        let on: Vec<String> = effects.to_truth_map().into_keys().collect();
+        notes.push(format!("effects on: [{}]", on.join(", ")));
+        Ok(DerivedTwin {
+            config: TwinConfig {
+                source: options.source.clone(),
+                path,
+                vehicle: TwinVehicle {
+                    c_rl_m,
+                    c_rr_m,
+                    track_width_m,
+                    wheelbase_m: v.wheelbase_m,
+                    nominal_circumference_m: v.nominal_circumference_m,
+                    antenna: declared,
+                },
+                sensors,
+                gnss_gaps: numbers.gnss_gaps.clone(),
+                effects,
+                seed: options.seed,
+                step_s,
+            },
+            numbers,
+            notes,
+        })
+    }
+}
+
+/// The simulator configuration and vehicle of a twin.
+fn sim_config(c: &TwinConfig) -> Result<(SimConfig, VehicleSpec), SimError> {
+    let v = &c.vehicle;
+    for (name, x) in [
+        ("c_rl_m", v.c_rl_m),
+        ("c_rr_m", v.c_rr_m),
+        ("track_width_m", v.track_width_m),
+        ("nominal_circumference_m", v.nominal_circumference_m),
+    ] {
+        if !(x.is_finite() && x > 0.1 && x < 10.0) {
+            return Err(SimError::InvalidConfig(format!(
+                "twin vehicle: {name} = {x} is not plausible"
+            )));
+        }
+    }
+    let mut spec = VehicleKind::Saloon.spec();
+    if let Some(l) = v.wheelbase_m {
+        if !(l.is_finite() && (0.5..=10.0).contains(&l)) {
+            return Err(SimError::InvalidConfig(format!(
+                "twin vehicle: wheelbase_m = {l} is not plausible"
+            )));
+        }
+        spec.cg_to_front_m *= l / spec.wheelbase_m;
+        spec.wheelbase_m = l;
+    }
+    spec.track_rear_m = v.track_width_m;
+    spec.track_front_m = v.track_width_m;
+    let c0 = 0.5 * (v.c_rl_m + v.c_rr_m);
+    spec.unworn_circumference_m = c0;
+    let wear = |c: f64| (c0 - c) / TAU * 1000.0;
+    let mut config = SimConfig::new(Scenario::Mixed, c.seed);
+    config.effects = c.effects;
+    config.sensors = c.sensors;
+    config.step_s = c.step_s;
+    config.unworn_circumference_m = Some(c0);
+    config.nominal_circumference_m = Some(v.nominal_circumference_m);
+    config.wear_mm = WheelWear {
+        rl: wear(v.c_rl_m),
+        rr: wear(v.c_rr_m),
+        fl: 0.0,
+        fr: 0.0,
+    };
+    config.duration_s = Some(c.path.s.len().saturating_sub(1) as f64 * c.path.dt_s);
+    Ok((config, spec))
+}
+
+/// Simulate the twin: a drive on the recording's clock with its truth.
+pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
+    let (config, spec) = sim_config(c)?;
+    let p = &c.path;
+    let n = p.x.len();
+    if n < 2 {
+        return Err(SimError::InvalidConfig("twin: empty path".into()));
+    }
+    // The path with a run-out straight beyond its end.
+    let (mut x, mut y) = (p.x.clone(), p.y.clone());
+    let h = (y[n - 1] - y[n - 2]).atan2(x[n - 1] - x[n - 2]);
+    let extra = (RUN_OUT_M / p.ds).ceil() as usize;
+    for k in 1..=extra {
+        x.push(p.x[n - 1] + k as f64 * p.ds * h.cos());
+        y.push(p.y[n - 1] + k as f64 * p.ds * h.sin());
+    }
+    // v_ref: the recorded speed where the progress first reaches each point.
+    let mut v_ref = vec![0.0; x.len()];
+    let mut k = 0usize;
+    for (i, v) in v_ref.iter_mut().enumerate() {
+        let s_i = i as f64 * p.ds;
+        while k + 1 < p.s.len() && p.s[k] < s_i {
+            k += 1;
+        }
+        *v = p.v.get(k).copied().unwrap_or(0.0);
+    }
+    v_ref[0] = p.v.first().copied().unwrap_or(0.0);
+    let attrs = Attrs {
+        speed: 70.0,
+        accel: 3.0,
+        decel: 8.0,
+        gnss_denied: false,
+        ramp: 0.0,
+    };
+    let grade_mag = c.effects.road_grade.map_or(0.0, |g| g.grade);
+    let route = Route::from_points(x, y, v_ref, p.ds, attrs, grade_mag).map_err(|reason| {
+        SimError::Route {
+            scenario: "twin".into(),
+            reason,
+        }
+    })?;
+    let t0 = p.t0_s;
+    let custom = Custom {
+        route: ScenarioRoute {
+            route,
+            start_moving: p.v.first().is_some_and(|v| *v > 0.5),
+            default_duration_s: None,
+        },
+        spec,
+        prescribed: Some(Prescribed {
+            dt: p.dt_s,
+            s: p.s.clone(),
+            v: p.v.clone(),
+            gnss_denied: c
+                .gnss_gaps
+                .iter()
+                .map(|&(a, b)| (a - t0 + 1e-6, b - t0 - 1e-6))
+                .collect(),
+        }),
+        antenna: c.vehicle.antenna,
+        name: format!("twin of {}", c.source),
+    };
+    let mut drive = engine::run_custom(&config, &custom)?;
+    shift_times(&mut drive, t0);
+    if let Some(tp) = drive.truth_params.as_mut() {
+        tp.extra.remove("scenario");
+        tp.extra.remove("vehicle");
+        tp.extra
+            .insert("twin_of".into(), Value::String(c.source.clone()));
+        tp.extra.insert("t0_s".into(), Value::Float(t0));
+    }
+    Ok(drive)
+}
+
+/// Move every sample of `drive` by `dt` seconds (onto the recording's clock).
+fn shift_times(drive: &mut Drive, dt: f64) {
+    if dt == 0.0 {
+        return;
+    }
+    for s in &mut drive.wheels.samples {
+        s.t_s += dt;
+    }
+    for s in drive.gnss.iter_mut().flatten() {
+        s.t_s += dt;
+    }
+    for s in drive.imu.iter_mut().flatten() {
+        s.t_s += dt;
+    }
+    for s in drive.heading.iter_mut().flatten() {
+        s.t_s += dt;
+    }
+    for s in drive.truth.iter_mut().flatten() {
+        s.t_s += dt;
+    }
+}
+
+/// Apply one finding of a diagnosis (`effect`: catalogue id;
+/// `parameters`: name -> value in the diagnosis's reported unit) to
+/// `effects`. The reported units are the simulator's (`b_deg_h` in deg/h,
+/// heading terms in degrees, the rest SI; see `interfaces::effects`), so
+/// values pass unchanged. `road_grade`'s `gain` (the model's gain on the
+/// IMU's slope) has no simulated counterpart on a recorded path: it is
+/// left out with a note, the road stays level. Returns the notes; an
+/// unknown effect or parameter is an error naming it.
+pub fn apply_finding(
+    effects: &mut EffectSettings,
+    effect: &str,
+    parameters: &BTreeMap<String, f64>,
+) -> Result<Vec<String>, SimError> {
+    let ids = || {
+        Effect::ALL
+            .iter()
+            .map(|e| e.id())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let e = Effect::from_id(effect).ok_or_else(|| SimError::InvalidEffect {
+        spec: effect.to_string(),
+        reason: format!("unknown effect id `{effect}`; known: {}", ids()),
+    })?;
+    let mut notes = Vec::new();
+    let mut set_any = false;
+    for (name, &value) in parameters {
+        match e.simulated_param(name) {
+            Some(p) => {
+                effects.set(e, Some(p), value)?;
+                set_any = true;
+            }
+            None if e == Effect::RoadGrade && name == "gain" => notes.push(format!(
+                "road_grade: the diagnosis's gain {value} on the IMU's slope has no simulated counterpart on a recorded path; left out (the twin's road is level)"
+            )),
+            None => {
+                let known: Vec<&str> = e.spec().simulated.iter().map(|p| p.spec().name).collect();
+                return Err(SimError::InvalidEffect {
+                    spec: format!("{effect}.{name}={value}"),
+                    reason: format!("unknown parameter `{name}`; known: {}", known.join(", ")),
+                });
+            }
+        }
+    }
+    if !set_any && parameters.is_empty() {
+        effects.switch_on(e);
+        notes.push(format!(
+            "{effect}: no parameters given, its typical magnitude"
+        ));
+    }
+    Ok(notes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{simulate, SimConfig};
+
+    fn params(pairs: &[(&str, f64)]) -> BTreeMap<String, f64> {
+        pairs.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+    }
+
+    #[test]
+    fn findings_keep_their_reported_units_which_are_the_simulators() {
+        let mut e = EffectSettings::none();
+        // The diagnosis reports the gyro bias in deg/h (display scale of
+        // rad/s), the heading terms in degrees: the simulator's own units.
+        apply_finding(&mut e, "gyro_bias", &params(&[("b_deg_h", 3600.0)])).unwrap();
+        apply_finding(
+            &mut e,
+            "heading_bias",
+            &params(&[("a_deg", 2.0), ("b_deg", 0.0)]),
+        )
+        .unwrap();
+        apply_finding(&mut e, "track_width", &params(&[("rel", 0.01)])).unwrap();
+        apply_finding(
+            &mut e,
+            "radius_drift",
+            &params(&[("d", 0.002), ("time_constant_s", 300.0)]),
+        )
+        .unwrap();
+        assert_eq!(e.gyro_bias.map(|b| b.b_deg_h), Some(3600.0));
+        assert_eq!(e.heading_bias.map(|h| (h.a_deg, h.b_deg)), Some((2.0, 0.0)));
+        assert_eq!(e.track_width.map(|t| t.rel), Some(0.01));
+        assert_eq!(e.radius_drift.map(|d| d.time_constant_s), Some(300.0));
+        // 3600 deg/h is 1 deg/s on the gyro: the IMU at standstill shows it.
+        let mut c = SimConfig::new(Scenario::Garage, 1);
+        c.duration_s = Some(1.0);
+        c.effects = EffectSettings::none();
+        c.effects.gyro_bias = e.gyro_bias;
+        c.sensors.imu.gz_sigma_rad_s = 0.0;
+        let d = simulate(&c).unwrap();
+        let gz = d.imu.unwrap()[0].gz_rad_s;
+        assert!((gz - 1.0f64.to_radians()).abs() < 1e-9, "{gz}");
+        // road_grade's gain has no simulated counterpart: a note, level road.
+        let notes = apply_finding(&mut e, "road_grade", &params(&[("gain", 1.2)])).unwrap();
+        assert_eq!(notes.len(), 1);
+        assert!(e.road_grade.is_none());
+        assert!(apply_finding(&mut e, "side_slip", &params(&[("k_beta", -0.01)])).is_err());
+        assert!(apply_finding(&mut e, "nope", &params(&[])).is_err());
+    }
+}
