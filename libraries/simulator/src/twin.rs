@@ -338,6 +338,10 @@ pub struct TwinConfig {
     pub sensors: SensorSettings,
     /// GNSS outages on the drive's clock, s.
     pub gnss_gaps: Vec<(f64, f64)>,
+    /// The accuracy the recording's receiver claims for its fixes (the
+    /// median of `sigma_m`), written with every fix of the twin; `None`
+    /// when the recording claims none (the twin then claims none either).
+    pub claimed_sigma_m: Option<f64>,
     /// The physics.
     pub effects: EffectSettings,
     /// Seed of the sensor noise.
@@ -582,6 +586,7 @@ impl TwinConfig {
                 },
                 sensors,
                 gnss_gaps: numbers.gnss_gaps.clone(),
+                claimed_sigma_m: claimed_sigma(fixes),
                 effects,
                 seed: options.seed,
                 step_s,
@@ -702,6 +707,10 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
     };
     let mut drive = engine::run_custom(&config, &custom)?;
     shift_times(&mut drive, t0);
+    // The receiver's claim is the recording's, not the simulator's.
+    for f in drive.gnss.iter_mut().flatten() {
+        f.sigma_m = c.claimed_sigma_m;
+    }
     if let Some(tp) = drive.truth_params.as_mut() {
         tp.extra.remove("scenario");
         tp.extra.remove("vehicle");
@@ -710,6 +719,20 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
         tp.extra.insert("t0_s".into(), Value::Float(t0));
     }
     Ok(drive)
+}
+
+/// The median accuracy the fixes claim, if they claim any.
+fn claimed_sigma(fixes: &[interfaces::drive::GnssSample]) -> Option<f64> {
+    let mut claims: Vec<f64> = fixes
+        .iter()
+        .filter_map(|f| f.sigma_m)
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .collect();
+    if claims.is_empty() {
+        return None;
+    }
+    claims.sort_by(f64::total_cmp);
+    Some(claims[claims.len() / 2])
 }
 
 /// Move every sample of `drive` by `dt` seconds (onto the recording's clock).

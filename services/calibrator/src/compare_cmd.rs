@@ -3,7 +3,7 @@
 //! and the page ([`calibrator::diagnose::compare`]).
 
 use anyhow::{Context, Result};
-use calibrator::diagnose::compare::{compare, CompareConfig, Comparison};
+use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, Declared};
 use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
 use clap::Args;
 use interfaces::drive::Drive;
@@ -98,7 +98,11 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
             args.simulation.display()
         )
     })?;
-    let c = compare(&dr, &ds, &CompareConfig::default());
+    // The physics the simulation declares (its truth.toml's `[effects]`:
+    // a simulator's own statement of what it simulated); the recording's
+    // truth is never read.
+    let declared: Option<Declared> = sim.truth_params.as_ref().map(|t| t.effects.clone());
+    let c = compare(&dr, &ds, declared.as_ref(), &CompareConfig::default());
     print!("{}", render_text(&c, before.as_ref().map(|b| &b.1)));
     if let Some(path) = &args.json {
         let w = Written {
@@ -170,6 +174,12 @@ fn read_earlier(path: &Path) -> Result<(Comparison, Earlier)> {
         holdout_rmse_m: [f64::NAN; 2],
         findings: Vec::new(),
         effects_missing: None,
+        base_model: calibrator::diagnose::BaseModel {
+            c_rl_m: f64::NAN,
+            c_rr_m: f64::NAN,
+            track_width_m: f64::NAN,
+        },
+        recording_noise: None,
     };
     Ok((as_comparison, e))
 }

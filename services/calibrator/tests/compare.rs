@@ -28,7 +28,7 @@ fn compared(recording: &Drive, simulation: &Drive) -> Comparison {
         ..DiagnoseConfig::default()
     };
     let ds = diagnose(simulation, &cfg).expect("diagnose the simulation");
-    compare(&dr, &ds, &CompareConfig::default())
+    compare(&dr, &ds, None, &CompareConfig::default())
 }
 
 /// The mended simulation's effect knobs from the comparison's findings

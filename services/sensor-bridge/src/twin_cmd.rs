@@ -15,7 +15,9 @@ use std::path::{Path, PathBuf};
 pub struct EffectsFile {
     /// The accepted effects.
     pub findings: Vec<FindingEntry>,
-    /// The information limit, for its GNSS error model.
+    /// The information limit, for its GNSS error model (a comparison's
+    /// JSON, `calibrator compare --json`, has it as `recording_noise`).
+    #[serde(alias = "recording_noise")]
     pub information_limit: Option<InformationLimit>,
     /// The calibrated plain model.
     pub base_model: Option<BaseModel>,

@@ -36,7 +36,7 @@
 use super::decide::{step_down, GUARD_Z};
 use super::limit::{EffectLimit, FAMILY_ALPHA};
 use super::select::normal_quantile;
-use super::Diagnosis;
+use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
 use interfaces::effects::Effect;
 use serde::{Deserialize, Serialize};
@@ -217,6 +217,23 @@ pub struct Comparison {
     /// Why the effects' test could not run, if it could not.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub effects_missing: Option<String>,
+    /// The recording's calibrated plain model: the vehicle a twin of it
+    /// should have.
+    pub base_model: BaseModel,
+    /// The recording's GNSS error model: the noise a twin of it should
+    /// have.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub recording_noise: Option<RecordingNoise>,
+}
+
+/// A drive's GNSS error model per axis: white sigma (m), Gauss-Markov
+/// sigma (m), its time (s) (as the information limit's `noise_east`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RecordingNoise {
+    /// East axis.
+    pub noise_east: [f64; 3],
+    /// North axis.
+    pub noise_north: [f64; 3],
 }
 
 impl Comparison {
@@ -232,14 +249,32 @@ impl Comparison {
     }
 }
 
+/// The physics a simulation declares: effect id -> parameter -> value.
+pub type Declared = BTreeMap<String, BTreeMap<String, f64>>;
+
 /// Compare `recording` with `simulation` (both diagnosed with the same
 /// block length).
-pub fn compare(recording: &Diagnosis, simulation: &Diagnosis, cfg: &CompareConfig) -> Comparison {
+///
+/// `declared`: the physics the simulation says it holds (effect id ->
+/// parameter -> value, reported units; for our twin, its truth.toml's
+/// `[effects]`), when known: the mend then moves each named effect's
+/// declared value by the difference the two drives show (a simulator whose
+/// knob does not map one to one onto the estimate converges over mends)
+/// and keeps the declared effects that are alike.
+pub fn compare(
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+    declared: Option<&Declared>,
+    cfg: &CompareConfig,
+) -> Comparison {
     let (effects, effects_missing) = effect_differences(recording, simulation);
     let pairs = matched_blocks(recording, simulation);
     let parting = parting_spans(recording, simulation, &pairs);
     let channels = channel_distances(recording, simulation, &pairs, cfg);
-    let findings = next_twin(recording, simulation, &effects);
+    let findings = match declared {
+        Some(d) => mend_declared(d, &effects),
+        None => next_twin(recording, simulation, &effects),
+    };
     Comparison {
         family_alpha: FAMILY_ALPHA,
         block_s: recording.noise.block_s,
@@ -254,6 +289,14 @@ pub fn compare(recording: &Diagnosis, simulation: &Diagnosis, cfg: &CompareConfi
         findings,
         effects,
         effects_missing,
+        base_model: recording.base_model,
+        recording_noise: recording
+            .information_limit
+            .as_ref()
+            .map(|l| RecordingNoise {
+                noise_east: l.noise_east,
+                noise_north: l.noise_north,
+            }),
     }
 }
 
@@ -326,9 +369,9 @@ fn effect_differences(
         if !t.significant {
             row.verdict = DifferenceVerdict::Alike;
             row.evidence = format!(
-                "difference {:+.3} ± {:.3} {} (z {:+.1}, Holm's critical {:.1})",
-                r[0] - s[0],
-                row.sigma.unwrap_or(f64::NAN),
+                "difference {} ± {} {} (z {:+.1}, Holm's critical {:.1})",
+                sig3(r[0] - s[0]),
+                sig3(row.sigma.unwrap_or(f64::NAN)),
                 row.unit,
                 t.z,
                 t.z_critical
@@ -356,13 +399,14 @@ fn effect_differences(
         } else {
             DifferenceVerdict::Excess
         };
-        row.evidence = format!(
-            "recording {:+.3} ± {:.3}, simulation {:+.3} ± {:.3} {}: difference z {:+.1} beyond Holm's {:.1}; \
+        row.evidence =
+            format!(
+            "recording {} ± {}, simulation {} ± {} {}: difference z {:+.1} beyond Holm's {:.1}; \
              the {} side's held-out guard z {}{}",
-            r[0],
-            r[1],
-            s[0],
-            s[1],
+            sig3(r[0]),
+            sig3(r[1]),
+            sig3(s[0]),
+            sig3(s[1]),
             row.unit,
             t.z,
             t.z_critical,
@@ -563,7 +607,82 @@ pub fn wasserstein1(a: &mut [f64], b: &mut [f64]) -> f64 {
     area
 }
 
-/// The physics a mended simulation should carry.
+/// The physics a mended simulation should carry, from what it declares:
+/// each named effect's main parameter moved by the difference, the rest
+/// as declared.
+fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinEffect> {
+    let mut out: Vec<TwinEffect> = Vec::new();
+    for d in effects.iter().filter(|d| d.verdict.named()) {
+        let (Some([r, _]), Some([s, _])) = (d.recording, d.simulation) else {
+            continue;
+        };
+        let id = d.effect.to_string();
+        let mut parameters = declared.get(&id).cloned().unwrap_or_default();
+        let now = parameters.get(d.parameter).copied();
+        // Not declared: the simulation's own estimate is where it stands.
+        let moved = now.unwrap_or(s) + (r - s);
+        parameters.insert(d.parameter.to_string(), moved);
+        let units = parameters
+            .keys()
+            .map(|k| {
+                let unit = d
+                    .effect
+                    .spec()
+                    .simulated
+                    .iter()
+                    .find(|p| p.spec().name == k)
+                    .map_or("", |p| p.spec().unit);
+                (k.clone(), unit.to_string())
+            })
+            .collect();
+        out.push(TwinEffect {
+            effect: d.effect,
+            parameters,
+            units,
+            from: format!(
+                "{} moved by the difference the drives show ({:+.4} {})",
+                if now.is_some() {
+                    "the simulation's declared value"
+                } else {
+                    "the simulation's estimate"
+                },
+                r - s,
+                d.unit
+            ),
+        });
+    }
+    for (id, params) in declared {
+        if out.iter().any(|t| t.effect.to_string() == *id) {
+            continue;
+        }
+        let Some(effect) = Effect::ALL.iter().copied().find(|e| e.to_string() == *id) else {
+            continue;
+        };
+        out.push(TwinEffect {
+            effect,
+            parameters: params.clone(),
+            units: params
+                .keys()
+                .map(|k| {
+                    let unit = effect
+                        .spec()
+                        .simulated
+                        .iter()
+                        .find(|p| p.spec().name == k)
+                        .map_or("", |p| p.spec().unit);
+                    (k.clone(), unit.to_string())
+                })
+                .collect(),
+            from: "the simulation's declared value (alike in both)".into(),
+        });
+    }
+    out.sort_by_key(|t| Effect::ALL.iter().position(|e| *e == t.effect));
+    out
+}
+
+/// The physics a mended simulation should carry, without knowing what it
+/// declares: the recording's values of the effects it lacks, and its own
+/// findings of the rest.
 fn next_twin(
     recording: &Diagnosis,
     simulation: &Diagnosis,
@@ -615,6 +734,15 @@ fn next_twin(
         }
     }
     out
+}
+
+/// `x` with three significant digits.
+pub fn sig3(x: f64) -> String {
+    if !x.is_finite() || x == 0.0 {
+        return format!("{x}");
+    }
+    let digits = (2 - x.abs().log10().floor() as i32).max(0) as usize;
+    format!("{x:.digits$}")
 }
 
 #[cfg(test)]

@@ -7,6 +7,7 @@
 //!
 //! Pure: the comparison (and the fixes) in, SVG and HTML out.
 
+pub use super::compare::sig3;
 use super::compare::{ChannelDistance, Comparison};
 use super::Diagnosis;
 use report::{Axis, Band, Cell, Colour, Figure, FigureError, Mark, Page, Series};
@@ -341,7 +342,11 @@ pub fn index_html(
     if let Some(why) = &c.effects_missing {
         page.note(&format!("The effects could not be compared: {why}"));
     }
-    let fmt = |v: Option<[f64; 2]>| v.map_or("-".to_string(), |[e, s]| format!("{e:+.4} ± {s:.4}"));
+    let fmt = |v: Option<[f64; 2]>| {
+        v.map_or("-".to_string(), |[e, s]| {
+            format!("{} ± {}", sig3(e), sig3(s))
+        })
+    };
     let rows: Vec<Vec<Cell>> = c
         .effects
         .iter()
@@ -420,13 +425,4 @@ pub fn index_html(
         page.figure(name, svg, "");
     }
     page.render()
-}
-
-/// `x` with three significant digits.
-pub fn sig3(x: f64) -> String {
-    if !x.is_finite() || x == 0.0 {
-        return format!("{x}");
-    }
-    let digits = (2 - x.abs().log10().floor() as i32).max(0) as usize;
-    format!("{x:.digits$}")
 }

@@ -1,0 +1,155 @@
+#!/usr/bin/env python3
+"""Score the twin loop (issue 38) on a suite written by `make_drives.py suite`.
+
+    twin_score.py OUT_DIR [--bin DIR] [--rerun] [--only PREFIX] [--mends N]
+
+For each drive of OUT_DIR/manifest.json (a recording from a multibody
+vehicle model that is not ours, with effects the tools are not told):
+
+  1. sensor-bridge simulate --like DRIVE --seed 1 --out DRIVE/twin/t0
+  2. calibrator compare DRIVE t0 --json c1.json
+  3. sensor-bridge simulate --like DRIVE --effects-from c1.json --seed 2 --out t1
+  4. calibrator compare DRIVE t1 --json c2.json --before c1.json
+  (and with --mends 2, once more: t2, c3.json)
+
+The tools read the recording's sensor files only; the manifest (what was
+put in) is read here, to score. Scoring as score.py: a drive's targets
+are its `truth` effects; the multibody model's own tyre physics
+(side_slip, load_transfer_radius, longitudinal_slip) is on every drive and
+may be named anywhere (`allowed`). Per effect: the share of its drives on
+which the first comparison names it (lacking); wrong names (outside
+targets + allowed); null drives with a name outside `allowed`; after the
+mend: drives with no effect named, and drives whose residual channels are
+all within their noise level. Writes OUT_DIR/twin-score.md.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from collections import OrderedDict, defaultdict
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+
+
+def sh(args):
+    p = subprocess.run(["nice", "-n", "10", *args], capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)}: {p.stderr.strip()[-400:]}")
+    return p.stdout
+
+
+def loop(b, drive, rerun, mends):
+    out = os.path.join(drive, "twin")
+    os.makedirs(out, exist_ok=True)
+    done = os.path.join(out, f"c{mends + 1}.json")
+    if os.path.exists(done) and not rerun:
+        cs = [json.load(open(os.path.join(out, f"c{k + 1}.json"))) for k in range(mends + 1)]
+        return cs, json.load(open(os.path.join(out, "times.json")))
+    times = []
+    cs = []
+    for k in range(mends + 1):
+        t = os.path.join(out, f"t{k}")
+        c = os.path.join(out, f"c{k + 1}.json")
+        t0 = time.time()
+        sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(k + 1), "--out", t]
+        if k > 0:
+            sim += ["--effects-from", os.path.join(out, f"c{k}.json")]
+        sh(sim)
+        cmp = [os.path.join(b, "calibrator"), "compare", drive, t, "--json", c]
+        if k > 0:
+            cmp += ["--before", os.path.join(out, f"c{k}.json")]
+        sh(cmp)
+        times.append(time.time() - t0)
+        cs.append(json.load(open(c)))
+    json.dump(times, open(os.path.join(out, "times.json"), "w"))
+    return cs, times
+
+
+def named(c):
+    return [e["effect"] for e in c["effects"] if e["verdict"] in ("lacking", "excess")]
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("suite")
+    ap.add_argument("--bin", default=os.path.join(ROOT, "target", "release"))
+    ap.add_argument("--rerun", action="store_true")
+    ap.add_argument("--only", default="")
+    ap.add_argument("--mends", type=int, default=1)
+    a = ap.parse_args()
+    manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
+    per_effect = defaultdict(lambda: [0, 0])
+    rows = []
+    wrong = 0
+    effect_drives = 0
+    null_false = []
+    after_named = [0] * a.mends
+    after_alike = [0] * a.mends
+    before_alike = 0
+    times = []
+    channels_after = defaultdict(lambda: [0, 0])
+    for case in manifest:
+        if not case["drive"].startswith(a.only):
+            continue
+        drive = os.path.join(a.suite, case["drive"])
+        try:
+            cs, ts = loop(a.bin, drive, a.rerun, a.mends)
+        except RuntimeError as e:
+            print(f"{case['drive']}: {e}", file=sys.stderr)
+            continue
+        times.append(ts[0])
+        truth, allowed = case["truth"], case["allowed"]
+        first = named(cs[0])
+        extra = [e for e in first if e not in truth and e not in allowed]
+        if truth:
+            effect_drives += 1
+            wrong += bool(extra)
+            for t in truth:
+                per_effect[t][1] += 1
+                per_effect[t][0] += t in first
+        else:
+            null_false.append(bool(extra))
+        before_alike += cs[0]["channels_within_noise"] == len(cs[0]["channels"])
+        for k in range(a.mends):
+            c = cs[k + 1]
+            after_named[k] += bool(named(c))
+            after_alike[k] += c["channels_within_noise"] == len(c["channels"])
+        for ch in cs[-1]["channels"]:
+            channels_after[ch["channel"]][1] += 1
+            channels_after[ch["channel"]][0] += ch["within_noise"]
+        rows.append((case["drive"], truth, first, [named(c) for c in cs[1:]],
+                     [f"{c['channels_within_noise']}/{len(c['channels'])}" for c in cs]))
+    n = len(rows)
+    out = []
+    out.append(f"# Twin loop on {a.suite}: {n} drives\n")
+    out.append("| effect | named by the first comparison |")
+    out.append("|---|---|")
+    for e, (k, m) in sorted(per_effect.items()):
+        out.append(f"| {e} | {k}/{m} ({100 * k / m:.0f} %) |")
+    out.append("")
+    out.append(f"- wrong names (outside targets + the model's tyre physics) on effect drives: {wrong}/{effect_drives}")
+    out.append(f"- null drives with a name outside the tyre physics: {sum(null_false)}/{len(null_false)}")
+    out.append(f"- every residual channel within its noise level: before the mend {before_alike}/{n}, "
+               + ", ".join(f"after mend {k + 1} {after_alike[k]}/{n}" for k in range(a.mends)))
+    out.append("- drives with an effect still named: "
+               + ", ".join(f"after mend {k + 1} {after_named[k]}/{n}" for k in range(a.mends)))
+    out.append("- per channel within its noise level after the last mend: "
+               + ", ".join(f"{c} {k}/{m}" for c, (k, m) in channels_after.items()))
+    if times:
+        out.append(f"- twin + comparison, median {sorted(times)[len(times) // 2]:.1f} s per drive (max {max(times):.1f} s)")
+    out.append("")
+    out.append("| drive | truth | named first | named after each mend | channels within noise |")
+    out.append("|---|---|---|---|---|")
+    for d, t, f, after, ch in rows:
+        out.append(f"| {d} | {', '.join(t) or '-'} | {', '.join(f) or '-'} | "
+                   f"{' / '.join(', '.join(x) or '-' for x in after)} | {' -> '.join(ch)} |")
+    text = "\n".join(out) + "\n"
+    open(os.path.join(a.suite, "twin-score.md"), "w").write(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
