@@ -358,6 +358,12 @@ pub struct TwinOptions {
     pub source: String,
     /// GNSS error model (east, north) from a diagnosis; `None`: estimated.
     pub gnss_noise: Option<(GnssNoise, GnssNoise)>,
+    /// The length of the segments that error model was fitted over (the
+    /// dead-reckoning restarts in each), s: a Gauss-Markov time beyond it
+    /// was not resolved by the fixes against the wheels, and its sigma
+    /// holds whatever dead-reckoning error the diagnosed model leaves (it
+    /// is then not GNSS noise; the white-level default stands in).
+    pub gnss_noise_segment_s: Option<f64>,
     /// Calibrated rear circumferences and track (c_rl, c_rr, track), m.
     pub base_model: Option<(f64, f64, f64)>,
     /// The physics.
@@ -374,6 +380,7 @@ impl TwinOptions {
         TwinOptions {
             source: source.to_string(),
             gnss_noise: None,
+            gnss_noise_segment_s: None,
             base_model: None,
             effects: EffectSettings::none(),
             seed: 1,
@@ -463,7 +470,26 @@ impl TwinConfig {
                     "GNSS noise from the diagnosis: east {:?}, north {:?} (white m, Gauss-Markov m, tau s); mean used",
                     n.0, n.1
                 ));
-                n
+                let resolved = |a: GnssNoise| -> GnssNoise {
+                    match options.gnss_noise_segment_s {
+                        Some(seg) if !a[2].is_finite() || a[2] > seg => {
+                            [a[0], a[0], DEFAULT_GM_TAU_S]
+                        }
+                        _ => a,
+                    }
+                };
+                let r = (resolved(n.0), resolved(n.1));
+                if r != n {
+                    notes.push(format!(
+                        "its Gauss-Markov time ({:.0} / {:.0} s) is beyond the {:.0} s segments it was fitted over: \
+                         not resolved by the fixes, it holds the diagnosed model's own dead-reckoning error; \
+                         the white-level default stands in (sigma = white, tau {DEFAULT_GM_TAU_S} s)",
+                        n.0[2],
+                        n.1[2],
+                        options.gnss_noise_segment_s.unwrap_or(f64::NAN)
+                    ));
+                }
+                r
             }
             None => {
                 let mut ex: Vec<f64> = path.residuals.iter().map(|r| r.0).collect();

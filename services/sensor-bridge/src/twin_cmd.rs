@@ -39,6 +39,8 @@ pub struct FindingEntry {
 pub struct InformationLimit {
     /// East axis.
     pub noise_east: Option<[f64; 3]>,
+    /// The segments' length the error model was fitted over, s.
+    pub segment_s: Option<f64>,
     /// North axis.
     pub noise_north: Option<[f64; 3]>,
 }
@@ -149,6 +151,7 @@ pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
         if let Some(l) = &file.information_limit {
             if let (Some(e), Some(n)) = (l.noise_east, l.noise_north) {
                 options.gnss_noise = Some((e, n));
+                options.gnss_noise_segment_s = l.segment_s;
             }
         }
         options.base_model = file

@@ -234,6 +234,9 @@ pub struct RecordingNoise {
     pub noise_east: [f64; 3],
     /// North axis.
     pub noise_north: [f64; 3],
+    /// The segments' length it was fitted over (the dead-reckoning
+    /// restarts in each), s.
+    pub segment_s: f64,
 }
 
 impl Comparison {
@@ -296,6 +299,7 @@ pub fn compare(
             .map(|l| RecordingNoise {
                 noise_east: l.noise_east,
                 noise_north: l.noise_north,
+                segment_s: l.segment_s,
             }),
     }
 }
@@ -756,6 +760,89 @@ mod tests {
         assert!((wasserstein1(&mut a, &mut b) - 0.3).abs() < 1e-9);
         let mut c = a.clone();
         assert!(wasserstein1(&mut a, &mut c).abs() < 1e-12);
+    }
+
+    fn row(
+        effect: Effect,
+        parameter: &'static str,
+        r: f64,
+        s: f64,
+        v: DifferenceVerdict,
+    ) -> EffectDifference {
+        EffectDifference {
+            effect,
+            parameter,
+            unit: "",
+            typical: 1.0,
+            recording: Some([r, 0.1 * r.abs().max(1e-9)]),
+            simulation: Some([s, 0.1 * s.abs().max(1e-9)]),
+            difference: Some(r - s),
+            sigma: None,
+            z: None,
+            z_critical: None,
+            guard_z: None,
+            verdict: v,
+            evidence: String::new(),
+        }
+    }
+
+    #[test]
+    fn the_mend_moves_the_declared_value_by_the_difference() {
+        let declared = Declared::from([
+            (
+                "load_transfer_radius".to_string(),
+                BTreeMap::from([("k_z".to_string(), 4.0e-4)]),
+            ),
+            (
+                "gyro_bias".to_string(),
+                BTreeMap::from([("b_deg_h".to_string(), 18.0)]),
+            ),
+        ]);
+        let effects = [
+            // The simulation shows 3.3e-4 of the 4e-4 it was given; the
+            // recording 3.9e-4: the knob moves by 0.6e-4.
+            row(
+                Effect::LoadTransferRadius,
+                "k_z",
+                3.9e-4,
+                3.3e-4,
+                DifferenceVerdict::Lacking,
+            ),
+            row(
+                Effect::GyroBias,
+                "b_deg_h",
+                18.1,
+                17.9,
+                DifferenceVerdict::Alike,
+            ),
+            // Not declared: from the simulation's estimate by the difference.
+            row(
+                Effect::GnssLeverArm,
+                "x_m",
+                0.6,
+                0.05,
+                DifferenceVerdict::Lacking,
+            ),
+            // Named too much of, but not declared and with nothing to move.
+            row(
+                Effect::TrackWidth,
+                "rel",
+                0.0,
+                0.0,
+                DifferenceVerdict::Alike,
+            ),
+        ];
+        let m = mend_declared(&declared, &effects);
+        let get = |e: Effect, p: &str| {
+            m.iter()
+                .find(|t| t.effect == e)
+                .and_then(|t| t.parameters.get(p).copied())
+        };
+        assert!((get(Effect::LoadTransferRadius, "k_z").unwrap() - 4.6e-4).abs() < 1e-12);
+        assert_eq!(get(Effect::GyroBias, "b_deg_h"), Some(18.0));
+        assert!((get(Effect::GnssLeverArm, "x_m").unwrap() - 0.6).abs() < 1e-12);
+        assert!(m.iter().all(|t| t.effect != Effect::TrackWidth));
+        assert_eq!(m.len(), 3);
     }
 
     #[test]
