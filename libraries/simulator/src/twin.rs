@@ -453,6 +453,22 @@ impl TwinConfig {
             physical,
             (t_start, t_end),
         )?;
+        // The short-range shape from the gyro where there is one.
+        let gyro: Vec<(f64, f64)> = drive
+            .imu
+            .iter()
+            .flatten()
+            .map(|s| (s.t_s, s.gz_rad_s))
+            .collect();
+        let path = match gyro_shaped(&path, &gyro, numbers.gyro_bias_rad_s.unwrap_or(0.0)) {
+            Some(p) => {
+                notes.push(format!(
+                    "path shaped by the gyro over {GYRO_SHAPE_BANDWIDTH_M:.0} m (its heading and position placed on the smoothed fixes)"
+                ));
+                p
+            }
+            None => path,
+        };
         notes.push(format!(
             "path: {} fixes smoothed over {:.1} m of wheel distance, {:.1} m long, {:.1} s from t = {:.2} s; the wheels' distance {:.1} m",
             fixes.len(),
@@ -745,6 +761,130 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
         tp.extra.insert("t0_s".into(), Value::Float(t0));
     }
     Ok(drive)
+}
+
+/// Kernel bandwidth along the path over which the gyro's shape yields to
+/// the fixes' (heading offset and position), m: the fixes' white noise
+/// averages over it to millimetres of curvature, while the gyro's heading
+/// drift over it (seconds of driving) stays far below the fixes' own.
+pub const GYRO_SHAPE_BANDWIDTH_M: f64 = 25.0;
+
+/// Gaussian smoothing of `v` sampled every `ds` m with bandwidth `h` m
+/// (edges renormalised).
+fn gauss_smooth(v: &[f64], ds: f64, h: f64) -> Vec<f64> {
+    let n = v.len();
+    let half = ((3.0 * h / ds).ceil() as usize).max(1);
+    let w: Vec<f64> = (0..=half)
+        .map(|k| {
+            let u = k as f64 * ds / h;
+            (-0.5 * u * u).exp()
+        })
+        .collect();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(half), (i + half).min(n - 1));
+            let (mut num, mut den) = (0.0, 0.0);
+            for (j, vj) in v.iter().enumerate().take(b + 1).skip(a) {
+                let wk = w[i.abs_diff(j)];
+                num += wk * vj;
+                den += wk;
+            }
+            num / den
+        })
+        .collect()
+}
+
+/// The path's short-range shape from the recorded gyro (a heading-domain
+/// complementary filter): the gyro's heading (bias removed), mapped onto
+/// the path by the progress, takes the path's heading offset from the
+/// smoothed fixes over [`GYRO_SHAPE_BANDWIDTH_M`]; the path is
+/// dead-reckoned with it and placed on the smoothed fixes over the same
+/// bandwidth. The fixes' smoothing alone leaves their white noise as
+/// wiggles of a few metres (degrees of heading) that the car did not
+/// drive. `gyro`: (t, yaw rate rad/s); `None` where the gyro does not
+/// cover the drive.
+pub fn gyro_shaped(path: &TwinPath, gyro: &[(f64, f64)], bias_rad_s: f64) -> Option<TwinPath> {
+    let n = path.x.len();
+    if n < 8 || gyro.len() < 100 {
+        return None;
+    }
+    // The gyro's heading over time, and the path's arc length then.
+    let times: Vec<f64> = (0..path.s.len())
+        .map(|k| path.t0_s + k as f64 * path.dt_s)
+        .collect();
+    let (t_first, t_last) = (times[0], times[times.len() - 1]);
+    if gyro[0].0 > t_first + 1.0 || gyro[gyro.len() - 1].0 < t_last - 1.0 {
+        return None;
+    }
+    let mut psi = 0.0;
+    let mut prev = gyro[0];
+    // Per grid point of the path: the heading when the car was there last.
+    let mut psi_at: Vec<Option<f64>> = vec![None; n];
+    for &(t, w) in gyro {
+        if !(t.is_finite() && w.is_finite()) || t <= prev.0 {
+            continue;
+        }
+        psi += 0.5 * (w + prev.1 - 2.0 * bias_rad_s) * (t - prev.0);
+        prev = (t, w);
+        let a = interp(&times, &path.s, t);
+        let i = ((a / path.ds).round() as usize).min(n - 1);
+        psi_at[i] = Some(psi);
+    }
+    // Fill grid points the gyro skipped (fast driving) by interpolation.
+    let known: Vec<(usize, f64)> = psi_at
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| p.map(|p| (i, p)))
+        .collect();
+    if known.len() < n / 4 {
+        return None;
+    }
+    let kx: Vec<f64> = known.iter().map(|k| k.0 as f64).collect();
+    let ky: Vec<f64> = known.iter().map(|k| k.1).collect();
+    let psi_g: Vec<f64> = (0..n).map(|i| interp(&kx, &ky, i as f64)).collect();
+    // The smoothed fixes' heading, unwrapped along the path.
+    let mut psi_s = Vec::with_capacity(n);
+    for i in 0..n {
+        let (a, b) = (i.saturating_sub(2), (i + 2).min(n - 1));
+        let h = (path.y[b] - path.y[a]).atan2(path.x[b] - path.x[a]);
+        let h = match psi_s.last() {
+            Some(&last) => last + wrap_pi(h - last),
+            None => h,
+        };
+        psi_s.push(h);
+    }
+    // The gyro's heading offset, slowly varying: the fixes' over the bandwidth.
+    let offset: Vec<f64> = psi_s.iter().zip(&psi_g).map(|(s, g)| s - g).collect();
+    let offset = gauss_smooth(&offset, path.ds, GYRO_SHAPE_BANDWIDTH_M);
+    let heading: Vec<f64> = psi_g.iter().zip(&offset).map(|(g, o)| g + o).collect();
+    // Dead-reckoned on the grid, then placed on the smoothed fixes.
+    let (mut x, mut y) = (vec![path.x[0]; n], vec![path.y[0]; n]);
+    for i in 1..n {
+        let h = 0.5 * (heading[i - 1] + heading[i]);
+        x[i] = x[i - 1] + path.ds * h.cos();
+        y[i] = y[i - 1] + path.ds * h.sin();
+    }
+    let ex: Vec<f64> = path.x.iter().zip(&x).map(|(a, b)| a - b).collect();
+    let ey: Vec<f64> = path.y.iter().zip(&y).map(|(a, b)| a - b).collect();
+    let ex = gauss_smooth(&ex, path.ds, GYRO_SHAPE_BANDWIDTH_M);
+    let ey = gauss_smooth(&ey, path.ds, GYRO_SHAPE_BANDWIDTH_M);
+    let mut out = path.clone();
+    for i in 0..n {
+        out.x[i] = x[i] + ex[i];
+        out.y[i] = y[i] + ey[i];
+    }
+    Some(out)
+}
+
+/// `a` wrapped into (-pi, pi].
+fn wrap_pi(a: f64) -> f64 {
+    let t = std::f64::consts::TAU;
+    let r = a.rem_euclid(t);
+    if r > std::f64::consts::PI {
+        r - t
+    } else {
+        r
+    }
 }
 
 /// The median accuracy the fixes claim, if they claim any.
