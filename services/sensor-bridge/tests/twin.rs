@@ -7,6 +7,7 @@
 #![allow(clippy::unwrap_used)]
 
 use drive_io::read_drive;
+use simulator::twin::polyline_distance;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -158,21 +159,6 @@ fn effects_from_a_diagnosis_go_into_the_twins_truth_and_unknown_ones_are_errors(
     ])
     .status
     .success());
-}
-
-fn polyline_distance(xs: &[f64], ys: &[f64], x: f64, y: f64) -> f64 {
-    (0..xs.len() - 1)
-        .map(|i| {
-            let (ex, ey) = (xs[i + 1] - xs[i], ys[i + 1] - ys[i]);
-            let l2 = ex * ex + ey * ey;
-            let f = if l2 > 0.0 {
-                (((x - xs[i]) * ex + (y - ys[i]) * ey) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (xs[i] + f * ex - x).hypot(ys[i] + f * ey - y)
-        })
-        .fold(f64::INFINITY, f64::min)
 }
 
 #[test]

@@ -611,6 +611,23 @@ pub fn wasserstein1(a: &mut [f64], b: &mut [f64]) -> f64 {
     area
 }
 
+/// The catalogue's unit of each of `params` of `effect` (empty where the
+/// name is not the effect's).
+fn units_of(effect: Effect, params: &BTreeMap<String, f64>) -> BTreeMap<String, String> {
+    params
+        .keys()
+        .map(|k| {
+            let unit = effect
+                .spec()
+                .simulated
+                .iter()
+                .find(|p| p.spec().name == k)
+                .map_or("", |p| p.spec().unit);
+            (k.clone(), unit.to_string())
+        })
+        .collect()
+}
+
 /// The physics a mended simulation should carry, from what it declares:
 /// each named effect's main parameter moved by the difference, the rest
 /// as declared.
@@ -626,19 +643,7 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
         // Not declared: the simulation's own estimate is where it stands.
         let moved = now.unwrap_or(s) + (r - s);
         parameters.insert(d.parameter.to_string(), moved);
-        let units = parameters
-            .keys()
-            .map(|k| {
-                let unit = d
-                    .effect
-                    .spec()
-                    .simulated
-                    .iter()
-                    .find(|p| p.spec().name == k)
-                    .map_or("", |p| p.spec().unit);
-                (k.clone(), unit.to_string())
-            })
-            .collect();
+        let units = units_of(d.effect, &parameters);
         out.push(TwinEffect {
             effect: d.effect,
             parameters,
@@ -665,18 +670,7 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
         out.push(TwinEffect {
             effect,
             parameters: params.clone(),
-            units: params
-                .keys()
-                .map(|k| {
-                    let unit = effect
-                        .spec()
-                        .simulated
-                        .iter()
-                        .find(|p| p.spec().name == k)
-                        .map_or("", |p| p.spec().unit);
-                    (k.clone(), unit.to_string())
-                })
-                .collect(),
+            units: units_of(effect, params),
             from: "the simulation's declared value (alike in both)".into(),
         });
     }
