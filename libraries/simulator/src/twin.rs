@@ -479,7 +479,17 @@ impl TwinConfig {
             odometer.s_m.last().copied().unwrap_or(0.0),
         ));
 
-        // GNSS noise.
+        // GNSS noise. The white part from the fixes' successive
+        // differences against the twin's own path: the differences cancel
+        // the slow wander and the path's placement, the path's shape (the
+        // gyro's) takes out the motion; an error model refitted to the
+        // residuals of the wheels splits white from wander less surely.
+        let diff_white = white_from_differences(&track, &path, physical);
+        if let Some(w) = diff_white {
+            notes.push(format!(
+                "GNSS white noise {w:.3} m from the fixes' successive differences against the twin's path"
+            ));
+        }
         let (east, north) = match options.gnss_noise {
             Some(n) => {
                 notes.push(format!(
@@ -487,15 +497,16 @@ impl TwinConfig {
                     n.0, n.1
                 ));
                 let resolved = |a: GnssNoise| -> GnssNoise {
+                    let white = diff_white.unwrap_or(a[0]);
                     match options.gnss_noise_segment_s {
                         Some(seg) if !a[2].is_finite() || a[2] > seg => {
-                            [a[0], a[0], DEFAULT_GM_TAU_S]
+                            [white, white, DEFAULT_GM_TAU_S]
                         }
-                        _ => a,
+                        _ => [white, a[1], a[2]],
                     }
                 };
                 let r = (resolved(n.0), resolved(n.1));
-                if r != n {
+                if r.0[1] != n.0[1] || r.1[1] != n.1[1] {
                     notes.push(format!(
                         "its Gauss-Markov time ({:.0} / {:.0} s) is beyond the {:.0} s segments it was fitted over: \
                          not resolved by the fixes, it holds the diagnosed model's own dead-reckoning error; \
@@ -508,11 +519,13 @@ impl TwinConfig {
                 r
             }
             None => {
-                let mut ex: Vec<f64> = path.residuals.iter().map(|r| r.0).collect();
-                let mut ny: Vec<f64> = path.residuals.iter().map(|r| r.1).collect();
-                let w = 0.5 * (robust_sigma(&mut ex) + robust_sigma(&mut ny));
+                let w = diff_white.unwrap_or_else(|| {
+                    let mut ex: Vec<f64> = path.residuals.iter().map(|r| r.0).collect();
+                    let mut ny: Vec<f64> = path.residuals.iter().map(|r| r.1).collect();
+                    0.5 * (robust_sigma(&mut ex) + robust_sigma(&mut ny))
+                });
                 notes.push(format!(
-                    "GNSS noise estimated: white {w:.3} m (fixes minus the smoothed track); Gauss-Markov by default: {w:.3} m, tau {DEFAULT_GM_TAU_S} s (no diagnosis given)"
+                    "GNSS noise: white {w:.3} m; Gauss-Markov by default: {w:.3} m, tau {DEFAULT_GM_TAU_S} s (no diagnosis given)"
                 ));
                 ([w, w, DEFAULT_GM_TAU_S], [w, w, DEFAULT_GM_TAU_S])
             }
@@ -761,6 +774,65 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
         tp.extra.insert("t0_s".into(), Value::Float(t0));
     }
     Ok(drive)
+}
+
+/// The GNSS white noise (1 sigma per axis, m) from the fixes' successive
+/// differences against the path (the antenna at `antenna` on it): the
+/// robust spread of the differences of consecutive residuals over the
+/// square root of 2, the two axes averaged. `None` with fewer than 30
+/// consecutive pairs.
+fn white_from_differences(
+    track: &[TrackPoint],
+    path: &TwinPath,
+    antenna: (f64, f64),
+) -> Option<f64> {
+    let n = path.x.len();
+    if n < 3 || path.s.is_empty() {
+        return None;
+    }
+    let times: Vec<f64> = (0..path.s.len())
+        .map(|k| path.t0_s + k as f64 * path.dt_s)
+        .collect();
+    let at = |t: f64| -> (f64, f64) {
+        let a = interp(&times, &path.s, t) / path.ds;
+        let i = (a.floor().max(0.0) as usize).min(n - 2);
+        let w = (a - i as f64).clamp(0.0, 1.0);
+        let (x, y) = (
+            path.x[i] + w * (path.x[i + 1] - path.x[i]),
+            path.y[i] + w * (path.y[i + 1] - path.y[i]),
+        );
+        let h = (path.y[i + 1] - path.y[i]).atan2(path.x[i + 1] - path.x[i]);
+        let (sh, ch) = h.sin_cos();
+        (
+            x + ch * antenna.0 - sh * antenna.1,
+            y + sh * antenna.0 + ch * antenna.1,
+        )
+    };
+    let mut dts: Vec<f64> = track.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+    if dts.len() < 30 {
+        return None;
+    }
+    dts.sort_by(f64::total_cmp);
+    let step = dts[dts.len() / 2];
+    let resid: Vec<(f64, f64, f64)> = track
+        .iter()
+        .map(|p| {
+            let (x, y) = at(p.t_s);
+            (p.t_s, p.x_m - x, p.y_m - y)
+        })
+        .collect();
+    let (mut dx, mut dy) = (Vec::new(), Vec::new());
+    for w in resid.windows(2) {
+        if w[1].0 - w[0].0 <= 1.5 * step {
+            dx.push(w[1].1 - w[0].1);
+            dy.push(w[1].2 - w[0].2);
+        }
+    }
+    if dx.len() < 30 {
+        return None;
+    }
+    let w = 0.5 * (robust_sigma(&mut dx) + robust_sigma(&mut dy)) / std::f64::consts::SQRT_2;
+    (w.is_finite() && w > 0.0).then_some(w)
 }
 
 /// Kernel bandwidth along the path over which the gyro's shape yields to

@@ -119,10 +119,22 @@ fn effects_from_a_diagnosis_go_into_the_twins_truth_and_unknown_ones_are_errors(
     assert_eq!(tp.effects["gnss_lever_arm"]["x_m"], 0.5);
     assert_eq!(tp.effects["gnss_lever_arm"]["y_m"], 0.0);
     let text = std::fs::read_to_string(out.join("truth.toml")).unwrap();
-    // The mean of the two axes' error models.
+    // The wander: the mean of the two axes' error models; the white part:
+    // the recording's own (0.3 m), from its fixes' successive differences.
+    let v: toml::Value = toml::from_str(&text).unwrap();
+    let gnss = &v["sensors"]["gnss"];
     assert!(
-        text.contains("white_sigma_m = 0.25") && text.contains("gm_tau_s = 50"),
+        (gnss["gm_sigma_m"].as_float().unwrap() - 0.9).abs() < 1e-9,
         "{text}"
+    );
+    assert!(
+        (gnss["gm_tau_s"].as_float().unwrap() - 50.0).abs() < 1e-9,
+        "{text}"
+    );
+    let white = gnss["white_sigma_m"].as_float().unwrap();
+    assert!(
+        (white - 0.3).abs() < 0.03,
+        "white {white} against the recording's 0.3 m"
     );
 
     std::fs::write(
