@@ -18,7 +18,9 @@
 //! The heading sensor's bias does not move a position: its information comes
 //! from the heading channel (heading sensor against the GNSS course), whose
 //! serial correlation is taken into account by the effective number of
-//! independent rows of an AR(1) series.
+//! independent rows of an AR(1) series. Its three terms (constant, sin and
+//! cos of the course) are tested together: a compass error that is a pure
+//! sinusoid of the heading has no constant term to show.
 //!
 //! Pure: the drive's data in, numbers out.
 
@@ -130,6 +132,15 @@ impl EffectLimit {
 
 /// An effect's limit, estimate and Wald statistic with every other effect
 /// of its source fitted alongside.
+///
+/// The heading sensor's bias has no partners in its channel: its joint
+/// fit is its three terms (constant, sin and cos of the course) tested
+/// together. There `wald_z` is the |t| (the decision's degrees of freedom)
+/// of the same p-value as their joint Wald statistic, signed as their
+/// largest term's z; `smallest` is the size any one of the three terms
+/// alone is shown from with 90 % power by that joint test (the largest
+/// over the terms); `estimate` and `sigma` stay the constant term's (the
+/// sin and cos terms profiled out), as in the effect's own fit.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Joint {
     /// The smallest size shown with 90 % power, reported unit.
@@ -147,7 +158,8 @@ pub struct Joint {
     /// The segments' scatter's sigma.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma_segments: Option<f64>,
-    /// `estimate / sigma`.
+    /// `estimate / sigma` (the heading bias: its three terms' joint
+    /// test, as said above).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wald_z: Option<f64>,
     /// Where the effect alone is beyond the critical z and is not with
@@ -826,6 +838,55 @@ impl SegmentGram {
     }
 }
 
+/// A model's fit of all its coefficients: the estimates, the inverse
+/// normal matrix (the Fisher covariance) and, over four segments or more,
+/// the segments' sandwich covariance (model units).
+#[derive(Debug, Clone, PartialEq)]
+struct MultiFit {
+    theta: DVector<f64>,
+    inverse: DMatrix<f64>,
+    sandwich: Option<DMatrix<f64>>,
+}
+
+impl SegmentGram {
+    /// The fit of every one of `cols` (as [`SegmentGram::fit`]), with the
+    /// full covariances: `k / (k - 1) sum_s A^-1 g_s g_s' A^-1`.
+    fn fit_all(&self, cols: &[usize]) -> Option<MultiFit> {
+        let a = DMatrix::from_fn(cols.len(), cols.len(), |i, j| {
+            self.total[(cols[i], cols[j])]
+        });
+        let b = DVector::from_fn(cols.len(), |i, _| self.total[(cols[i], 0)]);
+        let chol = a.cholesky()?;
+        let theta = chol.solve(&b);
+        let inverse = chol.inverse();
+        if theta.iter().any(|t| !t.is_finite()) {
+            return None;
+        }
+        let k = self.per_segment.len();
+        let sandwich = (k >= 4).then(|| {
+            let mut meat = DMatrix::zeros(cols.len(), cols.len());
+            for g in &self.per_segment {
+                let score = DVector::from_fn(cols.len(), |i, _| {
+                    g[(cols[i], 0)]
+                        - cols
+                            .iter()
+                            .enumerate()
+                            .map(|(j, c)| g[(cols[i], *c)] * theta[j])
+                            .sum::<f64>()
+                });
+                let u = &inverse * score;
+                meat += &u * u.transpose();
+            }
+            meat * (k as f64 / (k as f64 - 1.0))
+        });
+        Some(MultiFit {
+            theta,
+            inverse,
+            sandwich,
+        })
+    }
+}
+
 impl SegmentGram {
     /// The Gram of the columns `keep` (the data column 0 first), every
     /// other column profiled out over the whole drive (Frisch-Waugh: each
@@ -1081,16 +1142,29 @@ pub fn limit_and_information(
     }
     let (noise, refitted) = noises[0];
     // Without a heading sensor the drive holds nothing about its bias.
-    let heading = heading_channel(input.design);
-    limits.insert(
+    let dof = segment_sizes.len().saturating_sub(1) as f64;
+    let (heading, heading_joint) = heading_channel(input.design, dof, alpha);
+    let mut heading_limit = limit_of(
         Effect::HeadingBias,
-        limit_of(
-            Effect::HeadingBias,
-            heading,
-            z_critical,
-            InformationSource::HeadingChannel,
-        ),
+        heading,
+        z_critical,
+        InformationSource::HeadingChannel,
     );
+    // The three terms tested together decide; the estimate and sigma shown
+    // stay the constant term's.
+    if heading_limit.wald_z.is_some() {
+        let shown = |v: f64| Effect::HeadingBias.main_fitted().to_display(v).abs();
+        heading_limit.joint = heading_joint.map(|j| Joint {
+            smallest: Some(shown(j.smallest)),
+            estimate: heading_limit.estimate,
+            sigma: heading_limit.sigma,
+            sigma_fisher: heading_limit.sigma_fisher,
+            sigma_segments: heading_limit.sigma_segments,
+            wald_z: Some(j.z),
+            partners: Vec::new(),
+        });
+    }
+    limits.insert(Effect::HeadingBias, heading_limit);
     let arr = |n: &PositionNoise| [n.white_sigma_m, n.gm_sigma_m, n.gm_tau_s];
     let limit = InformationLimit {
         family_alpha: FAMILY_ALPHA,
@@ -1367,19 +1441,57 @@ pub(super) fn limit_of(
     }
 }
 
-/// The heading bias's constant term from the heading channel: its profiled
-/// information (the sin and cos terms out) with the rows' serial correlation
-/// counted by the AR(1) effective sample size, and its estimate.
-fn heading_channel(d: &Design) -> Option<CoefFit> {
-    let cand = d
+/// The heading bias's three terms tested together on the heading channel
+/// (model units): the equivalent Wald z of their joint test and the
+/// smallest size it shows (see [`heading_channel`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HeadingJoint {
+    z: f64,
+    smallest: f64,
+}
+
+/// The heading bias from the heading channel (heading sensor against the
+/// GNSS course), the rows' serial correlation counted by the AR(1)
+/// effective sample size.
+///
+/// First its constant term (the sin and cos terms profiled out): its
+/// profiled information and estimate. Then its three terms (constant, sin
+/// and cos of the course) together, with `dof` the degrees of freedom of
+/// the Student t the decision's critical values come from and `alpha` the
+/// per-effect level:
+///
+/// - the Wald statistic `W = beta' C^-1 beta` of the three coefficients
+///   `beta`, with `C` the larger covariance in the sense of the statistic:
+///   `W` is the smaller of the Fisher information's (lag-1 factor
+///   included) and the blocks' sandwich's;
+/// - its p-value from Hotelling's reference for a covariance estimated
+///   from `k` blocks: `W (k - 3) / (3 (k - 1))` is F(3, k - 3) (for one
+///   term this is the t with k - 1 degrees of freedom the other effects'
+///   z is held against);
+/// - the |t| with `dof` degrees of freedom of the same two-sided p-value,
+///   signed as the term whose own `beta_i / sqrt(C_ii)` is the largest in
+///   size: Holm's procedure treats it as every other effect's z;
+/// - its smallest size: the size that any one of the three terms alone
+///   (the others zero) reaches the joint test's critical value with 90 %
+///   power at, the largest over the three terms (the power of the chi-square
+///   with three degrees of freedom and noncentrality `s^2 (C^-1)_ii`, at the
+///   critical `W` of Hotelling's reference).
+///
+/// The joint test needs at least five blocks (else `None` for it: the
+/// constant term alone decides).
+fn heading_channel(d: &Design, dof: f64, alpha: f64) -> (Option<CoefFit>, Option<HeadingJoint>) {
+    let Some(cand) = d
         .candidates
         .iter()
-        .find(|c| c.effect == Effect::HeadingBias && c.params.len() >= 3)?;
+        .find(|c| c.effect == Effect::HeadingBias && c.params.len() >= 3)
+    else {
+        return (None, None);
+    };
     let rows: Vec<usize> = (0..d.rows.len())
         .filter(|&i| d.rows[i].0 == Channel::Heading && d.w[i] > 0.0)
         .collect();
     if rows.len() < 10 {
-        return None;
+        return (None, None);
     }
     let col = |c: usize| -> Vec<f64> {
         rows.iter()
@@ -1387,14 +1499,32 @@ fn heading_channel(d: &Design) -> Option<CoefFit> {
             .collect()
     };
     let target = col(cand.params[0].column);
-    let nuisances: Vec<Vec<f64>> = cand.params[1..].iter().map(|p| col(p.column)).collect();
+    let nuisances: Vec<Vec<f64>> = cand.params[1..3].iter().map(|p| col(p.column)).collect();
     let y: Vec<f64> = rows.iter().map(|&i| d.y[i] * d.w[i].sqrt()).collect();
-    let (info, estimate) = profiled_estimate(&target, &nuisances, &y).ok()?;
+    let Ok((info, estimate)) = profiled_estimate(&target, &nuisances, &y) else {
+        return (None, None);
+    };
+    let mut cols = vec![y, target];
+    cols.extend(nuisances);
+    let block: Vec<usize> = rows.iter().map(|&i| d.rows[i].2).collect();
+    let gram = SegmentGram::from_rows(&cols, &block, d.blocks);
+    let all: Vec<usize> = (1..cols.len()).collect();
+    let multi = gram.fit_all(&all);
     // The residual after the three terms, and its lag-1 correlation.
-    let a = cand.params[0].column;
+    let theta = multi.as_ref().map_or_else(
+        || vec![estimate, 0.0, 0.0],
+        |m| m.theta.iter().copied().collect(),
+    );
     let resid: Vec<f64> = rows
         .iter()
-        .map(|&i| d.y[i] - estimate * d.columns[a][i])
+        .map(|&i| {
+            d.y[i]
+                - cand.params[..3]
+                    .iter()
+                    .zip(&theta)
+                    .map(|(p, t)| t * d.columns[p.column][i])
+                    .sum::<f64>()
+        })
         .collect();
     let rho = lag1(&resid).clamp(0.0, 0.99);
     let factor = (1.0 - rho) / (1.0 + rho);
@@ -1402,17 +1532,202 @@ fn heading_channel(d: &Design) -> Option<CoefFit> {
     // The blocks' own scatter of the estimate: a heading residual that
     // wanders slower than one lag (a mean side-slip in the corners of one
     // stretch) shows there and not in the lag-1 correlation.
-    let mut cols = vec![y, target];
-    cols.extend(nuisances);
-    let block: Vec<usize> = rows.iter().map(|&i| d.rows[i].2).collect();
-    let sigma_segments = SegmentGram::from_rows(&cols, &block, d.blocks)
-        .fit(&(1..cols.len()).collect::<Vec<_>>())
-        .and_then(|f| f.sigma_segments);
-    (info > 0.0).then(|| CoefFit {
+    let sigma_segments = gram.fit(&all).and_then(|f| f.sigma_segments);
+    let alone = (info > 0.0).then(|| CoefFit {
         estimate,
         sigma_fisher: info.powf(-0.5),
         sigma_segments,
+    });
+    let joint = multi.and_then(|m| joint_test(&m, factor, gram.segments(), dof, alpha));
+    (alone, joint)
+}
+
+/// The joint test of every coefficient of `m` (see [`heading_channel`]):
+/// the Fisher covariance is `m`'s divided by `factor`, the sandwich is over
+/// `k` blocks.
+fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Option<HeadingJoint> {
+    let p = m.theta.len();
+    if k < p + 2 || factor <= 0.0 {
+        return None;
+    }
+    let fisher = &m.inverse / factor;
+    let candidates = std::iter::once(fisher).chain(m.sandwich.clone());
+    // Per covariance: its inverse and the statistic; the smaller statistic
+    // (the larger covariance) wins.
+    let (precision, w, cov) = candidates
+        .filter_map(|c| {
+            let inv = c.clone().cholesky()?.inverse();
+            let w = (m.theta.transpose() * &inv * &m.theta)[(0, 0)];
+            w.is_finite().then_some((inv, w, c))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let (pf, kf) = (p as f64, k as f64);
+    let to_f = (kf - pf) / (pf * (kf - 1.0));
+    let p_value = |w: f64| f_sf(w * to_f, pf, kf - pf);
+    let z = t_equivalent(p_value(w), dof);
+    let sign = (0..p)
+        .map(|i| m.theta[i] / cov[(i, i)].sqrt())
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .map_or(1.0, f64::signum);
+    // The critical statistic at `alpha`, then the noncentrality the chi
+    // with three degrees of freedom reaches it with at the power.
+    let w_critical = bisect(0.0, 1e4, |w| p_value(w) > alpha);
+    let r = w_critical.sqrt();
+    let mu = bisect(0.0, r + 20.0, |mu| 1.0 - chi3_cdf(r, mu) < POWER);
+    let smallest = (0..p)
+        .map(|i| mu / precision[(i, i)].max(f64::MIN_POSITIVE).sqrt())
+        .fold(0.0, f64::max);
+    (z.is_finite() && smallest.is_finite()).then_some(HeadingJoint {
+        z: sign * z,
+        smallest,
     })
+}
+
+/// The point in [lo, hi] where `below` turns false (`below` true below it).
+fn bisect(mut lo: f64, mut hi: f64, below: impl Fn(f64) -> bool) -> f64 {
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if below(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The distribution function at `r` of the length of a three-dimensional
+/// standard normal vector shifted by `mu` (the root of a noncentral
+/// chi-square with three degrees of freedom).
+fn chi3_cdf(r: f64, mu: f64) -> f64 {
+    let phi = |x: f64| (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    if mu < 1e-6 {
+        // The central chi: 2 Phi(r) - 1 - 2 r phi(r).
+        return normal_cdf(r) - normal_cdf(-r) - 2.0 * r * phi(r);
+    }
+    normal_cdf(r - mu) - normal_cdf(-r - mu) - (phi(r - mu) - phi(r + mu)) / mu
+}
+
+/// The standard normal distribution function (erfc of Numerical Recipes,
+/// relative error below 1.2e-7).
+fn normal_cdf(x: f64) -> f64 {
+    let z = x.abs() / std::f64::consts::SQRT_2;
+    let t = 1.0 / (1.0 + 0.5 * z);
+    let poly = -z * z - 1.265_512_23
+        + t * (1.000_023_68
+            + t * (0.374_091_96
+                + t * (0.096_784_18
+                    + t * (-0.186_288_06
+                        + t * (0.278_868_07
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+    let erfc = t * poly.exp();
+    if x >= 0.0 {
+        1.0 - 0.5 * erfc
+    } else {
+        0.5 * erfc
+    }
+}
+
+/// The upper tail of the F distribution with `d1` and `d2` degrees of
+/// freedom at `f`.
+fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
+    if f <= 0.0 {
+        return 1.0;
+    }
+    beta_regularized(d2 / (d2 + d1 * f), 0.5 * d2, 0.5 * d1)
+}
+
+/// The |t| with `dof` degrees of freedom whose two-sided tail is `p`.
+fn t_equivalent(p: f64, dof: f64) -> f64 {
+    let v = dof.max(1.0);
+    let p = p.clamp(1e-300, 1.0);
+    // The two-sided tail at t is I_x(v / 2, 1 / 2) with x = v / (v + t^2),
+    // increasing in x: bisect on ln x.
+    let ln_x = bisect(-700.0, 0.0, |l| beta_regularized(l.exp(), 0.5 * v, 0.5) < p);
+    let x = ln_x.exp();
+    (v * (1.0 - x) / x).max(0.0).sqrt()
+}
+
+/// ln Gamma(x), x > 0 (Lanczos, g = 7).
+#[allow(clippy::excessive_precision)]
+fn ln_gamma(x: f64) -> f64 {
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_93,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_13,
+        -176.615_029_162_140_59,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_571_6e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let sum = C[1..]
+        .iter()
+        .enumerate()
+        .fold(C[0], |s, (i, c)| s + c / (x + i as f64 + 1.0));
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
+/// The regularized incomplete beta function I_x(a, b) (continued fraction,
+/// Numerical Recipes' betacf).
+fn beta_regularized(x: f64, a: f64, b: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let front =
+        (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp();
+    if x < (a + 1.0) / (a + b + 2.0) {
+        front * beta_fraction(x, a, b) / a
+    } else {
+        1.0 - front * beta_fraction(1.0 - x, b, a) / b
+    }
+}
+
+fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
+    let tiny = 1e-300;
+    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
+    let mut c = 1.0;
+    let mut d = 1.0 - qab * x / qap;
+    if d.abs() < tiny {
+        d = tiny;
+    }
+    d = 1.0 / d;
+    let mut h = d;
+    for m in 1..300 {
+        let m = m as f64;
+        let m2 = 2.0 * m;
+        for aa in [
+            m * (b - m) * x / ((qam + m2) * (a + m2)),
+            -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)),
+        ] {
+            d = 1.0 + aa * d;
+            if d.abs() < tiny {
+                d = tiny;
+            }
+            c = 1.0 + aa / c;
+            if c.abs() < tiny {
+                c = tiny;
+            }
+            d = 1.0 / d;
+            h *= d * c;
+        }
+        // The last factor of the pair.
+        if (d * c - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    h
 }
 
 fn lag1(x: &[f64]) -> f64 {
@@ -1488,6 +1803,63 @@ mod tests {
         let j = fit.sigma_segments.expect("segments");
         assert!(j > 2.0 * fit.sigma_fisher, "{fit:?}");
         assert_eq!(fit.sigma(), j);
+    }
+
+    #[test]
+    fn the_joint_tests_distributions_match_their_tables() {
+        // Student t, two-sided 5 % with 10 degrees of freedom: 2.228.
+        assert!((t_equivalent(0.05, 10.0) - 2.2281).abs() < 1e-3);
+        // F(3, 10) upper 5 %: 3.708.
+        assert!((f_sf(3.7083, 3.0, 10.0) - 0.05).abs() < 1e-4);
+        // The central chi with three degrees of freedom: chi^2 = 7.815 at
+        // the upper 5 %, both branches alike.
+        let r = 7.8147_f64.sqrt();
+        assert!((1.0 - chi3_cdf(r, 0.0) - 0.05).abs() < 1e-4);
+        assert!((chi3_cdf(r, 1e-5) - chi3_cdf(r, 0.0)).abs() < 1e-4);
+        // One term: Hotelling's reference is the t's.
+        let p = f_sf(2.5_f64.powi(2), 1.0, 9.0);
+        assert!((t_equivalent(p, 9.0) - 2.5).abs() < 1e-6);
+        // A tail far beyond the doubles' resolution of 1 - p.
+        let far = t_equivalent(1e-30, 12.0);
+        assert!(far.is_finite() && far > 20.0, "{far}");
+    }
+
+    #[test]
+    fn the_joint_test_sees_a_sinusoid_the_constant_term_cannot() {
+        // Three terms over 10 blocks of 100 rows: a constant, sin and cos
+        // of a heading that turns; the data a pure sin term plus noise.
+        let (blocks, per) = (10, 100);
+        let n = blocks * per;
+        let psi: Vec<f64> = (0..n).map(|i| i as f64 * 0.05).collect();
+        let e = normals(n, 5);
+        let y: Vec<f64> = (0..n).map(|i| 0.6 * psi[i].sin() + e[i]).collect();
+        let cols = vec![
+            y,
+            vec![1.0; n],
+            psi.iter().map(|p| p.sin()).collect(),
+            psi.iter().map(|p| p.cos()).collect(),
+        ];
+        let block: Vec<usize> = (0..n).map(|i| i / per).collect();
+        let gram = SegmentGram::from_rows(&cols, &block, blocks);
+        let m = gram.fit_all(&[1, 2, 3]).expect("fit");
+        let alone = gram.fit(&[1, 2, 3]).expect("alone");
+        assert!((alone.estimate / alone.sigma()).abs() < 3.0, "{alone:?}");
+        let alpha = FAMILY_ALPHA / 12.0;
+        let j = joint_test(&m, 1.0, blocks, 9.0, alpha).expect("joint");
+        assert!(
+            j.z > super::super::select::t_quantile(1.0 - 0.5 * alpha, 9.0),
+            "{j:?}"
+        );
+        assert!(j.smallest < 0.6, "{j:?}");
+        // Without the sinusoid the joint z stays small.
+        let null: Vec<f64> = normals(n, 6);
+        let mut cols = cols;
+        cols[0] = null;
+        let m = SegmentGram::from_rows(&cols, &block, blocks)
+            .fit_all(&[1, 2, 3])
+            .expect("fit");
+        let j = joint_test(&m, 1.0, blocks, 9.0, alpha).expect("joint");
+        assert!(j.z.abs() < 3.0, "{j:?}");
     }
 
     #[test]

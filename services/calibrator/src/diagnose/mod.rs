@@ -826,15 +826,22 @@ pub fn diagnose_with_progress(
             How::Wald(t) => (
                 DecidedBy::Wald,
                 format!(
-                    "{} is shown by the GNSS positions under their own error model: Wald z = {:.1} {} \
+                    "{} is shown by {}: Wald z = {:.1} {} \
                      (Holm's critical {:.1} at rank {} of {}); it lowers the aggregate held-out residual \
                      of {} by {:.1} %; fingerprint: {fingerprint}",
                     cand.effect,
-                    t.z,
-                    if t.joint {
-                        "with every other effect of its source free"
+                    if cand.effect == Effect::HeadingBias {
+                        "the heading sensor against the GNSS course"
                     } else {
-                        "alone"
+                        "the GNSS positions under their own error model"
+                    },
+                    t.z,
+                    match (t.joint, cand.effect) {
+                        (true, Effect::HeadingBias) => {
+                            "its three terms jointly (the |t| of the same p-value)"
+                        }
+                        (true, _) => "with every other effect of its source free",
+                        (false, _) => "alone",
                     },
                     t.z_critical,
                     t.rank + 1,
