@@ -97,6 +97,8 @@ def main():
     after_named = [0] * a.mends
     after_alike = [0] * a.mends
     before_alike = 0
+    before_holm = 0
+    after_holm = [0] * a.mends
     times = []
     channels_after = defaultdict(lambda: [0, 0])
     for case in manifest:
@@ -121,10 +123,12 @@ def main():
         else:
             null_false.append(bool(extra))
         before_alike += cs[0]["channels_within_noise"] == len(cs[0]["channels"])
+        before_holm += cs[0].get("channels_differing", 0) == 0
         for k in range(a.mends):
             c = cs[k + 1]
             after_named[k] += bool(named(c))
             after_alike[k] += c["channels_within_noise"] == len(c["channels"])
+            after_holm[k] += c.get("channels_differing", 0) == 0
         for ch in cs[-1]["channels"]:
             channels_after[ch["channel"]][1] += 1
             channels_after[ch["channel"]][0] += ch["within_noise"]
@@ -143,6 +147,8 @@ def main():
     out.append(f"- null drives with a name outside the tyre physics: {sum(null_false)}/{len(null_false)}")
     out.append(f"- every residual channel within its noise level: before the mend {before_alike}/{n}, "
                + ", ".join(f"after mend {k + 1} {after_alike[k]}/{n}" for k in range(a.mends)))
+    out.append(f"- no residual channel differing at the family's 5 % (Holm over the channels): before the mend {before_holm}/{n}, "
+               + ", ".join(f"after mend {k + 1} {after_holm[k]}/{n}" for k in range(a.mends)))
     out.append("- drives with an effect still named: "
                + ", ".join(f"after mend {k + 1} {after_named[k]}/{n}" for k in range(a.mends)))
     out.append("- per channel within its noise level after the last mend: "

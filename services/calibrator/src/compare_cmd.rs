@@ -68,6 +68,8 @@ struct EarlierChannel {
     distance: f64,
     noise_level: f64,
     within_noise: bool,
+    #[serde(default)]
+    differs: bool,
 }
 
 /// `calibrator compare RECORDING SIMULATION`.
@@ -168,9 +170,11 @@ fn read_earlier(path: &Path) -> Result<(Comparison, Earlier)> {
                 noise_level: c.noise_level,
                 p_value: f64::NAN,
                 within_noise: c.within_noise,
+                differs: c.differs,
             })
             .collect(),
         channels_within_noise: e.channels.iter().filter(|c| c.within_noise).count(),
+        channels_differing: e.channels.iter().filter(|c| c.differs).count(),
         holdout_rmse_m: [f64::NAN; 2],
         findings: Vec::new(),
         effects_missing: None,
@@ -286,9 +290,10 @@ fn render_text(c: &Comparison, before: Option<&Earlier>) -> String {
     }
     let _ = writeln!(
         s,
-        "residual channels within their noise level: {} of {}",
+        "residual channels within their noise level: {} of {}; differing beyond the noise (Holm over the channels, 5 %): {}",
         c.channels_within_noise,
-        c.channels.len()
+        c.channels.len(),
+        c.channels_differing
     );
     for ch in &c.channels {
         let was = before
@@ -303,13 +308,14 @@ fn render_text(c: &Comparison, before: Option<&Earlier>) -> String {
             });
         let _ = writeln!(
             s,
-            "  - {}: distance {} {} against a noise level of {} (p {:.3}): {}{was}",
+            "  - {}: distance {} {} against a noise level of {} (p {:.3}): {}{}{was}",
             ch.channel,
             pics::sig3(ch.distance),
             ch.unit,
             pics::sig3(ch.noise_level),
             ch.p_value,
-            if ch.within_noise { "within" } else { "beyond" }
+            if ch.within_noise { "within" } else { "beyond" },
+            if ch.differs { "; differs (Holm)" } else { "" }
         );
     }
     if let Some(b) = before {

@@ -304,16 +304,18 @@ pub fn index_html(
     page.headline(
         &if named.is_empty() {
             format!(
-                "No physics differs; {} of {} residual channels within their noise level.",
+                "No physics differs; {} of {} residual channels within their noise level, {} differing at the family's 5 %.",
                 c.channels_within_noise,
-                c.channels.len()
+                c.channels.len(),
+                c.channels_differing
             )
         } else {
             format!(
-                "Differs in: {}; {} of {} residual channels within their noise level.",
+                "Differs in: {}; {} of {} residual channels within their noise level, {} differing at the family's 5 %.",
                 named.join(", "),
                 c.channels_within_noise,
-                c.channels.len()
+                c.channels.len(),
+                c.channels_differing
             )
         },
         Some(c.alike()),
@@ -407,6 +409,7 @@ pub fn index_html(
                 Cell::Number(sig3(ch.noise_level)),
                 Cell::Text(format!("{:.3}", ch.p_value)),
                 Cell::Text(if ch.within_noise { "yes" } else { "no" }.into()),
+                Cell::Text(if ch.differs { "yes" } else { "no" }.into()),
             ]
         })
         .collect();
@@ -418,6 +421,7 @@ pub fn index_html(
             "noise level",
             "p",
             "within noise",
+            "differs (Holm, 5 %)",
         ],
         &rows,
     );
