@@ -920,7 +920,7 @@ pub fn gyro_shaped(path: &TwinPath, gyro: &[(f64, f64)], bias_rad_s: f64) -> Opt
         let (a, b) = (i.saturating_sub(2), (i + 2).min(n - 1));
         let h = (path.y[b] - path.y[a]).atan2(path.x[b] - path.x[a]);
         let h = match psi_s.last() {
-            Some(&last) => last + wrap_pi(h - last),
+            Some(&last) => last + stats::wrap_angle(h - last),
             None => h,
         };
         psi_s.push(h);
@@ -946,17 +946,6 @@ pub fn gyro_shaped(path: &TwinPath, gyro: &[(f64, f64)], bias_rad_s: f64) -> Opt
         out.y[i] = y[i] + ey[i];
     }
     Some(out)
-}
-
-/// `a` wrapped into (-pi, pi].
-fn wrap_pi(a: f64) -> f64 {
-    let t = std::f64::consts::TAU;
-    let r = a.rem_euclid(t);
-    if r > std::f64::consts::PI {
-        r - t
-    } else {
-        r
-    }
 }
 
 /// The median accuracy the fixes claim, if they claim any.

@@ -815,18 +815,7 @@ impl SegmentGram {
             let sum: f64 = self
                 .per_segment
                 .iter()
-                .map(|g| {
-                    // The segment's score at the fit: X_s' y_s - X_s' X_s theta.
-                    let score = DVector::from_fn(cols.len(), |i, _| {
-                        g[(cols[i], 0)]
-                            - cols
-                                .iter()
-                                .enumerate()
-                                .map(|(j, c)| g[(cols[i], *c)] * theta[j])
-                                .sum::<f64>()
-                    });
-                    v.dot(&score).powi(2)
-                })
+                .map(|g| v.dot(&segment_score(g, cols, &theta)).powi(2))
                 .sum();
             (k as f64 / (k as f64 - 1.0) * sum).sqrt()
         });
@@ -836,6 +825,19 @@ impl SegmentGram {
             sigma_segments,
         })
     }
+}
+
+/// A segment's score at the fit `theta` of `cols` (its Gram `g`, the data
+/// in row and column 0): `X_s' y_s - X_s' X_s theta`.
+fn segment_score(g: &DMatrix<f64>, cols: &[usize], theta: &DVector<f64>) -> DVector<f64> {
+    DVector::from_fn(cols.len(), |i, _| {
+        g[(cols[i], 0)]
+            - cols
+                .iter()
+                .enumerate()
+                .map(|(j, c)| g[(cols[i], *c)] * theta[j])
+                .sum::<f64>()
+    })
 }
 
 /// A model's fit of all its coefficients: the estimates, the inverse
@@ -866,15 +868,7 @@ impl SegmentGram {
         let sandwich = (k >= 4).then(|| {
             let mut meat = DMatrix::zeros(cols.len(), cols.len());
             for g in &self.per_segment {
-                let score = DVector::from_fn(cols.len(), |i, _| {
-                    g[(cols[i], 0)]
-                        - cols
-                            .iter()
-                            .enumerate()
-                            .map(|(j, c)| g[(cols[i], *c)] * theta[j])
-                            .sum::<f64>()
-                });
-                let u = &inverse * score;
+                let u = &inverse * segment_score(g, cols, &theta);
                 meat += &u * u.transpose();
             }
             meat * (k as f64 / (k as f64 - 1.0))
