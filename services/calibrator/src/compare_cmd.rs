@@ -147,7 +147,7 @@ fn read_earlier(path: &Path) -> Result<(Comparison, Earlier)> {
                 sigma: None,
                 z: None,
                 z_critical: None,
-                guard_z: None,
+                guard_gain: None,
                 verdict: x.verdict,
                 evidence: String::new(),
             })

@@ -33,7 +33,7 @@
 //!
 //! Pure: two diagnoses in, a comparison out.
 
-use super::decide::{step_down, GUARD_Z};
+use super::decide::{guard_passes, step_down};
 use super::limit::{EffectLimit, FAMILY_ALPHA};
 use super::select::normal_quantile;
 use super::{BaseModel, Diagnosis};
@@ -129,9 +129,10 @@ pub struct EffectDifference {
     /// Holm's critical |z| at its rank.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub z_critical: Option<f64>,
-    /// The held-out guard's signed-rank z on the side with more of it.
+    /// The held-out guard's relative gain of the aggregate held-out error
+    /// on the side with more of it.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub guard_z: Option<f64>,
+    pub guard_gain: Option<f64>,
     /// The verdict.
     pub verdict: DifferenceVerdict,
     /// Why, in words.
@@ -363,7 +364,7 @@ fn effect_differences(
             sigma,
             z,
             z_critical: None,
-            guard_z: None,
+            guard_gain: None,
             verdict: DifferenceVerdict::NotShown,
             evidence: String::new(),
         });
@@ -398,14 +399,14 @@ fn effect_differences(
             (simulation, s[0])
         };
         let guard = guard_of(side, row.effect);
-        row.guard_z = guard;
+        row.guard_gain = guard;
         let spec = row.effect.main_fitted().spec();
         let shown = |v: f64| row.effect.main_fitted().to_display(v);
         let (lo, hi) = (shown(spec.plausible.0), shown(spec.plausible.1));
         let found_there = side.findings.iter().any(|f| f.effect == row.effect);
         row.verdict = if value < lo.min(hi) || value > lo.max(hi) {
             DifferenceVerdict::Implausible
-        } else if !(found_there || guard.is_some_and(|z| z > GUARD_Z)) {
+        } else if !(found_there || guard.is_some_and(guard_passes)) {
             DifferenceVerdict::Guarded
         } else if recording_more {
             DifferenceVerdict::Lacking
@@ -415,7 +416,7 @@ fn effect_differences(
         row.evidence =
             format!(
             "recording {} ± {}, simulation {} ± {} {}: difference z {:+.1} beyond Holm's {:.1}; \
-             the {} side's held-out guard z {}{}",
+             the {} side's held-out gain {}{}",
             sig3(r[0]),
             sig3(r[1]),
             sig3(s[0]),
@@ -424,19 +425,19 @@ fn effect_differences(
             t.z,
             t.z_critical,
             if recording_more { "recording" } else { "simulation" },
-            guard.map_or("-".to_string(), |z| format!("{z:.1}")),
+            guard.map_or("-".to_string(), |g| format!("{:+.2} %", 100.0 * g)),
             if found_there { " (found there)" } else { "" },
         );
     }
     (rows, None)
 }
 
-/// The held-out guard's signed-rank z for `effect` in `d`.
+/// The held-out guard's relative gain for `effect` in `d`.
 fn guard_of(d: &Diagnosis, effect: Effect) -> Option<f64> {
     d.wald
         .iter()
         .find(|w| w.test.effect == effect)
-        .and_then(|w| w.holdout_z)
+        .and_then(|w| w.holdout_gain)
 }
 
 /// The blocks of the two drives that cover the same time: (index into the
@@ -800,7 +801,7 @@ mod tests {
             sigma: None,
             z: None,
             z_critical: None,
-            guard_z: None,
+            guard_gain: None,
             verdict: v,
             evidence: String::new(),
         }

@@ -20,10 +20,12 @@
 //!
 //! What the statistics cannot say, the guard says: an effect the Wald test
 //! names enters the model only when it also lowers the aggregate held-out
-//! error of the residual channels (the caller's block cross-validation)
-//! with a signed-rank z over the blocks above the one-sided 5 % point
-//! ([`GUARD_Z`]), so that a fingerprint that merely soaks up a model
-//! mismatch elsewhere is not published as physics.
+//! error of the residual channels (the caller's block cross-validation,
+//! summed over the blocks: [`guard_passes`]), so that a fingerprint that
+//! merely soaks up a model mismatch elsewhere, and predicts the blocks it
+//! was not fitted on worse, is not published as physics. The guard judges
+//! the aggregate, not how many blocks win: an effect's gain lives in the
+//! few blocks that hold its manoeuvre.
 //!
 //! Pure: the limit in, the decisions out.
 
@@ -104,10 +106,13 @@ pub(super) fn step_down(
         .collect()
 }
 
-/// The guard's level: the held-out gain's signed-rank z one-sided at 5 %
-/// (a veto on what the Wald test called, not a second family: the level
-/// is the conventional one, not split among the effects).
-pub const GUARD_Z: f64 = 1.6448536269514722;
+/// The held-out guard: adding the effect lowers the aggregate held-out
+/// error of the residual channels (`holdout_gain`, the relative change of
+/// the blocks' summed held-out error, positive). A veto on what the Wald
+/// test called, not a second test: the decision's level is Holm's.
+pub fn guard_passes(holdout_gain: f64) -> bool {
+    holdout_gain > 0.0
+}
 
 /// What became of an effect's Wald test in the diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -119,9 +124,11 @@ pub enum WaldOutcome {
     AlreadyFound,
     /// Significant, and the guard agrees: it entered the model.
     Accepted,
-    /// Significant, but adding it does not lower the held-out error of
-    /// the residual channels beyond the guard's level ([`GUARD_Z`]): the
-    /// fingerprint may soak up a mismatch the model has elsewhere.
+    /// Significant, but adding it does not lower the aggregate held-out
+    /// error of the residual channels ([`guard_passes`]), or it raises the
+    /// blocks' held-out dead-reckoned position error beyond their scatter
+    /// (`position_t`): the fingerprint may soak up a mismatch the model
+    /// has elsewhere.
     Guarded,
     /// Significant, but its coefficient lies outside the plausible range.
     Implausible,
@@ -169,6 +176,10 @@ pub struct WaldDecision {
     /// error).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holdout_t: Option<f64>,
+    /// Where the position guard refused it: the paired t over the blocks
+    /// of the rise of their held-out position error with it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub position_t: Option<f64>,
 }
 
 /// The variant of `effect` whose addition to the model `base` gains most
@@ -214,6 +225,7 @@ pub(super) fn apply(
             holdout_gain: g.map(|g| g.relative),
             holdout_z: g.map(|g| g.z),
             holdout_t: g.map(|g| g.t),
+            position_t: None,
         };
         let accepted_effect = |sel: &Selection| {
             sel.accepted
@@ -238,7 +250,7 @@ pub(super) fn apply(
             out.push(decided(WaldOutcome::NoModel, None));
             continue;
         };
-        if !g.passes(GUARD_Z) {
+        if !guard_passes(g.relative) {
             out.push(decided(WaldOutcome::Guarded, Some(g)));
             continue;
         }

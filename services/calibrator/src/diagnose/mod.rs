@@ -702,7 +702,7 @@ pub fn diagnose_with_progress(
         .as_ref()
         .map(decide::holm)
         .unwrap_or_default();
-    let wald = match (&information_limit, cfg.wald_decision) {
+    let mut wald = match (&information_limit, cfg.wald_decision) {
         (Some(limit), true) => decide::apply(&design, &stats, &mut sel, &wald_tests, limit),
         // Reported (for the guard over several drives), not applied.
         (Some(limit), false) => {
@@ -712,19 +712,6 @@ pub fn diagnose_with_progress(
     };
     progress(DiagnoseStage::Fit, 0.6);
 
-    // Final coefficients, sigmas, and the effect terms.
-    let cols = model_columns(&design, &sel.accepted);
-    let (beta, sigma) = stats
-        .fit_with_sigmas(&cols)
-        .unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
-    let coef = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| beta[i]);
-    let coef_sigma = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
-    let accepted: Vec<&Candidate> = sel
-        .accepted
-        .iter()
-        .map(|&i| &design.candidates[i])
-        .collect();
-    let (terms, slip_side) = terms_of(&accepted, &coef);
     let base_model = Model {
         c_rl: base.c_rl_m,
         c_rr: base.c_rr_m,
@@ -762,10 +749,9 @@ pub fn diagnose_with_progress(
             ..base_model
         }
     };
-    let position_rmse = |model_cands: &[usize]| -> (f64, Vec<Option<f64>>) {
+    // Per block: the held-out position error's sum of squares and fixes.
+    let position_blocks = |model_cands: &[usize]| -> Vec<Option<(f64, f64)>> {
         let mut per_block = vec![None; design.blocks];
-        let mut ss = 0.0;
-        let mut n = 0.0;
         for &b in &used {
             let (t0, t1) = span(b);
             let m = if model_cands.is_empty() {
@@ -774,14 +760,57 @@ pub fn diagnose_with_progress(
                 fold_terms(model_cands, b)
             };
             if let Some(tr) = block_track(&m, &cx, t0, t1) {
-                ss += tr.rms_m * tr.rms_m * tr.gnss.len() as f64;
-                n += tr.gnss.len() as f64;
-                per_block[b] = Some(tr.rms_m);
+                let n = tr.gnss.len() as f64;
+                per_block[b] = Some((tr.rms_m * tr.rms_m * n, n));
             }
         }
+        per_block
+    };
+    let position_rmse = |model_cands: &[usize]| -> (f64, Vec<Option<f64>>) {
+        let blocks = position_blocks(model_cands);
+        let (ss, n) = blocks
+            .iter()
+            .flatten()
+            .fold((0.0, 0.0), |(a, b), (s, n)| (a + s, b + n));
+        let per_block = blocks
+            .iter()
+            .map(|x| x.map(|(s, n)| (s / n.max(1.0)).sqrt()))
+            .collect();
         ((ss / n.max(1.0)).sqrt(), per_block)
     };
+    // The guard's second half: an effect the Wald test named must not make
+    // the dead-reckoned positions of the blocks it was not fitted on
+    // worse beyond their own scatter (the full model, not the residual
+    // channels' linearisation).
+    let raised = position_guard(&sel, &position_blocks);
+    for (ci, t) in raised {
+        let k = sel.accepted.iter().position(|&x| x == ci);
+        if let Some(k) = k {
+            sel.accepted.remove(k);
+            sel.gains.remove(k);
+            sel.thresholds.remove(k);
+            sel.how.remove(k);
+        }
+        let effect = design.candidates[ci].effect;
+        if let Some(d) = wald.iter_mut().find(|d| d.test.effect == effect) {
+            d.outcome = decide::WaldOutcome::Guarded;
+            d.position_t = Some(t);
+        }
+    }
 
+    // Final coefficients, sigmas, and the effect terms.
+    let cols = model_columns(&design, &sel.accepted);
+    let (beta, sigma) = stats
+        .fit_with_sigmas(&cols)
+        .unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
+    let coef = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| beta[i]);
+    let coef_sigma = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
+    let accepted: Vec<&Candidate> = sel
+        .accepted
+        .iter()
+        .map(|&i| &design.candidates[i])
+        .collect();
+    let (terms, slip_side) = terms_of(&accepted, &coef);
     // Findings, each with the position RMSE before and after it entered.
     let mut findings = Vec::new();
     let mut so_far: Vec<usize> = Vec::new();
@@ -1141,6 +1170,47 @@ fn gnss_jumps(ep: &Epochs) -> Vec<bool> {
             {
                 *flag = true;
             }
+        }
+    }
+    out
+}
+
+/// The effects the Wald test let in (`How::Wald`) whose removal from the
+/// final model lowers the blocks' held-out position error (`blocks` of a
+/// model: per block, its sum of squares and fixes) beyond their scatter:
+/// a one-sided paired t over the blocks of the relative change above the
+/// 5 % point of Student's t. Each with that t.
+fn position_guard(
+    sel: &Selection,
+    blocks: &dyn Fn(&[usize]) -> Vec<Option<(f64, f64)>>,
+) -> Vec<(usize, f64)> {
+    let with = blocks(&sel.accepted);
+    let total: f64 = with.iter().flatten().map(|(s, _)| s).sum();
+    let mut out = Vec::new();
+    for (k, how) in sel.how.iter().enumerate() {
+        if !matches!(how, How::Wald(_)) || total <= 0.0 {
+            continue;
+        }
+        let ci = sel.accepted[k];
+        let mut fewer = sel.accepted.clone();
+        fewer.remove(k);
+        let without = blocks(&fewer);
+        // Each block's rise of its squared error, relative to the drive's
+        // total: blocks weigh by how much they hold.
+        let d: Vec<f64> = with
+            .iter()
+            .zip(&without)
+            .filter_map(|(a, b)| Some((a.as_ref()?.0 - b.as_ref()?.0) / total))
+            .collect();
+        let n = d.len() as f64;
+        if n < 3.0 {
+            continue;
+        }
+        let mean = d.iter().sum::<f64>() / n;
+        let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let t = mean / (var / n).sqrt().max(f64::MIN_POSITIVE);
+        if mean > 0.0 && t > select::t_quantile(0.95, n - 1.0) {
+            out.push((ci, t));
         }
     }
     out

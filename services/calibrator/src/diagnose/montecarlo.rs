@@ -59,7 +59,9 @@ pub(super) fn run(
     let mut rejections = 0;
     let mut per_effect: BTreeMap<Effect, usize> = BTreeMap::new();
     for _ in 0..draws {
-        let mut tests: Vec<(Effect, f64, bool)> = Vec::new();
+        // Per effect, the test under the heading source with the smaller
+        // sigma, as the drive's own limit chooses.
+        let mut tests: BTreeMap<Effect, (f64, bool, f64)> = BTreeMap::new();
         for p in &basis.sources {
             let err = redraw(&mut rng, all_t, &p.noise);
             let col: Vec<[f64; 2]> = (0..n).map(|i| [err[i], err[n + i]]).collect();
@@ -71,13 +73,18 @@ pub(super) fn run(
             for (e, cols, n_alone) in &p.sets {
                 let fit = g.fit(cols).or_else(|| g.fit(&cols[..*n_alone]));
                 if let Some(f) = fit {
-                    let z = f.estimate / f.sigma();
-                    if z.is_finite() {
-                        tests.push((*e, z, cols.len() > *n_alone));
+                    let (z, sigma) = (f.estimate / f.sigma(), f.sigma());
+                    let better = tests.get(e).is_none_or(|t| sigma < t.2);
+                    if z.is_finite() && better {
+                        tests.insert(*e, (z, cols.len() > *n_alone, sigma));
                     }
                 }
             }
         }
+        let tests: Vec<(Effect, f64, bool)> = tests
+            .into_iter()
+            .map(|(e, (z, joint, _))| (e, z, joint))
+            .collect();
         let called: Vec<Effect> = step_down(tests, FAMILY_ALPHA, dof)
             .into_iter()
             .filter(|t| t.significant)

@@ -12,7 +12,7 @@
 //!
 //! Pure: the drives' information in, the pooled verdict out.
 
-use super::decide::{decisive_tests, step_down, WaldDecision, WaldTest, GUARD_Z};
+use super::decide::{decisive_tests, guard_passes, step_down, WaldDecision, WaldTest};
 use super::limit::{
     limit_of, partners_of, CoefFit, DriveInformation, EffectLimit, InformationSource, Joint,
     Partner, SegmentGram, FAMILY_ALPHA,
@@ -40,11 +40,11 @@ pub struct PooledEffect {
     /// same on every drive.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub heterogeneity: Option<[f64; 2]>,
-    /// The held-out guard over the drives: each drive's signed-rank z of
-    /// the effect's held-out gain, combined by Stouffer's rule weighed by
-    /// the drives' information shares (for a significant effect).
+    /// The held-out guard over the drives: each drive's relative gain of
+    /// its aggregate held-out error with the effect, weighed by the
+    /// drives' information shares (for a significant effect).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub holdout_z: Option<f64>,
+    pub holdout_gain: Option<f64>,
     /// What the drives say of the car.
     pub verdict: CarVerdict,
 }
@@ -64,9 +64,9 @@ pub enum CarVerdict {
     /// Significant, but the drives disagree beyond their sigmas (Cochran's
     /// Q): not one effect of the car.
     Inconsistent,
-    /// Significant, but the drives' held-out errors do not fall with it
-    /// beyond the guard's level ([`super::decide::GUARD_Z`], combined over
-    /// the drives): it may soak up a mismatch the model has elsewhere.
+    /// Significant, but the drives' aggregate held-out errors do not fall
+    /// with it ([`super::decide::guard_passes`], weighed over the drives):
+    /// it may soak up a mismatch the model has elsewhere.
     Guarded,
     /// Beyond the critical z alone, not with its partners (`joint.partners`)
     /// free, none of which is found: the drives cannot tell them apart.
@@ -181,6 +181,25 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             });
         }
     }
+    // An effect both heading sources hold is pooled under the one that
+    // knows it better (the smaller sigma of its decisive fit), as each
+    // drive's own limit chooses.
+    let sigma_of = |f: &Fits| {
+        f.joint
+            .or(f.alone)
+            .map(|c| c.sigma())
+            .filter(|s| s.is_finite() && *s > 0.0)
+            .unwrap_or(f64::INFINITY)
+    };
+    let mut kept: Vec<Fits> = Vec::new();
+    for f in fits {
+        match kept.iter_mut().find(|k| k.effect == f.effect) {
+            Some(k) if sigma_of(k) <= sigma_of(&f) => {}
+            Some(k) => *k = f,
+            None => kept.push(f),
+        }
+    }
+    let mut fits = kept;
     // The heading sensor's bias: independent per drive, weighed by its
     // information.
     let heading: Vec<Option<CoefFit>> = drives.iter().map(|d| d.heading).collect();
@@ -223,7 +242,7 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                     .map(|d| d.map(|d| [p.to_display(d.estimate), p.to_display(d.sigma()).abs()]))
                     .collect(),
                 heterogeneity: decisive.and_then(|c| cochran_q(c.estimate, &f.per_drive)),
-                holdout_z: None,
+                holdout_gain: None,
                 verdict: CarVerdict::NotShown,
             }
         })
@@ -264,8 +283,8 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
 
 /// The held-out guard over the drives (each drive's [`WaldDecision`]s, in
 /// the order pooled): a found effect stays found only when the drives'
-/// signed-rank z of its held-out gain, combined by Stouffer's rule weighed
-/// by their information shares, passes [`GUARD_Z`].
+/// relative held-out gains, weighed by their information shares, lower
+/// the aggregate held-out error ([`guard_passes`]).
 pub fn guard(car: &mut PooledLimit, per_drive: &[&[WaldDecision]]) {
     for p in car
         .effects
@@ -276,16 +295,16 @@ pub fn guard(car: &mut PooledLimit, per_drive: &[&[WaldDecision]]) {
             .iter()
             .zip(&p.information_share)
             .filter_map(|(w, share)| {
-                let z = w
+                let g = w
                     .iter()
                     .find(|d| d.test.effect == p.limit.effect)?
-                    .holdout_z?;
-                Some((share * z, share * share))
+                    .holdout_gain?;
+                Some((share * g, *share))
             })
             .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
-        let z = (den > 0.0).then(|| num / den.sqrt());
-        p.holdout_z = z;
-        if !z.is_some_and(|z| z > GUARD_Z) {
+        let gain = (den > 0.0).then(|| num / den);
+        p.holdout_gain = gain;
+        if !gain.is_some_and(guard_passes) {
             p.verdict = CarVerdict::Guarded;
         }
     }
