@@ -34,7 +34,7 @@
 //! Pure: two diagnoses in, a comparison out.
 
 use super::decide::{guard_passes, step_down};
-use super::limit::{EffectLimit, FAMILY_ALPHA};
+use super::limit::{EffectLimit, InformationSource, FAMILY_ALPHA};
 use super::select::normal_quantile;
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
@@ -399,14 +399,14 @@ fn effect_differences(
             (simulation, s[0])
         };
         let guard = guard_of(side, row.effect);
-        row.guard_gain = guard;
+        row.guard_gain = guard.map(|g| g.0);
         let spec = row.effect.main_fitted().spec();
         let shown = |v: f64| row.effect.main_fitted().to_display(v);
         let (lo, hi) = (shown(spec.plausible.0), shown(spec.plausible.1));
         let found_there = side.findings.iter().any(|f| f.effect == row.effect);
         row.verdict = if value < lo.min(hi) || value > lo.max(hi) {
             DifferenceVerdict::Implausible
-        } else if !(found_there || guard.is_some_and(guard_passes)) {
+        } else if !(found_there || guard.is_some_and(|(g, z, source)| guard_passes(g, z, source))) {
             DifferenceVerdict::Guarded
         } else if recording_more {
             DifferenceVerdict::Lacking
@@ -425,19 +425,23 @@ fn effect_differences(
             t.z,
             t.z_critical,
             if recording_more { "recording" } else { "simulation" },
-            guard.map_or("-".to_string(), |g| format!("{:+.2} %", 100.0 * g)),
+            guard.map_or("-".to_string(), |g| format!("{:+.2} %", 100.0 * g.0)),
             if found_there { " (found there)" } else { "" },
         );
     }
     (rows, None)
 }
 
-/// The held-out guard's relative gain for `effect` in `d`.
-fn guard_of(d: &Diagnosis, effect: Effect) -> Option<f64> {
-    d.wald
-        .iter()
-        .find(|w| w.test.effect == effect)
-        .and_then(|w| w.holdout_gain)
+/// The held-out guard's relative gain for `effect` in `d`, its
+/// signed-rank z and the information source the effect is decided on.
+fn guard_of(d: &Diagnosis, effect: Effect) -> Option<(f64, Option<f64>, InformationSource)> {
+    let w = d.wald.iter().find(|w| w.test.effect == effect)?;
+    let source = d
+        .information_limit
+        .as_ref()
+        .and_then(|l| l.effects.iter().find(|e| e.effect == effect))
+        .map_or(InformationSource::PositionsWheelHeading, |e| e.source);
+    Some((w.holdout_gain?, w.holdout_z, source))
 }
 
 /// The blocks of the two drives that cover the same time: (index into the

@@ -18,19 +18,25 @@
 //! error at `alpha` whatever the dependence between the statistics, and is
 //! never less powerful than Bonferroni.
 //!
-//! What the statistics cannot say, the guard says: an effect the Wald test
-//! names enters the model only when it also lowers the aggregate held-out
-//! error of the residual channels (the caller's block cross-validation,
-//! summed over the blocks: [`guard_passes`]), so that a fingerprint that
-//! merely soaks up a model mismatch elsewhere, and predicts the blocks it
-//! was not fitted on worse, is not published as physics. The guard judges
-//! the aggregate, not how many blocks win: an effect's gain lives in the
-//! few blocks that hold its manoeuvre.
+//! What the statistics cannot say, the guard says ([`guard_passes`]): an
+//! effect the Wald test names enters the model only when it also lowers
+//! the aggregate held-out error of the residual channels (the caller's
+//! block cross-validation, summed over the blocks), so that a fingerprint
+//! that merely soaks up a model mismatch elsewhere, and predicts the
+//! blocks it was not fitted on worse, is not published as physics. The
+//! guard judges the aggregate, not how many blocks win: an effect's gain
+//! lives in the few blocks that hold its manoeuvre. One exception: an
+//! effect decided on the dead-reckoning with the wheels' heading must also
+//! gain on most blocks (signed-rank z above the one-sided 5 % point).
+//! There the heading itself is modelled, and tyre physics beyond the
+//! catalogue's forms turns it alike in every segment: the segments'
+//! scatter cannot see such a bias, the aggregate gain is a sliver, and the
+//! blocks' ranks are what tells it from an effect.
 //!
 //! Pure: the limit in, the decisions out.
 
 use super::design::{Candidate, Design};
-use super::limit::{EffectLimit, InformationLimit};
+use super::limit::{EffectLimit, InformationLimit, InformationSource};
 use super::select::{gain, t_quantile, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
 use interfaces::effects::Effect;
@@ -108,11 +114,24 @@ pub(super) fn step_down(
 
 /// The held-out guard: adding the effect lowers the aggregate held-out
 /// error of the residual channels (`holdout_gain`, the relative change of
-/// the blocks' summed held-out error, positive). A veto on what the Wald
-/// test called, not a second test: the decision's level is Holm's.
-pub fn guard_passes(holdout_gain: f64) -> bool {
-    holdout_gain > 0.0
+/// the blocks' summed held-out error, positive); for an effect decided
+/// under the wheels' heading, its gains' signed-rank z over the blocks
+/// (`holdout_z`) is above [`WHEEL_HEADING_GUARD_Z`] as well (see the
+/// module's text). A veto on what the Wald test called, not a second
+/// test: the decision's level is Holm's.
+pub fn guard_passes(holdout_gain: f64, holdout_z: Option<f64>, source: InformationSource) -> bool {
+    let ranks = match source {
+        InformationSource::PositionsWheelHeading => {
+            holdout_z.is_some_and(|z| z > WHEEL_HEADING_GUARD_Z)
+        }
+        InformationSource::PositionsGyroHeading | InformationSource::HeadingChannel => true,
+    };
+    holdout_gain > 0.0 && ranks
 }
+
+/// The signed-rank z the blocks' held-out gains need for an effect
+/// decided under the wheels' heading: one-sided 5 %.
+pub const WHEEL_HEADING_GUARD_Z: f64 = 1.6448536269514722;
 
 /// What became of an effect's Wald test in the diagnosis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -124,11 +143,8 @@ pub enum WaldOutcome {
     AlreadyFound,
     /// Significant, and the guard agrees: it entered the model.
     Accepted,
-    /// Significant, but adding it does not lower the aggregate held-out
-    /// error of the residual channels ([`guard_passes`]), or it raises the
-    /// blocks' held-out dead-reckoned position error beyond their scatter
-    /// (`position_t`): the fingerprint may soak up a mismatch the model
-    /// has elsewhere.
+    /// Significant, but the held-out guard ([`guard_passes`]) refuses
+    /// it: the fingerprint may soak up a mismatch the model has elsewhere.
     Guarded,
     /// Significant, but its coefficient lies outside the plausible range.
     Implausible,
@@ -176,10 +192,6 @@ pub struct WaldDecision {
     /// error).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holdout_t: Option<f64>,
-    /// Where the position guard refused it: the paired t over the blocks
-    /// of the rise of their held-out position error with it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub position_t: Option<f64>,
 }
 
 /// The variant of `effect` whose addition to the model `base` gains most
@@ -225,7 +237,6 @@ pub(super) fn apply(
             holdout_gain: g.map(|g| g.relative),
             holdout_z: g.map(|g| g.z),
             holdout_t: g.map(|g| g.t),
-            position_t: None,
         };
         let accepted_effect = |sel: &Selection| {
             sel.accepted
@@ -250,7 +261,12 @@ pub(super) fn apply(
             out.push(decided(WaldOutcome::NoModel, None));
             continue;
         };
-        if !guard_passes(g.relative) {
+        let source = limit
+            .effects
+            .iter()
+            .find(|l| l.effect == t.effect)
+            .map_or(InformationSource::PositionsWheelHeading, |l| l.source);
+        if !guard_passes(g.relative, Some(g.z), source) {
             out.push(decided(WaldOutcome::Guarded, Some(g)));
             continue;
         }

@@ -702,7 +702,7 @@ pub fn diagnose_with_progress(
         .as_ref()
         .map(decide::holm)
         .unwrap_or_default();
-    let mut wald = match (&information_limit, cfg.wald_decision) {
+    let wald = match (&information_limit, cfg.wald_decision) {
         (Some(limit), true) => decide::apply(&design, &stats, &mut sel, &wald_tests, limit),
         // Reported (for the guard over several drives), not applied.
         (Some(limit), false) => {
@@ -778,26 +778,6 @@ pub fn diagnose_with_progress(
             .collect();
         ((ss / n.max(1.0)).sqrt(), per_block)
     };
-    // The guard's second half: an effect the Wald test named must not make
-    // the dead-reckoned positions of the blocks it was not fitted on
-    // worse beyond their own scatter (the full model, not the residual
-    // channels' linearisation).
-    let raised = position_guard(&sel, &position_blocks);
-    for (ci, t) in raised {
-        let k = sel.accepted.iter().position(|&x| x == ci);
-        if let Some(k) = k {
-            sel.accepted.remove(k);
-            sel.gains.remove(k);
-            sel.thresholds.remove(k);
-            sel.how.remove(k);
-        }
-        let effect = design.candidates[ci].effect;
-        if let Some(d) = wald.iter_mut().find(|d| d.test.effect == effect) {
-            d.outcome = decide::WaldOutcome::Guarded;
-            d.position_t = Some(t);
-        }
-    }
-
     // Final coefficients, sigmas, and the effect terms.
     let cols = model_columns(&design, &sel.accepted);
     let (beta, sigma) = stats
@@ -1170,47 +1150,6 @@ fn gnss_jumps(ep: &Epochs) -> Vec<bool> {
             {
                 *flag = true;
             }
-        }
-    }
-    out
-}
-
-/// The effects the Wald test let in (`How::Wald`) whose removal from the
-/// final model lowers the blocks' held-out position error (`blocks` of a
-/// model: per block, its sum of squares and fixes) beyond their scatter:
-/// a one-sided paired t over the blocks of the relative change above the
-/// 5 % point of Student's t. Each with that t.
-fn position_guard(
-    sel: &Selection,
-    blocks: &dyn Fn(&[usize]) -> Vec<Option<(f64, f64)>>,
-) -> Vec<(usize, f64)> {
-    let with = blocks(&sel.accepted);
-    let total: f64 = with.iter().flatten().map(|(s, _)| s).sum();
-    let mut out = Vec::new();
-    for (k, how) in sel.how.iter().enumerate() {
-        if !matches!(how, How::Wald(_)) || total <= 0.0 {
-            continue;
-        }
-        let ci = sel.accepted[k];
-        let mut fewer = sel.accepted.clone();
-        fewer.remove(k);
-        let without = blocks(&fewer);
-        // Each block's rise of its squared error, relative to the drive's
-        // total: blocks weigh by how much they hold.
-        let d: Vec<f64> = with
-            .iter()
-            .zip(&without)
-            .filter_map(|(a, b)| Some((a.as_ref()?.0 - b.as_ref()?.0) / total))
-            .collect();
-        let n = d.len() as f64;
-        if n < 3.0 {
-            continue;
-        }
-        let mean = d.iter().sum::<f64>() / n;
-        let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        let t = mean / (var / n).sqrt().max(f64::MIN_POSITIVE);
-        if mean > 0.0 && t > select::t_quantile(0.95, n - 1.0) {
-            out.push((ci, t));
         }
     }
     out

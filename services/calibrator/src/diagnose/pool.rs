@@ -283,28 +283,34 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
 
 /// The held-out guard over the drives (each drive's [`WaldDecision`]s, in
 /// the order pooled): a found effect stays found only when the drives'
-/// relative held-out gains, weighed by their information shares, lower
-/// the aggregate held-out error ([`guard_passes`]).
+/// relative held-out gains, weighed by their information shares (and for
+/// the wheels' heading their signed-rank z, combined by Stouffer's rule),
+/// pass [`guard_passes`].
 pub fn guard(car: &mut PooledLimit, per_drive: &[&[WaldDecision]]) {
     for p in car
         .effects
         .iter_mut()
         .filter(|p| p.verdict == CarVerdict::Found)
     {
-        let (num, den) = per_drive
-            .iter()
-            .zip(&p.information_share)
-            .filter_map(|(w, share)| {
-                let g = w
-                    .iter()
-                    .find(|d| d.test.effect == p.limit.effect)?
-                    .holdout_gain?;
-                Some((share * g, *share))
-            })
-            .fold((0.0, 0.0), |(a, b), (x, y)| (a + x, b + y));
+        // Gains weighed by the shares; signed-rank z by Stouffer's rule.
+        let (mut num, mut den, mut zn, mut zd) = (0.0, 0.0, 0.0, 0.0);
+        for (w, share) in per_drive.iter().zip(&p.information_share) {
+            let Some(d) = w.iter().find(|d| d.test.effect == p.limit.effect) else {
+                continue;
+            };
+            if let Some(g) = d.holdout_gain {
+                num += share * g;
+                den += share;
+            }
+            if let Some(z) = d.holdout_z {
+                zn += share * z;
+                zd += share * share;
+            }
+        }
         let gain = (den > 0.0).then(|| num / den);
+        let z = (zd > 0.0).then(|| zn / zd.sqrt());
         p.holdout_gain = gain;
-        if !gain.is_some_and(guard_passes) {
+        if !gain.is_some_and(|g| guard_passes(g, z, p.limit.source)) {
             p.verdict = CarVerdict::Guarded;
         }
     }
