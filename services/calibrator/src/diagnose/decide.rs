@@ -391,6 +391,22 @@ mod tests {
     }
 
     #[test]
+    fn the_guard_asks_the_ranks_only_under_the_wheels_heading() {
+        use InformationSource::*;
+        // A gain in the aggregate that few blocks share (signed-rank z 1.1).
+        let (gain, z) = (0.004, Some(1.1));
+        assert!(guard_passes(gain, z, PositionsGyroHeading));
+        assert!(guard_passes(gain, z, HeadingChannel));
+        assert!(!guard_passes(gain, z, PositionsWheelHeading));
+        assert!(guard_passes(gain, Some(2.0), PositionsWheelHeading));
+        // A loss is refused everywhere, however the blocks rank.
+        for source in [PositionsGyroHeading, HeadingChannel, PositionsWheelHeading] {
+            assert!(!guard_passes(-0.001, Some(3.0), source));
+        }
+        assert!(!guard_passes(0.01, None, PositionsWheelHeading));
+    }
+
+    #[test]
     fn holm_steps_down_and_stops_at_the_first_failure() {
         // Twelve statistics, 11 degrees of freedom: the first critical value
         // is Bonferroni's (about 3.6), each next one smaller.

@@ -1927,6 +1927,58 @@ mod tests {
     }
 
     #[test]
+    fn an_effect_is_decided_under_the_source_with_the_smaller_sigma_whatever_its_estimate() {
+        let fit = |estimate: f64, sigma: f64| CoefFit {
+            estimate,
+            sigma_fisher: sigma,
+            sigma_segments: Some(0.5 * sigma),
+        };
+        let limit = |estimate: f64, sigma: f64, source| {
+            let mut l = limit_of(
+                Effect::GnssLeverArm,
+                Some(fit(estimate, sigma)),
+                3.6,
+                source,
+            );
+            l.joint = Some(Joint::of(Effect::GnssLeverArm, fit(estimate, sigma), 3.6));
+            l
+        };
+        let mut limits = BTreeMap::new();
+        // The wheels' heading: a large estimate with a large sigma.
+        keep_better(
+            &mut limits,
+            limit(2.0, 0.5, InformationSource::PositionsWheelHeading),
+        );
+        // The gyro's: a smaller estimate, known four times better.
+        keep_better(
+            &mut limits,
+            limit(0.3, 0.125, InformationSource::PositionsGyroHeading),
+        );
+        let kept = &limits[&Effect::GnssLeverArm];
+        assert_eq!(kept.source, InformationSource::PositionsGyroHeading);
+        assert!((decisive_sigma(kept) - 0.125).abs() < 1e-12);
+        // Another limit with a larger |z| but a larger sigma does not
+        // displace it: the choice never looks at the estimate.
+        keep_better(
+            &mut limits,
+            limit(9.0, 0.2, InformationSource::PositionsWheelHeading),
+        );
+        assert_eq!(
+            limits[&Effect::GnssLeverArm].source,
+            InformationSource::PositionsGyroHeading
+        );
+        // Without a sigma the limit yields to any with one.
+        let mut none = limit_of(
+            Effect::GnssLeverArm,
+            None,
+            3.6,
+            InformationSource::PositionsWheelHeading,
+        );
+        none.joint = None;
+        assert!(decisive_sigma(&none).is_infinite());
+    }
+
+    #[test]
     fn a_squared_term_reports_the_root_of_its_limit() {
         let fit = CoefFit {
             estimate: 0.0,
