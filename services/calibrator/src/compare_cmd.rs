@@ -3,7 +3,7 @@
 //! and the page ([`calibrator::diagnose::compare`]).
 
 use anyhow::{Context, Result};
-use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, Declared};
+use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, Declared, Summary};
 use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
 use clap::Args;
 use interfaces::drive::Drive;
@@ -47,31 +47,6 @@ struct Written<'a> {
     comparison: &'a Comparison,
 }
 
-/// The parts of an earlier comparison the page and the text use.
-#[derive(serde::Deserialize)]
-struct Earlier {
-    #[serde(default)]
-    effects: Vec<EarlierEffect>,
-    #[serde(default)]
-    channels: Vec<EarlierChannel>,
-}
-
-#[derive(serde::Deserialize)]
-struct EarlierEffect {
-    effect: interfaces::effects::Effect,
-    verdict: calibrator::diagnose::compare::DifferenceVerdict,
-}
-
-#[derive(serde::Deserialize)]
-struct EarlierChannel {
-    channel: String,
-    distance: f64,
-    noise_level: f64,
-    within_noise: bool,
-    #[serde(default)]
-    differs: bool,
-}
-
 /// `calibrator compare RECORDING SIMULATION`.
 pub fn run_compare(args: &CompareArgs) -> Result<()> {
     let read = |p: &Path| -> Result<Drive> {
@@ -105,7 +80,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     // truth is never read.
     let declared: Option<Declared> = sim.truth_params.as_ref().map(|t| t.effects.clone());
     let c = compare(&dr, &ds, declared.as_ref(), &CompareConfig::default());
-    print!("{}", render_text(&c, before.as_ref().map(|b| &b.1)));
+    print!("{}", render_text(&c, before.as_ref()));
     if let Some(path) = &args.json {
         let w = Written {
             recording: args.recording.display().to_string(),
@@ -123,69 +98,12 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
-/// An earlier comparison: as a [`Comparison`] for the page (its effects and
-/// channels; the rest empty) and as read.
-fn read_earlier(path: &Path) -> Result<(Comparison, Earlier)> {
+/// An earlier comparison's verdicts and channel distances, from its JSON.
+fn read_earlier(path: &Path) -> Result<Summary> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let e: Earlier = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a comparison JSON", path.display()))?;
-    let as_comparison = Comparison {
-        family_alpha: 0.05,
-        block_s: 0.0,
-        effects: e
-            .effects
-            .iter()
-            .map(|x| calibrator::diagnose::compare::EffectDifference {
-                effect: x.effect,
-                parameter: "",
-                unit: "",
-                typical: f64::NAN,
-                recording: None,
-                simulation: None,
-                difference: None,
-                sigma: None,
-                z: None,
-                z_critical: None,
-                guard_gain: None,
-                verdict: x.verdict,
-                evidence: String::new(),
-            })
-            .collect(),
-        parting: Vec::new(),
-        matched_blocks: 0,
-        channels: e
-            .channels
-            .iter()
-            .map(|c| calibrator::diagnose::compare::ChannelDistance {
-                channel: calibrator::diagnose::design::Channel::ALL
-                    .iter()
-                    .map(|k| k.name())
-                    .find(|n| *n == c.channel)
-                    .unwrap_or("unknown"),
-                unit: "",
-                samples: [0, 0],
-                rms: [f64::NAN; 2],
-                distance: c.distance,
-                noise_level: c.noise_level,
-                p_value: f64::NAN,
-                within_noise: c.within_noise,
-                differs: c.differs,
-            })
-            .collect(),
-        channels_within_noise: e.channels.iter().filter(|c| c.within_noise).count(),
-        channels_differing: e.channels.iter().filter(|c| c.differs).count(),
-        holdout_rmse_m: [f64::NAN; 2],
-        findings: Vec::new(),
-        effects_missing: None,
-        base_model: calibrator::diagnose::BaseModel {
-            c_rl_m: f64::NAN,
-            c_rr_m: f64::NAN,
-            track_width_m: f64::NAN,
-        },
-        recording_noise: None,
-    };
-    Ok((as_comparison, e))
+    serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a comparison JSON", path.display()))
 }
 
 /// The pictures and the index page.
@@ -195,7 +113,7 @@ fn write_page(
     c: &Comparison,
     drives: [&Drive; 2],
     diagnoses: [&Diagnosis; 2],
-    before: Option<&(Comparison, Earlier)>,
+    before: Option<&Summary>,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let draw = "cannot draw the comparison's pictures";
@@ -215,7 +133,7 @@ fn write_page(
             pics::blocks_svg(c, diagnoses[0], diagnoses[1]).context(draw)?,
         ),
     ];
-    if let Some((b, _)) = before {
+    if let Some(b) = before {
         pictures.push(("mend.svg".into(), pics::mend_svg(b, c).context(draw)?));
     }
     for ch in &c.channels {
@@ -235,7 +153,7 @@ fn write_page(
     let index = dir.join("index.html");
     std::fs::write(
         &index,
-        pics::index_html(c, [&names[0], &names[1]], before.map(|b| &b.0), &pictures),
+        pics::index_html(c, [&names[0], &names[1]], before, &pictures),
     )
     .with_context(|| format!("cannot write {}", index.display()))?;
     println!("wrote {} pictures and {}", pictures.len(), index.display());
@@ -243,7 +161,7 @@ fn write_page(
 }
 
 /// The comparison as text for the terminal.
-fn render_text(c: &Comparison, before: Option<&Earlier>) -> String {
+fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
     let mut s = String::new();
     let named: Vec<_> = c.named().collect();
     if let Some(why) = &c.effects_missing {
@@ -319,12 +237,7 @@ fn render_text(c: &Comparison, before: Option<&Earlier>) -> String {
         );
     }
     if let Some(b) = before {
-        let was: Vec<String> = b
-            .effects
-            .iter()
-            .filter(|e| e.verdict.named())
-            .map(|e| e.effect.to_string())
-            .collect();
+        let was: Vec<String> = b.named().map(|e| e.effect.to_string()).collect();
         let _ = writeln!(
             s,
             "before the mend: {} named ({}); now {}",

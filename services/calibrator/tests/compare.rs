@@ -69,6 +69,14 @@ fn a_planted_antenna_is_named_then_gone_after_the_mend() {
     // Before: the courses part (the antenna swings the course in turns).
     assert!(before.channels_within_noise < before.channels.len());
     assert!(!before.alike());
+    // What `--before` reads back from the comparison's JSON is its summary,
+    // whole: the verdicts and every channel's distance, nothing made up.
+    let json = serde_json::to_string(&before).expect("the comparison encodes");
+    let read: calibrator::diagnose::compare::Summary =
+        serde_json::from_str(&json).expect("its JSON reads back as a summary");
+    assert_eq!(read, before.summary());
+    assert_eq!(read.channels_within_noise(), before.channels_within_noise);
+    assert_eq!(read.named().count(), before.named().count());
 
     let mended = drive(4, &knobs(&before));
     let after = compared(&recording, &mended);

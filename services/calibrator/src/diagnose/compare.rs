@@ -258,6 +258,82 @@ impl Comparison {
     pub fn alike(&self) -> bool {
         self.named().next().is_none() && self.channels_differing == 0
     }
+
+    /// What a later comparison is set against: the verdicts and the
+    /// channels' distances.
+    pub fn summary(&self) -> Summary {
+        Summary {
+            effects: self
+                .effects
+                .iter()
+                .map(|e| SummaryEffect {
+                    effect: e.effect,
+                    verdict: e.verdict,
+                })
+                .collect(),
+            channels: self
+                .channels
+                .iter()
+                .map(|c| SummaryChannel {
+                    channel: c.channel.to_string(),
+                    distance: c.distance,
+                    noise_level: c.noise_level,
+                    within_noise: c.within_noise,
+                    differs: c.differs,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// An earlier comparison as a mend is judged against it: each effect's
+/// verdict and each channel's distance, as its JSON holds them (read back
+/// by `calibrator compare --before`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Per effect, its verdict.
+    #[serde(default)]
+    pub effects: Vec<SummaryEffect>,
+    /// Per residual channel, its distance.
+    #[serde(default)]
+    pub channels: Vec<SummaryChannel>,
+}
+
+/// An effect's verdict in an earlier comparison.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct SummaryEffect {
+    /// Catalogue id.
+    pub effect: Effect,
+    /// What became of its difference.
+    pub verdict: DifferenceVerdict,
+}
+
+/// A channel's distance in an earlier comparison.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SummaryChannel {
+    /// The channel's name.
+    pub channel: String,
+    /// Wasserstein-1 distance, the channel's unit.
+    pub distance: f64,
+    /// Its noise level (95 % of the block swaps).
+    pub noise_level: f64,
+    /// Whether the distance is within it.
+    pub within_noise: bool,
+    /// Whether it differs at the family's level.
+    #[serde(default)]
+    pub differs: bool,
+}
+
+impl Summary {
+    /// The effects it named.
+    pub fn named(&self) -> impl Iterator<Item = &SummaryEffect> {
+        self.effects.iter().filter(|e| e.verdict.named())
+    }
+
+    /// The channels within their noise level.
+    pub fn channels_within_noise(&self) -> usize {
+        self.channels.iter().filter(|c| c.within_noise).count()
+    }
 }
 
 /// The physics a simulation declares: effect id -> parameter -> value.

@@ -8,7 +8,7 @@
 //! Pure: the comparison (and the fixes) in, SVG and HTML out.
 
 pub use super::compare::sig3;
-use super::compare::{ChannelDistance, Comparison};
+use super::compare::{ChannelDistance, Comparison, Summary};
 use super::Diagnosis;
 use report::{Axis, Band, Cell, Colour, Figure, FigureError, Mark, Page, Series};
 
@@ -254,7 +254,7 @@ pub fn channel_svg(
 }
 
 /// Each channel's distance over its noise level, before a mend and now.
-pub fn mend_svg(before: &Comparison, now: &Comparison) -> Result<String, FigureError> {
+pub fn mend_svg(before: &Summary, now: &Comparison) -> Result<String, FigureError> {
     let mut b = Vec::new();
     let mut n = Vec::new();
     let mut names = Vec::new();
@@ -293,7 +293,7 @@ pub fn mend_svg(before: &Comparison, now: &Comparison) -> Result<String, FigureE
 pub fn index_html(
     c: &Comparison,
     names: [&str; 2],
-    before: Option<&Comparison>,
+    before: Option<&Summary>,
     pictures: &[(String, String)],
 ) -> String {
     let mut page = Page::new("A simulation against a recording");
@@ -333,7 +333,7 @@ pub fn index_html(
             "Before the mend: {} named ({}); {} of {} channels within their noise level. Now: {} named; {} of {}.",
             was.len(),
             if was.is_empty() { "none".to_string() } else { was.join(", ") },
-            b.channels_within_noise,
+            b.channels_within_noise(),
             b.channels.len(),
             c.named().count(),
             c.channels_within_noise,
