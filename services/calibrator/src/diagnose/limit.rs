@@ -1089,6 +1089,8 @@ pub struct RedrawBasis {
     pub(super) sources: Vec<RedrawSource>,
     pub(super) all_t: Vec<f64>,
     pub(super) segment_sizes: Vec<usize>,
+    /// The heading channel's, when the drive has a heading sensor.
+    pub(super) heading: Option<HeadingRedraw>,
 }
 
 /// [`information_limit`], with what the drive tells of the car's effects
@@ -1198,10 +1200,11 @@ pub fn limit_and_information(
             .filter_map(|e| limits.remove(e))
             .collect(),
     };
-    let basis = keep_redraw_basis.then_some(RedrawBasis {
+    let basis = keep_redraw_basis.then(|| RedrawBasis {
         sources: redraw_from,
         all_t,
         segment_sizes,
+        heading: HeadingRedraw::new(input.design, dof, alpha),
     });
     Ok((limit, DriveInformation { grams, heading }, basis))
 }
@@ -1518,24 +1521,37 @@ struct HeadingJoint {
 /// The joint test needs at least five blocks (else `None` for it: the
 /// constant term alone decides).
 fn heading_channel(d: &Design, dof: f64, alpha: f64) -> (Option<CoefFit>, Option<HeadingJoint>) {
-    let Some(cand) = d
+    match heading_rows(d) {
+        Some(h) => heading_test(&h, &h.y, dof, alpha),
+        None => (None, None),
+    }
+}
+
+/// The heading channel's rows as the test weighs them: the data, the
+/// regressors (the bias's three terms first, then the free ones), each
+/// row's square-rooted weight and block.
+#[derive(Debug, Clone)]
+pub(super) struct HeadingRows {
+    y: Vec<f64>,
+    x: Vec<Vec<f64>>,
+    sqrt_w: Vec<f64>,
+    block: Vec<usize>,
+    blocks: usize,
+}
+
+/// The heading channel's rows of the design; `None` without a heading
+/// sensor or with fewer than ten rows.
+fn heading_rows(d: &Design) -> Option<HeadingRows> {
+    let cand = d
         .candidates
         .iter()
-        .find(|c| c.effect == Effect::HeadingBias && c.params.len() >= 3)
-    else {
-        return (None, None);
-    };
+        .find(|c| c.effect == Effect::HeadingBias && c.params.len() >= 3)?;
     let rows: Vec<usize> = (0..d.rows.len())
         .filter(|&i| d.rows[i].0 == Channel::Heading && d.w[i] > 0.0)
         .collect();
     if rows.len() < 10 {
-        return (None, None);
+        return None;
     }
-    let col = |c: usize| -> Vec<f64> {
-        rows.iter()
-            .map(|&i| d.columns[c][i] * d.w[i].sqrt())
-            .collect()
-    };
     // The bias's three terms, then what else turns the GNSS course
     // against the car's heading in this channel, fitted free beside them:
     // the side-slip (a_y), the GNSS latency and a longitudinal antenna
@@ -1554,37 +1570,46 @@ fn heading_channel(d: &Design, dof: f64, alpha: f64) -> (Option<CoefFit>, Option
             }
         }
     }
-    let target = col(terms[0]);
-    let nuisances: Vec<Vec<f64>> = terms[1..].iter().map(|&c| col(c)).collect();
-    let y: Vec<f64> = rows.iter().map(|&i| d.y[i] * d.w[i].sqrt()).collect();
-    let Ok((info, estimate)) = profiled_estimate(&target, &nuisances, &y) else {
+    let sqrt_w: Vec<f64> = rows.iter().map(|&i| d.w[i].sqrt()).collect();
+    let weighted =
+        |v: &[f64]| -> Vec<f64> { rows.iter().zip(&sqrt_w).map(|(&i, s)| v[i] * s).collect() };
+    Some(HeadingRows {
+        y: weighted(&d.y),
+        x: terms.iter().map(|&c| weighted(&d.columns[c])).collect(),
+        block: rows.iter().map(|&i| d.rows[i].2).collect(),
+        sqrt_w,
+        blocks: d.blocks,
+    })
+}
+
+/// [`heading_channel`]'s fits of the data `y` (weighted, as `h.y`) on the
+/// rows `h`: the same for the drive and for each false-alarm redraw.
+fn heading_test(
+    h: &HeadingRows,
+    y: &[f64],
+    dof: f64,
+    alpha: f64,
+) -> (Option<CoefFit>, Option<HeadingJoint>) {
+    let Ok((info, estimate)) = profiled_estimate(&h.x[0], &h.x[1..], y) else {
         return (None, None);
     };
-    let mut cols = vec![y, target];
-    cols.extend(nuisances);
-    let block: Vec<usize> = rows.iter().map(|&i| d.rows[i].2).collect();
-    let gram = SegmentGram::from_rows(&cols, &block, d.blocks);
+    let mut cols = vec![y.to_vec()];
+    cols.extend(h.x.iter().cloned());
+    let gram = SegmentGram::from_rows(&cols, &h.block, h.blocks);
     let all: Vec<usize> = (1..cols.len()).collect();
     let multi = gram.fit_all(&all);
-    // The residual after every term, and its lag-1 correlation.
+    // The residual after every term (unweighted), and its lag-1
+    // correlation.
     let theta: Vec<f64> = multi.as_ref().map_or_else(
         || {
-            let mut t = vec![0.0; terms.len()];
+            let mut t = vec![0.0; h.x.len()];
             t[0] = estimate;
             t
         },
         |m| m.theta.iter().copied().collect(),
     );
-    let resid: Vec<f64> = rows
-        .iter()
-        .map(|&i| {
-            d.y[i]
-                - terms
-                    .iter()
-                    .zip(&theta)
-                    .map(|(&c, t)| t * d.columns[c][i])
-                    .sum::<f64>()
-        })
+    let resid: Vec<f64> = (0..y.len())
+        .map(|i| (y[i] - h.x.iter().zip(&theta).map(|(c, t)| t * c[i]).sum::<f64>()) / h.sqrt_w[i])
         .collect();
     let rho = lag1(&resid).clamp(0.0, 0.99);
     let factor = (1.0 - rho) / (1.0 + rho);
@@ -1604,6 +1629,75 @@ fn heading_channel(d: &Design, dof: f64, alpha: f64) -> (Option<CoefFit>, Option
         .map(|m| m.leading(3))
         .and_then(|m| joint_test(&m, factor, gram.segments(), dof, alpha));
     (alone, joint)
+}
+
+/// The heading channel's false-alarm redraw: what [`heading_test`] needs
+/// and the drive's residual's scale and lag-1 correlation (weighted
+/// units) to draw AR(1) errors from.
+#[derive(Debug, Clone)]
+pub(super) struct HeadingRedraw {
+    rows: HeadingRows,
+    sigma: f64,
+    rho: f64,
+    dof: f64,
+    alpha: f64,
+}
+
+impl HeadingRedraw {
+    /// The redraw basis of the drive's heading channel, `None` without one.
+    fn new(d: &Design, dof: f64, alpha: f64) -> Option<HeadingRedraw> {
+        let rows = heading_rows(d)?;
+        let mut cols = vec![rows.y.clone()];
+        cols.extend(rows.x.iter().cloned());
+        let gram = SegmentGram::from_rows(&cols, &rows.block, rows.blocks);
+        let all: Vec<usize> = (1..cols.len()).collect();
+        let theta = gram.fit_all(&all)?.theta;
+        let r: Vec<f64> = (0..rows.y.len())
+            .map(|i| {
+                rows.y[i]
+                    - rows
+                        .x
+                        .iter()
+                        .zip(theta.iter())
+                        .map(|(c, t)| t * c[i])
+                        .sum::<f64>()
+            })
+            .collect();
+        let n = r.len() as f64;
+        let sigma = (r.iter().map(|v| v * v).sum::<f64>() / (n - all.len() as f64).max(1.0)).sqrt();
+        let rho = lag1(&r).clamp(0.0, 0.99);
+        (sigma > 0.0).then_some(HeadingRedraw {
+            rows,
+            sigma,
+            rho,
+            dof,
+            alpha,
+        })
+    }
+
+    /// One redraw's decisive z for the heading bias (the joint test's,
+    /// else the constant term's alone): the channel's errors drawn as an
+    /// AR(1) series of the drive's scale and lag-1 correlation, tested as
+    /// the drive is.
+    pub(super) fn z(&self, rng: &mut Normal) -> Option<(f64, bool)> {
+        let innovation = self.sigma * (1.0 - self.rho * self.rho).sqrt();
+        let mut e = self.sigma * rng.next();
+        let y: Vec<f64> = (0..self.rows.y.len())
+            .map(|i| {
+                if i > 0 {
+                    e = self.rho * e + innovation * rng.next();
+                }
+                e
+            })
+            .collect();
+        let (alone, joint) = heading_test(&self.rows, &y, self.dof, self.alpha);
+        match (joint, alone) {
+            (Some(j), _) => Some((j.z, true)),
+            (None, Some(a)) => Some((a.estimate / a.sigma(), false)),
+            (None, None) => None,
+        }
+        .filter(|(z, _)| z.is_finite())
+    }
 }
 
 /// The joint test of every coefficient of `m` (see [`heading_channel`]):
@@ -1924,6 +2018,73 @@ mod tests {
             .expect("fit");
         let j = joint_test(&m, 1.0, blocks, 9.0, alpha).expect("joint");
         assert!(j.z.abs() < 3.0, "{j:?}");
+    }
+
+    #[test]
+    fn the_heading_channels_redraws_hold_the_level_and_a_planted_bias_shows() {
+        // Twelve blocks of 60 rows: the course sweeps round twice, a_y
+        // (a free term) wanders on its own; the errors are AR(1) of 0.01
+        // rad, the rows weighed by their inverse variance as the design's
+        // are (weighted rows have unit scale).
+        let (n, blocks) = (720, 12);
+        let course: Vec<f64> = (0..n)
+            .map(|i| i as f64 * 4.0 * std::f64::consts::PI / n as f64)
+            .collect();
+        let ay: Vec<f64> = (0..n).map(|i| (i as f64 * 0.07).sin()).collect();
+        let (sigma, rho) = (0.01, 0.5);
+        let s = 1.0 / sigma;
+        let x = vec![
+            vec![s; n],
+            course.iter().map(|c| s * c.sin()).collect(),
+            course.iter().map(|c| s * c.cos()).collect(),
+            ay.iter().map(|a| s * a).collect(),
+        ];
+        let mut rng = crate::error_model::Normal::new(3);
+        let mut e = 0.0;
+        let y: Vec<f64> = (0..n)
+            .map(|_| {
+                e = rho * e + (1.0 - rho * rho as f64).sqrt() * rng.next();
+                e
+            })
+            .collect();
+        let rows = HeadingRows {
+            y: y.clone(),
+            x,
+            sqrt_w: vec![s; n],
+            block: (0..n).map(|i| i * blocks / n).collect(),
+            blocks,
+        };
+        let (dof, alpha) = ((blocks - 1) as f64, 0.1);
+        let redraw = HeadingRedraw {
+            rows: rows.clone(),
+            sigma: 1.0,
+            rho,
+            dof,
+            alpha,
+        };
+        // At the level alpha: the share of redraws beyond its critical |t|
+        // stays at or below alpha (the sigma is the larger of two, so the
+        // test may be conservative, never liberal beyond the scatter).
+        let critical = super::super::select::t_quantile(1.0 - 0.5 * alpha, dof);
+        let draws = 400;
+        let beyond = (0..draws)
+            .filter_map(|_| redraw.z(&mut rng))
+            .filter(|(z, joint)| *joint && z.abs() > critical)
+            .count();
+        let rate = beyond as f64 / draws as f64;
+        let binomial = (alpha * (1.0 - alpha) / draws as f64).sqrt();
+        assert!(rate <= alpha + 2.5 * binomial, "rate {rate}");
+        // A 0.01 rad constant bias (the noise's own size, over 720 rows)
+        // is far beyond it, with the free term in the fit.
+        let planted: Vec<f64> = y.iter().map(|v| v + 0.01 * s).collect();
+        let (alone, joint) = heading_test(&rows, &planted, dof, alpha);
+        let joint = joint.expect("the joint test runs on twelve blocks");
+        assert!(joint.z > 3.0 * critical, "joint z {}", joint.z);
+        let alone = alone.expect("the constant term's fit");
+        assert!(
+            (alone.estimate - 0.01).abs() < 4.0 * alone.sigma(),
+            "{alone:?}"
+        );
     }
 
     #[test]

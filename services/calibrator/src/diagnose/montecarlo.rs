@@ -11,7 +11,9 @@
 //! procedure) against the drive's own error model; it cannot check the
 //! error model itself (a model mismatch the redraws do not hold is what
 //! the held-out guard is for). The heading sensor's bias, tested on its
-//! own channel, is not redrawn.
+//! own channel, is redrawn there: the channel's errors as an AR(1) series
+//! of the drive's own scale and lag-1 correlation, its three terms tested
+//! jointly as on the drive, in the same Holm family.
 //!
 //! Pure: the drive's data in, a rate out.
 
@@ -81,10 +83,13 @@ pub(super) fn run(
                 }
             }
         }
-        let tests: Vec<(Effect, f64, bool)> = tests
+        let mut tests: Vec<(Effect, f64, bool)> = tests
             .into_iter()
             .map(|(e, (z, joint, _))| (e, z, joint))
             .collect();
+        if let Some((z, joint)) = basis.heading.as_ref().and_then(|h| h.z(&mut rng)) {
+            tests.push((Effect::HeadingBias, z, joint));
+        }
         let called: Vec<Effect> = step_down(tests, FAMILY_ALPHA, dof)
             .into_iter()
             .filter(|t| t.significant)
