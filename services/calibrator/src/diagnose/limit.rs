@@ -2043,7 +2043,7 @@ mod tests {
         let mut e = 0.0;
         let y: Vec<f64> = (0..n)
             .map(|_| {
-                e = rho * e + (1.0 - rho * rho as f64).sqrt() * rng.next();
+                e = rho * e + (1.0 - rho * rho).sqrt() * rng.next();
                 e
             })
             .collect();
