@@ -2031,7 +2031,7 @@ mod tests {
             .map(|i| i as f64 * 4.0 * std::f64::consts::PI / n as f64)
             .collect();
         let ay: Vec<f64> = (0..n).map(|i| (i as f64 * 0.07).sin()).collect();
-        let (sigma, rho) = (0.01, 0.5);
+        let (sigma, rho): (f64, f64) = (0.01, 0.5);
         let s = 1.0 / sigma;
         let x = vec![
             vec![s; n],
