@@ -58,3 +58,60 @@ fn a_pure_sinusoid_of_the_heading_is_named_and_a_null_drive_is_not() {
         assert!(n.z.abs() < n.z_critical, "seed {seed}: {n:?}");
     }
 }
+
+#[test]
+fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives() {
+    use calibrator::diagnose::compare::{compare, CompareConfig, DifferenceVerdict};
+    use calibrator::diagnose::pool::pool;
+    let sinusoid = HeadingBias {
+        a_deg: 0.0,
+        b_deg: 3.0,
+        c_deg: 0.0,
+        d_deg: 0.0,
+        e_deg: 0.0,
+    };
+    let vehicle = VehicleKind::Compact;
+    let (a, b) = (
+        diagnosed(Some(sinusoid), 1, vehicle),
+        diagnosed(Some(sinusoid), 2, vehicle),
+    );
+    let (null_a, null_b) = (diagnosed(None, 1, vehicle), diagnosed(None, 2, vehicle));
+
+    // The recording with the compass error against a simulation without:
+    // the three terms' difference names it, though the constant terms'
+    // difference alone is within the noise.
+    let c = compare(&a, &null_a, None, &CompareConfig::default());
+    let row = c
+        .effects
+        .iter()
+        .find(|e| e.effect == Effect::HeadingBias)
+        .expect("the compass compared");
+    eprintln!("{row:?}");
+    let critical = row.z_critical.expect("Holm's critical value");
+    let constant = row.difference.expect("a difference") / row.sigma.expect("its sigma");
+    assert!(constant.abs() < critical, "constant term z {constant}");
+    assert_eq!(row.verdict, DifferenceVerdict::Lacking, "{row:?}");
+    // The drive against itself: nothing to name.
+    let same = compare(&a, &a, None, &CompareConfig::default());
+    assert!(same.named().all(|e| e.effect != Effect::HeadingBias));
+
+    // Two drives of the car with it: the pooled three terms show it; two
+    // without: they do not.
+    let info = |d: &Diagnosis| d.information.clone().expect("the drive's information");
+    let (ia, ib, na, nb) = (info(&a), info(&b), info(&null_a), info(&null_b));
+    let with = pool(&[&ia, &ib]).expect("pooled");
+    let h = with
+        .effect(Effect::HeadingBias)
+        .expect("the compass pooled");
+    let terms = h
+        .limit
+        .joint
+        .as_ref()
+        .and_then(|j| j.terms.as_ref())
+        .expect("its three terms pooled");
+    eprintln!("pooled terms {terms:?}");
+    assert!((terms.estimate[1] - 3.0).abs() < 4.0 * terms.covariance[1][1].sqrt());
+    assert!(with.found().any(|t| t.effect == Effect::HeadingBias));
+    let without = pool(&[&na, &nb]).expect("pooled");
+    assert!(without.found().all(|t| t.effect != Effect::HeadingBias));
+}

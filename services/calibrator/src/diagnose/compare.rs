@@ -34,7 +34,7 @@
 //! Pure: two diagnoses in, a comparison out.
 
 use super::decide::{guard_passes, step_down};
-use super::limit::{EffectLimit, InformationSource, FAMILY_ALPHA};
+use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
 use super::select::normal_quantile;
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
@@ -123,7 +123,8 @@ pub struct EffectDifference {
     /// Its sigma.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<f64>,
-    /// `difference / sigma`.
+    /// `difference / sigma`; for the compass bias, the |t| of its three
+    /// terms' difference tested together, signed as the largest term's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub z: Option<f64>,
     /// Holm's critical |z| at its rank.
@@ -416,13 +417,26 @@ fn effect_differences(
     };
     let mut rows: Vec<EffectDifference> = Vec::new();
     let mut tests = Vec::new();
+    let dof = lr.segments.min(ls.segments).saturating_sub(1) as f64;
+    // The compass bias: its three terms' difference tested together (a
+    // compass error that is a sinusoid of the heading has no constant
+    // term to show), the difference and sigma shown the constant term's.
+    let terms = |l: Option<&EffectLimit>| l?.joint.as_ref()?.terms.clone();
     for er in &lr.effects {
         let es = ls.effects.iter().find(|e| e.effect == er.effect);
         let (r, s) = (fit(Some(er)), fit(es));
         let (difference, sigma, z) = match (r, s) {
             (Some(r), Some(s)) => {
                 let sigma = r[1].hypot(s[1]);
-                (Some(r[0] - s[0]), Some(sigma), Some((r[0] - s[0]) / sigma))
+                let joint = match (terms(Some(er)), terms(es)) {
+                    (Some(tr), Some(ts)) => {
+                        let ((a, ca), (b, cb)) = (tr.matrices(), ts.matrices());
+                        joint_t(&(a - b), &(ca + cb), tr.blocks.min(ts.blocks), dof)
+                    }
+                    _ => None,
+                };
+                let z = joint.unwrap_or((r[0] - s[0]) / sigma);
+                (Some(r[0] - s[0]), Some(sigma), Some(z))
             }
             _ => (None, None, None),
         };
@@ -445,7 +459,6 @@ fn effect_differences(
             evidence: String::new(),
         });
     }
-    let dof = lr.segments.min(ls.segments).saturating_sub(1) as f64;
     let holm = step_down(tests, FAMILY_ALPHA, dof);
     for row in &mut rows {
         let Some(t) = holm.iter().find(|t| t.effect == row.effect) else {
@@ -468,7 +481,28 @@ fn effect_differences(
             );
             continue;
         }
-        let recording_more = r[0].abs() > s[0].abs();
+        // The side with more of it: the larger estimate in size; for the
+        // compass bias, the larger of the two drives' own joint |z| (its
+        // sin and cos terms may hold what the constant term does not).
+        let own_joint = |d: &Diagnosis| {
+            d.information_limit
+                .as_ref()?
+                .effects
+                .iter()
+                .find(|e| e.effect == row.effect)?
+                .joint
+                .as_ref()?
+                .terms
+                .as_ref()?;
+            d.wald
+                .iter()
+                .find(|w| w.test.effect == row.effect)
+                .map(|w| w.test.z.abs())
+        };
+        let recording_more = match (own_joint(recording), own_joint(simulation)) {
+            (Some(zr), Some(zs)) => zr > zs,
+            _ => r[0].abs() > s[0].abs(),
+        };
         let (side, value) = if recording_more {
             (recording, r[0])
         } else {

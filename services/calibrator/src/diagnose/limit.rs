@@ -167,6 +167,9 @@ pub struct Joint {
     /// no longer is, those the drive cannot tell it from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub partners: Vec<Partner>,
+    /// The compass bias's three terms, tested together (only for it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terms: Option<HeadingTerms>,
 }
 
 /// An effect the drive cannot tell another from.
@@ -224,6 +227,7 @@ impl Joint {
             sigma_segments: l.sigma_segments,
             wald_z: l.wald_z,
             partners: Vec::new(),
+            terms: None,
         }
     }
 }
@@ -1060,6 +1064,8 @@ pub(super) struct SourceGram {
 pub struct DriveInformation {
     pub(super) grams: Vec<SourceGram>,
     pub(super) heading: Option<CoefFit>,
+    /// The compass bias's three terms, for their joint test over drives.
+    pub(super) heading_terms: Option<HeadingTerms>,
 }
 
 /// The finite-difference step of a parameter: 5 % of its typical size.
@@ -1177,6 +1183,7 @@ pub fn limit_and_information(
             sigma_segments: heading_limit.sigma_segments,
             wald_z: Some(j.z),
             partners: Vec::new(),
+            terms: Some(j.terms),
         });
     }
     limits.insert(Effect::HeadingBias, heading_limit);
@@ -1206,7 +1213,21 @@ pub fn limit_and_information(
         segment_sizes,
         heading: HeadingRedraw::new(input.design, dof, alpha),
     });
-    Ok((limit, DriveInformation { grams, heading }, basis))
+    let heading_terms = limit
+        .effects
+        .iter()
+        .find(|e| e.effect == Effect::HeadingBias)
+        .and_then(|e| e.joint.as_ref())
+        .and_then(|j| j.terms.clone());
+    Ok((
+        limit,
+        DriveInformation {
+            grams,
+            heading,
+            heading_terms,
+        },
+        basis,
+    ))
 }
 
 /// The sigma an effect's limit is decided with: its joint fit's where it
@@ -1485,10 +1506,56 @@ pub(super) fn limit_of(
 /// The heading bias's three terms tested together on the heading channel
 /// (model units): the equivalent Wald z of their joint test and the
 /// smallest size it shows (see [`heading_channel`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 struct HeadingJoint {
     z: f64,
     smallest: f64,
+    /// The three terms, the covariance the statistic used, the blocks.
+    terms: HeadingTerms,
+}
+
+/// The compass bias's three terms (constant, sin and cos of the course)
+/// as one drive's heading channel fits them, reported unit: what a
+/// comparison of two drives or the pooling of several tests jointly.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeadingTerms {
+    /// The three estimates.
+    pub estimate: [f64; 3],
+    /// Their covariance (the larger of the Fisher one and the blocks'
+    /// sandwich, in the sense of the statistic).
+    pub covariance: [[f64; 3]; 3],
+    /// The blocks the sandwich is over.
+    pub blocks: usize,
+}
+
+/// The |t| with `dof` degrees of freedom of the joint Wald test of
+/// `theta` under `cov` estimated from `k` blocks (Hotelling's reference,
+/// as [`heading_channel`]'s), signed as the largest term's own z; `None`
+/// with too few blocks or a singular covariance.
+pub(super) fn joint_t(theta: &DVector<f64>, cov: &DMatrix<f64>, k: usize, dof: f64) -> Option<f64> {
+    let p = theta.len();
+    if k < p + 2 {
+        return None;
+    }
+    let inv = cov.clone().cholesky()?.inverse();
+    let w = (theta.transpose() * &inv * theta)[(0, 0)];
+    let (pf, kf) = (p as f64, k as f64);
+    let z = t_equivalent(f_sf(w * (kf - pf) / (pf * (kf - 1.0)), pf, kf - pf), dof);
+    let sign = (0..p)
+        .map(|i| theta[i] / cov[(i, i)].sqrt())
+        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
+        .map_or(1.0, f64::signum);
+    (w.is_finite() && z.is_finite()).then_some(sign * z)
+}
+
+impl HeadingTerms {
+    /// The estimates and covariance as matrices, reported unit.
+    pub(super) fn matrices(&self) -> (DVector<f64>, DMatrix<f64>) {
+        (
+            DVector::from_column_slice(&self.estimate),
+            DMatrix::from_fn(3, 3, |i, j| self.covariance[i][j]),
+        )
+    }
 }
 
 /// The heading bias from the heading channel (heading sensor against the
@@ -1712,7 +1779,7 @@ fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Opti
     let candidates = std::iter::once(fisher).chain(m.sandwich.clone());
     // Per covariance: its inverse and the statistic; the smaller statistic
     // (the larger covariance) wins.
-    let (precision, w, cov) = candidates
+    let (precision, _, cov) = candidates
         .filter_map(|c| {
             let inv = c.clone().cholesky()?.inverse();
             let w = (m.theta.transpose() * &inv * &m.theta)[(0, 0)];
@@ -1722,11 +1789,7 @@ fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Opti
     let (pf, kf) = (p as f64, k as f64);
     let to_f = (kf - pf) / (pf * (kf - 1.0));
     let p_value = |w: f64| f_sf(w * to_f, pf, kf - pf);
-    let z = t_equivalent(p_value(w), dof);
-    let sign = (0..p)
-        .map(|i| m.theta[i] / cov[(i, i)].sqrt())
-        .max_by(|a, b| a.abs().total_cmp(&b.abs()))
-        .map_or(1.0, f64::signum);
+    let z = joint_t(&m.theta, &cov, k, dof)?;
     // The critical statistic at `alpha`, then the noncentrality the chi
     // with three degrees of freedom reaches it with at the power.
     let w_critical = bisect(0.0, 1e4, |w| p_value(w) > alpha);
@@ -1735,10 +1798,15 @@ fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Opti
     let smallest = (0..p)
         .map(|i| mu / precision[(i, i)].max(f64::MIN_POSITIVE).sqrt())
         .fold(0.0, f64::max);
-    (z.is_finite() && smallest.is_finite()).then_some(HeadingJoint {
-        z: sign * z,
-        smallest,
-    })
+    let shown = Effect::HeadingBias.main_fitted().to_display(1.0);
+    let terms = (p == 3).then(|| HeadingTerms {
+        estimate: [0, 1, 2].map(|i| shown * m.theta[i]),
+        covariance: [0, 1, 2].map(|i| [0, 1, 2].map(|j| shown * shown * cov[(i, j)])),
+        blocks: k,
+    })?;
+    smallest
+        .is_finite()
+        .then_some(HeadingJoint { z, smallest, terms })
 }
 
 /// The point in [lo, hi] where `below` turns false (`below` true below it).

@@ -14,11 +14,12 @@
 
 use super::decide::{decisive_tests, guard_passes, step_down, WaldDecision, WaldTest};
 use super::limit::{
-    limit_of, partners_of, CoefFit, DriveInformation, EffectLimit, InformationSource, Joint,
-    Partner, SegmentGram, FAMILY_ALPHA,
+    joint_t, limit_of, partners_of, CoefFit, DriveInformation, EffectLimit, HeadingTerms,
+    InformationSource, Joint, Partner, SegmentGram, FAMILY_ALPHA,
 };
 use super::select::t_quantile;
 use interfaces::effects::{Effect, Scope};
+use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 /// One car effect over the drives.
@@ -247,6 +248,26 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             }
         })
         .collect();
+    // The compass bias's three terms over the drives (their precisions
+    // added), tested together as one drive's are.
+    if let Some(p) = effects
+        .iter_mut()
+        .find(|p| p.limit.effect == Effect::HeadingBias)
+    {
+        if let Some((terms, z)) = pooled_heading_terms(drives, dof) {
+            let l = &p.limit;
+            p.limit.joint = Some(Joint {
+                smallest: l.smallest,
+                estimate: l.estimate,
+                sigma: l.sigma,
+                sigma_fisher: l.sigma_fisher,
+                sigma_segments: l.sigma_segments,
+                wald_z: Some(z),
+                partners: Vec::new(),
+                terms: Some(terms),
+            });
+        }
+    }
     effects.sort_by_key(|p| car.iter().position(|e| *e == p.limit.effect));
     let wald = step_down(
         decisive_tests(effects.iter().map(|p| &p.limit)),
@@ -314,6 +335,36 @@ pub fn guard(car: &mut PooledLimit, per_drive: &[&[WaldDecision]]) {
             p.verdict = CarVerdict::Guarded;
         }
     }
+}
+
+/// The compass bias's three terms pooled over the drives that hold them
+/// (inverse-covariance weighed) and their joint |t| over all their blocks;
+/// `None` unless at least one drive holds them.
+fn pooled_heading_terms(drives: &[&DriveInformation], dof: f64) -> Option<(HeadingTerms, f64)> {
+    let mut precision = DMatrix::<f64>::zeros(3, 3);
+    let mut weighted = DVector::<f64>::zeros(3);
+    let mut blocks = 0;
+    for t in drives.iter().filter_map(|d| d.heading_terms.as_ref()) {
+        let (theta, cov) = t.matrices();
+        let inv = cov.cholesky()?.inverse();
+        weighted += &inv * theta;
+        precision += inv;
+        blocks += t.blocks;
+    }
+    if blocks == 0 {
+        return None;
+    }
+    let cov = precision.cholesky()?.inverse();
+    let theta = &cov * weighted;
+    let z = joint_t(&theta, &cov, blocks, dof)?;
+    Some((
+        HeadingTerms {
+            estimate: [theta[0], theta[1], theta[2]],
+            covariance: [0, 1, 2].map(|i| [0, 1, 2].map(|j| cov[(i, j)])),
+            blocks,
+        },
+        z,
+    ))
 }
 
 /// One car effect's fits: pooled alone and jointly, each drive's share
