@@ -782,7 +782,16 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
         let mut parameters = declared.get(&id).cloned().unwrap_or_default();
         let now = parameters.get(d.parameter).copied();
         // Not declared: the simulation's own estimate is where it stands.
-        let moved = now.unwrap_or(s) + (r - s);
+        let wanted = now.unwrap_or(s) + (r - s);
+        // Kept within the catalogue's plausible range (a latency does not
+        // go below zero): a knob that does not map one to one onto the
+        // estimate can overshoot, and a simulator refuses what cannot be.
+        let p = d.effect.main_fitted();
+        let (a, b) = (
+            p.to_display(p.spec().plausible.0),
+            p.to_display(p.spec().plausible.1),
+        );
+        let moved = wanted.clamp(a.min(b), a.max(b));
         parameters.insert(d.parameter.to_string(), moved);
         let units = units_of(d.effect, &parameters);
         out.push(TwinEffect {
@@ -790,14 +799,23 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
             parameters,
             units,
             from: format!(
-                "{} moved by the difference the drives show ({:+.4} {})",
+                "{} moved by the difference the drives show ({:+.4} {}){}",
                 if now.is_some() {
                     "the simulation's declared value"
                 } else {
                     "the simulation's estimate"
                 },
                 r - s,
-                d.unit
+                d.unit,
+                if moved == wanted {
+                    String::new()
+                } else {
+                    format!(
+                        "; {} held to the plausible range's end {}",
+                        sig3(wanted),
+                        sig3(moved)
+                    )
+                }
             ),
         });
     }
@@ -978,6 +996,20 @@ mod tests {
         assert!((get(Effect::GnssLeverArm, "x_m").unwrap() - 0.6).abs() < 1e-12);
         assert!(m.iter().all(|t| t.effect != Effect::TrackWidth));
         assert_eq!(m.len(), 3);
+        // A simulation with more latency than the recording, moved by the
+        // difference past zero: held at zero (the simulator refuses a
+        // negative latency), and the mend says so.
+        let late = [row(
+            Effect::GnssLatency,
+            "tau_s",
+            -0.01,
+            0.05,
+            DifferenceVerdict::Excess,
+        )];
+        let m = mend_declared(&Declared::new(), &late);
+        let t = m.first().expect("the latency mended");
+        assert_eq!(t.parameters.get("tau_s"), Some(&0.0));
+        assert!(t.from.contains("plausible range"), "{}", t.from);
     }
 
     #[test]
