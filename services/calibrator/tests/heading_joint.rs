@@ -91,6 +91,19 @@ fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives()
     let constant = row.difference.expect("a difference") / row.sigma.expect("its sigma");
     assert!(constant.abs() < critical, "constant term z {constant}");
     assert_eq!(row.verdict, DifferenceVerdict::Lacking, "{row:?}");
+    // What the next twin should carry: the three terms, the sinusoid's
+    // 3 deg in its sin term, not the constant term alone.
+    let next = c
+        .findings
+        .iter()
+        .find(|f| f.effect == Effect::HeadingBias)
+        .expect("the compass in the next twin");
+    let b_deg = next.parameters.get("b_deg").copied().expect("its sin term");
+    assert!((b_deg - 3.0).abs() < 0.5, "{next:?}");
+    assert!(
+        next.parameters.get("a_deg").is_some_and(|a| a.abs() < 0.5),
+        "{next:?}"
+    );
     // The drive against itself: nothing to name.
     let same = compare(&a, &a, None, &CompareConfig::default());
     assert!(same.named().all(|e| e.effect != Effect::HeadingBias));

@@ -38,7 +38,7 @@ use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
 use super::select::normal_quantile;
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
-use interfaces::effects::Effect;
+use interfaces::effects::{Effect, Param};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -360,10 +360,11 @@ pub fn compare(
     let parting = parting_spans(recording, simulation, &pairs);
     let mut channels = channel_distances(recording, simulation, &pairs, cfg);
     holm_channels(&mut channels);
-    let findings = match declared {
+    let mut findings = match declared {
         Some(d) => mend_declared(d, &effects),
         None => next_twin(recording, simulation, &effects),
     };
+    compass_terms(&mut findings, recording, simulation, declared);
     Comparison {
         family_alpha: FAMILY_ALPHA,
         block_s: recording.noise.block_s,
@@ -835,6 +836,61 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
     }
     out.sort_by_key(|t| Effect::ALL.iter().position(|e| *e == t.effect));
     out
+}
+
+/// The compass bias's three terms (a_deg, b_deg, c_deg) in a mend that
+/// names it: the declared terms (zero where not declared) moved by the
+/// difference of the two drives' three-term fits, or without a declared
+/// simulation the recording's three terms. A compass error that is a
+/// sinusoid of the heading has no constant term to carry alone. Left as
+/// it is where either drive lacks the three-term fit.
+fn compass_terms(
+    findings: &mut [TwinEffect],
+    recording: &Diagnosis,
+    simulation: &Diagnosis,
+    declared: Option<&Declared>,
+) {
+    let terms = |d: &Diagnosis| {
+        d.information_limit
+            .as_ref()?
+            .effects
+            .iter()
+            .find(|e| e.effect == Effect::HeadingBias)?
+            .joint
+            .as_ref()?
+            .terms
+            .as_ref()
+            .map(|t| t.estimate)
+    };
+    let Some(t) = findings
+        .iter_mut()
+        .find(|t| t.effect == Effect::HeadingBias)
+    else {
+        return;
+    };
+    let Some(r) = terms(recording) else {
+        return;
+    };
+    let names = [Param::HeadingA, Param::HeadingB, Param::HeadingC].map(|p| p.spec().name);
+    let (values, from) = match declared {
+        Some(d) => {
+            let Some(s) = terms(simulation) else {
+                return;
+            };
+            let now = d.get(&Effect::HeadingBias.to_string());
+            let at = |k: usize| now.and_then(|p| p.get(names[k]).copied()).unwrap_or(0.0);
+            (
+                [0, 1, 2].map(|k| at(k) + r[k] - s[k]),
+                "the simulation's declared terms moved by the difference of the drives' three-term fits",
+            )
+        }
+        None => (r, "the recording's three-term fit"),
+    };
+    for (k, v) in values.into_iter().enumerate() {
+        t.parameters.insert(names[k].to_string(), v);
+    }
+    t.units = units_of(Effect::HeadingBias, &t.parameters);
+    t.from = from.to_string();
 }
 
 /// The physics a mended simulation should carry, without knowing what it
