@@ -16,6 +16,17 @@ fn diagnosed(bias: Option<HeadingBias>, seed: u64, vehicle: VehicleKind) -> Diag
     diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose")
 }
 
+/// A 3 deg hard-iron sinusoid of the heading, no constant term.
+fn sinusoid() -> HeadingBias {
+    HeadingBias {
+        a_deg: 0.0,
+        b_deg: 3.0,
+        c_deg: 0.0,
+        d_deg: 0.0,
+        e_deg: 0.0,
+    }
+}
+
 fn heading_test(d: &Diagnosis) -> &WaldDecision {
     d.wald
         .iter()
@@ -25,13 +36,7 @@ fn heading_test(d: &Diagnosis) -> &WaldDecision {
 
 #[test]
 fn a_pure_sinusoid_of_the_heading_is_named_and_a_null_drive_is_not() {
-    let sinusoid = HeadingBias {
-        a_deg: 0.0,
-        b_deg: 3.0,
-        c_deg: 0.0,
-        d_deg: 0.0,
-        e_deg: 0.0,
-    };
+    let sinusoid = sinusoid();
     // Every drive first (their figures printed), then the verdicts.
     let mut checks = Vec::new();
     for (seed, vehicle) in [(1, VehicleKind::Compact), (2, VehicleKind::Saloon)] {
@@ -63,13 +68,7 @@ fn a_pure_sinusoid_of_the_heading_is_named_and_a_null_drive_is_not() {
 fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives() {
     use calibrator::diagnose::compare::{compare, CompareConfig, DifferenceVerdict};
     use calibrator::diagnose::pool::pool;
-    let sinusoid = HeadingBias {
-        a_deg: 0.0,
-        b_deg: 3.0,
-        c_deg: 0.0,
-        d_deg: 0.0,
-        e_deg: 0.0,
-    };
+    let sinusoid = sinusoid();
     let vehicle = VehicleKind::Compact;
     let (a, b) = (
         diagnosed(Some(sinusoid), 1, vehicle),
