@@ -36,13 +36,11 @@
 //! Pure: the limit in, the decisions out.
 
 use super::design::{Candidate, Design};
-use super::forward::{step_forward, ForwardTest, SourceFits};
-use super::limit::{EffectLimit, InformationLimit, InformationSource, SegmentGram};
+use super::limit::{EffectLimit, InformationLimit, InformationSource};
 use super::select::{gain, t_quantile, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
 use interfaces::effects::Effect;
 use serde::Serialize;
-use std::collections::BTreeSet;
 
 /// One effect's Wald test in Holm's order.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -194,10 +192,6 @@ pub struct WaldDecision {
     /// error).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub holdout_t: Option<f64>,
-    /// Its test in the second stage, given the found (only for an effect
-    /// the first stage left).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub forward: Option<ForwardTest>,
 }
 
 /// The variant of `effect` whose addition to the model `base` gains most
@@ -222,150 +216,82 @@ fn best_variant(
         .max_by(|a, b| a.1.relative.total_cmp(&b.1.relative))
 }
 
-/// What the guard made of a significant effect: whether it entered `sel`
-/// (with `how` recorded), was refused, or has no column; the held-out
-/// gain it was judged on.
-fn admit(
-    design: &Design,
-    stats: &BlockStats,
-    sel: &mut Selection,
-    limit_source: InformationSource,
-    effect: Effect,
-    why: (f64, f64),
-    how: How,
-) -> (WaldOutcome, Option<Gain>) {
-    if sel
-        .accepted
-        .iter()
-        .any(|&i| design.candidates[i].effect == effect)
-    {
-        return (WaldOutcome::AlreadyFound, None);
-    }
-    if sel.rejected.iter().any(|r| r.effect == effect) {
-        return (WaldOutcome::Implausible, None);
-    }
-    let base = model_columns(design, &sel.accepted);
-    let Some((ci, g)) = best_variant(design, stats, &base, effect) else {
-        return (WaldOutcome::NoModel, None);
-    };
-    if !guard_passes(g.relative, Some(g.z), limit_source) {
-        return (WaldOutcome::Guarded, Some(g));
-    }
-    let bad = implausible(stats, &base, &design.candidates[ci]);
-    if !bad.is_empty() {
-        let (z, z_critical) = why;
-        sel.rejected.push(Rejected {
-            effect,
-            reason: format!(
-                "its Wald z = {z:.1} passes Holm's {z_critical:.1} but {}",
-                bad.join("; ")
-            ),
-        });
-        return (WaldOutcome::Implausible, Some(g));
-    }
-    sel.accepted.push(ci);
-    sel.gains.push(g);
-    sel.thresholds.push(why.1);
-    sel.how.push(how);
-    sel.ambiguous.retain(|a| !a.effects.contains(&effect));
-    sel.last_round.retain(|n| n.effect != effect);
-    sel.untestable.retain(|(e, _)| *e != effect);
-    (WaldOutcome::Accepted, Some(g))
-}
-
 /// Adds to the held-out selection `sel` every effect Holm's procedure
 /// calls significant that the guard lets in (a positive aggregate held-out
 /// gain over the model so far, a plausible coefficient), in the order of
 /// their |z|; an effect the held-out test found ambiguous with partners and
-/// the joint test names is named (its ambiguity dropped). Then the second
-/// stage ([`super::forward`]): the effects left, each given the found and
-/// against its least favourable partner, at the same family level, through
-/// the same guard. Returns what became of every test.
+/// the joint test names is named (its ambiguity dropped). Returns what
+/// became of every test.
 pub(super) fn apply(
     design: &Design,
     stats: &BlockStats,
     sel: &mut Selection,
     tests: &[WaldTest],
     limit: &InformationLimit,
-    forward: &[SourceFits],
 ) -> Vec<WaldDecision> {
-    let source_of = |e: Effect| {
-        limit
-            .effects
-            .iter()
-            .find(|l| l.effect == e)
-            .map_or(InformationSource::PositionsWheelHeading, |l| l.source)
-    };
     let mut out = Vec::new();
     for t in tests {
-        let (outcome, g) = if t.significant {
-            admit(
-                design,
-                stats,
-                sel,
-                source_of(t.effect),
-                t.effect,
-                (t.z, t.z_critical),
-                How::Wald(t.clone()),
-            )
-        } else {
-            (WaldOutcome::NotSignificant, None)
-        };
-        out.push(WaldDecision {
+        let decided = |outcome, g: Option<Gain>| WaldDecision {
             test: t.clone(),
             outcome,
             holdout_gain: g.map(|g| g.relative),
             holdout_z: g.map(|g| g.z),
             holdout_t: g.map(|g| g.t),
-            forward: None,
-        });
-    }
-    // The second stage, given what is in the model.
-    let found: BTreeSet<Effect> = sel
-        .accepted
-        .iter()
-        .map(|&i| design.candidates[i].effect)
-        .collect();
-    let left: Vec<Effect> = out
-        .iter()
-        .filter(|d| d.outcome == WaldOutcome::NotSignificant)
-        .map(|d| d.test.effect)
-        .collect();
-    let grams: Vec<&SegmentGram> = forward.iter().map(|f| &f.gram).collect();
-    let dof = limit.segments.saturating_sub(1) as f64;
-    let mut second: Vec<(Effect, WaldOutcome, Option<Gain>)> = Vec::new();
-    let steps = step_forward(
-        forward,
-        &grams,
-        &found,
-        &left,
-        limit.family_alpha,
-        dof,
-        |t| {
-            let (outcome, g) = admit(
-                design,
-                stats,
-                sel,
-                t.source,
-                t.effect,
-                (t.z, t.z_critical),
-                How::Forward(t.clone()),
-            );
-            second.push((t.effect, outcome, g));
-            outcome == WaldOutcome::Accepted
-        },
-    );
-    for t in steps {
-        let Some(d) = out.iter_mut().find(|d| d.test.effect == t.effect) else {
+        };
+        let accepted_effect = |sel: &Selection| {
+            sel.accepted
+                .iter()
+                .any(|&i| design.candidates[i].effect == t.effect)
+        };
+        if !t.significant {
+            out.push(decided(WaldOutcome::NotSignificant, None));
+            continue;
+        }
+        if accepted_effect(sel) {
+            out.push(decided(WaldOutcome::AlreadyFound, None));
+            continue;
+        }
+        if sel.rejected.iter().any(|r| r.effect == t.effect) {
+            out.push(decided(WaldOutcome::Implausible, None));
+            continue;
+        }
+        let base = model_columns(design, &sel.accepted);
+        let best = best_variant(design, stats, &base, t.effect);
+        let Some((ci, g)) = best else {
+            out.push(decided(WaldOutcome::NoModel, None));
             continue;
         };
-        if let Some((_, outcome, g)) = second.iter().find(|(e, _, _)| *e == t.effect) {
-            d.outcome = *outcome;
-            d.holdout_gain = g.map(|g| g.relative);
-            d.holdout_z = g.map(|g| g.z);
-            d.holdout_t = g.map(|g| g.t);
+        let source = limit
+            .effects
+            .iter()
+            .find(|l| l.effect == t.effect)
+            .map_or(InformationSource::PositionsWheelHeading, |l| l.source);
+        if !guard_passes(g.relative, Some(g.z), source) {
+            out.push(decided(WaldOutcome::Guarded, Some(g)));
+            continue;
         }
-        d.forward = Some(t);
+        let bad = implausible(stats, &base, &design.candidates[ci]);
+        if !bad.is_empty() {
+            sel.rejected.push(Rejected {
+                effect: t.effect,
+                reason: format!(
+                    "its joint Wald z = {:.1} passes Holm's {:.1} but {}",
+                    t.z,
+                    t.z_critical,
+                    bad.join("; ")
+                ),
+            });
+            out.push(decided(WaldOutcome::Implausible, Some(g)));
+            continue;
+        }
+        sel.accepted.push(ci);
+        sel.gains.push(g);
+        sel.thresholds.push(t.z_critical);
+        sel.how.push(How::Wald(t.clone()));
+        sel.ambiguous.retain(|a| !a.effects.contains(&t.effect));
+        sel.last_round.retain(|n| n.effect != t.effect);
+        sel.untestable.retain(|(e, _)| *e != t.effect);
+        out.push(decided(WaldOutcome::Accepted, Some(g)));
     }
     // The guard of every other effect against the final model: what
     // pooling over drives weighs ([`super::pool`]).

@@ -25,7 +25,6 @@
 //! Pure: the drive's data in, numbers out.
 
 use super::design::{Channel, Design};
-use super::forward::SourceFits;
 use super::information::{profiled_estimate, whiten, InformationError, PositionNoise};
 use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
 use crate::error_model::{nnls2, variogram, Normal};
@@ -691,50 +690,6 @@ impl Columns {
             .collect()
     }
 
-    /// The effects of this source with information on the drive, every
-    /// nuisance profiled out: what the decision's second stage
-    /// ([`super::forward`]) fits.
-    fn forward_fits(&self, w: &[Vec<f64>], gram: &SegmentGram) -> SourceFits {
-        let n_eff = self.effects.len();
-        let last = w.len() - 1;
-        let mut keep = vec![0];
-        let gyro_bias = self.gyro_bias.then(|| {
-            keep.push(last);
-            1
-        });
-        let mut effects = Vec::new();
-        for (k, e) in self.effects.iter().enumerate() {
-            let j = self.first_effect + k;
-            if gram.total[(j, j)] <= 0.0 {
-                continue;
-            }
-            match gyro_bias {
-                // The gyro's bias as an effect is the nuisance's column
-                // (its duplicate kept, so that it is not profiled out of
-                // it, and never fitted).
-                Some(b) if w[j] == w[last] => {
-                    keep.push(j);
-                    effects.push((*e, b));
-                }
-                _ => {
-                    keep.push(j);
-                    effects.push((*e, keep.len() - 1));
-                }
-            }
-        }
-        debug_assert!(keep.iter().all(|&c| c < self.first_effect + n_eff || c == last));
-        SourceFits {
-            source: match self.heading {
-                HeadingSource::Wheels => InformationSource::PositionsWheelHeading,
-                HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
-            },
-            gram: gram.profiled(&keep),
-            keep,
-            effects,
-            gyro_bias,
-        }
-    }
-
     /// The effects' limits under `noise`: each effect alone with the
     /// nuisances, and with every other effect of the source free too. The
     /// sigma is the larger of the Fisher information's and a delete-one-
@@ -1012,11 +967,7 @@ impl SegmentGram {
     /// The Gram of columns (the data first) whose rows belong to the
     /// segments `segment_of_row` (each below `segments`); segments without
     /// rows are left out.
-    pub(super) fn from_rows(
-        cols: &[Vec<f64>],
-        segment_of_row: &[usize],
-        segments: usize,
-    ) -> SegmentGram {
+    fn from_rows(cols: &[Vec<f64>], segment_of_row: &[usize], segments: usize) -> SegmentGram {
         let m = cols.len();
         let mut per_segment = vec![DMatrix::zeros(m, m); segments];
         let mut seen = vec![false; segments];
@@ -1115,9 +1066,6 @@ pub struct DriveInformation {
     pub(super) heading: Option<CoefFit>,
     /// The compass bias's three terms, for their joint test over drives.
     pub(super) heading_terms: Option<HeadingTerms>,
-    /// Per position source, its effects with the nuisances profiled out:
-    /// the decision's second stage ([`super::forward`]).
-    pub(super) forward: Vec<SourceFits>,
 }
 
 /// The finite-difference step of a parameter: 5 % of its typical size.
@@ -1135,8 +1083,6 @@ pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, Inf
 /// the fits' columns per effect.
 pub(super) struct RedrawSource {
     pub(super) noise: [PositionNoise; 2],
-    /// Its second stage's columns ([`super::forward`]).
-    pub(super) fits: SourceFits,
     pub(super) w: Vec<Vec<f64>>,
     pub(super) gram: SegmentGram,
     pub(super) sets: Vec<(Effect, Vec<usize>, usize)>,
@@ -1179,7 +1125,6 @@ pub fn limit_and_information(
     let mut noises = Vec::new();
     let mut grams = Vec::new();
     let mut redraw_from = Vec::new();
-    let mut forward = Vec::new();
     for heading in [HeadingSource::Wheels, HeadingSource::Gyro] {
         let src = Columns::build(input, heading, &times);
         // The calibration's error model was fitted to the plain model's
@@ -1202,7 +1147,6 @@ pub fn limit_and_information(
         let gram = SegmentGram::new(&w, &segment_sizes);
         let sets = src.column_sets(&w, &gram);
         let (ls, source_gram) = src.limits(&gram, &sets, z_critical);
-        let fits = src.forward_fits(&w, &gram);
         for l in ls {
             keep_better(&mut limits, l);
         }
@@ -1211,13 +1155,11 @@ pub fn limit_and_information(
         if keep_redraw_basis {
             redraw_from.push(RedrawSource {
                 noise,
-                fits: fits.clone(),
                 w,
                 gram,
                 sets,
             });
         }
-        forward.push(fits);
     }
     let (noise, refitted) = noises[0];
     // Without a heading sensor the drive holds nothing about its bias.
@@ -1283,7 +1225,6 @@ pub fn limit_and_information(
             grams,
             heading,
             heading_terms,
-            forward,
         },
         basis,
     ))

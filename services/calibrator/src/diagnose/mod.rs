@@ -30,7 +30,6 @@ pub mod compare_pictures;
 pub mod decide;
 pub mod design;
 pub mod epochs;
-pub mod forward;
 pub mod information;
 pub mod limit;
 pub mod locate;
@@ -262,10 +261,6 @@ pub enum DecidedBy {
     /// Holm's procedure on the joint Wald statistics of the positions
     /// under their own error model, with the held-out guard.
     Wald,
-    /// The decision's second stage: the Wald statistic given the effects
-    /// already found, against its least favourable partner, with the
-    /// held-out guard ([`forward`]).
-    Forward,
 }
 
 /// Effects this drive cannot tell apart.
@@ -707,20 +702,12 @@ pub fn diagnose_with_progress(
         .as_ref()
         .map(decide::holm)
         .unwrap_or_default();
-    let forward_fits = information.as_ref().map_or(&[][..], |i| &i.forward[..]);
     let wald = match (&information_limit, cfg.wald_decision) {
-        (Some(limit), true) => {
-            decide::apply(&design, &stats, &mut sel, &wald_tests, limit, forward_fits)
-        }
+        (Some(limit), true) => decide::apply(&design, &stats, &mut sel, &wald_tests, limit),
         // Reported (for the guard over several drives), not applied.
-        (Some(limit), false) => decide::apply(
-            &design,
-            &stats,
-            &mut sel.clone(),
-            &wald_tests,
-            limit,
-            forward_fits,
-        ),
+        (Some(limit), false) => {
+            decide::apply(&design, &stats, &mut sel.clone(), &wald_tests, limit)
+        }
         (None, _) => Vec::new(),
     };
     progress(DiagnoseStage::Fit, 0.6);
@@ -868,33 +855,6 @@ pub fn diagnose_with_progress(
                     t.z_critical,
                     t.rank + 1,
                     wald_tests.len(),
-                    channels_of(&design, cand),
-                    100.0 * g.relative,
-                ),
-            ),
-            How::Forward(t) => (
-                DecidedBy::Forward,
-                format!(
-                    "{} is shown by the GNSS positions under their own error model ({}) given {}: \
-                     Wald z = {:.1}{} (critical {:.1} at step {} of the second stage); it lowers the \
-                     aggregate held-out residual of {} by {:.1} %; fingerprint: {fingerprint}",
-                    cand.effect,
-                    t.source.describe(),
-                    if t.given.is_empty() {
-                        "nothing found".to_string()
-                    } else {
-                        t.given
-                            .iter()
-                            .map(|e| e.to_string())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    },
-                    t.z,
-                    t.against
-                        .map(|a| format!(" with {a} free, the partner that explains most of it"))
-                        .unwrap_or_default(),
-                    t.z_critical,
-                    t.rank + 1,
                     channels_of(&design, cand),
                     100.0 * g.relative,
                 ),
@@ -1217,9 +1177,6 @@ enum How {
     HeldOut,
     /// Holm's procedure on the joint Wald statistics, with the guard.
     Wald(decide::WaldTest),
-    /// The second stage: given the found, against its least favourable
-    /// partner, with the guard.
-    Forward(forward::ForwardTest),
 }
 
 fn model_columns(design: &Design, cands: &[usize]) -> Vec<usize> {

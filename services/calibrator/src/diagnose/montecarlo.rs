@@ -3,11 +3,9 @@
 //! plus Gauss-Markov per axis, per heading source: the dead-reckoning's
 //! errors from the recorded, quantised inputs are in it), the fingerprints
 //! and nuisances those of the recorded inputs, and the decision of
-//! [`super::decide`] run on each redraw, both its stages (Holm's procedure
-//! on the joint statistics, then [`super::forward`] given what the first
-//! called): the share of redraws in which any effect is called
-//! significant is the family-wise false-alarm rate on this drive, to be
-//! held at the nominal 5 %.
+//! [`super::decide`] run on each redraw: the share of redraws in which
+//! Holm's procedure calls any effect significant is the family-wise
+//! false-alarm rate on this drive, to be held at the nominal 5 %.
 //!
 //! It checks the statistics (the sigmas, the critical values, Holm's
 //! procedure) against the drive's own error model; it cannot check the
@@ -20,13 +18,12 @@
 //! Pure: the drive's data in, a rate out.
 
 use super::decide::step_down;
-use super::forward::{step_forward, SourceFits};
 use super::information::{InformationError, PositionNoise};
-use super::limit::{gauss_markov, whitened, RedrawBasis, SegmentGram, FAMILY_ALPHA};
+use super::limit::{gauss_markov, whitened, RedrawBasis, FAMILY_ALPHA};
 use crate::error_model::Normal;
 use interfaces::effects::Effect;
 use serde::Serialize;
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 
 /// The false-alarm rate of the Wald decision on redraws of a drive.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -67,7 +64,6 @@ pub(super) fn run(
         // Per effect, the test under the heading source with the smaller
         // sigma, as the drive's own limit chooses.
         let mut tests: BTreeMap<Effect, (f64, bool, f64)> = BTreeMap::new();
-        let mut grams = Vec::new();
         for p in &basis.sources {
             let err = redraw(&mut rng, all_t, &p.noise);
             let col: Vec<[f64; 2]> = (0..n).map(|i| [err[i], err[n + i]]).collect();
@@ -76,7 +72,6 @@ pub(super) fn run(
                 continue;
             };
             let g = p.gram.with_data(w0, &p.w, segment_sizes);
-            grams.push(g.profiled(&p.fits.keep));
             for (e, cols, n_alone) in &p.sets {
                 let fit = g.fit(cols).or_else(|| g.fit(&cols[..*n_alone]));
                 if let Some(f) = fit {
@@ -95,28 +90,11 @@ pub(super) fn run(
         if let Some((z, joint)) = basis.heading.as_ref().and_then(|h| h.z(&mut rng)) {
             tests.push((Effect::HeadingBias, z, joint));
         }
-        let first = step_down(tests, FAMILY_ALPHA, dof);
-        let mut called: Vec<Effect> = first
-            .iter()
+        let called: Vec<Effect> = step_down(tests, FAMILY_ALPHA, dof)
+            .into_iter()
             .filter(|t| t.significant)
             .map(|t| t.effect)
             .collect();
-        // The second stage, given the first's (every call enters: the
-        // redraws have no held-out guard).
-        let left: Vec<Effect> = first
-            .iter()
-            .filter(|t| !t.significant)
-            .map(|t| t.effect)
-            .collect();
-        let fits: Vec<SourceFits> = basis.sources.iter().map(|p| p.fits.clone()).collect();
-        let grams: Vec<&SegmentGram> = grams.iter().collect();
-        let found: BTreeSet<Effect> = called.iter().copied().collect();
-        called.extend(
-            step_forward(&fits, &grams, &found, &left, FAMILY_ALPHA, dof, |_| true)
-                .into_iter()
-                .filter(|t| t.significant)
-                .map(|t| t.effect),
-        );
         if !called.is_empty() {
             rejections += 1;
         }
