@@ -35,7 +35,7 @@
 //!
 //! Pure: the limit in, the decisions out.
 
-use super::design::{Candidate, Design};
+use super::design::{Candidate, Design, SEEN_BY_GYRO};
 use super::limit::{EffectLimit, InformationLimit, InformationSource};
 use super::select::{gain, t_quantile, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
@@ -195,19 +195,23 @@ pub struct WaldDecision {
 }
 
 /// The variant of `effect` whose addition to the model `base` gains most
-/// on held-out blocks, and its gain; `None` without a candidate.
+/// on held-out blocks, and its gain; `None` without a candidate. A variant
+/// fitted on the gyro's channels alone ([`SEEN_BY_GYRO`]) is tried only
+/// for an effect decided under the gyro's heading (`source`).
 fn best_variant(
     design: &Design,
     stats: &BlockStats,
     base: &[usize],
     effect: Effect,
+    source: InformationSource,
 ) -> Option<(usize, Gain)> {
     let current = stats.cv_errors(base);
+    let gyro = source == InformationSource::PositionsGyroHeading;
     design
         .candidates
         .iter()
         .enumerate()
-        .filter(|(_, c)| c.effect == effect)
+        .filter(|(_, c)| c.effect == effect && (gyro || c.variant != SEEN_BY_GYRO))
         .map(|(i, c)| {
             let mut cols = base.to_vec();
             cols.extend(c.columns.iter().copied());
@@ -255,17 +259,13 @@ pub(super) fn apply(
             out.push(decided(WaldOutcome::Implausible, None));
             continue;
         }
+        let source = source_of(limit, t.effect);
         let base = model_columns(design, &sel.accepted);
-        let best = best_variant(design, stats, &base, t.effect);
+        let best = best_variant(design, stats, &base, t.effect, source);
         let Some((ci, g)) = best else {
             out.push(decided(WaldOutcome::NoModel, None));
             continue;
         };
-        let source = limit
-            .effects
-            .iter()
-            .find(|l| l.effect == t.effect)
-            .map_or(InformationSource::PositionsWheelHeading, |l| l.source);
         if !guard_passes(g.relative, Some(g.z), source) {
             out.push(decided(WaldOutcome::Guarded, Some(g)));
             continue;
@@ -304,7 +304,14 @@ pub(super) fn apply(
         let g = match entered {
             // Found: the gain it entered with.
             Some(k) => sel.gains.get(k).copied(),
-            None => best_variant(design, stats, &base, d.test.effect).map(|(_, g)| g),
+            None => best_variant(
+                design,
+                stats,
+                &base,
+                d.test.effect,
+                source_of(limit, d.test.effect),
+            )
+            .map(|(_, g)| g),
         };
         if let Some(g) = g {
             d.holdout_gain = Some(g.relative);
@@ -353,6 +360,16 @@ pub(super) fn apply(
     out
 }
 
+/// The source `effect` was decided under in `limit` (the wheels' heading
+/// when it has none there).
+fn source_of(limit: &InformationLimit, effect: Effect) -> InformationSource {
+    limit
+        .effects
+        .iter()
+        .find(|l| l.effect == effect)
+        .map_or(InformationSource::PositionsWheelHeading, |l| l.source)
+}
+
 /// The parameters of `cand` whose coefficient, fitted with `base` on all
 /// blocks, lies outside the plausible range, in words.
 pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) -> Vec<String> {
@@ -378,6 +395,7 @@ pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) 
 
 #[cfg(test)]
 mod tests {
+    use super::super::design::Channel;
     use super::*;
 
     fn sorted(zs: &[f64]) -> Vec<(Effect, f64, bool)> {
@@ -388,6 +406,85 @@ mod tests {
             .collect();
         v.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
         v
+    }
+
+    /// Two course channels, twelve blocks: the gyro's course shows a
+    /// side-slip of `k` (course = heading - k a_y), the wheels' course the
+    /// opposite, as tyres that turn the wheels' heading beyond the model
+    /// do; white noise on both.
+    fn two_headings(k: f64) -> Design {
+        use super::super::design::Param;
+        use interfaces::effects::Param as EffectParam;
+        let mut rng = crate::error_model::Normal::new(11);
+        let (mut rows, mut y, mut whole, mut gyro_only) = (vec![], vec![], vec![], vec![]);
+        for b in 0..12 {
+            for i in 0..200 {
+                let a_y = 3.0 * ((i as f64) * 0.07 + b as f64).sin();
+                for ch in [Channel::CourseGyro, Channel::CourseWheel] {
+                    let sign = if ch == Channel::CourseGyro { 1.0 } else { -1.0 };
+                    rows.push((ch, i, b));
+                    y.push(-sign * k * a_y + 0.002 * rng.next());
+                    whole.push(-a_y);
+                    gyro_only.push(if ch == Channel::CourseGyro { -a_y } else { 0.0 });
+                }
+            }
+        }
+        let n = rows.len();
+        let cand = |variant: &str, c: usize| Candidate {
+            effect: Effect::SideSlip,
+            variant: variant.to_string(),
+            columns: vec![c],
+            params: vec![Param::of(EffectParam::SideSlipGain, c)],
+        };
+        Design {
+            rows,
+            y,
+            w: vec![1.0; n],
+            columns: vec![whole, gyro_only],
+            column_names: vec!["side_slip".into(), "side_slip (gyro heading)".into()],
+            nuisance: Vec::new(),
+            candidates: vec![cand("", 0), cand(SEEN_BY_GYRO, 1)],
+            untestable: Vec::new(),
+            blocks: 12,
+            block_s: 60.0,
+            channel_sigma: Vec::new(),
+            whitening: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_side_slip_the_gyro_shows_is_judged_on_the_gyros_channels_only_when_decided_there() {
+        let d = two_headings(0.003);
+        let stats = BlockStats::new(&d);
+        // Decided under the gyro's heading: the variant on its channels
+        // gains, and its coefficient is the gyro's side-slip.
+        let (ci, g) = best_variant(
+            &d,
+            &stats,
+            &[],
+            Effect::SideSlip,
+            InformationSource::PositionsGyroHeading,
+        )
+        .unwrap();
+        assert_eq!(d.candidates[ci].variant, SEEN_BY_GYRO);
+        assert!(g.relative > 0.3 && g.z > 2.0, "{g:?}");
+        let beta = stats.fit(&d.candidates[ci].columns, |_| true).unwrap();
+        assert!((beta[0] - 0.003).abs() < 1e-4, "{beta}");
+        // The whole column's coefficient is the two channels' compromise
+        // (about zero here): it gains nothing.
+        let whole = stats.fit(&[0], |_| true).unwrap();
+        assert!(whole[0].abs() < 2e-4, "{whole}");
+        // Decided under the wheels' heading, the variant is not offered.
+        let (ci, g) = best_variant(
+            &d,
+            &stats,
+            &[],
+            Effect::SideSlip,
+            InformationSource::PositionsWheelHeading,
+        )
+        .unwrap();
+        assert!(d.candidates[ci].variant.is_empty());
+        assert!(g.relative < 0.01, "{g:?}");
     }
 
     #[test]

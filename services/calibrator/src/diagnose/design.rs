@@ -103,7 +103,7 @@ pub struct Param {
 
 impl Param {
     /// The parameter fitted by `column`, as the table says.
-    fn of(param: EffectParam, column: usize) -> Param {
+    pub(super) fn of(param: EffectParam, column: usize) -> Param {
         let spec = param.spec();
         Param {
             param,
@@ -718,6 +718,35 @@ pub fn build(
     for col in columns.iter_mut() {
         demean(col);
     }
+    // side_slip as the gyro's heading sees it: the same column without the
+    // wheels' heading channels. Where the tyres turn the wheels' heading
+    // beyond the model (their own compliance, a load transfer not linear in
+    // a_y), those channels pull the one coefficient away from what the
+    // gyro's channels show, and the held-out test of the whole column
+    // refuses a side-slip the gyro's dead-reckoning plainly holds.
+    if ep.has_gyro {
+        let whole = candidates
+            .iter()
+            .find(|c| c.effect == Effect::SideSlip && c.variant.is_empty())
+            .map(|c| c.columns[0]);
+        if let Some(ss) = whole {
+            let col: Vec<f64> = columns[ss]
+                .iter()
+                .zip(&rows)
+                .map(|(v, (c, _, _))| match c {
+                    Channel::CourseWheel | Channel::Position => 0.0,
+                    _ => *v,
+                })
+                .collect();
+            columns.push(col);
+            names.push(format!("{} (gyro heading)", Effect::SideSlip));
+            let c = columns.len() - 1;
+            candidates.push(Candidate {
+                variant: SEEN_BY_GYRO.to_string(),
+                ..single(Effect::SideSlip, c)
+            });
+        }
+    }
     // Channel noise from the drive itself: the scatter of first differences
     // of the weighted residual (smooth structure cancels, white noise stays).
     let mut channel_sigma = Vec::new();
@@ -775,6 +804,9 @@ pub fn build(
         whitening,
     }
 }
+
+/// The variant of an effect fitted on the gyro's heading channels only.
+pub const SEEN_BY_GYRO: &str = "seen_by=gyro_heading";
 
 /// A candidate with one column: the effect's main fitted parameter.
 fn single(effect: Effect, column: usize) -> Candidate {

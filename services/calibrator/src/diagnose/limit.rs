@@ -1625,11 +1625,13 @@ fn heading_rows(d: &Design) -> Option<HeadingRows> {
     // offset (the yaw rate). Without them a car that corners more one way
     // than the other shows its tyres' mean side-slip as a compass bias.
     let mut terms: Vec<usize> = cand.params[..3].iter().map(|p| p.column).collect();
+    // (The side-slip's variant on the gyro's channels only is the same
+    // column here: left out.)
     for c in d.candidates.iter().filter(|c| {
         matches!(
             c.effect,
             Effect::SideSlip | Effect::GnssLatency | Effect::GnssLeverArm
-        )
+        ) && c.variant != super::design::SEEN_BY_GYRO
     }) {
         for &k in &c.columns {
             if !terms.contains(&k) && rows.iter().any(|&i| d.columns[k][i] != 0.0) {
