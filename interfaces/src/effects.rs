@@ -236,6 +236,15 @@ impl Effect {
         self.spec().fitted[0]
     }
 
+    /// Whether the physics fixes the sign of the effect's main fitted
+    /// parameter: its plausible range starts at zero or above (a rear
+    /// axle's side-slip points out of the turn, the outer wheel is the
+    /// loaded one, a fix is stamped after it was taken). A fit that puts it
+    /// below zero says the data holds none of it.
+    pub fn sign_known(self) -> bool {
+        self.main_fitted().spec().plausible.0 >= 0.0
+    }
+
     /// The simulator's main parameter (what a bare `ID=VALUE` sets).
     pub fn main_simulated(self) -> Param {
         self.spec().simulated[0]
@@ -718,6 +727,26 @@ mod tests {
             assert_eq!(Effect::from_code(code), None, "a clock is not an effect");
         }
         assert_eq!(Effect::from_id("flux_capacitor"), None);
+    }
+
+    #[test]
+    fn the_signs_the_physics_fixes_are_the_catalogues() {
+        // Side-slip out of the turn, the loaded outer wheel, the tyre's
+        // growth with speed, the slip of a driven or braked wheel, a fix
+        // stamped after it was taken, a slope's squared gain: never below
+        // zero. The rest may take either sign.
+        let signed: Vec<Effect> = Effect::ALL.into_iter().filter(|e| e.sign_known()).collect();
+        assert_eq!(
+            signed,
+            vec![
+                Effect::SideSlip,
+                Effect::LoadTransferRadius,
+                Effect::SpeedRadiusGrowth,
+                Effect::LongitudinalSlip,
+                Effect::GnssLatency,
+                Effect::RoadGrade,
+            ]
+        );
     }
 
     #[test]

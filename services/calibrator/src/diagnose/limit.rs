@@ -105,7 +105,9 @@ pub struct EffectLimit {
     /// The Wald statistic `estimate / sigma`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wald_z: Option<f64>,
-    /// The same with every other effect of its source free too.
+    /// The same with every other effect of its source free too (those
+    /// whose sign the physics fixes held at zero where their fit falls
+    /// below it: [`Joint::held_at_zero`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<Joint>,
 }
@@ -170,6 +172,17 @@ pub struct Joint {
     /// The compass bias's three terms, tested together (only for it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub terms: Option<HeadingTerms>,
+    /// The partners whose sign the physics fixes and whose fit here fell
+    /// below zero: held at zero, their physical bound, in this fit
+    /// ([`SegmentGram::fit_within_signs`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_at_zero: Vec<Effect>,
+    /// The sigma with every other effect free whatever its sign (reported
+    /// unit), where partners are held: the heading source an effect is
+    /// decided under is chosen by it ([`decisive_sigma`]), so that the
+    /// choice never follows the estimates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_all_free: Option<f64>,
 }
 
 /// An effect the drive cannot tell another from.
@@ -228,6 +241,8 @@ impl Joint {
             wald_z: l.wald_z,
             partners: Vec::new(),
             terms: None,
+            held_at_zero: Vec::new(),
+            sigma_all_free: None,
         }
     }
 }
@@ -627,6 +642,11 @@ impl Columns {
         if wheels {
             cols.push(src.fingerprint(Kick::LeftRight, 1e-4));
         }
+        // The antenna's lateral offset: a nuisance of every fit (its
+        // forward offset is the effect tested, the lateral one would else
+        // stay in the residual and lean on whatever turns with the car).
+        let lateral = Param::LeverArmY;
+        cols.push(src.fingerprint(Kick::Term(lateral, None), step_of(lateral)));
         let first_effect = cols.len();
         for e in &effects {
             let kick = main_kick(*e);
@@ -659,7 +679,7 @@ impl Columns {
     /// source free (the effect first, then its nuisances, then the other
     /// effects the drive holds information about), and how many of them
     /// make its fit alone.
-    fn column_sets(&self, w: &[Vec<f64>], gram: &SegmentGram) -> Vec<(Effect, Vec<usize>, usize)> {
+    fn column_sets(&self, w: &[Vec<f64>], gram: &SegmentGram) -> Vec<JointSet> {
         let n_eff = self.effects.len();
         let first_pose = self.first_effect + n_eff;
         let mut nuisances: Vec<usize> = (1..self.first_effect).collect();
@@ -685,7 +705,17 @@ impl Columns {
                         cols.push(j);
                     }
                 }
-                (*e, cols, n_alone)
+                let signed = cols[n_alone..]
+                    .iter()
+                    .copied()
+                    .filter(|&c| self.effects[c - self.first_effect].sign_known())
+                    .collect();
+                JointSet {
+                    effect: *e,
+                    cols,
+                    n_alone,
+                    signed,
+                }
             })
             .collect()
     }
@@ -698,7 +728,7 @@ impl Columns {
     fn limits(
         &self,
         gram: &SegmentGram,
-        sets: &[(Effect, Vec<usize>, usize)],
+        sets: &[JointSet],
         z_critical: f64,
     ) -> (Vec<EffectLimit>, SourceGram) {
         let source = match self.heading {
@@ -706,12 +736,22 @@ impl Columns {
             HeadingSource::Gyro => InformationSource::PositionsGyroHeading,
         };
         let mut out = Vec::new();
-        for (e, cols, n_alone) in sets {
-            let (e, n_alone) = (*e, *n_alone);
+        for set in sets {
+            let (e, cols, n_alone) = (set.effect, &set.cols, set.n_alone);
             let alone = gram.fit(&cols[..n_alone]);
-            let joint = gram.fit(cols);
+            let joint = gram.fit_within_signs(cols, &set.signed);
             let mut l = limit_of(e, alone, z_critical, source);
-            l.joint = joint.map(|fit| Joint::of(e, fit, z_critical));
+            l.joint = joint.map(|(fit, held)| Joint {
+                sigma_all_free: (!held.is_empty())
+                    .then(|| gram.fit(cols))
+                    .flatten()
+                    .and_then(|f| Joint::of(e, f, z_critical).sigma),
+                held_at_zero: held
+                    .iter()
+                    .map(|&c| self.effects[c - self.first_effect])
+                    .collect(),
+                ..Joint::of(e, fit, z_critical)
+            });
             if let (Some(a), Some(j)) = (alone, l.joint.as_mut()) {
                 let base: Vec<usize> = cols[..n_alone].to_vec();
                 let others: Vec<(Effect, usize)> = cols[n_alone..]
@@ -905,6 +945,39 @@ impl SegmentGram {
 }
 
 impl SegmentGram {
+    /// The fit of the first of `cols` with the others free, save those of
+    /// `signed` (columns whose sign the physics fixes, non-negative) that
+    /// the fit puts below zero: those are held at zero, their bound, the
+    /// most negative (in its own z) first, one at a time, refitting after
+    /// each, until every free one of them is at zero or above; the fit and
+    /// the columns held. A least squares within the physics' signs: a
+    /// partner the data wants of the impossible sign holds none of the
+    /// effect, and left free it would take the sign's worth of the data
+    /// from the effect tested (a negative side-slip passing for an
+    /// antenna's offset). The false-alarm redraws decide the same way.
+    pub(super) fn fit_within_signs(
+        &self,
+        cols: &[usize],
+        signed: &[usize],
+    ) -> Option<(CoefFit, Vec<usize>)> {
+        let mut cols = cols.to_vec();
+        let mut held = Vec::new();
+        if !signed.is_empty() {
+            while let Some(all) = self.fit_all(&cols) {
+                let worst = (1..cols.len())
+                    .filter(|&i| signed.contains(&cols[i]))
+                    .map(|i| (i, all.theta[i] / all.inverse[(i, i)].sqrt()))
+                    .filter(|(_, z)| *z < 0.0)
+                    .min_by(|a, b| a.1.total_cmp(&b.1));
+                match worst {
+                    Some((i, _)) => held.push(cols.remove(i)),
+                    None => break,
+                }
+            }
+        }
+        Some((self.fit(&cols)?, held))
+    }
+
     /// The Gram of the columns `keep` (the data column 0 first), every
     /// other column profiled out over the whole drive (Frisch-Waugh: each
     /// segment's rows of `keep` less their fit on the others), in the order
@@ -1085,7 +1158,20 @@ pub(super) struct RedrawSource {
     pub(super) noise: [PositionNoise; 2],
     pub(super) w: Vec<Vec<f64>>,
     pub(super) gram: SegmentGram,
-    pub(super) sets: Vec<(Effect, Vec<usize>, usize)>,
+    pub(super) sets: Vec<JointSet>,
+}
+
+/// One effect's fits on a heading source: `cols` holds the effect's column
+/// first, then its nuisances (the first `n_alone` make its fit alone), then
+/// every other effect of the source; `signed` lists those others whose
+/// sign the physics fixes ([`Effect::sign_known`]), held at zero in the
+/// joint fit where they fall below it ([`SegmentGram::fit_within_signs`]).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct JointSet {
+    pub(super) effect: Effect,
+    pub(super) cols: Vec<usize>,
+    pub(super) n_alone: usize,
+    pub(super) signed: Vec<usize>,
 }
 
 /// What the false-alarm redraws ([`super::montecarlo`]) reuse of the
@@ -1184,6 +1270,8 @@ pub fn limit_and_information(
             wald_z: Some(j.z),
             partners: Vec::new(),
             terms: Some(j.terms),
+            held_at_zero: Vec::new(),
+            sigma_all_free: None,
         });
     }
     limits.insert(Effect::HeadingBias, heading_limit);
@@ -1235,7 +1323,7 @@ pub fn limit_and_information(
 pub(super) fn decisive_sigma(l: &EffectLimit) -> f64 {
     l.joint
         .as_ref()
-        .and_then(|j| j.sigma)
+        .and_then(|j| j.sigma_all_free.or(j.sigma))
         .or(l.sigma)
         .filter(|s| s.is_finite() && *s > 0.0)
         .unwrap_or(f64::INFINITY)
@@ -1999,6 +2087,50 @@ mod tests {
         assert!((fit.estimate - est).abs() < 1e-9, "{} {est}", fit.estimate);
         assert!((fit.sigma_fisher - info.powf(-0.5)).abs() < 1e-9);
         assert!((fit.estimate - 0.3).abs() < 5.0 * fit.sigma_fisher);
+    }
+
+    #[test]
+    fn a_partner_of_the_sign_physics_forbids_is_held_at_zero_and_no_other() {
+        // Columns: data, the effect tested, a partner that shares most of
+        // its fingerprint (the antenna and a side-slip at one speed), a
+        // second partner apart from both. The data holds the effect and
+        // none of either partner; a partner's estimate falls below zero by
+        // the noise and its correlation with the effect.
+        let n = 400;
+        let x: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.11).sin()).collect();
+        let e = normals(2 * n, 41);
+        let p: Vec<f64> = (0..2 * n).map(|i| x[i] + 0.3 * e[i]).collect();
+        let q: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.023).cos()).collect();
+        let noise = normals(2 * n, 42);
+        let make = |partner: f64| -> SegmentGram {
+            let y: Vec<f64> = (0..2 * n)
+                .map(|i| 0.5 * x[i] + partner * p[i] + 0.2 * noise[i])
+                .collect();
+            SegmentGram::new(&[y, x.clone(), p.clone(), q.clone()], &[100; 4])
+        };
+        // The partner's true size below zero: the free fit puts it there,
+        // the fit within the signs holds it at zero and fits the rest.
+        let g = make(-0.2);
+        let free = g.fit(&[1, 2, 3]).expect("free fit");
+        let (within, held) = g.fit_within_signs(&[1, 2, 3], &[2]).expect("fit");
+        assert_eq!(held, vec![2]);
+        let without = g.fit(&[1, 3]).expect("fit without the partner");
+        assert!((within.estimate - without.estimate).abs() < 1e-12);
+        assert!(
+            within.sigma_fisher < 0.5 * free.sigma_fisher,
+            "{within:?} {free:?}"
+        );
+        // Unsigned, nothing is held: the free fit.
+        let (same, none) = g.fit_within_signs(&[1, 2, 3], &[]).expect("fit");
+        assert!(none.is_empty());
+        assert_eq!(same, free);
+        // The partner present with its physical sign: left free, the
+        // effect's estimate the free fit's, near the truth.
+        let g = make(0.3);
+        let (fit, held) = g.fit_within_signs(&[1, 2, 3], &[2, 3]).expect("fit");
+        assert!(held.is_empty(), "{held:?}");
+        assert_eq!(Some(fit), g.fit(&[1, 2, 3]));
+        assert!((fit.estimate - 0.5).abs() < 3.0 * fit.sigma(), "{fit:?}");
     }
 
     #[test]

@@ -849,7 +849,9 @@ pub fn diagnose_with_progress(
                         (true, Effect::HeadingBias) => {
                             "its three terms jointly (the |t| of the same p-value)"
                         }
-                        (true, _) => "with every other effect of its source free",
+                        (true, _) => {
+                            "with every other effect of its source free (within the signs the physics fixes)"
+                        }
                         (false, _) => "alone",
                     },
                     t.z_critical,

@@ -72,10 +72,22 @@ pub(super) fn run(
                 continue;
             };
             let g = p.gram.with_data(w0, &p.w, segment_sizes);
-            for (e, cols, n_alone) in &p.sets {
-                let fit = g.fit(cols).or_else(|| g.fit(&cols[..*n_alone]));
-                if let Some(f) = fit {
-                    let (z, sigma) = (f.estimate / f.sigma(), f.sigma());
+            for set in &p.sets {
+                let (e, cols, n_alone) = (&set.effect, &set.cols, &set.n_alone);
+                let within = g.fit_within_signs(cols, &set.signed);
+                // The source is chosen by the sigma with every effect free
+                // (as the drive's own limit chooses), the z is the fit's
+                // within the signs.
+                let free = match &within {
+                    Some((_, held)) if !held.is_empty() => g.fit(cols),
+                    Some((f, _)) => Some(*f),
+                    None => None,
+                };
+                let fit = within
+                    .map(|(f, _)| (f, free.map_or(f.sigma(), |a| a.sigma())))
+                    .or_else(|| g.fit(&cols[..*n_alone]).map(|f| (f, f.sigma())));
+                if let Some((f, sigma)) = fit {
+                    let z = f.estimate / f.sigma();
                     let better = tests.get(e).is_none_or(|t| sigma < t.2);
                     if z.is_finite() && better {
                         tests.insert(*e, (z, cols.len() > *n_alone, sigma));

@@ -444,7 +444,8 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
          (the heading sensor's for its bias) under the error model refitted with every effect in \
          (east {}, north {}), the sigma raised to the scatter over the {} segments of {:.0} s where \
          that is larger. Sizes are multiples of the catalogue's typical size; the estimate and z \
-         are with every other effect of its source free.</p>",
+         are with every other effect of its source free, save those whose sign the physics fixes \
+         and whose fit falls below zero: those are held at zero.</p>",
         100.0 * l.power,
         100.0 * l.family_alpha,
         l.z_critical,

@@ -139,7 +139,20 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             let alone = gram.fit(&[c]);
             let mut cols = vec![c];
             cols.extend((1..=k).filter(|&j| j != c && gram.information(j) > 0.0));
-            let joint = gram.fit(&cols);
+            let signed: Vec<usize> = cols[1..]
+                .iter()
+                .copied()
+                .filter(|&j| first.effects[j - 1].sign_known())
+                .collect();
+            let (joint, held) = match gram.fit_within_signs(&cols, &signed) {
+                Some((fit, held)) => (Some(fit), held),
+                None => (None, Vec::new()),
+            };
+            let joint_free = if held.is_empty() {
+                joint
+            } else {
+                gram.fit(&cols)
+            };
             let others: Vec<(Effect, usize)> = cols[1..]
                 .iter()
                 .map(|&j| (first.effects[j - 1], j))
@@ -153,13 +166,16 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                     pooled_critical(drives_segments(drives)),
                 )
             });
+            // Each drive's own fit of the same model: the partners held at
+            // zero over the drives held there too.
+            let free: Vec<usize> = cols.iter().copied().filter(|j| !held.contains(j)).collect();
             let per_drive: Vec<Option<CoefFit>> = drives
                 .iter()
                 .map(|d| {
                     d.grams
                         .iter()
                         .find(|g| g.source == source)
-                        .and_then(|g| g.gram.fit(&cols))
+                        .and_then(|g| g.gram.fit(&free))
                 })
                 .collect();
             let infos: Vec<f64> = drives
@@ -179,6 +195,8 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                 shares: shares(&infos),
                 per_drive,
                 partners,
+                held: held.iter().map(|&j| first.effects[j - 1]).collect(),
+                joint_free,
             });
         }
     }
@@ -186,7 +204,8 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
     // knows it better (the smaller sigma of its decisive fit), as each
     // drive's own limit chooses.
     let sigma_of = |f: &Fits| {
-        f.joint
+        f.joint_free
+            .or(f.joint)
             .or(f.alone)
             .map(|c| c.sigma())
             .filter(|s| s.is_finite() && *s > 0.0)
@@ -217,6 +236,8 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             shares: shares(&infos),
             per_drive: heading,
             partners: Vec::new(),
+            held: Vec::new(),
+            joint_free: None,
         });
     }
     if fits.is_empty() {
@@ -230,6 +251,11 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             let mut limit = limit_of(f.effect, f.alone, z_critical, f.source);
             limit.joint = f.joint.map(|j| Joint {
                 partners: f.partners.clone(),
+                held_at_zero: f.held.clone(),
+                sigma_all_free: (!f.held.is_empty())
+                    .then_some(f.joint_free)
+                    .flatten()
+                    .and_then(|a| Joint::of(f.effect, a, z_critical).sigma),
                 ..Joint::of(f.effect, j, z_critical)
             });
             let p = f.effect.main_fitted();
@@ -265,6 +291,8 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                 wald_z: Some(z),
                 partners: Vec::new(),
                 terms: Some(terms),
+                held_at_zero: Vec::new(),
+                sigma_all_free: None,
             });
         }
     }
@@ -377,6 +405,11 @@ struct Fits {
     shares: Vec<f64>,
     per_drive: Vec<Option<CoefFit>>,
     partners: Vec<Partner>,
+    /// The partners held at zero in the joint fit (their sign's bound).
+    held: Vec<Effect>,
+    /// The joint fit with every partner free whatever its sign: the
+    /// heading source is chosen by its sigma.
+    joint_free: Option<CoefFit>,
 }
 
 /// The verdict on a pooled effect from Holm's procedure, the table's
