@@ -234,6 +234,8 @@ pub(super) fn apply(
     limit: &InformationLimit,
 ) -> Vec<WaldDecision> {
     let mut out = Vec::new();
+    // Refused by the guard one at a time: (index in `out`, the variant tried).
+    let mut guarded: Vec<(usize, usize)> = Vec::new();
     for t in tests {
         let decided = |outcome, g: Option<Gain>| WaldDecision {
             test: t.clone(),
@@ -267,6 +269,7 @@ pub(super) fn apply(
             continue;
         };
         if !guard_passes(g.relative, Some(g.z), source) {
+            guarded.push((out.len(), ci));
             out.push(decided(WaldOutcome::Guarded, Some(g)));
             continue;
         }
@@ -293,6 +296,7 @@ pub(super) fn apply(
         sel.untestable.retain(|(e, _)| *e != t.effect);
         out.push(decided(WaldOutcome::Accepted, Some(g)));
     }
+    enter_together(design, stats, sel, &mut out, &guarded, limit);
     // The guard of every other effect against the final model: what
     // pooling over drives weighs ([`super::pool`]).
     let base = model_columns(design, &sel.accepted);
@@ -368,6 +372,94 @@ fn source_of(limit: &InformationLimit, effect: Effect) -> InformationSource {
         .iter()
         .find(|l| l.effect == effect)
         .map_or(InformationSource::PositionsWheelHeading, |l| l.source)
+}
+
+/// The effects Holm's procedure calls significant and the guard refused
+/// one at a time (`guarded`: index in `out`, the variant tried), tried
+/// together: the Wald test called each significant with the others free,
+/// so the guard judges the model it spoke of. Partners a drive barely
+/// tells apart (a side-slip and an antenna's offset in corners taken at
+/// similar speeds) each predict the held-out blocks worse alone, the one
+/// soaking up the other's fingerprint, and better together. The set
+/// passes [`guard_passes`] as one (the ranks asked when any of it is
+/// decided under the wheels' heading); each member must add to the set's
+/// gain (the set without it gains less) and keep a plausible coefficient
+/// beside the others. All enter, or none.
+fn enter_together(
+    design: &Design,
+    stats: &BlockStats,
+    sel: &mut Selection,
+    out: &mut [WaldDecision],
+    guarded: &[(usize, usize)],
+    limit: &InformationLimit,
+) {
+    if guarded.len() < 2 {
+        return;
+    }
+    let wheels = guarded.iter().any(|&(k, _)| {
+        source_of(limit, out[k].test.effect) == InformationSource::PositionsWheelHeading
+    });
+    let source = if wheels {
+        InformationSource::PositionsWheelHeading
+    } else {
+        InformationSource::PositionsGyroHeading
+    };
+    let base = model_columns(design, &sel.accepted);
+    let members: Vec<usize> = guarded.iter().map(|&(_, ci)| ci).collect();
+    let Some(g) = together(design, stats, &base, &members, source) else {
+        return;
+    };
+    for &(k, ci) in guarded {
+        let d = &mut out[k];
+        d.outcome = WaldOutcome::Accepted;
+        d.holdout_gain = Some(g.relative);
+        d.holdout_z = Some(g.z);
+        d.holdout_t = Some(g.t);
+        let effect = d.test.effect;
+        sel.accepted.push(ci);
+        sel.gains.push(g);
+        sel.thresholds.push(d.test.z_critical);
+        sel.how.push(How::Wald(d.test.clone()));
+        sel.ambiguous.retain(|a| !a.effects.contains(&effect));
+        sel.last_round.retain(|n| n.effect != effect);
+        sel.untestable.retain(|(e, _)| *e != effect);
+    }
+}
+
+/// The held-out gain of the candidates `members` added together to the
+/// model `base`, when the set passes the guard as one (under `source`),
+/// every member adds to it (the set without it gains less) and keeps a
+/// plausible coefficient beside the others; else `None`.
+fn together(
+    design: &Design,
+    stats: &BlockStats,
+    base: &[usize],
+    members: &[usize],
+    source: InformationSource,
+) -> Option<Gain> {
+    let current = stats.cv_errors(base);
+    let with = |skip: Option<usize>| {
+        let mut cols = base.to_vec();
+        for (k, &ci) in members.iter().enumerate() {
+            if Some(k) != skip {
+                cols.extend(design.candidates[ci].columns.iter().copied());
+            }
+        }
+        cols
+    };
+    let g = gain(&current, &stats.cv_errors(&with(None)));
+    if !guard_passes(g.relative, Some(g.z), source) {
+        return None;
+    }
+    for (k, &ci) in members.iter().enumerate() {
+        let others = with(Some(k));
+        if gain(&current, &stats.cv_errors(&others)).relative >= g.relative
+            || !implausible(stats, &others, &design.candidates[ci]).is_empty()
+        {
+            return None;
+        }
+    }
+    Some(g)
 }
 
 /// The parameters of `cand` whose coefficient, fitted with `base` on all
@@ -485,6 +577,75 @@ mod tests {
         .unwrap();
         assert!(d.candidates[ci].variant.is_empty());
         assert!(g.relative < 0.01, "{g:?}");
+    }
+
+    /// One course channel, twelve blocks: two effects whose fingerprints
+    /// the drive barely tells apart (`b` is `a` plus a fifth of another
+    /// signal), present with opposite coefficients, and a third column of
+    /// nothing the data holds.
+    fn partners() -> Design {
+        use super::super::design::Param;
+        use interfaces::effects::Param as EffectParam;
+        let mut rng = crate::error_model::Normal::new(23);
+        let (mut rows, mut y, mut a, mut b, mut c) = (vec![], vec![], vec![], vec![], vec![]);
+        for blk in 0..12 {
+            for i in 0..200 {
+                let u = ((i as f64) * 0.05 + blk as f64).sin();
+                let v = ((i as f64) * 0.13 + 2.0 * blk as f64).cos();
+                rows.push((Channel::CourseGyro, i, blk));
+                a.push(u);
+                b.push(u + 0.2 * v);
+                c.push(rng.next());
+                y.push(0.01 * u - 0.01 * (u + 0.2 * v) + 0.0002 * rng.next());
+            }
+        }
+        let n = rows.len();
+        let cand = |effect: Effect, p: EffectParam, col: usize| Candidate {
+            effect,
+            variant: String::new(),
+            columns: vec![col],
+            params: vec![Param::of(p, col)],
+        };
+        Design {
+            rows,
+            y,
+            w: vec![1.0; n],
+            columns: vec![a, b, c],
+            column_names: vec!["a".into(), "b".into(), "c".into()],
+            nuisance: Vec::new(),
+            candidates: vec![
+                cand(Effect::GnssLeverArm, EffectParam::LeverArmX, 0),
+                cand(Effect::GyroScale, EffectParam::GyroScale, 1),
+                cand(Effect::TrackWidth, EffectParam::TrackRel, 2),
+            ],
+            untestable: Vec::new(),
+            blocks: 12,
+            block_s: 60.0,
+            channel_sigma: Vec::new(),
+            whitening: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn partners_refused_one_at_a_time_enter_together_and_nothing_rides_along() {
+        use InformationSource::*;
+        let d = partners();
+        let stats = BlockStats::new(&d);
+        let current = stats.cv_errors(&[]);
+        // One at a time, neither is worth much: `a` alone explains nothing
+        // of the data, `b` alone a sliver.
+        let a = gain(&current, &stats.cv_errors(&[0]));
+        let b = gain(&current, &stats.cv_errors(&[1]));
+        assert!(a.relative < 0.05 && b.relative < 0.2, "{a:?} {b:?}");
+        // Together they explain the data, under either heading's guard.
+        for source in [PositionsGyroHeading, PositionsWheelHeading] {
+            let g = together(&d, &stats, &[], &[0, 1], source).expect("the pair enters");
+            assert!(g.relative > 0.9 && g.z > 2.0, "{g:?}");
+        }
+        // A member the set does not need is refused, and takes the set
+        // with it (all or none); so is a set without the pair.
+        assert!(together(&d, &stats, &[], &[0, 1, 2], PositionsGyroHeading).is_none());
+        assert!(together(&d, &stats, &[], &[0, 2], PositionsGyroHeading).is_none());
     }
 
     #[test]
