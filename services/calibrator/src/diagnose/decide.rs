@@ -35,7 +35,7 @@
 //!
 //! Pure: the limit in, the decisions out.
 
-use super::design::{Candidate, Design, SEEN_BY_GYRO};
+use super::design::{Candidate, Design};
 use super::limit::{EffectLimit, InformationLimit, InformationSource};
 use super::select::{gain, t_quantile, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
@@ -196,7 +196,7 @@ pub struct WaldDecision {
 
 /// The variant of `effect` whose addition to the model `base` gains most
 /// on held-out blocks, and its gain; `None` without a candidate. A variant
-/// fitted on the gyro's channels alone ([`SEEN_BY_GYRO`]) is tried only
+/// fitted on the gyro's channels alone ([`Candidate::seen_by_gyro`]) is tried only
 /// for an effect decided under the gyro's heading (`source`).
 fn best_variant(
     design: &Design,
@@ -211,7 +211,7 @@ fn best_variant(
         .candidates
         .iter()
         .enumerate()
-        .filter(|(_, c)| c.effect == effect && (gyro || c.variant != SEEN_BY_GYRO))
+        .filter(|(_, c)| c.effect == effect && (gyro || !c.seen_by_gyro()))
         .map(|(i, c)| {
             let mut cols = base.to_vec();
             cols.extend(c.columns.iter().copied());
@@ -487,7 +487,7 @@ pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) 
 
 #[cfg(test)]
 mod tests {
-    use super::super::design::Channel;
+    use super::super::design::{Channel, SEEN_BY_GYRO};
     use super::*;
 
     fn sorted(zs: &[f64]) -> Vec<(Effect, f64, bool)> {

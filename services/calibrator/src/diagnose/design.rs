@@ -718,32 +718,68 @@ pub fn build(
     for col in columns.iter_mut() {
         demean(col);
     }
-    // side_slip as the gyro's heading sees it: the same column without the
-    // wheels' heading channels. Where the tyres turn the wheels' heading
-    // beyond the model (their own compliance, a load transfer not linear in
-    // a_y), those channels pull the one coefficient away from what the
-    // gyro's channels show, and the held-out test of the whole column
-    // refuses a side-slip the gyro's dead-reckoning plainly holds.
+    // Each effect as the gyro's heading sees it: the same columns without
+    // the wheels' heading channels. Where the tyres turn the wheels'
+    // heading beyond the model (their own compliance, a load transfer not
+    // linear in a_y), those channels pull one coefficient away from what
+    // the gyro's channels show, and the held-out test of the whole column
+    // refuses an effect the gyro's dead-reckoning plainly holds (measured
+    // first on the side-slip). The Wald decision tries the variant for an
+    // effect decided under the gyro's heading ([`super::decide`]). Track
+    // width and the compass's bias live in the wheels' heading and the
+    // heading channel: they have none.
     if ep.has_gyro {
-        let whole = candidates
+        let whole: Vec<Candidate> = candidates
             .iter()
-            .find(|c| c.effect == Effect::SideSlip && c.variant.is_empty())
-            .map(|c| c.columns[0]);
-        if let Some(ss) = whole {
-            let col: Vec<f64> = columns[ss]
+            .filter(|c| {
+                !c.seen_by_gyro() && !matches!(c.effect, Effect::TrackWidth | Effect::HeadingBias)
+            })
+            .cloned()
+            .collect();
+        for cand in whole {
+            let zeroed: Vec<Vec<f64>> = cand
+                .columns
                 .iter()
-                .zip(&rows)
-                .map(|(v, (c, _, _))| match c {
-                    Channel::CourseWheel | Channel::Position => 0.0,
-                    _ => *v,
+                .map(|&k| {
+                    columns[k]
+                        .iter()
+                        .zip(&rows)
+                        .map(|(v, (c, _, _))| match c {
+                            Channel::CourseWheel | Channel::Position => 0.0,
+                            _ => *v,
+                        })
+                        .collect()
                 })
                 .collect();
-            columns.push(col);
-            names.push(format!("{} (gyro heading)", Effect::SideSlip));
-            let c = columns.len() - 1;
+            // Only where the wheels' channels held some of it, and the
+            // gyro's hold the rest.
+            let changed = cand
+                .columns
+                .iter()
+                .zip(&zeroed)
+                .any(|(&k, z)| columns[k] != *z);
+            let alive = zeroed.iter().all(|z| z.iter().any(|v| *v != 0.0));
+            if !(changed && alive) {
+                continue;
+            }
+            let mut params = cand.params.clone();
+            let mut cols = Vec::new();
+            for ((&k, z), p) in cand.columns.iter().zip(zeroed).zip(params.iter_mut()) {
+                columns.push(z);
+                names.push(format!("{} (gyro heading)", names[k]));
+                let c = columns.len() - 1;
+                p.column = c;
+                cols.push(c);
+            }
             candidates.push(Candidate {
-                variant: SEEN_BY_GYRO.to_string(),
-                ..single(Effect::SideSlip, c)
+                effect: cand.effect,
+                variant: if cand.variant.is_empty() {
+                    SEEN_BY_GYRO.to_string()
+                } else {
+                    format!("{}, {SEEN_BY_GYRO}", cand.variant)
+                },
+                columns: cols,
+                params,
             });
         }
     }
@@ -805,8 +841,17 @@ pub fn build(
     }
 }
 
-/// The variant of an effect fitted on the gyro's heading channels only.
+/// The variant of an effect fitted on the gyro's heading channels only
+/// (alone, or after the effect's own variant and a comma).
 pub const SEEN_BY_GYRO: &str = "seen_by=gyro_heading";
+
+impl Candidate {
+    /// Whether it is an effect's variant fitted on the gyro's heading
+    /// channels only ([`SEEN_BY_GYRO`]).
+    pub fn seen_by_gyro(&self) -> bool {
+        self.variant.ends_with(SEEN_BY_GYRO)
+    }
+}
 
 /// A candidate with one column: the effect's main fitted parameter.
 fn single(effect: Effect, column: usize) -> Candidate {

@@ -1719,7 +1719,7 @@ fn heading_rows(d: &Design) -> Option<HeadingRows> {
         matches!(
             c.effect,
             Effect::SideSlip | Effect::GnssLatency | Effect::GnssLeverArm
-        ) && c.variant != super::design::SEEN_BY_GYRO
+        ) && !c.seen_by_gyro()
     }) {
         for &k in &c.columns {
             if !terms.contains(&k) && rows.iter().any(|&i| d.columns[k][i] != 0.0) {

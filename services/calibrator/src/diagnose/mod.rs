@@ -1200,7 +1200,7 @@ fn forward_select(design: &Design, stats: &BlockStats) -> Selection {
     // decision under the gyro's heading ([`decide`]), not for this test:
     // here it would soak up a latency before the latency is tried.
     let mut remaining: Vec<usize> = (0..design.candidates.len())
-        .filter(|&i| design.candidates[i].variant != design::SEEN_BY_GYRO)
+        .filter(|&i| !design.candidates[i].seen_by_gyro())
         .collect();
     // A candidate this drive cannot tell from the calibration itself (the
     // common scale, the left/right difference) cannot be tested here.
