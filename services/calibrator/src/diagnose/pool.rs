@@ -256,6 +256,10 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                     .then_some(f.joint_free)
                     .flatten()
                     .and_then(|a| Joint::of(f.effect, a, z_critical).sigma),
+                estimate_all_free: (!f.held.is_empty())
+                    .then_some(f.joint_free)
+                    .flatten()
+                    .and_then(|a| Joint::of(f.effect, a, z_critical).estimate),
                 ..Joint::of(f.effect, j, z_critical)
             });
             let p = f.effect.main_fitted();
@@ -293,6 +297,7 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
                 terms: Some(terms),
                 held_at_zero: Vec::new(),
                 sigma_all_free: None,
+                estimate_all_free: None,
             });
         }
     }
