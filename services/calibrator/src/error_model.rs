@@ -432,16 +432,14 @@ pub fn fit_error_model(lin: &Linearisation) -> Option<[Vec<ErrorModel>; 2]> {
         }
         tau *= TAU_STEP;
     }
-    if std::env::var("WHEELCAL_DEBUG_SIGMA").is_ok() {
-        for c in &candidates[0] {
-            eprintln!(
-                "  tau {:.1} chi2 {:.1} w {:.3} g {:.3}",
-                c.model.tau_s,
-                c.chi2,
-                c.model.white_var_m2.sqrt(),
-                c.model.gm_var_m2.sqrt()
-            );
-        }
+    for c in &candidates[0] {
+        tracing::trace!(
+            tau_s = c.model.tau_s,
+            chi2 = c.chi2,
+            white_m = c.model.white_var_m2.sqrt(),
+            gm_m = c.model.gm_var_m2.sqrt(),
+            "error-model candidate (east)"
+        );
     }
     let [east, north] = candidates;
     Some([plausible(east)?, plausible(north)?])

@@ -521,21 +521,38 @@ mod tests {
                 }
             }
         }
-        let n = rows.len();
         let cand = |variant: &str, c: usize| Candidate {
             effect: Effect::SideSlip,
             variant: variant.to_string(),
             columns: vec![c],
             params: vec![Param::of(EffectParam::SideSlipGain, c)],
         };
+        twelve_blocks(
+            rows,
+            y,
+            vec![whole, gyro_only],
+            vec!["side_slip".into(), "side_slip (gyro heading)".into()],
+            vec![cand("", 0), cand(SEEN_BY_GYRO, 1)],
+        )
+    }
+
+    /// A design of twelve 60 s blocks with unit weights and no nuisance.
+    fn twelve_blocks(
+        rows: Vec<(Channel, usize, usize)>,
+        y: Vec<f64>,
+        columns: Vec<Vec<f64>>,
+        column_names: Vec<String>,
+        candidates: Vec<Candidate>,
+    ) -> Design {
+        let n = rows.len();
         Design {
             rows,
             y,
             w: vec![1.0; n],
-            columns: vec![whole, gyro_only],
-            column_names: vec!["side_slip".into(), "side_slip (gyro heading)".into()],
+            columns,
+            column_names,
             nuisance: Vec::new(),
-            candidates: vec![cand("", 0), cand(SEEN_BY_GYRO, 1)],
+            candidates,
             untestable: Vec::new(),
             blocks: 12,
             block_s: 60.0,
@@ -599,31 +616,23 @@ mod tests {
                 y.push(0.01 * u - 0.01 * (u + 0.2 * v) + 0.0002 * rng.next());
             }
         }
-        let n = rows.len();
         let cand = |effect: Effect, p: EffectParam, col: usize| Candidate {
             effect,
             variant: String::new(),
             columns: vec![col],
             params: vec![Param::of(p, col)],
         };
-        Design {
+        twelve_blocks(
             rows,
             y,
-            w: vec![1.0; n],
-            columns: vec![a, b, c],
-            column_names: vec!["a".into(), "b".into(), "c".into()],
-            nuisance: Vec::new(),
-            candidates: vec![
+            vec![a, b, c],
+            vec!["a".into(), "b".into(), "c".into()],
+            vec![
                 cand(Effect::GnssLeverArm, EffectParam::LeverArmX, 0),
                 cand(Effect::GyroScale, EffectParam::GyroScale, 1),
                 cand(Effect::TrackWidth, EffectParam::TrackRel, 2),
             ],
-            untestable: Vec::new(),
-            blocks: 12,
-            block_s: 60.0,
-            channel_sigma: Vec::new(),
-            whitening: Vec::new(),
-        }
+        )
     }
 
     #[test]

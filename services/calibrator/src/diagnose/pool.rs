@@ -249,17 +249,16 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
         .into_iter()
         .map(|f| {
             let mut limit = limit_of(f.effect, f.alone, z_critical, f.source);
+            // The fit with every partner free, once, when a partner was held.
+            let free = (!f.held.is_empty())
+                .then_some(f.joint_free)
+                .flatten()
+                .map(|a| Joint::of(f.effect, a, z_critical));
             limit.joint = f.joint.map(|j| Joint {
                 partners: f.partners.clone(),
                 held_at_zero: f.held.clone(),
-                sigma_all_free: (!f.held.is_empty())
-                    .then_some(f.joint_free)
-                    .flatten()
-                    .and_then(|a| Joint::of(f.effect, a, z_critical).sigma),
-                estimate_all_free: (!f.held.is_empty())
-                    .then_some(f.joint_free)
-                    .flatten()
-                    .and_then(|a| Joint::of(f.effect, a, z_critical).estimate),
+                sigma_all_free: free.as_ref().and_then(|a| a.sigma),
+                estimate_all_free: free.as_ref().and_then(|a| a.estimate),
                 ..Joint::of(f.effect, j, z_critical)
             });
             let p = f.effect.main_fitted();
