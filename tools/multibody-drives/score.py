@@ -43,6 +43,49 @@ def run(cal, drive, rerun, extra=(), tag=""):
     return json.load(open(out)), dt
 
 
+def effective_terms(drive):
+    """The wheels' own load transfer and track against the truth: the
+    wheels' heading error over 1 s windows, ((rr - rl) / t) - dpsi, with
+    the true circumferences and the nominal track, regressed on dpsi (a
+    track-like term), 2 v^2 dpsi / t (the load transfer's k_z), time and
+    distance, with v and dpsi from the truth's track (moving windows only).
+    make_drives' truth k_z is the tyres' radius part alone; the wheels also
+    turn by the tyres' load-dependent slip. Cached in DRIVE/effective.json;
+    None without numpy."""
+    cache = os.path.join(drive, "effective.json")
+    if os.path.exists(cache):
+        return json.load(open(cache))
+    try:
+        import numpy as np
+        import tomllib
+    except ImportError:
+        return None
+    tr = np.genfromtxt(os.path.join(drive, "truth.csv"), delimiter=",", names=True)
+    wh = np.genfromtxt(os.path.join(drive, "wheels.csv"), delimiter=",", names=True)
+    truth = tomllib.load(open(os.path.join(drive, "truth.toml"), "rb"))
+    veh = tomllib.load(open(os.path.join(drive, "vehicle.toml"), "rb"))
+    c, t, n = truth["circumference_m"], veh["track_width_m"], veh["ticks_per_rev"]
+    tt = wh["t_s"]
+    x = np.interp(tt, tr["t_s"], tr["x_m"])
+    y = np.interp(tt, tr["t_s"], tr["y_m"])
+    yaw = np.interp(tt, tr["t_s"], np.unwrap(tr["yaw_rad"]))
+    step = max(1, int(round(1.0 / np.median(np.diff(tt)))))
+    i = np.arange(0, len(tt) - step, step)
+    dl = (wh["rl_ticks"][i + step] - wh["rl_ticks"][i]) / n * c["rl"]
+    dr = (wh["rr_ticks"][i + step] - wh["rr_ticks"][i]) / n * c["rr"]
+    dpsi = yaw[i + step] - yaw[i]
+    ds = np.hypot(x[i + step] - x[i], y[i + step] - y[i])
+    dt = tt[i + step] - tt[i]
+    v = ds / dt
+    m = v > 2.0
+    err = (dr - dl) / t - dpsi
+    a = np.c_[dpsi, 2.0 * v * v * dpsi / t, dt, ds][m]
+    b = np.linalg.lstsq(a, err[m], rcond=None)[0]
+    out = {"track_rel": float(-b[0]), "k_z": float(b[1])}
+    json.dump(out, open(cache, "w"))
+    return out
+
+
 def median(xs):
     xs = sorted(xs)
     return xs[len(xs) // 2] if xs else None
@@ -80,6 +123,30 @@ def limit_table(limits, null_limit):
     return out
 
 
+def effective_table(rows):
+    """What the wheels show against the truth (`effective_terms`), per
+    vehicle, beside the diagnosis's load transfer and track."""
+    if not rows:
+        return ["", "The wheels' effective terms: not measured (numpy missing)."]
+    out = ["", "The wheels' effective terms against the truth (`effective_terms` in score.py): medians per vehicle; "
+           "k_z against make_drives' radius part, the diagnosis's joint k_z against the effective one; "
+           "the effective track on the drives without a planted track error.", "",
+           "| vehicle | drives | effective k_z / radius k_z | diagnosis k_z / effective | abs(diagnosis - effective) / sigma | effective track (no track planted), range | track_width found there |",
+           "|---|---|---|---|---|---|---|"]
+    for veh in sorted({r["vehicle"] for r in rows}):
+        rs = [r for r in rows if r["vehicle"] == veh]
+        ratio = median([r["k_z_eff"] / r["k_z_radius"] for r in rs if r["k_z_radius"]])
+        est = median([r["k_z_est"] / r["k_z_eff"] for r in rs if r["k_z_est"] is not None and r["k_z_eff"]])
+        pull = median([abs(r["k_z_est"] - r["k_z_eff"]) / r["k_z_sigma"]
+                       for r in rs if r["k_z_est"] is not None and r["k_z_sigma"]])
+        tr = [r["track_eff"] for r in rs if not r["planted_track"]]
+        found = sum(r["track_found"] for r in rs if not r["planted_track"])
+        out.append(f"| {veh} | {len(rs)} | {'-' if ratio is None else f'{ratio:.2f}'} | "
+                   f"{'-' if est is None else f'{est:.2f}'} | {'-' if pull is None else f'{pull:.1f}'} | "
+                   f"{100 * min(tr):+.2f} to {100 * max(tr):+.2f} % | {found} of {len(tr)} |")
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out_dir")
@@ -97,6 +164,7 @@ def main():
     lines = []
     limits = OrderedDict()
     null_limit = []
+    effective = []
     for case in manifest:
         drive = os.path.join(a.out_dir, case["drive"])
         d, dt = run(a.calibrator, drive, a.rerun,
@@ -151,6 +219,22 @@ def main():
                 na = [n for n in d.get("not_accepted", []) if n["effect"] == e]
                 if tv and na and na[0].get("detectable") and na[0]["detectable"].get("smallest") is not None:
                     r["test"].append(na[0]["detectable"]["smallest"] / abs(tv))
+        eff = effective_terms(drive)
+        if eff is not None:
+            lt = (lim or {}).get("effects", [])
+            lt = next((x for x in lt if x["effect"] == "load_transfer_radius"), None)
+            tw = next((x for x in (lim or {}).get("effects", []) if x["effect"] == "track_width"), None)
+            radius = case["effects"].get("load_transfer_radius", {}).get("k_z") or \
+                case.get("measured", {}).get("load_transfer_radius", {}).get("k_z")
+            effective.append({
+                "drive": case["drive"], "vehicle": case["vehicle"], "null": not truth,
+                "planted_track": case["effects"].get("track_width", {}).get("rel"),
+                "k_z_eff": eff["k_z"], "track_eff": eff["track_rel"], "k_z_radius": radius,
+                "k_z_est": (lt or {}).get("joint", {}).get("estimate"),
+                "k_z_sigma": (lt or {}).get("joint", {}).get("sigma"),
+                "track_z": (tw or {}).get("joint", {}).get("wald_z"),
+                "track_found": "track_width" in found,
+            })
         if not truth:
             null_n += 1
             null_false += bool(extra)
@@ -189,6 +273,7 @@ def main():
                    f"{sum(r['ambiguous'])} | {mb:.3f} -> {ma:.3f} m ({100 * (ma / mb - 1):+.0f} %) | "
                    f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
     out.extend(limit_table(limits, null_limit))
+    out.extend(effective_table(effective))
     out.append("")
     out.append(f"null drives: {null_n}, with a false discovery (beyond the model's own tyre physics): {null_false}; "
                f"ids found on null drives: {dict(null_found) or 'none'}")
