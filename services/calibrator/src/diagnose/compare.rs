@@ -770,63 +770,20 @@ fn units_of(effect: Effect, params: &BTreeMap<String, f64>) -> BTreeMap<String, 
         .collect()
 }
 
-/// The least |estimate| / sigma of the simulation's estimate for the mend
-/// to scale its declared value by the knob's measured gain (the gain then
-/// known to 10 %).
-const MEND_GAIN_MIN_Z: f64 = 10.0;
-/// The range of gains (the simulation's estimate over its declared value)
-/// within which the knob is taken to act in proportion.
-const MEND_GAIN_RANGE: (f64, f64) = (0.25, 4.0);
-
-/// How a mend moves a declared value.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum MendStep {
-    /// By the difference the drives show.
-    Difference,
-    /// Scaled by the recording's estimate over the simulation's: the
-    /// simulation shows `gain` of what it declares.
-    Gain(f64),
-}
-
-/// The value a mend declares from the declared `now`, the recording's
-/// estimate `r` and the simulation's `[s, sigma_s]`. Where the simulation
-/// declares the effect and shows it clearly, with the recording's sign, at
-/// a gain within [`MEND_GAIN_RANGE`] of what it declares, the knob is
-/// taken to act in proportion and is scaled by r / s: a simulator whose
-/// knob shows 0.75 of itself in the estimate (the load transfer, read
-/// through the wheels' own yaw rate) is mended in one step, where moving
-/// by the difference converges by a factor 0.25 a step. Otherwise, or not
-/// declared, by the difference (from the simulation's estimate when not
-/// declared).
-fn mend_value(now: Option<f64>, r: f64, [s, sigma_s]: [f64; 2]) -> (f64, MendStep) {
-    if let Some(k) = now {
-        let gain = s / k;
-        let clear = sigma_s > 0.0 && s.abs() >= MEND_GAIN_MIN_Z * sigma_s;
-        if k != 0.0
-            && clear
-            && r * s > 0.0
-            && (MEND_GAIN_RANGE.0..=MEND_GAIN_RANGE.1).contains(&gain)
-        {
-            return (r / gain, MendStep::Gain(gain));
-        }
-    }
-    (now.unwrap_or(s) + (r - s), MendStep::Difference)
-}
-
 /// The physics a mended simulation should carry, from what it declares:
-/// each named effect's main parameter moved as [`mend_value`] says, the
-/// rest as declared.
+/// each named effect's main parameter moved by the difference, the rest
+/// as declared.
 fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinEffect> {
     let mut out: Vec<TwinEffect> = Vec::new();
     for d in effects.iter().filter(|d| d.verdict.named()) {
-        let (Some([r, _]), Some(sim)) = (d.recording, d.simulation) else {
+        let (Some([r, _]), Some([s, _])) = (d.recording, d.simulation) else {
             continue;
         };
-        let s = sim[0];
         let id = d.effect.to_string();
         let mut parameters = declared.get(&id).cloned().unwrap_or_default();
         let now = parameters.get(d.parameter).copied();
-        let (wanted, how) = mend_value(now, r, sim);
+        // Not declared: the simulation's own estimate is where it stands.
+        let wanted = now.unwrap_or(s) + (r - s);
         // Kept within the catalogue's plausible range (a latency does not
         // go below zero): a knob that does not map one to one onto the
         // estimate can overshoot, and a simulator refuses what cannot be.
@@ -843,29 +800,14 @@ fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinE
             parameters,
             units,
             from: format!(
-                "{}{}",
-                match how {
-                    MendStep::Difference => format!(
-                        "{} moved by the difference the drives show ({:+.4} {})",
-                        if now.is_some() {
-                            "the simulation's declared value"
-                        } else {
-                            "the simulation's estimate"
-                        },
-                        r - s,
-                        d.unit
-                    ),
-                    MendStep::Gain(g) => format!(
-                        "the simulation's declared value scaled by the recording's estimate \
-                         over the simulation's (it declares {} {} and shows {}, a gain of \
-                         {:.3}; the recording shows {})",
-                        sig3(now.unwrap_or(0.0)),
-                        d.unit,
-                        sig3(s),
-                        g,
-                        sig3(r)
-                    ),
+                "{} moved by the difference the drives show ({:+.4} {}){}",
+                if now.is_some() {
+                    "the simulation's declared value"
+                } else {
+                    "the simulation's estimate"
                 },
+                r - s,
+                d.unit,
                 if moved == wanted {
                     String::new()
                 } else {
@@ -1054,37 +996,7 @@ mod tests {
     }
 
     #[test]
-    fn a_knob_that_shows_a_fraction_of_itself_is_mended_in_one_step() {
-        // A simulator whose knob shows 0.75 of itself, the recording 4e-4.
-        let shows = |k: f64| 0.75 * k;
-        let r = 4.0e-4;
-        // First mend, from a twin that declares nothing: the difference.
-        let (k1, how) = mend_value(None, r, [0.0, 1e-5]);
-        assert_eq!(how, MendStep::Difference);
-        assert!((k1 - r).abs() < 1e-15);
-        // Second: the twin shows 3e-4 of the 4e-4 it declares, clearly.
-        let (k2, how) = mend_value(Some(k1), r, [shows(k1), 1e-5]);
-        assert!(matches!(how, MendStep::Gain(g) if (g - 0.75).abs() < 1e-12));
-        assert!((shows(k2) - r).abs() < 1e-15, "{k2}");
-        // By the difference it would still be 6 % short after the second.
-        let by_difference = k1 + (r - shows(k1));
-        assert!((r - shows(by_difference)) / r > 0.06);
-        // Not clear enough (z 5), of the other sign, or a gain beyond the
-        // range: by the difference.
-        for (s, sigma) in [
-            (3.0e-4, 6.0e-5),
-            (-1.0e-4, 1e-6),
-            (1.8e-3, 1e-6),
-            (5.0e-5, 1e-6),
-        ] {
-            let (k, how) = mend_value(Some(k1), r, [s, sigma]);
-            assert_eq!(how, MendStep::Difference, "{s} {sigma}");
-            assert!((k - (k1 + r - s)).abs() < 1e-15);
-        }
-    }
-
-    #[test]
-    fn the_mend_scales_a_clear_knob_and_moves_the_rest_by_the_difference() {
+    fn the_mend_moves_the_declared_value_by_the_difference() {
         let declared = Declared::from([
             (
                 "load_transfer_radius".to_string(),
@@ -1096,9 +1008,8 @@ mod tests {
             ),
         ]);
         let effects = [
-            // The simulation shows 3.3e-4 ± 3.3e-5 of the 4e-4 it was
-            // given (z 10: the gain 0.825 known to 10 %); the recording
-            // 3.9e-4: the knob is scaled to 3.9e-4 / 0.825.
+            // The simulation shows 3.3e-4 of the 4e-4 it was given; the
+            // recording 3.9e-4: the knob moves by 0.6e-4.
             row(
                 Effect::LoadTransferRadius,
                 "k_z",
@@ -1136,7 +1047,7 @@ mod tests {
                 .find(|t| t.effect == e)
                 .and_then(|t| t.parameters.get(p).copied())
         };
-        assert!((get(Effect::LoadTransferRadius, "k_z").unwrap() - 3.9e-4 / 0.825).abs() < 1e-12);
+        assert!((get(Effect::LoadTransferRadius, "k_z").unwrap() - 4.6e-4).abs() < 1e-12);
         assert_eq!(get(Effect::GyroBias, "b_deg_h"), Some(18.0));
         assert!((get(Effect::GnssLeverArm, "x_m").unwrap() - 0.6).abs() < 1e-12);
         assert!(m.iter().all(|t| t.effect != Effect::TrackWidth));
