@@ -221,18 +221,14 @@ def main():
                     r["test"].append(na[0]["detectable"]["smallest"] / abs(tv))
         eff = effective_terms(drive)
         if eff is not None:
-            lt = (lim or {}).get("effects", [])
-            lt = next((x for x in lt if x["effect"] == "load_transfer_radius"), None)
-            tw = next((x for x in (lim or {}).get("effects", []) if x["effect"] == "track_width"), None)
-            radius = case["effects"].get("load_transfer_radius", {}).get("k_z") or \
-                case.get("measured", {}).get("load_transfer_radius", {}).get("k_z")
+            lt = next((x for x in (lim or {}).get("effects", [])
+                       if x["effect"] == "load_transfer_radius"), {}).get("joint", {})
             effective.append({
-                "drive": case["drive"], "vehicle": case["vehicle"], "null": not truth,
+                "vehicle": case["vehicle"],
                 "planted_track": case["effects"].get("track_width", {}).get("rel"),
-                "k_z_eff": eff["k_z"], "track_eff": eff["track_rel"], "k_z_radius": radius,
-                "k_z_est": (lt or {}).get("joint", {}).get("estimate"),
-                "k_z_sigma": (lt or {}).get("joint", {}).get("sigma"),
-                "track_z": (tw or {}).get("joint", {}).get("wald_z"),
+                "k_z_eff": eff["k_z"], "track_eff": eff["track_rel"],
+                "k_z_radius": case["effects"].get("load_transfer_radius", {}).get("k_z"),
+                "k_z_est": lt.get("estimate"), "k_z_sigma": lt.get("sigma"),
                 "track_found": "track_width" in found,
             })
         if not truth:
