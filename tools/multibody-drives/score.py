@@ -129,20 +129,25 @@ def effective_table(rows):
     if not rows:
         return ["", "The wheels' effective terms: not measured (numpy missing)."]
     out = ["", "The wheels' effective terms against the truth (`effective_terms` in score.py): medians per vehicle; "
-           "k_z against make_drives' radius part, the diagnosis's joint k_z against the effective one; "
-           "the effective track on the drives without a planted track error.", "",
-           "| vehicle | drives | effective k_z / radius k_z | diagnosis k_z / effective | abs(diagnosis - effective) / sigma | effective track (no track planted), range | track_width found there |",
-           "|---|---|---|---|---|---|---|"]
+           "k_z against make_drives' radius part, the diagnosis's joint k_z (the information limit's fit, at the plain "
+           "model's a_y) and the finding's k_z (where the load transfer was found; a_y read through it) against the "
+           "effective one; the effective track on the drives without a planted track error.", "",
+           "| vehicle | drives | effective k_z / radius k_z | joint k_z / effective | abs(joint - effective) / sigma | found | finding's k_z / effective | abs(finding - effective) / sigma | effective track (no track planted), range | track_width found there |",
+           "|---|---|---|---|---|---|---|---|---|---|"]
     for veh in sorted({r["vehicle"] for r in rows}):
         rs = [r for r in rows if r["vehicle"] == veh]
         ratio = median([r["k_z_eff"] / r["k_z_radius"] for r in rs if r["k_z_radius"]])
         est = median([r["k_z_est"] / r["k_z_eff"] for r in rs if r["k_z_est"] is not None and r["k_z_eff"]])
         pull = median([abs(r["k_z_est"] - r["k_z_eff"]) / r["k_z_sigma"]
                        for r in rs if r["k_z_est"] is not None and r["k_z_sigma"]])
+        fr = [r for r in rs if r["k_z_found"] is not None and r["k_z_eff"]]
+        f_est = median([r["k_z_found"] / r["k_z_eff"] for r in fr])
+        f_pull = median([abs(r["k_z_found"] - r["k_z_eff"]) / r["k_z_found_sigma"] for r in fr if r["k_z_found_sigma"]])
         tr = [r["track_eff"] for r in rs if not r["planted_track"]]
         found = sum(r["track_found"] for r in rs if not r["planted_track"])
         out.append(f"| {veh} | {len(rs)} | {'-' if ratio is None else f'{ratio:.2f}'} | "
                    f"{'-' if est is None else f'{est:.2f}'} | {'-' if pull is None else f'{pull:.1f}'} | "
+                   f"{len(fr)} | {'-' if f_est is None else f'{f_est:.2f}'} | {'-' if f_pull is None else f'{f_pull:.1f}'} | "
                    f"{100 * min(tr):+.2f} to {100 * max(tr):+.2f} % | {found} of {len(tr)} |")
     return out
 
@@ -223,12 +228,15 @@ def main():
         if eff is not None:
             lt = next((x for x in (lim or {}).get("effects", [])
                        if x["effect"] == "load_transfer_radius"), {}).get("joint", {})
+            lt_found = next((f for f in d.get("findings", []) if f["effect"] == "load_transfer_radius"), {})
             effective.append({
                 "vehicle": case["vehicle"],
                 "planted_track": case["effects"].get("track_width", {}).get("rel"),
                 "k_z_eff": eff["k_z"], "track_eff": eff["track_rel"],
                 "k_z_radius": case["effects"].get("load_transfer_radius", {}).get("k_z"),
                 "k_z_est": lt.get("estimate"), "k_z_sigma": lt.get("sigma"),
+                "k_z_found": lt_found.get("parameters", {}).get("k_z"),
+                "k_z_found_sigma": lt_found.get("sigmas", {}).get("k_z"),
                 "track_found": "track_width" in found,
             })
         if not truth:

@@ -142,6 +142,30 @@ pub struct StepSignals {
     pub t_since_start_s: f64,
 }
 
+/// The lateral acceleration a_y = v w from the rear wheels' own speed and yaw
+/// rate, with the load transfer `k_z` taken out of the yaw rate.
+///
+/// The term under `load_transfer_radius` bends the very yaw rate a_y is read
+/// from: the outer wheel rolls on a smaller radius, so the plain model's
+/// yaw rate is w (1 + 2 k_z v^2 / t) (to first order in k_z a_y; t the
+/// track). Read plainly, a_y is too large by that factor (15 % at 15 m/s and
+/// 73 % at 33 m/s for k_z = 5e-4 on a 1.58 m track), and a fit that reads
+/// it so finds k_z / (1 + 2 k_z v^2 / t): confidently low. Every consumer
+/// that has only the wheels (the diagnosis's epochs, the odometer) reads
+/// a_y through this function with the k_z it applies, so that the term is
+/// the same everywhere. `k_z = 0` is the plain v w. The divisor is kept
+/// above 0.25 (a k_z of the wrong sign and far beyond its plausible range
+/// cannot turn a_y over).
+pub fn lateral_acceleration_from_wheels(
+    v_m_s: f64,
+    w_wheels_rad_s: f64,
+    k_z: f64,
+    track_m: f64,
+) -> f64 {
+    let bend = 1.0 + 2.0 * k_z * v_m_s * v_m_s / track_m;
+    v_m_s * w_wheels_rad_s / bend.max(0.25)
+}
+
 impl EffectTerms {
     /// The effects with a non-zero term, in catalogue order.
     pub fn active(&self) -> Vec<Effect> {
@@ -333,6 +357,54 @@ mod tests {
         assert!((dyaw - 0.1 / 1.5).abs() < 1e-12);
         assert_eq!(beta, 0.0);
         assert!(t.active().is_empty());
+    }
+
+    #[test]
+    fn the_lateral_acceleration_read_from_the_wheels_undoes_the_bend_of_the_load_transfer() {
+        // A car in a steady left turn with a load transfer: the wheels'
+        // increments from the model's own (true) yaw rate, read back.
+        let (c, track, k_z) = (2.0, 1.6, 5e-4);
+        let (v, w_true, dt) = (25.0, 0.1, 0.01);
+        let a_true = v * w_true;
+        // Distances each wheel really covers, and the revolutions the
+        // radius change makes them count.
+        let (d_l, d_r) = (
+            (v - w_true * track / 2.0) * dt,
+            (v + w_true * track / 2.0) * dt,
+        );
+        let (dn_l, dn_r) = (
+            d_l / (c * (1.0 + k_z * a_true)),
+            d_r / (c * (1.0 - k_z * a_true)),
+        );
+        let w_plain = (dn_r - dn_l) * c / (track * dt);
+        let v_plain = 0.5 * (dn_r + dn_l) * c / dt;
+        assert!(
+            w_plain > 1.3 * w_true,
+            "the plain yaw rate is bent: {w_plain}"
+        );
+        let a = lateral_acceleration_from_wheels(v_plain, w_plain, k_z, track);
+        assert!((a - a_true).abs() < 0.01 * a_true, "{a} against {a_true}");
+        // The model fed that a_y turns the car at the true rate.
+        let terms = EffectTerms {
+            k_z,
+            ..EffectTerms::default()
+        };
+        let s = StepSignals {
+            v_m_s: v_plain,
+            a_y_m_s2: a,
+            ..StepSignals::default()
+        };
+        let (_, dyaw, _) = terms.increments(c, c, track, dn_l, dn_r, &s);
+        assert!(
+            (dyaw / dt - w_true).abs() < 0.01 * w_true,
+            "{} against {w_true}",
+            dyaw / dt
+        );
+        // Plain: v w.
+        assert_eq!(
+            lateral_acceleration_from_wheels(v, w_true, 0.0, track),
+            a_true
+        );
     }
 
     #[test]

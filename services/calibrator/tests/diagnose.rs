@@ -112,6 +112,53 @@ fn a_gnss_antenna_away_from_the_axle_is_found() {
 }
 
 #[test]
+fn a_load_transfer_is_sized_through_its_own_lateral_acceleration_not_confidently_low() {
+    // The diagnosis reads a_y from the wheels' yaw rate, which the load
+    // transfer itself bends by 2 k_z v^2 / t (73 % at 33 m/s). Read plainly,
+    // the estimate came out 0.60x the truth with a sigma that did not
+    // cover it (pull -6 on every seed). Read through the estimate, it must
+    // land near the truth and the held-out error must drop the more for it.
+    let truth = 5.25e-4;
+    let mut cfg = SimConfig::new(Scenario::Mixed, 2);
+    cfg.vehicle = VehicleKind::Saloon;
+    cfg.effects = EffectSettings::none();
+    cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: truth });
+    let d = diagnose(
+        &simulate(&cfg).expect("simulate"),
+        &DiagnoseConfig::default(),
+    )
+    .expect("diagnose");
+    let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
+    assert_eq!(ids, vec![Effect::LoadTransferRadius], "{d:#?}");
+    let f = &d.findings[0];
+    let k = f.parameter(Param::LoadTransferGain).expect("k_z");
+    let sigma = f.sigma(Param::LoadTransferGain).expect("k_z sigma");
+    assert!(
+        (k - truth).abs() < 0.08 * truth,
+        "k_z {k} ± {sigma} against {truth}"
+    );
+    // Measured 3-5 % high on six seeds (the simulator's load transfer acts
+    // through lagged suspension loads, not the instantaneous linear form):
+    // the sigma is not asked to cover that, only not to claim more than it.
+    assert!(
+        sigma > 0.0 && (k - truth).abs() < 6.0 * sigma,
+        "k_z {k} ± {sigma}"
+    );
+    assert!(
+        f.evidence.contains("a_y read through the estimate"),
+        "{}",
+        f.evidence
+    );
+    // 15 m plain; 3.0 m with the estimate read plainly; about 1.4 m now.
+    assert!(
+        f.holdout_rmse_after_m < 0.15 * f.holdout_rmse_before_m,
+        "{} -> {}",
+        f.holdout_rmse_before_m,
+        f.holdout_rmse_after_m
+    );
+}
+
+#[test]
 fn the_papers_future_work_effect_is_named_or_called_ambiguous_never_mistaken() {
     // The paper's course is driven near 60 km/h throughout, so load transfer
     // (v^2 w) and a track error (w) are nearly collinear there: the diagnosis

@@ -55,7 +55,9 @@
 //! Pure: no clock, no I/O. Times are seconds on the drive's clock.
 
 use std::collections::VecDeque;
-use vehicle_model::effects::{EffectTerms, StepSignals, WheelEffects};
+use vehicle_model::effects::{
+    lateral_acceleration_from_wheels, EffectTerms, StepSignals, WheelEffects,
+};
 use vehicle_model::estimate::OdometryParams;
 use vehicle_model::two_wheel::{step, Pose2};
 
@@ -466,21 +468,22 @@ impl Odometer {
             st.v_m_s = v_new;
             st.w_rad_s += k * (dyaw0 / dt - st.w_rad_s);
         }
+        let terms = EffectTerms::from(self.effects);
         let signals = StepSignals {
             v_m_s: st.v_m_s,
             a_x_m_s2: st.a_x_m_s2,
-            a_y_m_s2: st.v_m_s * st.w_rad_s,
+            // The plain yaw rate carries the load transfer: read through it,
+            // as the diagnosis that estimated k_z did.
+            a_y_m_s2: lateral_acceleration_from_wheels(
+                st.v_m_s,
+                st.w_rad_s,
+                terms.k_z,
+                tw.track_width,
+            ),
             grade: 0.0,
             t_since_start_s: t_s - t_first,
         };
-        EffectTerms::from(self.effects).increments(
-            tw.c_rl,
-            tw.c_rr,
-            tw.track_width,
-            dn_rl,
-            dn_rr,
-            &signals,
-        )
+        terms.increments(tw.c_rl, tw.c_rr, tw.track_width, dn_rl, dn_rr, &signals)
     }
 
     /// The gyro bias in use, rad/s: the calibrated one, combined with what

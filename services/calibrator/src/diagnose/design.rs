@@ -160,6 +160,17 @@ enum Kick {
 }
 
 impl Kick {
+    /// Whether the dead-reckoning it moves reads the lateral acceleration.
+    fn reads_lateral_acceleration(&self) -> bool {
+        matches!(
+            self,
+            Kick::Term {
+                param: EffectParam::SideSlipGain | EffectParam::LoadTransferGain,
+                ..
+            }
+        )
+    }
+
     fn term(param: EffectParam, step: f64) -> Kick {
         Kick::Term {
             param,
@@ -231,6 +242,32 @@ pub fn build(
     excluded: &[bool],
     cx: &Context<'_>,
     base: &Model,
+) -> Design {
+    build_reusing(ep, settings, excluded, cx, base, None)
+}
+
+/// The design again after the epochs' lateral acceleration was read anew
+/// (through a load transfer's estimate): only the columns that read a_y
+/// (side-slip, load transfer) are computed; every other column is the same
+/// as in `old`, built from the same drive, and is taken from it.
+pub fn rebuild_lateral(
+    old: &Design,
+    ep: &Epochs,
+    settings: &DesignSettings,
+    excluded: &[bool],
+    cx: &Context<'_>,
+    base: &Model,
+) -> Design {
+    build_reusing(ep, settings, excluded, cx, base, Some(old))
+}
+
+fn build_reusing(
+    ep: &Epochs,
+    settings: &DesignSettings,
+    excluded: &[bool],
+    cx: &Context<'_>,
+    base: &Model,
+    reuse: Option<&Design>,
 ) -> Design {
     let e = &ep.epochs;
     let t0 = e.first().map_or(0.0, |x| x.t_s);
@@ -563,7 +600,17 @@ pub fn build(
     let scale_col = add("position_scale".into(), Kick::Scale, &|_, _| 0.0);
     let lr_col = add("position_left_right".into(), Kick::LeftRight, &|_, _| 0.0);
     let nuisance = vec![scale, lr, scale_col, lr_col];
-    let perturb: Vec<Option<(Model, f64)>> = kicks.iter().map(|k| perturbation(*k, base)).collect();
+    let reused = |k: &Kick| reuse.is_some() && !k.reads_lateral_acceleration();
+    let perturb: Vec<Option<(Model, f64)>> = kicks
+        .iter()
+        .map(|k| {
+            if reused(k) {
+                None
+            } else {
+                perturbation(*k, base)
+            }
+        })
+        .collect();
     let mut sources = vec![(Channel::Position, HeadingSource::Wheels)];
     if ep.has_gyro {
         sources.push((Channel::PositionGyro, HeadingSource::Gyro));
@@ -717,6 +764,14 @@ pub fn build(
     demean(&mut y);
     for col in columns.iter_mut() {
         demean(col);
+    }
+    if let Some(old) = reuse {
+        for (c, col) in columns.iter_mut().enumerate() {
+            match old.columns.get(c) {
+                Some(o) if reused(&kicks[c]) && o.len() == col.len() => col.clone_from(o),
+                _ => {}
+            }
+        }
     }
     // Each effect as the gyro's heading sees it: the same columns without
     // the wheels' heading channels. Where the tyres turn the wheels'

@@ -7,6 +7,7 @@
 //! before to the fix after, so that the two sides see the same smoothing.
 
 use interfaces::drive::{Drive, GnssSample, ImuSample, WheelRevs};
+use vehicle_model::effects::lateral_acceleration_from_wheels;
 use vehicle_model::two_wheel::wrap_angle;
 
 /// Gravity, m/s^2.
@@ -43,7 +44,8 @@ pub struct Epoch {
     pub gz: f64,
     /// Longitudinal acceleration from the 2W speed, m/s^2.
     pub a_x: f64,
-    /// Lateral acceleration v w, m/s^2.
+    /// Lateral acceleration v w, m/s^2, the yaw rate read through the load
+    /// transfer the epochs were built with.
     pub a_y: f64,
     /// Yaw acceleration, rad/s^2.
     pub w_dot: f64,
@@ -118,7 +120,9 @@ fn gnss_noise(gnss: &[GnssSample]) -> f64 {
     stats::mad_sigma(&d2) / 6f64.sqrt()
 }
 
-/// Build the epochs. `c_rl`, `c_rr`, `track` are the calibrated 2W model's.
+/// Build the epochs. `c_rl`, `c_rr`, `track` are the calibrated 2W model's;
+/// `k_z` is the load transfer the lateral acceleration is read through
+/// ([`lateral_acceleration_from_wheels`]; 0: the plain v w).
 pub fn build(
     drive: &Drive,
     revs: &[WheelRevs],
@@ -126,6 +130,7 @@ pub fn build(
     c_rr: f64,
     track: f64,
     standstill_speed_m_s: f64,
+    k_z: f64,
 ) -> Epochs {
     let gnss: &[GnssSample] = drive.gnss.as_deref().unwrap_or(&[]);
     let white = gnss_noise(gnss);
@@ -153,7 +158,7 @@ pub fn build(
             if dt > 0.0 && ds.is_finite() && dpsi.is_finite() {
                 let v = ds / dt;
                 let w = dpsi / dt;
-                acc += v * w * ds;
+                acc += lateral_acceleration_from_wheels(v, w, k_z, track) * ds;
             }
         }
         int_ay.push(acc);
@@ -263,7 +268,7 @@ pub fn build(
             psi_gyro: interp(&it, &psi_g, b.t_s).unwrap_or(f64::NAN),
             gz,
             a_x: 0.0,
-            a_y: v_odo * w_odo,
+            a_y: lateral_acceleration_from_wheels(v_odo, w_odo, k_z, track),
             w_dot: 0.0,
             grade: ax_imu,
             heading: heading_at,
