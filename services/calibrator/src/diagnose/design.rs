@@ -15,7 +15,7 @@
 //! left/right difference) are always in the model: the calibration fits them.
 
 use super::epochs::{Epoch, Epochs};
-use super::locate::{align_with_angle, dr_points, Context, HeadingSource, Model};
+use super::locate::{align_with_angle, dr_points, Context, DrPoints, HeadingSource, Model};
 use interfaces::effects::{Effect, Param as EffectParam};
 use stats::mad_sigma;
 
@@ -243,22 +243,43 @@ pub fn build(
     cx: &Context<'_>,
     base: &Model,
 ) -> Design {
+    build_reusing(ep, settings, excluded, cx, base, None).0
+}
+
+/// The plain model's dead-reckoning of every block under each heading
+/// source, as [`build_keeping_points`] made it (`None` where a block has
+/// none): what [`rebuild_lateral`] needs to place the columns it recomputes.
+#[derive(Debug, Clone, Default)]
+pub struct BasePoints(Vec<Option<DrPoints>>);
+
+/// [`build`], keeping the plain model's dead-reckoning for a
+/// [`rebuild_lateral`].
+pub fn build_keeping_points(
+    ep: &Epochs,
+    settings: &DesignSettings,
+    excluded: &[bool],
+    cx: &Context<'_>,
+    base: &Model,
+) -> (Design, BasePoints) {
     build_reusing(ep, settings, excluded, cx, base, None)
 }
 
 /// The design again after the epochs' lateral acceleration was read anew
 /// (through a load transfer's estimate): only the columns that read a_y
 /// (side-slip, load transfer) are computed; every other column is the same
-/// as in `old`, built from the same drive, and is taken from it.
+/// as in `old`, built from the same drive with the same plain `base` model
+/// (which reads no a_y), and is taken from it, as are the plain model's
+/// dead-reckonings (`points`).
 pub fn rebuild_lateral(
     old: &Design,
+    points: &BasePoints,
     ep: &Epochs,
     settings: &DesignSettings,
     excluded: &[bool],
     cx: &Context<'_>,
     base: &Model,
 ) -> Design {
-    build_reusing(ep, settings, excluded, cx, base, Some(old))
+    build_reusing(ep, settings, excluded, cx, base, Some((old, points))).0
 }
 
 fn build_reusing(
@@ -267,8 +288,9 @@ fn build_reusing(
     excluded: &[bool],
     cx: &Context<'_>,
     base: &Model,
-    reuse: Option<&Design>,
-) -> Design {
+    reuse: Option<(&Design, &BasePoints)>,
+) -> (Design, BasePoints) {
+    let mut points = BasePoints::default();
     let e = &ep.epochs;
     let t0 = e.first().map_or(0.0, |x| x.t_s);
     let block_of = |x: &Epoch| ((x.t_s - t0) / settings.block_s).floor().max(0.0) as usize;
@@ -622,7 +644,13 @@ fn build_reusing(
             first_t + (b + 1) as f64 * settings.block_s,
         );
         for &(ch, source) in &sources {
-            let Some(base_pts) = dr_points(base, source, cx, b0, b1) else {
+            let slot = points.0.len();
+            let cached = reuse.and_then(|(_, p)| p.0.get(slot).cloned());
+            points.0.push(match cached {
+                Some(known) => known,
+                None => dr_points(base, source, cx, b0, b1),
+            });
+            let Some(base_pts) = points.0.get(slot).and_then(Option::as_ref) else {
                 continue;
             };
             let (g, p0) = (&base_pts.gnss, &base_pts.model);
@@ -737,8 +765,11 @@ fn build_reusing(
             }
         };
         transform(&mut y);
-        for col in columns.iter_mut() {
-            transform(col);
+        for (c, col) in columns.iter_mut().enumerate() {
+            // A reused column is taken whole from the old design below.
+            if !reused(&kicks[c]) {
+                transform(col);
+            }
         }
     }
 
@@ -762,15 +793,10 @@ fn build_reusing(
         }
     };
     demean(&mut y);
-    for col in columns.iter_mut() {
-        demean(col);
-    }
-    if let Some(old) = reuse {
-        for (c, col) in columns.iter_mut().enumerate() {
-            match old.columns.get(c) {
-                Some(o) if reused(&kicks[c]) && o.len() == col.len() => col.clone_from(o),
-                _ => {}
-            }
+    for (c, col) in columns.iter_mut().enumerate() {
+        match reuse.and_then(|(old, _)| old.columns.get(c)) {
+            Some(o) if reused(&kicks[c]) && o.len() == col.len() => col.clone_from(o),
+            _ => demean(col),
         }
     }
     // Each effect as the gyro's heading sees it: the same columns without
@@ -880,7 +906,7 @@ fn build_reusing(
         }
         ok
     });
-    Design {
+    let design = Design {
         rows,
         y,
         w,
@@ -893,7 +919,8 @@ fn build_reusing(
         block_s: settings.block_s,
         channel_sigma,
         whitening,
-    }
+    };
+    (design, points)
 }
 
 /// The variant of an effect fitted on the gyro's heading channels only

@@ -666,7 +666,8 @@ pub fn diagnose_with_progress(
         terms: EffectTerms::default(),
         slip_side: 0,
     };
-    let design = design::build(&ep, &settings, &excluded, &cx, &plain_model);
+    let (design, base_points) =
+        design::build_keeping_points(&ep, &settings, &excluded, &cx, &plain_model);
     let stats = BlockStats::new(&design);
     let used = stats.used_blocks();
     if used.len() < 4 {
@@ -760,6 +761,7 @@ pub fn diagnose_with_progress(
                     };
                     let d2 = design::rebuild_lateral(
                         &now.1,
+                        &base_points,
                         &ep2,
                         &settings,
                         &excluded,
@@ -771,7 +773,10 @@ pub fn diagnose_with_progress(
                     if d2.candidates != now.1.candidates || d2.rows != now.1.rows {
                         break;
                     }
-                    let s2 = BlockStats::new(&d2);
+                    let changed: Vec<usize> = (0..d2.columns.len())
+                        .filter(|&c| d2.columns.get(c) != now.1.columns.get(c))
+                        .collect();
+                    let s2 = now.2.with_columns_changed(&d2, &changed);
                     let Some(next) = fit_k(&s2) else {
                         break;
                     };

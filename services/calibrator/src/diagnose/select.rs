@@ -70,6 +70,45 @@ impl BlockStats {
         s
     }
 
+    /// The statistics of `d`, a design whose rows, y and weights are those
+    /// this was accumulated from and whose columns differ only at
+    /// `changed`: those columns' entries are accumulated anew, the rest kept.
+    pub fn with_columns_changed(&self, d: &Design, changed: &[usize]) -> BlockStats {
+        let p = d.columns.len();
+        let mut s = self.clone();
+        let mut m = vec![vec![DVector::<f64>::zeros(p); changed.len()]; d.blocks];
+        let mut c_y = vec![vec![0.0; changed.len()]; d.blocks];
+        let mut x = vec![0.0; p];
+        for (r, &(_, _, b)) in d.rows.iter().enumerate() {
+            let w = d.w[r];
+            if w.is_nan() || w <= 0.0 || !d.y[r].is_finite() {
+                continue;
+            }
+            for (j, col) in d.columns.iter().enumerate() {
+                x[j] = if col[r].is_finite() { col[r] } else { 0.0 };
+            }
+            for (k, &i) in changed.iter().enumerate() {
+                if x[i] == 0.0 {
+                    continue;
+                }
+                c_y[b][k] += w * x[i] * d.y[r];
+                for j in 0..p {
+                    m[b][k][j] += w * x[i] * x[j];
+                }
+            }
+        }
+        for b in 0..d.blocks.min(s.xtx.len()) {
+            for (k, &i) in changed.iter().enumerate() {
+                s.xty[b][i] = c_y[b][k];
+                for (j, &v) in m[b][k].iter().enumerate() {
+                    s.xtx[b][(i, j)] = v;
+                    s.xtx[b][(j, i)] = v;
+                }
+            }
+        }
+        s
+    }
+
     /// Blocks with rows.
     pub fn used_blocks(&self) -> Vec<usize> {
         (0..self.rows.len()).filter(|&b| self.rows[b] > 0).collect()
@@ -477,6 +516,23 @@ mod tests {
             .cholesky()
             .expect("full rank")
             .solve(&(x.transpose() * y))
+    }
+
+    #[test]
+    fn statistics_updated_at_changed_columns_equal_those_accumulated_anew() {
+        let d = design(5, 30);
+        let s = BlockStats::new(&d);
+        let mut d2 = d.clone();
+        d2.columns[1] = d.columns[1].iter().map(|v| 3.0 * v * v - 0.2).collect();
+        let fresh = BlockStats::new(&d2);
+        let updated = s.with_columns_changed(&d2, &[1]);
+        assert_ne!(fresh.xtx, s.xtx);
+        for b in 0..5 {
+            assert!((&fresh.xtx[b] - &updated.xtx[b]).amax() < 1e-9, "block {b}");
+            assert!((&fresh.xty[b] - &updated.xty[b]).amax() < 1e-9, "block {b}");
+            assert_eq!(fresh.yty[b], updated.yty[b]);
+            assert_eq!(fresh.rows[b], updated.rows[b]);
+        }
     }
 
     #[test]
