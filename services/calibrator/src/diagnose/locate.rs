@@ -35,8 +35,25 @@ pub struct BlockTrack {
     pub rms_m: f64,
 }
 
-fn interp_epoch(epochs: &[Epoch], t: f64, f: impl Fn(&Epoch) -> f64) -> f64 {
-    let i = epochs.partition_point(|e| e.t_s < t);
+/// The first epoch at or after `t` (what `partition_point` gives), found by
+/// moving `cursor` on from where the previous call left it: a
+/// dead-reckoning asks at increasing times, so this is O(1) a step.
+fn epoch_index(epochs: &[Epoch], cursor: &mut usize, t: f64) -> usize {
+    let mut i = (*cursor).min(epochs.len());
+    if i > 0 && epochs[i - 1].t_s >= t {
+        i = epochs.partition_point(|e| e.t_s < t);
+    }
+    while i < epochs.len() && epochs[i].t_s < t {
+        i += 1;
+    }
+    *cursor = i;
+    i
+}
+
+/// A signal of the epochs, interpolated linearly at `t` (the end value
+/// outside, 0 where not finite); `i` is the first epoch at or after `t`
+/// ([`epoch_index`]).
+fn interp_at(epochs: &[Epoch], i: usize, t: f64, f: impl Fn(&Epoch) -> f64) -> f64 {
     if epochs.is_empty() {
         return 0.0;
     }
@@ -137,15 +154,22 @@ pub fn dr_points(
     let mut poses = Vec::with_capacity(i1 - i0);
     let mut pose = Pose2::default();
     poses.push((revs[i0].t_s, pose));
-    let mut last_gyro = cx.gyro_heading(revs[i0].t_s);
+    // The gyro's heading is read only when it steers.
+    let gyro_at = |t: f64| match source {
+        HeadingSource::Gyro => cx.gyro_heading(t),
+        HeadingSource::Wheels => None,
+    };
+    let mut last_gyro = gyro_at(revs[i0].t_s);
+    let mut cursor = epochs.partition_point(|e| e.t_s < revs[i0].t_s);
     for k in i0 + 1..i1 {
         let (p, r) = (&revs[k - 1], &revs[k]);
         let dt = r.t_s - p.t_s;
         let (dn_l, dn_r) = (r.rl - p.rl, r.rr - p.rr);
-        let gyro_now = cx.gyro_heading(r.t_s);
+        let gyro_now = gyro_at(r.t_s);
         if dt > 0.0 && dn_l.is_finite() && dn_r.is_finite() {
             let t_mid = 0.5 * (r.t_s + p.t_s);
-            let a_x = interp_epoch(epochs, t_mid, |e| e.a_x);
+            let i = epoch_index(epochs, &mut cursor, t_mid);
+            let a_x = interp_at(epochs, i, t_mid, |e| e.a_x);
             let a_x = match model.slip_side {
                 -1 => a_x.min(0.0),
                 1 => a_x.max(0.0),
@@ -156,10 +180,10 @@ pub fn dr_points(
                 // the GNSS differencing interval, as the design's columns read
                 // them (one wheel step's speed and v w swing with the
                 // encoder's quantisation, and the terms are not linear in them).
-                v_m_s: interp_epoch(epochs, t_mid, |e| e.v_odo),
+                v_m_s: interp_at(epochs, i, t_mid, |e| e.v_odo),
                 a_x_m_s2: a_x,
-                a_y_m_s2: interp_epoch(epochs, t_mid, |e| e.a_y),
-                grade: interp_epoch(epochs, t_mid, |e| e.grade),
+                a_y_m_s2: interp_at(epochs, i, t_mid, |e| e.a_y),
+                grade: interp_at(epochs, i, t_mid, |e| e.grade),
                 t_since_start_s: t_mid - t_start,
             };
             let (ds, dyaw_wheels, beta) =
