@@ -142,6 +142,12 @@ pub struct StepSignals {
     pub t_since_start_s: f64,
 }
 
+/// The terms whose step in [`EffectTerms::increments`] reads the lateral
+/// acceleration [`StepSignals::a_y_m_s2`]: a model that reads a_y anew
+/// (through a load transfer's estimate, [`lateral_acceleration_from_wheels`])
+/// changes what these terms do and nothing else.
+pub const READS_LATERAL_ACCELERATION: [Param; 2] = [Param::SideSlipGain, Param::LoadTransferGain];
+
 /// The lateral acceleration a_y = v w from the rear wheels' own speed and yaw
 /// rate, with the load transfer `k_z` taken out of the yaw rate.
 ///
@@ -341,6 +347,47 @@ impl EffectTerms {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn exactly_the_terms_said_to_read_the_lateral_acceleration_do() {
+        // Every parameter of every effect, set to its typical size: its
+        // increments move with a_y iff it is listed.
+        let at = |a_y: f64| StepSignals {
+            v_m_s: 12.0,
+            a_x_m_s2: 0.8,
+            a_y_m_s2: a_y,
+            grade: 0.04,
+            t_since_start_s: 300.0,
+        };
+        let mut checked = 0;
+        for e in Effect::ALL {
+            for &p in e.spec().model {
+                let mut t = EffectTerms::default();
+                for &q in e.spec().model {
+                    t.set(q, q.spec().typical);
+                }
+                let mut plain = t;
+                plain.set(p, 0.0);
+                let moves = |terms: &EffectTerms| {
+                    let a = terms.increments(2.0, 2.0, 1.5, 1.0, 1.02, &at(0.0));
+                    let b = terms.increments(2.0, 2.0, 1.5, 1.0, 1.02, &at(3.0));
+                    [b.0 - a.0, b.1 - a.1, b.2 - a.2]
+                };
+                let (with, without) = (moves(&t), moves(&plain));
+                let reads = with
+                    .iter()
+                    .zip(&without)
+                    .any(|(x, y)| (x - y).abs() > 1e-12);
+                assert_eq!(
+                    reads,
+                    READS_LATERAL_ACCELERATION.contains(&p),
+                    "{e:?} {p:?}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked >= 12, "{checked}");
+    }
 
     #[test]
     fn the_plain_model_is_eq_1_2() {

@@ -18,6 +18,7 @@ use super::epochs::{Epoch, Epochs};
 use super::locate::{align_with_angle, dr_points, Context, DrPoints, HeadingSource, Model};
 use interfaces::effects::{Effect, Param as EffectParam};
 use stats::mad_sigma;
+use vehicle_model::effects::READS_LATERAL_ACCELERATION;
 
 /// A residual channel.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -162,13 +163,7 @@ enum Kick {
 impl Kick {
     /// Whether the dead-reckoning it moves reads the lateral acceleration.
     fn reads_lateral_acceleration(&self) -> bool {
-        matches!(
-            self,
-            Kick::Term {
-                param: EffectParam::SideSlipGain | EffectParam::LoadTransferGain,
-                ..
-            }
-        )
+        matches!(self, Kick::Term { param, .. } if READS_LATERAL_ACCELERATION.contains(param))
     }
 
     fn term(param: EffectParam, step: f64) -> Kick {

@@ -31,6 +31,7 @@ pub mod decide;
 pub mod design;
 pub mod epochs;
 pub mod information;
+pub mod lateral;
 pub mod limit;
 pub mod locate;
 pub mod montecarlo;
@@ -51,20 +52,6 @@ use serde::Serialize;
 use stats::{mad_sigma, median_of_finite as median};
 use std::collections::BTreeMap;
 use vehicle_model::effects::EffectTerms;
-
-/// Refits at most, reading a_y through the load transfer's estimate (the
-/// fixed point contracts by 2 k_z v^2 / (t + 2 k_z v^2) per step: about 0.4
-/// at 33 m/s for a typical k_z; each step recomputes only the two columns
-/// that read a_y).
-const LATERAL_STEPS: usize = 12;
-
-/// Whether reading a_y through `k_in` gave back a load transfer within a
-/// quarter of its sigma of it (`out`: estimate, sigma). The fixed point
-/// lies within r / (1 - r) of that step (r the contraction, under 0.4 at
-/// typical sizes): within a sixth of a sigma.
-fn lateral_settled(k_in: f64, out: (f64, f64)) -> bool {
-    (out.0 - k_in).abs() < 0.25 * out.1
-}
 
 /// Settings of a diagnosis. [`Default`] is what `calibrator diagnose` uses.
 #[derive(Debug, Clone, PartialEq)]
@@ -738,95 +725,36 @@ pub fn diagnose_with_progress(
         .map(|&i| &design.candidates[i])
         .find(|c| c.effect == Effect::LoadTransferRadius)
         .and_then(|c| c.params.first().map(|p| p.column));
-    let mut lateral_steps: Vec<(f64, f64, f64)> = Vec::new();
-    let (ep, design, stats) = match load_transfer_col {
-        None => (ep, design, stats),
+    let cols = model_columns(&design, &sel.accepted);
+    let lateral = match load_transfer_col {
+        None => lateral::Read {
+            fit: stats.fit_with_sigmas(&cols),
+            ep,
+            design,
+            stats,
+            steps: Vec::new(),
+        },
         Some(col) => {
-            let cols = model_columns(&design, &sel.accepted);
-            let fit_k = |s: &BlockStats| -> Option<(f64, f64)> {
-                let (b, sg) = s.fit_with_sigmas(&cols)?;
-                let i = cols.iter().position(|&x| x == col)?;
-                (b[i].is_finite() && sg[i].is_finite()).then_some((b[i], sg[i]))
+            let inputs = lateral::Inputs {
+                epochs_at: &epochs_at,
+                base_points: &base_points,
+                settings: &settings,
+                excluded: &excluded,
+                revs: &revs,
+                gnss,
+                plain: &plain_model,
+                track_m: base.track_width_m,
             };
-            let mut now = (ep, design, stats);
-            if let Some(first) = fit_k(&now.2) {
-                lateral_steps.push((0.0, first.0, first.1));
-                // Start where the plain reading's shrinkage says the
-                // estimate lies: k0 = k / (1 + k x) with x = 2 v^2 / t
-                // averaged where the fingerprint's information is
-                // (weights (v a_y)^2), so k = k0 / (1 - k0 x).
-                let (sw, swx) = now
-                    .0
-                    .epochs
-                    .iter()
-                    .filter(|e| !e.standstill && e.a_y.is_finite())
-                    .fold((0.0, 0.0), |(a, b), e| {
-                        let w = (e.v_odo * e.a_y).powi(2);
-                        (a + w, b + w * 2.0 * e.v_odo * e.v_odo / base.track_width_m)
-                    });
-                let shrink = if sw > 0.0 { first.0 * swx / sw } else { 0.0 };
-                let mut k = if shrink.is_finite() && shrink.abs() < 0.5 {
-                    first.0 / (1.0 - shrink)
-                } else {
-                    first.0
-                };
-                // Plain iterates since the last jump, for Aitken's.
-                let mut run = vec![k];
-                for _ in 0..LATERAL_STEPS {
-                    let ep2 = epochs_at(k);
-                    let cx2 = locate::Context {
-                        revs: &revs,
-                        gnss,
-                        ep: &ep2,
-                    };
-                    let d2 = design::rebuild_lateral(
-                        &now.1,
-                        &base_points,
-                        &ep2,
-                        &settings,
-                        &excluded,
-                        &cx2,
-                        &plain_model,
-                    );
-                    // The same candidates in the same columns, or the
-                    // selection's indices would not hold.
-                    if d2.candidates != now.1.candidates || d2.rows != now.1.rows {
-                        break;
-                    }
-                    let changed: Vec<usize> = (0..d2.columns.len())
-                        .filter(|&c| d2.columns.get(c) != now.1.columns.get(c))
-                        .collect();
-                    let s2 = now.2.with_columns_changed(&d2, &changed);
-                    let Some(next) = fit_k(&s2) else {
-                        break;
-                    };
-                    now = (ep2, d2, s2);
-                    tracing::debug!(
-                        k_z_in = k,
-                        k_z_out = next.0,
-                        sigma = next.1,
-                        "load transfer: a_y read through the estimate"
-                    );
-                    lateral_steps.push((k, next.0, next.1));
-                    if lateral_settled(k, next) {
-                        break;
-                    }
-                    // The iteration contracts geometrically: once three
-                    // iterates show the ratio, jump to the limit (Aitken).
-                    run.push(next.0);
-                    k = next.0;
-                    if let [.., a, b, c] = run[..] {
-                        let r = (c - b) / (b - a);
-                        if r.is_finite() && r > 0.0 && r < 0.95 {
-                            k = c + (c - b) * r / (1.0 - r);
-                            run = vec![k];
-                        }
-                    }
-                }
-            }
-            now
+            lateral::read_through_estimate(&inputs, ep, design, stats, &cols, col)
         }
     };
+    let lateral::Read {
+        ep,
+        design,
+        stats,
+        fit: final_fit,
+        steps: lateral_steps,
+    } = lateral;
     let cx = locate::Context {
         revs: &revs,
         gnss,
@@ -892,11 +820,10 @@ pub fn diagnose_with_progress(
             .collect();
         ((ss / n.max(1.0)).sqrt(), per_block)
     };
-    // Final coefficients, sigmas, and the effect terms.
-    let cols = model_columns(&design, &sel.accepted);
-    let (beta, sigma) = stats
-        .fit_with_sigmas(&cols)
-        .unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
+    // Final coefficients, sigmas, and the effect terms (the accepted
+    // candidates keep their columns through the refits).
+    let (beta, sigma) =
+        final_fit.unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
     let coef = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| beta[i]);
     let coef_sigma = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
     let accepted: Vec<&Candidate> = sel
@@ -976,21 +903,9 @@ pub fn diagnose_with_progress(
                 ),
             ),
         };
-        let evidence = match (cand.effect, lateral_steps.first(), lateral_steps.last()) {
-            (Effect::LoadTransferRadius, Some(first), Some(last)) if lateral_steps.len() > 1 => {
-                let n = lateral_steps.len() - 1;
-                format!(
-                    "{evidence}; a_y read through the estimate (the load transfer bends the wheels' \
-                     yaw rate): k_z {:.3e} with the plain v w, {:.3e} after {n} refit{}{}",
-                    first.1,
-                    last.1,
-                    if n == 1 { "" } else { "s" },
-                    if lateral_settled(last.0, (last.1, last.2)) {
-                        ""
-                    } else {
-                        " (not settled)"
-                    },
-                )
+        let evidence = match lateral::evidence(&lateral_steps) {
+            Some(refits) if cand.effect == Effect::LoadTransferRadius => {
+                format!("{evidence}; {refits}")
             }
             _ => evidence,
         };

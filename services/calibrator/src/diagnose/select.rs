@@ -23,6 +23,22 @@ pub const VIF_AMBIGUOUS: f64 = 10.0;
 /// Family-wise false-discovery level of one selection step.
 pub const ALPHA: f64 = 0.05;
 
+/// Calls `f(block, weight, y, x)` for each row of `d` that counts: a
+/// positive weight and a finite y (a non-finite column entry reads as 0).
+fn for_each_row(d: &Design, mut f: impl FnMut(usize, f64, f64, &[f64])) {
+    let mut x = vec![0.0; d.columns.len()];
+    for (r, &(_, _, b)) in d.rows.iter().enumerate() {
+        let w = d.w[r];
+        if w.is_nan() || w <= 0.0 || !d.y[r].is_finite() {
+            continue;
+        }
+        for (j, col) in d.columns.iter().enumerate() {
+            x[j] = if col[r].is_finite() { col[r] } else { 0.0 };
+        }
+        f(b, w, d.y[r], &x);
+    }
+}
+
 /// Per-block sufficient statistics over every column.
 #[derive(Debug, Clone)]
 pub struct BlockStats {
@@ -46,27 +62,19 @@ impl BlockStats {
             yty: vec![0.0; d.blocks],
             rows: vec![0; d.blocks],
         };
-        let mut x = vec![0.0; p];
-        for (r, &(_, _, b)) in d.rows.iter().enumerate() {
-            let w = d.w[r];
-            if w.is_nan() || w <= 0.0 || !d.y[r].is_finite() {
-                continue;
-            }
-            for (j, col) in d.columns.iter().enumerate() {
-                x[j] = if col[r].is_finite() { col[r] } else { 0.0 };
-            }
+        for_each_row(d, |b, w, y, x| {
             for i in 0..p {
                 if x[i] == 0.0 {
                     continue;
                 }
-                s.xty[b][i] += w * x[i] * d.y[r];
+                s.xty[b][i] += w * x[i] * y;
                 for j in 0..p {
                     s.xtx[b][(i, j)] += w * x[i] * x[j];
                 }
             }
-            s.yty[b] += w * d.y[r] * d.y[r];
+            s.yty[b] += w * y * y;
             s.rows[b] += 1;
-        }
+        });
         s
     }
 
@@ -78,25 +86,17 @@ impl BlockStats {
         let mut s = self.clone();
         let mut m = vec![vec![DVector::<f64>::zeros(p); changed.len()]; d.blocks];
         let mut c_y = vec![vec![0.0; changed.len()]; d.blocks];
-        let mut x = vec![0.0; p];
-        for (r, &(_, _, b)) in d.rows.iter().enumerate() {
-            let w = d.w[r];
-            if w.is_nan() || w <= 0.0 || !d.y[r].is_finite() {
-                continue;
-            }
-            for (j, col) in d.columns.iter().enumerate() {
-                x[j] = if col[r].is_finite() { col[r] } else { 0.0 };
-            }
+        for_each_row(d, |b, w, y, x| {
             for (k, &i) in changed.iter().enumerate() {
                 if x[i] == 0.0 {
                     continue;
                 }
-                c_y[b][k] += w * x[i] * d.y[r];
+                c_y[b][k] += w * x[i] * y;
                 for j in 0..p {
                     m[b][k][j] += w * x[i] * x[j];
                 }
             }
-        }
+        });
         for b in 0..d.blocks.min(s.xtx.len()) {
             for (k, &i) in changed.iter().enumerate() {
                 s.xty[b][i] = c_y[b][k];
