@@ -170,6 +170,7 @@ def main():
     limits = OrderedDict()
     null_limit = []
     effective = []
+    per_vehicle = defaultdict(list)
     for case in manifest:
         drive = os.path.join(a.out_dir, case["drive"])
         d, dt = run(a.calibrator, drive, a.rerun,
@@ -192,6 +193,7 @@ def main():
                f"ambiguous [{', '.join(amb)}] pos RMSE {before:.3f} -> {after:.3f} m, {dt:.1f} s")
         print(msg, flush=True)
         lines.append(msg)
+        per_vehicle[case["vehicle"]].append((before, after))
         lim = d.get("information_limit")
         if lim and not truth:
             # The joint Wald rule on a null drive: effects beyond the
@@ -278,6 +280,13 @@ def main():
                    f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
     out.extend(limit_table(limits, null_limit))
     out.extend(effective_table(effective))
+    out.extend(["", "Held-out position RMSE per vehicle (`fit.before` / `fit.after` of the JSON), mean over its drives:", "",
+                "| vehicle | drives | plain model | with the findings |", "|---|---|---|---|"])
+    for v, xs in sorted(per_vehicle.items()):
+        ok = [(b, a) for b, a in xs if b is not None and a is not None]
+        if ok:
+            out.append(f"| {v} | {len(ok)} | {sum(b for b, _ in ok) / len(ok):.2f} m | "
+                       f"{sum(a for _, a in ok) / len(ok):.2f} m |")
     out.append("")
     out.append(f"null drives: {null_n}, with a false discovery (beyond the model's own tyre physics): {null_false}; "
                f"ids found on null drives: {dict(null_found) or 'none'}")
