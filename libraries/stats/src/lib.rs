@@ -1,5 +1,5 @@
-//! Small statistics in one home: medians, the MAD sigma, percentiles and
-//! angle wrapping, used by the readers, the simulator, the calibration, the
+//! Small statistics in one home: medians, the MAD sigma, percentiles,
+//! angle wrapping and the tests' distributions ([`distributions`]), used by the readers, the simulator, the calibration, the
 //! diagnosis and the odometry alike.
 //!
 //! Two medians, because the code base uses both on purpose:
@@ -12,6 +12,8 @@
 //! Every function orders with [`f64::total_cmp`] (NaN sorts last), so the
 //! results are deterministic whatever the input; none allocates unless it
 //! says so. Pure: numbers in, numbers out.
+
+pub mod distributions;
 
 use std::f64::consts::{PI, TAU};
 

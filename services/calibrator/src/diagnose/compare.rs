@@ -35,11 +35,11 @@
 
 use super::decide::{guard_passes, step_down};
 use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
-use super::select::normal_quantile;
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
 use interfaces::effects::{Effect, Param};
 use serde::{Deserialize, Serialize};
+use stats::distributions::normal_quantile;
 use std::collections::BTreeMap;
 
 /// Settings of a comparison.

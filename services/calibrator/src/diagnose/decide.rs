@@ -37,10 +37,11 @@
 
 use super::design::{Candidate, Design};
 use super::limit::{EffectLimit, InformationLimit, InformationSource};
-use super::select::{gain, t_quantile, BlockStats, Gain};
+use super::select::{gain, BlockStats, Gain};
 use super::{model_columns, Ambiguous, How, Rejected, Selection};
 use interfaces::effects::Effect;
 use serde::Serialize;
+use stats::distributions::t_quantile;
 
 /// One effect's Wald test in Holm's order.
 #[derive(Debug, Clone, PartialEq, Serialize)]

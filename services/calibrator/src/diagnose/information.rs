@@ -225,7 +225,7 @@ pub fn detectable_size(info: f64, alpha: f64, power: f64) -> f64 {
     if !(info > 0.0 && info.is_finite()) {
         return f64::INFINITY;
     }
-    let z = super::select::normal_quantile;
+    let z = stats::distributions::normal_quantile;
     (z(1.0 - 0.5 * alpha) + z(power)) / info.sqrt()
 }
 

@@ -31,6 +31,9 @@ use crate::error_model::{nnls2, variogram, Normal};
 use interfaces::effects::{Effect, Param, Scope};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
+use stats::distributions::{
+    bisect, f_sf, noncentral_chi3_cdf, normal_quantile, t_equivalent, t_quantile,
+};
 use std::collections::BTreeMap;
 
 /// The family-wise level the limit is given at (two-sided, shared by the
@@ -1214,7 +1217,7 @@ pub fn limit_and_information(
         )));
     }
     let segment_sizes: Vec<usize> = times.iter().map(Vec::len).filter(|n| *n > 0).collect();
-    let z_critical = super::select::t_quantile(
+    let z_critical = t_quantile(
         1.0 - 0.5 * alpha,
         segment_sizes.len().saturating_sub(1) as f64,
     );
@@ -1576,7 +1579,7 @@ pub(super) fn limit_of(
     let shown = |v: f64| p.to_display(v).abs();
     // The information is about the square of a squared term: its smallest
     // size is the root of the square's.
-    let z_power = super::select::normal_quantile(POWER);
+    let z_power = normal_quantile(POWER);
     let size_fit = fit.map_or(f64::INFINITY, |f| (z_critical + z_power) * f.sigma());
     let size = if squared { size_fit.sqrt() } else { size_fit };
     // An information below what the numbers resolve is none.
@@ -1896,7 +1899,7 @@ fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Opti
     // with three degrees of freedom reaches it with at the power.
     let w_critical = bisect(0.0, 1e4, |w| p_value(w) > alpha);
     let r = w_critical.sqrt();
-    let mu = bisect(0.0, r + 20.0, |mu| 1.0 - chi3_cdf(r, mu) < POWER);
+    let mu = bisect(0.0, r + 20.0, |mu| 1.0 - noncentral_chi3_cdf(r, mu) < POWER);
     let smallest = (0..p)
         .map(|i| mu / precision[(i, i)].max(f64::MIN_POSITIVE).sqrt())
         .fold(0.0, f64::max);
@@ -1909,153 +1912,6 @@ fn joint_test(m: &MultiFit, factor: f64, k: usize, dof: f64, alpha: f64) -> Opti
     smallest
         .is_finite()
         .then_some(HeadingJoint { z, smallest, terms })
-}
-
-/// The point in [lo, hi] where `below` turns false (`below` true below it).
-fn bisect(mut lo: f64, mut hi: f64, below: impl Fn(f64) -> bool) -> f64 {
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if below(mid) {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
-/// The distribution function at `r` of the length of a three-dimensional
-/// standard normal vector shifted by `mu` (the root of a noncentral
-/// chi-square with three degrees of freedom).
-fn chi3_cdf(r: f64, mu: f64) -> f64 {
-    let phi = |x: f64| (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
-    if mu < 1e-6 {
-        // The central chi: 2 Phi(r) - 1 - 2 r phi(r).
-        return normal_cdf(r) - normal_cdf(-r) - 2.0 * r * phi(r);
-    }
-    normal_cdf(r - mu) - normal_cdf(-r - mu) - (phi(r - mu) - phi(r + mu)) / mu
-}
-
-/// The standard normal distribution function (erfc of Numerical Recipes,
-/// relative error below 1.2e-7).
-fn normal_cdf(x: f64) -> f64 {
-    let z = x.abs() / std::f64::consts::SQRT_2;
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let poly = -z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
-    let erfc = t * poly.exp();
-    if x >= 0.0 {
-        1.0 - 0.5 * erfc
-    } else {
-        0.5 * erfc
-    }
-}
-
-/// The upper tail of the F distribution with `d1` and `d2` degrees of
-/// freedom at `f`.
-fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
-    if f <= 0.0 {
-        return 1.0;
-    }
-    beta_regularized(d2 / (d2 + d1 * f), 0.5 * d2, 0.5 * d1)
-}
-
-/// The |t| with `dof` degrees of freedom whose two-sided tail is `p`.
-fn t_equivalent(p: f64, dof: f64) -> f64 {
-    let v = dof.max(1.0);
-    let p = p.clamp(1e-300, 1.0);
-    // The two-sided tail at t is I_x(v / 2, 1 / 2) with x = v / (v + t^2),
-    // increasing in x: bisect on ln x.
-    let ln_x = bisect(-700.0, 0.0, |l| beta_regularized(l.exp(), 0.5 * v, 0.5) < p);
-    let x = ln_x.exp();
-    (v * (1.0 - x) / x).max(0.0).sqrt()
-}
-
-/// ln Gamma(x), x > 0 (Lanczos, g = 7).
-#[allow(clippy::excessive_precision)]
-fn ln_gamma(x: f64) -> f64 {
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_93,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_13,
-        -176.615_029_162_140_59,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_571_6e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let t = x + 7.5;
-    let sum = C[1..]
-        .iter()
-        .enumerate()
-        .fold(C[0], |s, (i, c)| s + c / (x + i as f64 + 1.0));
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
-}
-
-/// The regularized incomplete beta function I_x(a, b) (continued fraction,
-/// Numerical Recipes' betacf).
-fn beta_regularized(x: f64, a: f64, b: f64) -> f64 {
-    if x <= 0.0 {
-        return 0.0;
-    }
-    if x >= 1.0 {
-        return 1.0;
-    }
-    let front =
-        (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp();
-    if x < (a + 1.0) / (a + b + 2.0) {
-        front * beta_fraction(x, a, b) / a
-    } else {
-        1.0 - front * beta_fraction(1.0 - x, b, a) / b
-    }
-}
-
-fn beta_fraction(x: f64, a: f64, b: f64) -> f64 {
-    let tiny = 1e-300;
-    let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
-    let mut c = 1.0;
-    let mut d = 1.0 - qab * x / qap;
-    if d.abs() < tiny {
-        d = tiny;
-    }
-    d = 1.0 / d;
-    let mut h = d;
-    for m in 1..300 {
-        let m = m as f64;
-        let m2 = 2.0 * m;
-        for aa in [
-            m * (b - m) * x / ((qam + m2) * (a + m2)),
-            -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)),
-        ] {
-            d = 1.0 + aa * d;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = 1.0 + aa / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            h *= d * c;
-        }
-        // The last factor of the pair.
-        if (d * c - 1.0).abs() < 1e-15 {
-            break;
-        }
-    }
-    h
 }
 
 fn lag1(x: &[f64]) -> f64 {
@@ -2178,25 +2034,6 @@ mod tests {
     }
 
     #[test]
-    fn the_joint_tests_distributions_match_their_tables() {
-        // Student t, two-sided 5 % with 10 degrees of freedom: 2.228.
-        assert!((t_equivalent(0.05, 10.0) - 2.2281).abs() < 1e-3);
-        // F(3, 10) upper 5 %: 3.708.
-        assert!((f_sf(3.7083, 3.0, 10.0) - 0.05).abs() < 1e-4);
-        // The central chi with three degrees of freedom: chi^2 = 7.815 at
-        // the upper 5 %, both branches alike.
-        let r = 7.8147_f64.sqrt();
-        assert!((1.0 - chi3_cdf(r, 0.0) - 0.05).abs() < 1e-4);
-        assert!((chi3_cdf(r, 1e-5) - chi3_cdf(r, 0.0)).abs() < 1e-4);
-        // One term: Hotelling's reference is the t's.
-        let p = f_sf(2.5_f64.powi(2), 1.0, 9.0);
-        assert!((t_equivalent(p, 9.0) - 2.5).abs() < 1e-6);
-        // A tail far beyond the doubles' resolution of 1 - p.
-        let far = t_equivalent(1e-30, 12.0);
-        assert!(far.is_finite() && far > 20.0, "{far}");
-    }
-
-    #[test]
     fn the_joint_test_sees_a_sinusoid_the_constant_term_cannot() {
         // Three terms over 10 blocks of 100 rows: a constant, sin and cos
         // of a heading that turns; the data a pure sin term plus noise.
@@ -2218,10 +2055,7 @@ mod tests {
         assert!((alone.estimate / alone.sigma()).abs() < 3.0, "{alone:?}");
         let alpha = FAMILY_ALPHA / 12.0;
         let j = joint_test(&m, 1.0, blocks, 9.0, alpha).expect("joint");
-        assert!(
-            j.z > super::super::select::t_quantile(1.0 - 0.5 * alpha, 9.0),
-            "{j:?}"
-        );
+        assert!(j.z > t_quantile(1.0 - 0.5 * alpha, 9.0), "{j:?}");
         assert!(j.smallest < 0.6, "{j:?}");
         // Without the sinusoid the joint z stays small.
         let null: Vec<f64> = normals(n, 6);
@@ -2279,7 +2113,7 @@ mod tests {
         // At the level alpha: the share of redraws beyond its critical |t|
         // stays at or below alpha (the sigma is the larger of two, so the
         // test may be conservative, never liberal beyond the scatter).
-        let critical = super::super::select::t_quantile(1.0 - 0.5 * alpha, dof);
+        let critical = t_quantile(1.0 - 0.5 * alpha, dof);
         let draws = 400;
         let beyond = (0..draws)
             .filter_map(|_| redraw.z(&mut rng))
@@ -2361,7 +2195,7 @@ mod tests {
             sigma_segments: None,
         };
         let alpha = FAMILY_ALPHA / 12.0;
-        let z_critical = super::super::select::normal_quantile(1.0 - 0.5 * alpha);
+        let z_critical = normal_quantile(1.0 - 0.5 * alpha);
         let l = limit_of(
             Effect::RoadGrade,
             Some(fit),

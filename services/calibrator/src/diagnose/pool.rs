@@ -17,10 +17,10 @@ use super::limit::{
     joint_t, limit_of, partners_of, CoefFit, DriveInformation, EffectLimit, HeadingTerms,
     InformationSource, Joint, Partner, SegmentGram, FAMILY_ALPHA,
 };
-use super::select::t_quantile;
 use interfaces::effects::{Effect, Scope};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
+use stats::distributions::{chi_square_quantile, t_quantile};
 
 /// One car effect over the drives.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -435,7 +435,7 @@ fn verdict(p: &PooledEffect, wald: &[WaldTest]) -> CarVerdict {
 }
 
 /// Cochran's Q of the drives' estimates about `pooled` and its 5 % point
-/// (chi-square by the Wilson-Hilferty cube), with two drives or more.
+/// (chi-square), with two drives or more.
 fn cochran_q(pooled: f64, per_drive: &[Option<CoefFit>]) -> Option<[f64; 2]> {
     let fits: Vec<&CoefFit> = per_drive.iter().flatten().collect();
     if fits.len() < 2 {
@@ -446,9 +446,7 @@ fn cochran_q(pooled: f64, per_drive: &[Option<CoefFit>]) -> Option<[f64; 2]> {
         .map(|f| ((f.estimate - pooled) / f.sigma()).powi(2))
         .sum();
     let k = (fits.len() - 1) as f64;
-    let z = super::select::normal_quantile(0.95);
-    let a = 2.0 / (9.0 * k);
-    Some([q, k * (1.0 - a + z * a.sqrt()).powi(3)])
+    Some([q, chi_square_quantile(0.95, k)])
 }
 
 /// The |z| one car effect needs at the family's level split among the

@@ -326,63 +326,6 @@ pub fn signed_rank_z(d: &[f64]) -> f64 {
     (w_plus - mean) / sd
 }
 
-/// Standard normal quantile (Acklam's rational approximation, |error| < 1.2e-9).
-#[allow(clippy::excessive_precision)]
-pub fn normal_quantile(p: f64) -> f64 {
-    let a = [
-        -3.969683028665376e1,
-        2.209460984245205e2,
-        -2.759285104469687e2,
-        1.383577518672690e2,
-        -3.066479806614716e1,
-        2.506628277459239,
-    ];
-    let b = [
-        -5.447609879822406e1,
-        1.615858368580409e2,
-        -1.556989798598866e2,
-        6.680131188771972e1,
-        -1.328068155288572e1,
-    ];
-    let c = [
-        -7.784894002430293e-3,
-        -3.223964580411365e-1,
-        -2.400758277161838,
-        -2.549732539343734,
-        4.374664141464968,
-        2.938163982698783,
-    ];
-    let d = [
-        7.784695709041462e-3,
-        3.224671290700398e-1,
-        2.445134137142996,
-        3.754408661907416,
-    ];
-    let pl = 0.02425;
-    if p < pl {
-        let q = (-2.0 * p.ln()).sqrt();
-        (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5])
-            / ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1.0)
-    } else if p <= 1.0 - pl {
-        let q = p - 0.5;
-        let r = q * q;
-        (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q
-            / (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1.0)
-    } else {
-        -normal_quantile(1.0 - p)
-    }
-}
-
-/// Student t quantile by the Cornish-Fisher expansion about the normal one
-/// (good to a few per cent for 4 or more degrees of freedom).
-pub fn t_quantile(p: f64, dof: f64) -> f64 {
-    let z = normal_quantile(p);
-    let v = dof.max(1.0);
-    z + (z.powi(3) + z) / (4.0 * v)
-        + (5.0 * z.powi(5) + 16.0 * z.powi(3) + 3.0 * z) / (96.0 * v * v)
-        + (3.0 * z.powi(7) + 19.0 * z.powi(5) + 17.0 * z.powi(3) - 15.0 * z) / (384.0 * v.powi(3))
-}
-
 /// Whether adding `cand` to `base` passes the held-out test: a positive
 /// mean gain and a signed-rank z above `z_crit`.
 pub fn passes(stats: &BlockStats, base: &[usize], cand: &[usize], z_crit: f64) -> bool {
@@ -445,18 +388,6 @@ pub fn columns_of(cands: &[&Candidate]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn quantiles_match_tables() {
-        assert!((normal_quantile(0.975) - 1.959964).abs() < 1e-5);
-        assert!((normal_quantile(0.995) - 2.575829).abs() < 1e-5);
-        // t(0.975, 10) = 2.228, t(0.995, 20) = 2.845.
-        assert!((t_quantile(0.975, 10.0) - 2.228).abs() < 0.01);
-        assert!((t_quantile(0.995, 20.0) - 2.845).abs() < 0.01);
-        // The information limit's critical value: 12 segments, 5 % over
-        // 12 effects two-sided (t(0.99792, 11) = 3.60).
-        assert!((t_quantile(1.0 - 0.025 / 12.0, 11.0) - 3.60).abs() < 0.05);
-    }
 
     #[test]
     fn signed_ranks_see_a_gain_of_every_block_whatever_its_size() {
