@@ -86,6 +86,49 @@ def effective_terms(drive):
     return out
 
 
+def effective_speed_growth(drive):
+    """The wheels' own speed growth against the truth: on straights (1 s
+    windows turning under 0.003 rad, above 3 m/s), the rear wheels' mean
+    distance with the true circumferences less the truth's, regressed on
+    ds (scale), v^2 ds (the catalogue's k_v, sign flipped: a growing
+    radius makes the revolutions count short) and a_x ds (slip). The
+    multibody tyres have a speed growth of their own (their rolling
+    resistance and drive torque grow with speed), which make_drives does
+    not record. Cached in DRIVE/effective_kv.json; None without numpy."""
+    cache = os.path.join(drive, "effective_kv.json")
+    if os.path.exists(cache):
+        return json.load(open(cache))
+    try:
+        import numpy as np
+        import tomllib
+    except ImportError:
+        return None
+    tr = np.genfromtxt(os.path.join(drive, "truth.csv"), delimiter=",", names=True)
+    wh = np.genfromtxt(os.path.join(drive, "wheels.csv"), delimiter=",", names=True)
+    truth = tomllib.load(open(os.path.join(drive, "truth.toml"), "rb"))
+    veh = tomllib.load(open(os.path.join(drive, "vehicle.toml"), "rb"))
+    c, n = truth["circumference_m"], veh["ticks_per_rev"]
+    tt = wh["t_s"]
+    x = np.interp(tt, tr["t_s"], tr["x_m"])
+    y = np.interp(tt, tr["t_s"], tr["y_m"])
+    yaw = np.interp(tt, tr["t_s"], np.unwrap(tr["yaw_rad"]))
+    step = max(1, int(round(1.0 / np.median(np.diff(tt)))))
+    i = np.arange(0, len(tt) - 2 * step, step)
+    dl = (wh["rl_ticks"][i + step] - wh["rl_ticks"][i]) / n * c["rl"]
+    dr = (wh["rr_ticks"][i + step] - wh["rr_ticks"][i]) / n * c["rr"]
+    ds = np.hypot(x[i + step] - x[i], y[i + step] - y[i])
+    ds_next = np.hypot(x[i + 2 * step] - x[i + step], y[i + 2 * step] - y[i + step])
+    dt = tt[i + step] - tt[i]
+    v = ds / dt
+    ax = (ds_next - ds) / dt / dt
+    m = (v > 3.0) & (np.abs(yaw[i + step] - yaw[i]) < 0.003)
+    a = np.c_[ds, v * v * ds, ax * ds][m]
+    b = np.linalg.lstsq(a, (0.5 * (dl + dr) - ds)[m], rcond=None)[0]
+    out = {"k_v": float(-b[1]), "windows": int(m.sum())}
+    json.dump(out, open(cache, "w"))
+    return out
+
+
 def median(xs):
     xs = sorted(xs)
     return xs[len(xs) // 2] if xs else None
@@ -132,8 +175,8 @@ def effective_table(rows):
            "k_z against make_drives' radius part, the diagnosis's joint k_z (the information limit's fit, at the plain "
            "model's a_y) and the finding's k_z (where the load transfer was found; a_y read through it) against the "
            "effective one; the effective track on the drives without a planted track error.", "",
-           "| vehicle | drives | effective k_z / radius k_z | joint k_z / effective | abs(joint - effective) / sigma | found | finding's k_z / effective | abs(finding - effective) / sigma | effective track (no track planted), range | track_width found there |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "| vehicle | drives | effective k_z / radius k_z | joint k_z / effective | abs(joint - effective) / sigma | found | finding's k_z / effective | abs(finding - effective) / sigma | effective track (no track planted), range | track_width found there | the tyres' own k_v (no growth planted; `effective_speed_growth`), range |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for veh in sorted({r["vehicle"] for r in rows}):
         rs = [r for r in rows if r["vehicle"] == veh]
         ratio = median([r["k_z_eff"] / r["k_z_radius"] for r in rs if r["k_z_radius"]])
@@ -145,10 +188,12 @@ def effective_table(rows):
         f_pull = median([abs(r["k_z_found"] - r["k_z_eff"]) / r["k_z_found_sigma"] for r in fr if r["k_z_found_sigma"]])
         tr = [r["track_eff"] for r in rs if not r["planted_track"]]
         found = sum(r["track_found"] for r in rs if not r["planted_track"])
+        kv = [r["k_v_eff"] for r in rs if not r["planted_k_v"] and r["k_v_eff"] is not None]
+        kv_range = f"{min(kv):.1e} to {max(kv):.1e}" if kv else "-"
         out.append(f"| {veh} | {len(rs)} | {'-' if ratio is None else f'{ratio:.2f}'} | "
                    f"{'-' if est is None else f'{est:.2f}'} | {'-' if pull is None else f'{pull:.1f}'} | "
                    f"{len(fr)} | {'-' if f_est is None else f'{f_est:.2f}'} | {'-' if f_pull is None else f'{f_pull:.1f}'} | "
-                   f"{100 * min(tr):+.2f} to {100 * max(tr):+.2f} % | {found} of {len(tr)} |")
+                   f"{100 * min(tr):+.2f} to {100 * max(tr):+.2f} % | {found} of {len(tr)} | {kv_range} |")
     return out
 
 
@@ -240,6 +285,8 @@ def main():
                 "k_z_found": lt_found.get("parameters", {}).get("k_z"),
                 "k_z_found_sigma": lt_found.get("sigmas", {}).get("k_z"),
                 "track_found": "track_width" in found,
+                "k_v_eff": (effective_speed_growth(drive) or {}).get("k_v"),
+                "planted_k_v": case["effects"].get("speed_radius_growth", {}).get("k_v"),
             })
         if not truth:
             null_n += 1
