@@ -43,18 +43,11 @@ def run(cal, drive, rerun, extra=(), tag=""):
     return json.load(open(out)), dt
 
 
-def effective_terms(drive):
-    """The wheels' own load transfer and track against the truth: the
-    wheels' heading error over 1 s windows, ((rr - rl) / t) - dpsi, with
-    the true circumferences and the nominal track, regressed on dpsi (a
-    track-like term), 2 v^2 dpsi / t (the load transfer's k_z), time and
-    distance, with v and dpsi from the truth's track (moving windows only).
-    make_drives' truth k_z is the tyres' radius part alone; the wheels also
-    turn by the tyres' load-dependent slip. Cached in DRIVE/effective.json;
-    None without numpy."""
-    cache = os.path.join(drive, "effective.json")
-    if os.path.exists(cache):
-        return json.load(open(cache))
+def truth_windows(drive):
+    """What `effective_terms` and `effective_speed_growth` read: the
+    wheels, the true circumferences, the vehicle file, and the truth's
+    track and yaw at the wheels' times, with the step of 1 s windows; None
+    without numpy."""
     try:
         import numpy as np
         import tomllib
@@ -64,12 +57,47 @@ def effective_terms(drive):
     wh = np.genfromtxt(os.path.join(drive, "wheels.csv"), delimiter=",", names=True)
     truth = tomllib.load(open(os.path.join(drive, "truth.toml"), "rb"))
     veh = tomllib.load(open(os.path.join(drive, "vehicle.toml"), "rb"))
-    c, t, n = truth["circumference_m"], veh["track_width_m"], veh["ticks_per_rev"]
     tt = wh["t_s"]
-    x = np.interp(tt, tr["t_s"], tr["x_m"])
-    y = np.interp(tt, tr["t_s"], tr["y_m"])
-    yaw = np.interp(tt, tr["t_s"], np.unwrap(tr["yaw_rad"]))
-    step = max(1, int(round(1.0 / np.median(np.diff(tt)))))
+    return {
+        "np": np, "c": truth["circumference_m"], "veh": veh, "wh": wh, "tt": tt,
+        "x": np.interp(tt, tr["t_s"], tr["x_m"]),
+        "y": np.interp(tt, tr["t_s"], tr["y_m"]),
+        "yaw": np.interp(tt, tr["t_s"], np.unwrap(tr["yaw_rad"])),
+        "step": max(1, int(round(1.0 / np.median(np.diff(tt))))),
+    }
+
+
+def cached_in(name):
+    """Make `f(truth_windows(drive))` a function of the drive folder,
+    cached in DRIVE/NAME (None without numpy)."""
+    def wrap(f):
+        def of_drive(drive):
+            cache = os.path.join(drive, name)
+            if os.path.exists(cache):
+                return json.load(open(cache))
+            w = truth_windows(drive)
+            if w is None:
+                return None
+            out = f(w)
+            json.dump(out, open(cache, "w"))
+            return out
+        of_drive.__doc__ = f.__doc__
+        return of_drive
+    return wrap
+
+
+@cached_in("effective.json")
+def effective_terms(w):
+    """The wheels' own load transfer and track against the truth: the
+    wheels' heading error over 1 s windows, ((rr - rl) / t) - dpsi, with
+    the true circumferences and the nominal track, regressed on dpsi (a
+    track-like term), 2 v^2 dpsi / t (the load transfer's k_z), time and
+    distance, with v and dpsi from the truth's track (moving windows only).
+    make_drives' truth k_z is the tyres' radius part alone; the wheels also
+    turn by the tyres' load-dependent slip. Cached in DRIVE/effective.json;
+    None without numpy."""
+    np, c, wh, tt, x, y, yaw, step = (w[k] for k in ("np", "c", "wh", "tt", "x", "y", "yaw", "step"))
+    t, n = w["veh"]["track_width_m"], w["veh"]["ticks_per_rev"]
     i = np.arange(0, len(tt) - step, step)
     dl = (wh["rl_ticks"][i + step] - wh["rl_ticks"][i]) / n * c["rl"]
     dr = (wh["rr_ticks"][i + step] - wh["rr_ticks"][i]) / n * c["rr"]
@@ -81,12 +109,11 @@ def effective_terms(drive):
     err = (dr - dl) / t - dpsi
     a = np.c_[dpsi, 2.0 * v * v * dpsi / t, dt, ds][m]
     b = np.linalg.lstsq(a, err[m], rcond=None)[0]
-    out = {"track_rel": float(-b[0]), "k_z": float(b[1])}
-    json.dump(out, open(cache, "w"))
-    return out
+    return {"track_rel": float(-b[0]), "k_z": float(b[1])}
 
 
-def effective_speed_growth(drive):
+@cached_in("effective_kv.json")
+def effective_speed_growth(w):
     """The wheels' own speed growth against the truth: on straights (1 s
     windows turning under 0.003 rad, above 3 m/s), the rear wheels' mean
     distance with the true circumferences less the truth's, regressed on
@@ -95,24 +122,8 @@ def effective_speed_growth(drive):
     multibody tyres have a speed growth of their own (their rolling
     resistance and drive torque grow with speed), which make_drives does
     not record. Cached in DRIVE/effective_kv.json; None without numpy."""
-    cache = os.path.join(drive, "effective_kv.json")
-    if os.path.exists(cache):
-        return json.load(open(cache))
-    try:
-        import numpy as np
-        import tomllib
-    except ImportError:
-        return None
-    tr = np.genfromtxt(os.path.join(drive, "truth.csv"), delimiter=",", names=True)
-    wh = np.genfromtxt(os.path.join(drive, "wheels.csv"), delimiter=",", names=True)
-    truth = tomllib.load(open(os.path.join(drive, "truth.toml"), "rb"))
-    veh = tomllib.load(open(os.path.join(drive, "vehicle.toml"), "rb"))
-    c, n = truth["circumference_m"], veh["ticks_per_rev"]
-    tt = wh["t_s"]
-    x = np.interp(tt, tr["t_s"], tr["x_m"])
-    y = np.interp(tt, tr["t_s"], tr["y_m"])
-    yaw = np.interp(tt, tr["t_s"], np.unwrap(tr["yaw_rad"]))
-    step = max(1, int(round(1.0 / np.median(np.diff(tt)))))
+    np, c, wh, tt, x, y, yaw, step = (w[k] for k in ("np", "c", "wh", "tt", "x", "y", "yaw", "step"))
+    n = w["veh"]["ticks_per_rev"]
     i = np.arange(0, len(tt) - 2 * step, step)
     dl = (wh["rl_ticks"][i + step] - wh["rl_ticks"][i]) / n * c["rl"]
     dr = (wh["rr_ticks"][i + step] - wh["rr_ticks"][i]) / n * c["rr"]
@@ -124,9 +135,7 @@ def effective_speed_growth(drive):
     m = (v > 3.0) & (np.abs(yaw[i + step] - yaw[i]) < 0.003)
     a = np.c_[ds, v * v * ds, ax * ds][m]
     b = np.linalg.lstsq(a, (0.5 * (dl + dr) - ds)[m], rcond=None)[0]
-    out = {"k_v": float(-b[1]), "windows": int(m.sum())}
-    json.dump(out, open(cache, "w"))
-    return out
+    return {"k_v": float(-b[1]), "windows": int(m.sum())}
 
 
 def median(xs):
