@@ -97,19 +97,20 @@ pub fn evidence(steps: &[Step]) -> Option<String> {
     ))
 }
 
-/// The model's columns `cols`, of which `col` is the load transfer's,
-/// fitted with a_y read through the estimate until it settles.
+/// The model's columns `cols` fitted on `stats`; where the load transfer
+/// is among them (its column `col`), with a_y read through its estimate
+/// until it settles.
 pub fn read_through_estimate(
     inputs: &Inputs<'_>,
     ep: Epochs,
     design: Design,
     stats: BlockStats,
     cols: &[usize],
-    col: usize,
+    col: Option<usize>,
 ) -> Read {
     let fit_all = |s: &BlockStats| s.fit_with_sigmas(cols);
     let k_of = |f: &(DVector<f64>, DVector<f64>)| -> Option<(f64, f64)> {
-        let i = cols.iter().position(|&x| x == col)?;
+        let i = cols.iter().position(|&x| Some(x) == col)?;
         let (b, s) = (f.0[i], f.1[i]);
         (b.is_finite() && s.is_finite()).then_some((b, s))
     };
@@ -173,13 +174,10 @@ pub fn read_through_estimate(
             sigma = step.sigma,
             "load transfer: a_y read through the estimate"
         );
-        now = Read {
-            ep: ep2,
-            design: d2,
-            stats: s2,
-            fit: Some(f2),
-            steps: std::mem::take(&mut now.steps),
-        };
+        now.ep = ep2;
+        now.design = d2;
+        now.stats = s2;
+        now.fit = Some(f2);
         now.steps.push(step);
         if step.settled() {
             break;

@@ -727,28 +727,18 @@ pub fn diagnose_with_progress(
         .find(|c| c.effect == Effect::LoadTransferRadius)
         .and_then(|c| c.params.first().map(|p| p.column));
     let cols = model_columns(&design, &sel.accepted);
-    let lateral = match load_transfer_col {
-        None => lateral::Read {
-            fit: stats.fit_with_sigmas(&cols),
-            ep,
-            design,
-            stats,
-            steps: Vec::new(),
-        },
-        Some(col) => {
-            let inputs = lateral::Inputs {
-                epochs_at: &epochs_at,
-                base_points: &base_points,
-                settings: &settings,
-                excluded: &excluded,
-                revs: &revs,
-                gnss,
-                plain: &plain_model,
-                track_m: base.track_width_m,
-            };
-            lateral::read_through_estimate(&inputs, ep, design, stats, &cols, col)
-        }
+    let inputs = lateral::Inputs {
+        epochs_at: &epochs_at,
+        base_points: &base_points,
+        settings: &settings,
+        excluded: &excluded,
+        revs: &revs,
+        gnss,
+        plain: &plain_model,
+        track_m: base.track_width_m,
     };
+    let lateral =
+        lateral::read_through_estimate(&inputs, ep, design, stats, &cols, load_transfer_col);
     let lateral::Read {
         ep,
         design,
@@ -834,6 +824,7 @@ pub fn diagnose_with_progress(
         .collect();
     let (terms, slip_side) = terms_of(&accepted, &coef);
     // Findings, each with the position RMSE before and after it entered.
+    let refits = lateral::evidence(&lateral_steps);
     let mut findings = Vec::new();
     let mut so_far: Vec<usize> = Vec::new();
     let (mut rmse_prev, before_blocks) = position_rmse(&[]);
@@ -904,7 +895,7 @@ pub fn diagnose_with_progress(
                 ),
             ),
         };
-        let evidence = match lateral::evidence(&lateral_steps) {
+        let evidence = match &refits {
             Some(refits) if cand.effect == Effect::LoadTransferRadius => {
                 format!("{evidence}; {refits}")
             }
