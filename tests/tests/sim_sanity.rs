@@ -13,7 +13,9 @@
 
 use interfaces::drive::Drive;
 use interfaces::effects::Effect;
-use simulator::{simulate, EffectSettings, Scenario, SensorSettings, SimConfig, VehicleKind};
+use simulator::{
+    simulate, EffectForms, EffectSettings, Scenario, SensorSettings, SimConfig, VehicleKind,
+};
 use std::f64::consts::PI;
 use vehicle_model::two_wheel::{dead_reckon, wrap_angle, Pose2, TwoWheelParams};
 
@@ -758,4 +760,65 @@ fn every_scenario_and_vehicle_simulates_with_every_effect() {
             }
         }
     }
+}
+
+/// The catalogue's forms (`EffectForms::Catalogue`, what a twin runs): with
+/// the vehicle physics a twin carries on together (side-slip, load transfer,
+/// longitudinal slip), each knob shows in the wheels exactly as the
+/// catalogue writes it: the yaw error 2 k_z v^2 w / t_R, the speed excess
+/// k_s a_x in traction and braking alike. Under the physical forms the
+/// same slip knob shows otherwise: the tyre force carries the drag and
+/// rolling resistance (a slip without acceleration, which grows with v^2
+/// like a speed growth) and the rear brakes take only their share; the
+/// slip also softens on an unloaded wheel, which turns the wheels' yaw
+/// against the load transfer at highway speeds.
+#[test]
+fn catalogue_forms_put_each_knob_in_the_wheels_as_the_catalogue_writes_it() {
+    let (k_z, k_s) = (5e-4, 0.005);
+    let fits = |forms: EffectForms| {
+        let mut e = EffectSettings::none();
+        for spec in [
+            "side_slip=0.004",
+            "load_transfer_radius=5e-4",
+            "longitudinal_slip=0.005",
+        ] {
+            e.apply_spec(spec).unwrap();
+        }
+        let mut config = clean_config(Scenario::Mixed, e);
+        config.effect_forms = forms;
+        let drive = run(&config);
+        let t_r = drive.vehicle.track_width_m;
+        let ws: Vec<Window> = windows(&drive, 20)
+            .into_iter()
+            .filter(|w| w.v > 3.0)
+            .collect();
+        let r_w: Vec<f64> = ws.iter().map(|w| w.w - w.w_odo).collect();
+        let x_w: Vec<Vec<f64>> = ws.iter().map(|w| vec![w.v * w.v * w.w / t_r]).collect();
+        let lt = least_squares(&x_w, &r_w)[0] / (-2.0 * k_z);
+        let r_v: Vec<f64> = ws.iter().map(|w| (w.v_odo - w.v) / w.v).collect();
+        let x_v: Vec<Vec<f64>> = ws.iter().map(|w| vec![1.0, w.ax]).collect();
+        let b = least_squares(&x_v, &r_v);
+        (lt, b[1] / k_s, b[0], drive)
+    };
+    let (lt_c, ks_c, cruise_c, drive) = fits(EffectForms::Catalogue);
+    let (lt_p, ks_p, cruise_p, _) = fits(EffectForms::Physical);
+    eprintln!(
+        "load transfer seen / knob: catalogue {lt_c:.3}, physical {lt_p:.3}; \
+         slip seen / knob: catalogue {ks_c:.3}, physical {ks_p:.3}; \
+         slip at a_x = 0: catalogue {cruise_c:.1e}, physical {cruise_p:.1e}"
+    );
+    assert!((lt_c - 1.0).abs() < 0.05, "{lt_c}");
+    assert!((ks_c - 1.0).abs() < 0.05, "{ks_c}");
+    assert!(cruise_c.abs() < 2e-4, "{cruise_c}");
+    assert!(
+        cruise_p > 5e-4,
+        "the physical slip carries the drag: {cruise_p}"
+    );
+    let tp = drive.truth_params.as_ref().unwrap();
+    assert_eq!(
+        tp.extra.get("effect_forms"),
+        Some(&interfaces::drive::toml_value::Value::String(
+            "catalogue".into()
+        ))
+    );
 }

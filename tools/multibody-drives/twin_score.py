@@ -2,6 +2,7 @@
 """Score the twin loop (issue 38) on a suite written by `make_drives.py suite`.
 
     twin_score.py OUT_DIR [--bin DIR] [--rerun] [--only PREFIX] [--mends N]
+                  [--twin-dir NAME] [--effect-forms FORMS]
 
 For each drive of OUT_DIR/manifest.json (a recording from a multibody
 vehicle model that is not ours, with effects the tools are not told):
@@ -16,11 +17,13 @@ The tools read the recording's sensor files only; the manifest (what was
 put in) is read here, to score. Scoring as score.py: a drive's targets
 are its `truth` effects; the multibody model's own tyre physics
 (side_slip, load_transfer_radius, longitudinal_slip) is on every drive and
-may be named anywhere (`allowed`). Per effect: the share of its drives on
-which the first comparison names it (lacking); wrong names (outside
-targets + allowed); null drives with a name outside `allowed`; after the
-mend: drives with no effect named, and drives whose residual channels are
-all within their noise level. Writes OUT_DIR/twin-score.md.
+may be named anywhere (`allowed`), and so may the speed growth of the
+rear-driven cars' tyres where the wheels show one (`score.allowed_on`).
+Per effect: the share of its drives on which the first comparison names
+it (lacking); wrong names (outside targets + allowed); null drives with a
+name outside `allowed`; after the mend: drives with no effect named, and
+drives whose residual channels are all within their noise level. Writes
+OUT_DIR/twin-score.md (with --twin-dir NAME: twin-score-NAME.md).
 """
 
 import argparse
@@ -37,6 +40,8 @@ from collections import OrderedDict, defaultdict
 COPIED = {"gyro_bias": "the twin copies it (measured at standstill)"}
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from score import allowed_on  # noqa: E402
 
 
 def sh(args):
@@ -46,8 +51,8 @@ def sh(args):
     return p.stdout
 
 
-def loop(b, drive, rerun, mends):
-    out = os.path.join(drive, "twin")
+def loop(b, drive, rerun, mends, twin_dir="twin", forms=None):
+    out = os.path.join(drive, twin_dir)
     os.makedirs(out, exist_ok=True)
     tfile = os.path.join(out, "times.json")
     old_times = json.load(open(tfile)) if os.path.exists(tfile) and not rerun else []
@@ -65,6 +70,8 @@ def loop(b, drive, rerun, mends):
         sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(k + 1), "--out", t]
         if k > 0:
             sim += ["--effects-from", os.path.join(out, f"c{k}.json")]
+        if forms:
+            sim += ["--effect-forms", forms]
         sh(sim)
         cmp = [os.path.join(b, "calibrator"), "compare", drive, t, "--json", c]
         if k > 0:
@@ -87,6 +94,10 @@ def main():
     ap.add_argument("--rerun", action="store_true")
     ap.add_argument("--only", default="")
     ap.add_argument("--mends", type=int, default=1)
+    ap.add_argument("--twin-dir", default="twin",
+                    help="each drive's subfolder for the twins and comparisons (an A/B keeps both)")
+    ap.add_argument("--effect-forms", default=None,
+                    help="passed to `simulate --like` (physical or catalogue; its default otherwise)")
     a = ap.parse_args()
     manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
     per_effect = defaultdict(lambda: [0, 0])
@@ -106,12 +117,12 @@ def main():
             continue
         drive = os.path.join(a.suite, case["drive"])
         try:
-            cs, ts = loop(a.bin, drive, a.rerun, a.mends)
+            cs, ts = loop(a.bin, drive, a.rerun, a.mends, a.twin_dir, a.effect_forms)
         except RuntimeError as e:
             print(f"{case['drive']}: {e}", file=sys.stderr)
             continue
         times.append(ts[0])
-        truth, allowed = case["truth"], case["allowed"]
+        truth, allowed = case["truth"], allowed_on(case, drive)
         first = named(cs[0])
         extra = [e for e in first if e not in truth and e not in allowed]
         if truth:
@@ -162,7 +173,8 @@ def main():
         out.append(f"| {d} | {', '.join(t) or '-'} | {', '.join(f) or '-'} | "
                    f"{' / '.join(', '.join(x) or '-' for x in after)} | {' -> '.join(ch)} |")
     text = "\n".join(out) + "\n"
-    open(os.path.join(a.suite, "twin-score.md"), "w").write(text)
+    name = "twin-score.md" if a.twin_dir == "twin" else f"twin-score-{a.twin_dir}.md"
+    open(os.path.join(a.suite, name), "w").write(text)
     print(text)
 
 

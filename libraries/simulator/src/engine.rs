@@ -4,7 +4,7 @@ use super::route::{PathPoint, Route};
 use super::scenarios::{self, ScenarioRoute};
 use super::sensors::{gauss, GaussMarkov};
 use super::vehicle::{self, VehicleSpec, G};
-use super::{EffectSettings, SensorSettings, SimConfig, SimError};
+use super::{EffectForms, EffectSettings, SensorSettings, SimConfig, SimError};
 use interfaces::drive::{
     toml_value::Value, Drive, GnssAntenna, GnssSample, HeadingSample, ImuSample, TruthParams,
     TruthSample, VehicleParams, WheelSample, WheelSeries, WheelUnit, WheelUnits,
@@ -48,6 +48,11 @@ struct Model {
     slip_stiffness: Option<f64>,
     /// Relative radius change per relative lateral load change.
     radius_load_coeff: f64,
+    /// The longitudinal slip per m/s^2 of the driven axle (the knob `k_s`;
+    /// read in the catalogue's forms only).
+    k_s: f64,
+    /// How the effects act.
+    forms: EffectForms,
     k_v: f64,
     drift: Option<(f64, f64)>,
 }
@@ -107,6 +112,8 @@ impl Model {
             cornering,
             slip_stiffness,
             radius_load_coeff,
+            k_s: e.longitudinal_slip.map_or(0.0, |s| s.k_s),
+            forms: config.effect_forms,
             k_v: e.speed_radius_growth.map_or(0.0, |g| g.k_v),
             drift: e.radius_drift.map(|d| (d.d, d.time_constant_s)),
             spec,
@@ -242,8 +249,15 @@ impl Model {
         let alpha_f = st.delta - (vy0 + self.a * r0).atan2(vx_eff);
         let alpha_r = -(vy0 - self.b * r0).atan2(vx_eff);
         let mu = spec.mu;
+        let catalogue = self.forms == EffectForms::Catalogue;
         let fy = |alpha: f64, fz: f64, c: f64, fz0: f64| {
-            vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+            if catalogue {
+                // Linear, at the static load: the rear slip angle is the
+                // knob's k_beta a_y in steady cornering.
+                c * alpha
+            } else {
+                vehicle::lateral_force(alpha, fz, mu, vehicle::cornering_stiffness(c, fz, fz0))
+            }
         };
         let fyf = fy(alpha_f, fz[FL], cf, self.fz0_front) + fy(alpha_f, fz[FR], cf, self.fz0_front);
         let fyr = fy(alpha_r, fz[RL], cr, self.fz0_rear) + fy(alpha_r, fz[RR], cr, self.fz0_rear);
@@ -294,17 +308,29 @@ impl Model {
             growth *= 1.0 + d * (1.0 - (-t / tc).exp());
         }
         let common = sec / growth;
-        // Lateral load change of each wheel relative to its static load.
-        let (d_lat_f, d_lat_r) = (loads.d_lat_f, loads.d_lat_r);
-        let q = [
-            -d_lat_r / self.fz0_rear,
-            d_lat_r / self.fz0_rear,
-            -d_lat_f / self.fz0_front,
-            d_lat_f / self.fz0_front,
-        ];
+        // Lateral load change of each wheel relative to its static load:
+        // the suspension's lagged loads, or in the catalogue's forms the
+        // body's lateral acceleration now.
+        let q = match self.forms {
+            EffectForms::Physical => {
+                let (d_lat_f, d_lat_r) = (loads.d_lat_f, loads.d_lat_r);
+                [
+                    -d_lat_r / self.fz0_rear,
+                    d_lat_r / self.fz0_rear,
+                    -d_lat_f / self.fz0_front,
+                    d_lat_f / self.fz0_front,
+                ]
+            }
+            EffectForms::Catalogue => {
+                let (g_r, g_f) = (spec.rear_load_gain(), spec.front_load_gain());
+                [-g_r * st.ay, g_r * st.ay, -g_f * st.ay, g_f * st.ay]
+            }
+        };
         for i in 0..4 {
-            let slip = match self.slip_stiffness {
-                Some(cx) if v_long[i] > 0.0 => {
+            let driven = (i < 2) == spec.rear_wheel_drive;
+            let slip = match (self.forms, self.slip_stiffness) {
+                (EffectForms::Catalogue, _) if driven && v_long[i] > 0.0 => self.k_s * st.ax,
+                (EffectForms::Physical, Some(cx)) if v_long[i] > 0.0 => {
                     let fx_wheel = 0.5 * if i < 2 { fx_rear } else { fx_front };
                     vehicle::longitudinal_slip_for_force(fx_wheel, loads.fz[i], spec.mu, cx)
                 }
@@ -1100,6 +1126,12 @@ fn extra_keys(
         f(config.unworn_circumference()),
     );
     extra.insert("nominal_track_width_m".into(), f(spec.track_rear_m));
+    if config.effect_forms != EffectForms::Physical {
+        extra.insert(
+            "effect_forms".into(),
+            Value::String(config.effect_forms.name().into()),
+        );
+    }
     extra.insert(
         "driven_axle".into(),
         Value::String(

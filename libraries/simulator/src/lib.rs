@@ -163,6 +163,50 @@ pub struct WheelWear {
     pub fr: f64,
 }
 
+/// How the vehicle effects act in the engine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum EffectForms {
+    /// Through the vehicle's physics: the load transfer through the
+    /// suspension's lagged vertical loads, the longitudinal slip from the
+    /// tyre force (resistance and drag included, softer on an unloaded
+    /// wheel), the side-slip from load-sensitive, saturating tyres. A knob
+    /// then shows in a diagnosis at a gain of its own and beside other
+    /// effects (the slip of a driven axle under drag looks like a speed
+    /// growth).
+    #[default]
+    Physical,
+    /// Each effect exactly as the catalogue writes it
+    /// (../shared/design/physics-catalogue.md), so that a knob means what a
+    /// diagnosis's estimate means: the rear wheels' circumferences
+    /// c (1 -/+ k_z a_y) at the body's lateral acceleration; the driven
+    /// axle's wheel speed v (1 + k_s a_x); linear tyres of the stiffness
+    /// the side-slip knob sets, at the static loads. A twin carries its
+    /// recording's estimates in these forms.
+    Catalogue,
+}
+
+impl EffectForms {
+    /// The name written to truth.toml (`effect_forms`) and read on the
+    /// command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectForms::Physical => "physical",
+            EffectForms::Catalogue => "catalogue",
+        }
+    }
+
+    /// The forms with this name.
+    pub fn from_name(name: &str) -> Result<EffectForms, SimError> {
+        match name.trim().to_ascii_lowercase().as_str() {
+            "physical" => Ok(EffectForms::Physical),
+            "catalogue" | "catalog" => Ok(EffectForms::Catalogue),
+            other => Err(SimError::InvalidConfig(format!(
+                "effect forms {other:?}: expected physical or catalogue"
+            ))),
+        }
+    }
+}
+
 /// Everything a simulation needs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SimConfig {
@@ -189,6 +233,8 @@ pub struct SimConfig {
     pub nominal_circumference_m: Option<f64>,
     /// Internal integration step, s (1 ms).
     pub step_s: f64,
+    /// How the vehicle effects act ([`EffectForms::Physical`] unless set).
+    pub effect_forms: EffectForms,
 }
 
 impl SimConfig {
@@ -214,6 +260,7 @@ impl SimConfig {
             unworn_circumference_m: None,
             nominal_circumference_m: None,
             step_s: 0.001,
+            effect_forms: EffectForms::Physical,
         };
         match scenario {
             Scenario::Paper => {

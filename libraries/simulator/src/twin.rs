@@ -16,8 +16,8 @@ use super::route::{Attrs, Route, DS};
 use super::scenarios::ScenarioRoute;
 use super::twin_noise::{drive_numbers, interp, DriveNumbers, Odometer};
 use super::{
-    EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind, VehicleSpec,
-    WheelWear,
+    EffectForms, EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind,
+    VehicleSpec, WheelWear,
 };
 use interfaces::drive::{toml_value::Value, Drive};
 use interfaces::effects::Effect;
@@ -348,6 +348,9 @@ pub struct TwinConfig {
     pub seed: u64,
     /// Internal integration step, s.
     pub step_s: f64,
+    /// How the effects act (the catalogue's forms unless set: the twin's
+    /// knobs then mean what the diagnosis's estimates mean).
+    pub effect_forms: EffectForms,
 }
 
 /// What is taken from elsewhere than the drive: a diagnosis's GNSS noise
@@ -372,6 +375,8 @@ pub struct TwinOptions {
     pub seed: u64,
     /// Smoothing of the fixes along the path, m.
     pub smoothing_m: f64,
+    /// How the effects act.
+    pub effect_forms: EffectForms,
 }
 
 impl TwinOptions {
@@ -385,6 +390,7 @@ impl TwinOptions {
             effects: EffectSettings::none(),
             seed: 1,
             smoothing_m: DEFAULT_SMOOTHING_M,
+            effect_forms: EffectForms::Catalogue,
         }
     }
 }
@@ -626,7 +632,11 @@ impl TwinConfig {
             }
         };
         let on: Vec<String> = effects.to_truth_map().into_keys().collect();
-        notes.push(format!("effects on: [{}]", on.join(", ")));
+        notes.push(format!(
+            "effects on: [{}], in their {} forms",
+            on.join(", "),
+            options.effect_forms.name()
+        ));
         Ok(DerivedTwin {
             config: TwinConfig {
                 source: options.source.clone(),
@@ -645,6 +655,7 @@ impl TwinConfig {
                 effects,
                 seed: options.seed,
                 step_s,
+                effect_forms: options.effect_forms,
             },
             numbers,
             notes,
@@ -686,6 +697,7 @@ fn sim_config(c: &TwinConfig) -> Result<(SimConfig, VehicleSpec), SimError> {
     config.effects = c.effects;
     config.sensors = c.sensors;
     config.step_s = c.step_s;
+    config.effect_forms = c.effect_forms;
     config.unworn_circumference_m = Some(c0);
     config.nominal_circumference_m = Some(v.nominal_circumference_m);
     config.wear_mm = WheelWear {

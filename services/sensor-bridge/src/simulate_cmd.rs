@@ -2,7 +2,9 @@
 
 use drive_io::{write_drive, DriveError};
 use sensor_bridge::replay::{publish_drive, Pacing, ReplayError, ReplayOptions};
-use simulator::{simulate, EffectSettings, Scenario, SimConfig, SimError, VehicleKind, WheelWear};
+use simulator::{
+    simulate, EffectForms, EffectSettings, Scenario, SimConfig, SimError, VehicleKind, WheelWear,
+};
 use std::path::PathBuf;
 
 /// `sensor-bridge simulate`: write a simulated drive (folder, or MCAP when OUT
@@ -76,6 +78,13 @@ pub struct SimulateArgs {
     /// initial guess), m (default: the unworn circumference; 2.2 for paper).
     #[arg(long)]
     pub nominal_circumference: Option<f64>,
+    /// How the vehicle effects act: `physical` (through the suspension's
+    /// loads and the tyres' forces, each knob at a gain of its own and
+    /// partly seen as other effects) or `catalogue` (each effect exactly
+    /// as the physics catalogue writes it, so a knob means what a
+    /// diagnosis's estimate means). Default: physical, catalogue with --like.
+    #[arg(long, value_name = "FORMS")]
+    pub effect_forms: Option<String>,
 }
 
 /// Why `simulate` failed.
@@ -104,6 +113,9 @@ impl SimulateArgs {
             SimError::InvalidConfig("a scenario is needed (or --like DRIVE)".into())
         })?;
         let mut c = SimConfig::new(Scenario::from_name(name)?, self.seed);
+        if let Some(f) = &self.effect_forms {
+            c.effect_forms = EffectForms::from_name(f)?;
+        }
         if let Some(v) = &self.vehicle {
             c.vehicle = VehicleKind::from_name(v)?;
         }

@@ -5,7 +5,7 @@
 use crate::simulate_cmd::{SimulateArgs, SimulateError};
 use drive_io::{read_drive, write_drive};
 use simulator::twin::apply_finding;
-use simulator::{simulate_twin, EffectSettings, SimError, TwinConfig, TwinOptions};
+use simulator::{simulate_twin, EffectForms, EffectSettings, SimError, TwinConfig, TwinOptions};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -141,6 +141,9 @@ pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
     }
     let mut options = TwinOptions::new(&like.display().to_string());
     options.seed = args.seed;
+    if let Some(f) = &args.effect_forms {
+        options.effect_forms = EffectForms::from_name(f)?;
+    }
     if let Some(path) = &args.effects_from {
         let file = read_effects_file(path)?;
         let (effects, notes) = effects_of(&file, path)?;
