@@ -79,6 +79,9 @@ struct State {
     /// Last body accelerations (for the IMU).
     ax: f64,
     ay: f64,
+    /// Last rate of change of the longitudinal speed, m/s^2 (the a_x of
+    /// the catalogue's longitudinal slip: the speed's, not the body's).
+    dvx: f64,
     revs: [f64; 4],
 }
 
@@ -131,7 +134,8 @@ impl Model {
         let (vx0, vy0) = (st.vx, st.vy);
         self.integrate_velocities(st, &loads.fz, fx, resist, dt);
         // Body accelerations of the CG.
-        st.ax = (st.vx - vx0) / dt - st.vy * st.r;
+        st.dvx = (st.vx - vx0) / dt;
+        st.ax = st.dvx - st.vy * st.r;
         st.ay = (st.vy - vy0) / dt + st.vx * st.r;
         st.ax_f += (st.ax - st.ax_f) * dt / SUSPENSION_LAG_S;
         st.ay_f += (st.ay - st.ay_f) * dt / SUSPENSION_LAG_S;
@@ -329,7 +333,7 @@ impl Model {
         for i in 0..4 {
             let driven = (i < 2) == spec.rear_wheel_drive;
             let slip = match (self.forms, self.slip_stiffness) {
-                (EffectForms::Catalogue, _) if driven && v_long[i] > 0.0 => self.k_s * st.ax,
+                (EffectForms::Catalogue, _) if driven && v_long[i] > 0.0 => self.k_s * st.dvx,
                 (EffectForms::Physical, Some(cx)) if v_long[i] > 0.0 => {
                     let fx_wheel = 0.5 * if i < 2 { fx_rear } else { fx_front };
                     vehicle::longitudinal_slip_for_force(fx_wheel, loads.fz[i], spec.mu, cx)
@@ -645,6 +649,9 @@ fn true_track_width(config: &SimConfig, spec: &VehicleSpec) -> f64 {
         .map_or(spec.track_rear_m, |t| spec.track_rear_m * (1.0 + t.rel))
 }
 
+/// Half the window the prescribed acceleration is taken over, s.
+const PRESCRIBED_ACCEL_HALF_S: f64 = 0.25;
+
 /// A prescribed progress along the route over time (the twin of a
 /// recording): the driver follows it instead of the route's speed profile.
 #[derive(Debug, Clone, PartialEq)]
@@ -672,8 +679,13 @@ impl Prescribed {
         let w = (f - i as f64).clamp(0.0, 1.0);
         let s = self.s[i] + w * (self.s[j] - self.s[i]);
         let v = self.v[i] + w * (self.v[j] - self.v[i]);
-        let a = if j > i {
-            (self.v[j] - self.v[i]) / self.dt
+        // The acceleration's feed-forward over +-PRESCRIBED_ACCEL_HALF_S:
+        // the speed comes from counted wheel ticks, and its difference from
+        // one sample to the next would feed their quantisation to the force.
+        let h = ((PRESCRIBED_ACCEL_HALF_S / self.dt).round() as usize).max(1);
+        let (lo, hi) = (i.saturating_sub(h), (j + h).min(n - 1));
+        let a = if hi > lo {
+            (self.v[hi] - self.v[lo]) / ((hi - lo) as f64 * self.dt)
         } else {
             0.0
         };
