@@ -762,7 +762,7 @@ fn every_scenario_and_vehicle_simulates_with_every_effect() {
     }
 }
 
-/// The catalogue's forms (`EffectForms::Catalogue`, what a twin runs): with
+/// The catalogue's forms (`EffectForms::Catalogue`, `--effect-forms catalogue`): with
 /// the vehicle physics a twin carries on together (side-slip, load transfer,
 /// longitudinal slip), each knob shows in the wheels exactly as the
 /// catalogue writes it: the yaw error 2 k_z v^2 w / t_R, the speed excess

@@ -180,8 +180,7 @@ pub enum EffectForms {
     /// diagnosis's estimate means: the rear wheels' circumferences
     /// c (1 -/+ k_z a_y) at the body's lateral acceleration; the driven
     /// axle's wheel speed v (1 + k_s a_x); linear tyres of the stiffness
-    /// the side-slip knob sets, at the static loads. A twin carries its
-    /// recording's estimates in these forms.
+    /// the side-slip knob sets, at the static loads.
     Catalogue,
 }
 

@@ -409,8 +409,9 @@ pub struct TwinConfig {
     pub seed: u64,
     /// Internal integration step, s.
     pub step_s: f64,
-    /// How the effects act (the catalogue's forms unless set: the twin's
-    /// knobs then mean what the diagnosis's estimates mean).
+    /// How the effects act (the simulator's physical forms unless set;
+    /// in the catalogue's forms a knob means what a diagnosis's estimate
+    /// means).
     pub effect_forms: EffectForms,
 }
 
@@ -451,7 +452,7 @@ impl TwinOptions {
             effects: EffectSettings::none(),
             seed: 1,
             smoothing_m: DEFAULT_SMOOTHING_M,
-            effect_forms: EffectForms::Catalogue,
+            effect_forms: EffectForms::Physical,
         }
     }
 }

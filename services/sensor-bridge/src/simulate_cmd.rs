@@ -82,7 +82,7 @@ pub struct SimulateArgs {
     /// loads and the tyres' forces, each knob at a gain of its own and
     /// partly seen as other effects) or `catalogue` (each effect exactly
     /// as the physics catalogue writes it, so a knob means what a
-    /// diagnosis's estimate means). Default: physical, catalogue with --like.
+    /// diagnosis's estimate means). Default: physical.
     #[arg(long, value_name = "FORMS")]
     pub effect_forms: Option<String>,
 }
