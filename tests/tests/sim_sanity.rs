@@ -155,6 +155,15 @@ fn windows(drive: &Drive, k: usize) -> Vec<Window> {
     out
 }
 
+/// The windows of `k` truth samples in which the car moves faster than
+/// 3 m/s.
+fn moving_windows(drive: &Drive, k: usize) -> Vec<Window> {
+    windows(drive, k)
+        .into_iter()
+        .filter(|w| w.v > 3.0)
+        .collect()
+}
+
 /// Least squares y = X b (a handful of regressors), solved by SVD.
 fn least_squares(rows: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
     let p = rows[0].len();
@@ -271,10 +280,7 @@ fn load_transfer_radius_alone_gives_yaw_error_scaling_with_v2_w() {
         only(Effect::LoadTransferRadius, "load_transfer_radius=1e-4"),
     ));
     let t_r = drive.vehicle.track_width_m;
-    let ws: Vec<Window> = windows(&drive, 20)
-        .into_iter()
-        .filter(|w| w.v > 3.0)
-        .collect();
+    let ws = moving_windows(&drive, 20);
     let r_w: Vec<f64> = ws.iter().map(|w| w.w - w.w_odo).collect();
     let x_v2w: Vec<Vec<f64>> = ws.iter().map(|w| vec![w.v * w.v * w.w / t_r]).collect();
     let x_w: Vec<Vec<f64>> = ws.iter().map(|w| vec![w.w]).collect();
@@ -305,10 +311,7 @@ fn speed_radius_growth_alone_gives_speed_error_growing_with_v2() {
         Scenario::Mixed,
         only(Effect::SpeedRadiusGrowth, "speed_radius_growth=2.5e-6"),
     ));
-    let ws: Vec<Window> = windows(&drive, 100)
-        .into_iter()
-        .filter(|w| w.v > 3.0)
-        .collect();
+    let ws = moving_windows(&drive, 100);
     let y: Vec<f64> = ws.iter().map(|w| (w.v - w.v_odo) / w.v).collect();
     let x: Vec<Vec<f64>> = ws.iter().map(|w| vec![1.0, w.v * w.v]).collect();
     let b = least_squares(&x, &y);
@@ -343,10 +346,7 @@ fn longitudinal_slip_alone_scales_with_acceleration_on_the_driven_axle() {
         );
         config.vehicle = vehicle;
         let drive = run(&config);
-        let ws: Vec<Window> = windows(&drive, 20)
-            .into_iter()
-            .filter(|w| w.v > 3.0)
-            .collect();
+        let ws = moving_windows(&drive, 20);
         let fit = |keep: &dyn Fn(&Window) -> bool| {
             let sel: Vec<&Window> = ws.iter().filter(|w| keep(w)).collect();
             let y: Vec<f64> = sel.iter().map(|w| (w.v_odo - w.v) / w.v).collect();
@@ -412,10 +412,7 @@ fn radius_drift_alone_trends_with_time() {
         Scenario::Mixed,
         only(Effect::RadiusDrift, "radius_drift=0.003"),
     ));
-    let ws: Vec<Window> = windows(&drive, 500)
-        .into_iter()
-        .filter(|w| w.v > 3.0)
-        .collect();
+    let ws = moving_windows(&drive, 500);
     let mut last = 0.0;
     for w in &ws {
         let expected = d * (1.0 - (-w.t / tc).exp());
@@ -788,10 +785,7 @@ fn catalogue_forms_put_each_knob_in_the_wheels_as_the_catalogue_writes_it() {
         config.effect_forms = forms;
         let drive = run(&config);
         let t_r = drive.vehicle.track_width_m;
-        let ws: Vec<Window> = windows(&drive, 20)
-            .into_iter()
-            .filter(|w| w.v > 3.0)
-            .collect();
+        let ws = moving_windows(&drive, 20);
         let r_w: Vec<f64> = ws.iter().map(|w| w.w - w.w_odo).collect();
         let x_w: Vec<Vec<f64>> = ws.iter().map(|w| vec![w.v * w.v * w.w / t_r]).collect();
         let lt = least_squares(&x_w, &r_w)[0] / (-2.0 * k_z);

@@ -14,7 +14,7 @@
 use super::engine::{self, Custom, Prescribed};
 use super::route::{Attrs, Route, DS};
 use super::scenarios::ScenarioRoute;
-use super::twin_noise::{drive_numbers, interp, DriveNumbers, Odometer};
+use super::twin_noise::{drive_numbers, interp, running_max, window_means, DriveNumbers, Odometer};
 use super::{
     EffectForms, EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind,
     VehicleSpec, WheelWear,
@@ -117,40 +117,24 @@ fn progress_arc(arc: &[f64], du: f64) -> Vec<f64> {
         return arc.to_vec();
     }
     let half = ((PROGRESS_SCALE_HALF_M / du).round() as usize).max(1);
-    let box_mean = |v: &[f64]| -> Vec<f64> {
-        let mut prefix = Vec::with_capacity(n + 1);
-        prefix.push(0.0);
-        for x in v {
-            prefix.push(prefix[prefix.len() - 1] + x);
-        }
-        (0..n)
-            .map(|k| {
-                let (a, b) = (k.saturating_sub(half), (k + half).min(n - 1));
-                (prefix[b + 1] - prefix[a]) / (b + 1 - a) as f64
-            })
-            .collect()
-    };
+    let bounds = |k: usize| (k.saturating_sub(half), (k + half).min(n - 1));
     let departure: Vec<f64> = arc
         .iter()
         .enumerate()
         .map(|(k, a)| a - k as f64 * du)
         .collect();
-    let smooth = box_mean(&box_mean(&departure));
+    let smooth = window_means(&window_means(&departure, bounds), bounds);
     let (first, last) = (smooth[0], smooth[n - 1] + (n - 1) as f64 * du);
     // Pinned at both ends: the twin starts where the path starts and ends
     // where it ends.
     let stretch = (arc[n - 1] - arc[0]) / (last - first).max(f64::EPSILON);
-    let mut out: Vec<f64> = smooth
-        .iter()
-        .enumerate()
-        .map(|(k, d)| arc[0] + (k as f64 * du + d - first) * stretch)
-        .collect();
-    for k in 1..n {
-        if out[k] < out[k - 1] {
-            out[k] = out[k - 1];
-        }
-    }
-    out
+    running_max(
+        smooth
+            .iter()
+            .enumerate()
+            .map(|(k, d)| arc[0] + (k as f64 * du + d - first) * stretch)
+            .collect(),
+    )
 }
 
 /// Local quadratic fit of (d, x) and (d, y) with Gaussian weights of

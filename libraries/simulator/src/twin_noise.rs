@@ -58,22 +58,7 @@ impl Odometer {
         // Symmetric windows (in samples) within +-0.1 s, so that the mean
         // of a steady ramp is its centre value.
         let halves = symmetric_halves(&t, SPEED_HALF_WINDOW_S);
-        let mut prefix = Vec::with_capacity(n + 1);
-        prefix.push(0.0);
-        for v in &raw {
-            let last = prefix.last().copied().unwrap_or(0.0);
-            prefix.push(last + v);
-        }
-        let smooth = (0..n).map(|i| {
-            let k = halves[i];
-            (prefix[i + k + 1] - prefix[i - k]) / (2 * k + 1) as f64
-        });
-        let mut s_m = Vec::with_capacity(n);
-        let mut top = f64::NEG_INFINITY;
-        for v in smooth {
-            top = top.max(v);
-            s_m.push(top);
-        }
+        let mut s_m = running_max(window_means(&raw, |i| (i - halves[i], i + halves[i])));
         let s0 = s_m[0];
         for s in &mut s_m {
             *s -= s0;
@@ -132,6 +117,33 @@ impl Odometer {
 
 /// For each sample, the largest k such that samples i-k..=i+k lie within
 /// +-`half` s of it (a hair of tolerance for rounded times).
+/// The mean of `v` over each sample's window, `bounds(i)` = (first, last)
+/// index, both included (a prefix sum: linear in the length).
+pub(crate) fn window_means(v: &[f64], bounds: impl Fn(usize) -> (usize, usize)) -> Vec<f64> {
+    let mut prefix = Vec::with_capacity(v.len() + 1);
+    prefix.push(0.0);
+    for x in v {
+        let last = prefix.last().copied().unwrap_or(0.0);
+        prefix.push(last + x);
+    }
+    (0..v.len())
+        .map(|i| {
+            let (a, b) = bounds(i);
+            (prefix[b + 1] - prefix[a]) / (b + 1 - a) as f64
+        })
+        .collect()
+}
+
+/// `v` made non-decreasing: each value the largest so far.
+pub(crate) fn running_max(mut v: Vec<f64>) -> Vec<f64> {
+    let mut top = f64::NEG_INFINITY;
+    for x in &mut v {
+        top = top.max(*x);
+        *x = top;
+    }
+    v
+}
+
 fn symmetric_halves(t: &[f64], half: f64) -> Vec<usize> {
     let n = t.len();
     let tol = half + 1e-6;
