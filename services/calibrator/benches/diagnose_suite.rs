@@ -54,6 +54,10 @@ struct Tally {
     attributed: usize,
     false_ids: usize,
     coef_err: Vec<f64>,
+    /// Findings: |estimate - truth| / the published sigma, and the same
+    /// over the noise's part of it alone (the sigma without its model-form
+    /// part, `Finding::form_sigmas`).
+    coef_pull: Vec<(f64, f64)>,
     rmse_before: Vec<f64>,
     rmse_after: Vec<f64>,
     confused_with: BTreeMap<String, usize>,
@@ -410,6 +414,14 @@ fn main() {
                     } else {
                         est
                     });
+                    if let Some(sg) = f.sigma(dp).filter(|s| *s > 0.0) {
+                        let form = f.form_sigmas.get(dp.spec().name).copied().unwrap_or(0.0);
+                        let noise = (sg * sg - form * form).max(0.0).sqrt();
+                        let scale = if relative { truth.abs() } else { 1.0 };
+                        let off = (est - truth).abs();
+                        t.coef_pull
+                            .push((off / (sg * scale), off / (noise * scale)));
+                    }
                 }
             }
             for x in &extra {
@@ -421,8 +433,8 @@ fn main() {
         }
     }
     println!();
-    println!("| effect | drives | detected | attributed | ambiguous | median rel. coef. error | held-out pos. RMSE before -> after (mean) | other ids found | undetected: size needed (median, x simulated) |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| effect | drives | detected | attributed | ambiguous | median rel. coef. error | findings within 2 sigma: published (noise part alone) | held-out pos. RMSE before -> after (mean) | other ids found | undetected: size needed (median, x simulated) |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for (k, t) in &tallies {
         let mut errs = t.coef_err.clone();
         errs.sort_by(f64::total_cmp);
@@ -457,8 +469,20 @@ fn main() {
                 v.len()
             )
         };
+        let covered = if t.coef_pull.is_empty() {
+            "-".to_string()
+        } else {
+            let within =
+                |f: fn(&(f64, f64)) -> f64| t.coef_pull.iter().filter(|p| f(p) < 2.0).count();
+            format!(
+                "{}/{n} ({}/{n})",
+                within(|p| p.0),
+                within(|p| p.1),
+                n = t.coef_pull.len()
+            )
+        };
         println!(
-            "| {k} | {} | {:.0} % | {:.0} % | {} | {med} | {:.3} -> {:.3} m ({:+.0} %) | {} | {needed} |",
+            "| {k} | {} | {:.0} % | {:.0} % | {} | {med} | {covered} | {:.3} -> {:.3} m ({:+.0} %) | {} | {needed} |",
             t.drives,
             100.0 * t.detected as f64 / t.drives as f64,
             100.0 * t.attributed as f64 / t.drives as f64,

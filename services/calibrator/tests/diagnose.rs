@@ -119,43 +119,59 @@ fn a_load_transfer_is_sized_through_its_own_lateral_acceleration_not_confidently
     // cover it (pull -6 on every seed). Read through the estimate, it must
     // land near the truth and the held-out error must drop the more for it.
     let truth = 5.25e-4;
-    let mut cfg = SimConfig::new(Scenario::Mixed, 2);
-    cfg.vehicle = VehicleKind::Saloon;
-    cfg.effects = EffectSettings::none();
-    cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: truth });
-    let d = diagnose(
-        &simulate(&cfg).expect("simulate"),
-        &DiagnoseConfig::default(),
-    )
-    .expect("diagnose");
-    let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
-    assert_eq!(ids, vec![Effect::LoadTransferRadius], "{d:#?}");
-    let f = &d.findings[0];
-    let k = f.parameter(Param::LoadTransferGain).expect("k_z");
-    let sigma = f.sigma(Param::LoadTransferGain).expect("k_z sigma");
-    assert!(
-        (k - truth).abs() < 0.08 * truth,
-        "k_z {k} ± {sigma} against {truth}"
-    );
-    // Measured 3-5 % high on six seeds (the simulator's load transfer acts
-    // through lagged suspension loads, not the instantaneous linear form):
-    // the sigma is not asked to cover that, only not to claim more than it.
-    assert!(
-        sigma > 0.0 && (k - truth).abs() < 6.0 * sigma,
-        "k_z {k} ± {sigma}"
-    );
-    assert!(
-        f.evidence.contains("a_y read through the estimate"),
-        "{}",
-        f.evidence
-    );
-    // 15 m plain; 3.0 m with the estimate read plainly; about 1.4 m now.
-    assert!(
-        f.holdout_rmse_after_m < 0.15 * f.holdout_rmse_before_m,
-        "{} -> {}",
-        f.holdout_rmse_before_m,
-        f.holdout_rmse_after_m
-    );
+    // Seed 5 is the one whose noise sigma alone left the widest pull (4.0).
+    for seed in [2, 5] {
+        let mut cfg = SimConfig::new(Scenario::Mixed, seed);
+        cfg.vehicle = VehicleKind::Saloon;
+        cfg.effects = EffectSettings::none();
+        cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: truth });
+        let d = diagnose(
+            &simulate(&cfg).expect("simulate"),
+            &DiagnoseConfig::default(),
+        )
+        .expect("diagnose");
+        let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
+        assert_eq!(ids, vec![Effect::LoadTransferRadius], "seed {seed}: {d:#?}");
+        let f = &d.findings[0];
+        let k = f.parameter(Param::LoadTransferGain).expect("k_z");
+        let sigma = f.sigma(Param::LoadTransferGain).expect("k_z sigma");
+        assert!(
+            (k - truth).abs() < 0.08 * truth,
+            "seed {seed}: k_z {k} ± {sigma} against {truth}"
+        );
+        // Measured 3-5 % high on six seeds: the simulator's load transfer
+        // acts through lagged suspension loads, not the instantaneous
+        // linear form. The noise's sigma alone left pulls of 1.7-4.0; the
+        // form's part (the estimate with a_y read from the gyro instead)
+        // must make the published sigma cover it.
+        let form = f
+            .form_sigmas
+            .get(Param::LoadTransferGain.spec().name)
+            .copied()
+            .expect("a form sigma: the drive has a gyro that follows the wheels");
+        assert!(
+            form > 0.0 && form < sigma,
+            "seed {seed}: form {form}, sigma {sigma}"
+        );
+        let noise = (sigma * sigma - form * form).sqrt();
+        assert!(
+            (k - truth).abs() < 2.5 * sigma,
+            "seed {seed}: k_z {k} ± {sigma} (noise part {noise}) against {truth}"
+        );
+        assert!(
+            f.evidence.contains("a_y read through the estimate")
+                && f.evidence.contains("read from the gyro instead"),
+            "{}",
+            f.evidence
+        );
+        // 15 m plain; 3.0 m with the estimate read plainly; about 1.4 m now.
+        assert!(
+            f.holdout_rmse_after_m < 0.15 * f.holdout_rmse_before_m,
+            "seed {seed}: {} -> {}",
+            f.holdout_rmse_before_m,
+            f.holdout_rmse_after_m
+        );
+    }
 }
 
 #[test]
@@ -361,4 +377,54 @@ fn a_live_attempt_with_a_diagnosis_carries_the_accepted_terms() {
         "fitted track {t} against {truth}"
     );
     assert_eq!(fitted.estimate.effects.track_rel, 0.0);
+}
+
+#[test]
+fn the_gyros_reading_of_the_lateral_acceleration_is_the_one_the_wheels_bend() {
+    // The second reading of a_y that the load transfer's model-form sigma
+    // comes from: v (gz - bias), which no wheel-radius effect bends. With a
+    // load transfer of k_z the wheels' v w is larger by 2 k_z v^2 / t; read
+    // through k_z it is the gyro's again.
+    use calibrator::diagnose::epochs;
+    let k_z = 5.25e-4;
+    let mut cfg = SimConfig::new(Scenario::Mixed, 1);
+    cfg.vehicle = VehicleKind::Saloon;
+    cfg.effects = EffectSettings::none();
+    cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z });
+    let drive = simulate(&cfg).expect("simulate");
+    let truth = drive.truth_params.clone().expect("truth");
+    let (c_rl, c_rr) = (truth.circumference_m.rl, truth.circumference_m.rr);
+    let t = drive.vehicle.track_width_m;
+    let revs = drive.wheel_revolutions().expect("revs");
+    let at = |k: f64| epochs::build(&drive, &revs, c_rl, c_rr, t, 0.05, k);
+    let (plain, through) = (at(0.0), at(k_z));
+    let gyro = epochs::with_gyro_lateral(&plain, &revs, c_rl, c_rr, t)
+        .expect("the simulated gyro follows the wheels");
+    // Fast corners, where the bend is 20-70 %.
+    let fast: Vec<usize> = (0..plain.epochs.len())
+        .filter(|&i| {
+            let (p, g) = (&plain.epochs[i], &gyro.epochs[i]);
+            p.v_odo > 12.0 && g.a_y.abs() > 1.5 && p.a_y.is_finite() && g.a_y.is_finite()
+        })
+        .collect();
+    assert!(fast.len() > 50, "{} fast corner epochs", fast.len());
+    // The wheels' excess over the gyro's reading against 2 v^2 / t: slope k_z.
+    let (sxy, sxx) = fast.iter().fold((0.0, 0.0), |(a, b), &i| {
+        let (p, g) = (&plain.epochs[i], &gyro.epochs[i]);
+        let x = 2.0 * p.v_odo * p.v_odo / t;
+        (a + x * (p.a_y / g.a_y - 1.0), b + x * x)
+    });
+    let slope = sxy / sxx;
+    assert!(
+        (slope - k_z).abs() < 0.15 * k_z,
+        "the wheels' a_y exceeds the gyro's as k_z = {slope:.3e} (truth {k_z:.1e})"
+    );
+    // Read through k_z, the wheels' a_y is the gyro's within a few percent.
+    let mut ratios: Vec<f64> = fast
+        .iter()
+        .map(|&i| through.epochs[i].a_y / gyro.epochs[i].a_y)
+        .collect();
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    assert!((median - 1.0).abs() < 0.03, "median ratio {median}");
 }

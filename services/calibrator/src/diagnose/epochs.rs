@@ -325,6 +325,129 @@ pub fn build(
     }
 }
 
+/// Least moving epochs for the gyro's agreement with the wheels.
+const MIN_GYRO_EPOCHS: usize = 50;
+/// Least correlation of the gyro's rate with the wheels' yaw rate.
+const MIN_GYRO_CORRELATION: f64 = 0.9;
+/// Speed above which an epoch counts as moving for that check, m/s.
+const GYRO_CHECK_SPEED_M_S: f64 = 2.0;
+/// Wheel steps on each side over which the speed of a step is taken for
+/// the gyro's a_y integral (one step's distance swings with the encoder's
+/// quantisation).
+const GYRO_AY_SPEED_HALF_STEPS: usize = 5;
+
+/// The same epochs with the lateral acceleration read from the gyro instead
+/// of the wheels: a_y = v (gz - bias) and its integral over distance v^2
+/// dpsi_gyro per wheel step. A second reading of a_y that no wheel-radius
+/// effect bends; where the two readings give different estimates of an
+/// effect that reads a_y, the effect's linear form does not hold exactly
+/// (the diagnosis reports the difference as a model-form uncertainty).
+/// `None` where the drive has no gyro that follows the wheels' yaw rate
+/// (same sign, a slope within a factor of two, correlation at least
+/// [`MIN_GYRO_CORRELATION`] on moving epochs). `revs`, `c_rl`, `c_rr` and
+/// `track` as the epochs were built with.
+pub fn with_gyro_lateral(
+    ep: &Epochs,
+    revs: &[WheelRevs],
+    c_rl: f64,
+    c_rr: f64,
+    track: f64,
+) -> Option<Epochs> {
+    let bias = gyro_bias_if_it_follows(&ep.epochs)?;
+    let wt: Vec<f64> = revs.iter().map(|r| r.t_s).collect();
+    let dl: Vec<f64> = revs.iter().map(|r| r.rl * c_rl).collect();
+    let dr: Vec<f64> = revs.iter().map(|r| r.rr * c_rr).collect();
+    let int_g = int_ay_gyro(&wt, &dl, &dr, track, &ep.gyro_t, &ep.gyro_psi, bias);
+    let mut out = ep.clone();
+    for e in out.epochs.iter_mut() {
+        if e.gz.is_finite() {
+            e.a_y = e.v_odo * (e.gz - bias);
+        }
+        if let Some(v) = interp(&wt, &int_g, e.t_s) {
+            e.int_ay_ds = v;
+        }
+    }
+    Some(out)
+}
+
+/// The gyro's bias when its rate follows the wheels' yaw rate, else
+/// `None`. The bias is the median rate at standstill, or the median
+/// difference from the wheels when the drive has too little standstill.
+fn gyro_bias_if_it_follows(epochs: &[Epoch]) -> Option<f64> {
+    let still: Vec<f64> = epochs
+        .iter()
+        .filter(|e| e.standstill && e.gz.is_finite())
+        .map(|e| e.gz)
+        .collect();
+    let moving: Vec<&Epoch> = epochs
+        .iter()
+        .filter(|e| e.gz.is_finite() && e.w_odo.is_finite() && e.v_odo > GYRO_CHECK_SPEED_M_S)
+        .collect();
+    if moving.len() < MIN_GYRO_EPOCHS {
+        return None;
+    }
+    let bias = if still.len() >= 10 {
+        stats::median_of_finite(&still)
+    } else {
+        stats::median_of_finite(&moving.iter().map(|e| e.gz - e.w_odo).collect::<Vec<_>>())
+    };
+    if !bias.is_finite() {
+        return None;
+    }
+    let pairs: Vec<(f64, f64)> = moving.iter().map(|e| (e.w_odo, e.gz - bias)).collect();
+    let (sxy, sxx) = pairs
+        .iter()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x * y, b + x * x));
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (correlation(&pairs) >= MIN_GYRO_CORRELATION && (0.5..=2.0).contains(&slope)).then_some(bias)
+}
+
+/// The integral of a_y over distance, v^2 dpsi per wheel step, the heading
+/// increment from the gyro (less `bias`) and the speed from the wheels'
+/// distance over [`GYRO_AY_SPEED_HALF_STEPS`] steps each side; the wheels'
+/// heading where the gyro has no sample.
+fn int_ay_gyro(
+    wt: &[f64],
+    dl: &[f64],
+    dr: &[f64],
+    track: f64,
+    it: &[f64],
+    psi_g: &[f64],
+    bias: f64,
+) -> Vec<f64> {
+    let n = wt.len();
+    let s = |i: usize| 0.5 * (dl[i] + dr[i]);
+    let mut out = Vec::with_capacity(n);
+    let mut acc = 0.0;
+    let mut last_g = wt.first().and_then(|&t| interp(it, psi_g, t));
+    for i in 0..n {
+        let now_g = interp(it, psi_g, wt[i]);
+        if i > 0 {
+            let dt = wt[i] - wt[i - 1];
+            let (a, b) = (
+                i.saturating_sub(GYRO_AY_SPEED_HALF_STEPS),
+                (i + GYRO_AY_SPEED_HALF_STEPS).min(n - 1),
+            );
+            let span = wt[b] - wt[a];
+            let v = if span > 0.0 {
+                (s(b) - s(a)) / span
+            } else {
+                0.0
+            };
+            let dpsi = match (last_g, now_g) {
+                (Some(g0), Some(g1)) => g1 - g0 - bias * dt,
+                _ => ((dr[i] - dr[i - 1]) - (dl[i] - dl[i - 1])) / track,
+            };
+            if dt > 0.0 && v.is_finite() && dpsi.is_finite() {
+                acc += v * v * dpsi;
+            }
+        }
+        last_g = now_g;
+        out.push(acc);
+    }
+    out
+}
+
 /// Pearson correlation of pairs (0 when undefined).
 pub fn correlation(pairs: &[(f64, f64)]) -> f64 {
     let n = pairs.len() as f64;

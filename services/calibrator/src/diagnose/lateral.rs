@@ -197,6 +197,87 @@ pub fn read_through_estimate(
     now
 }
 
+/// An effect that reads a_y, estimated under the gyro's reading of a_y
+/// beside the wheels'.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FormSpread {
+    /// The design column.
+    pub column: usize,
+    /// Its coefficient with a_y read from the wheels (through the load
+    /// transfer's estimate where there is one): the published one.
+    pub wheels: f64,
+    /// Its coefficient with a_y read from the gyro.
+    pub gyro: f64,
+}
+
+impl FormSpread {
+    /// The model-form uncertainty of the published (wheels') reading: the
+    /// difference of the two readings over sqrt 2. Under the catalogue's
+    /// linear form the two estimate the same coefficient (the gyro's rate
+    /// is the yaw rate the wheels' is bent from), and the noise moves them
+    /// together (the same fixes, the same design but for the columns that
+    /// read a_y). Where they differ, the form does not hold exactly: taking
+    /// each reading's form error as an independent draw of spread tau, the
+    /// difference has spread tau sqrt 2, so one difference estimates tau as
+    /// |d| / sqrt 2. The coefficient is not known to better than that,
+    /// however small the noise's sigma.
+    pub fn sigma(&self) -> f64 {
+        (self.wheels - self.gyro).abs() / std::f64::consts::SQRT_2
+    }
+}
+
+/// The model's columns `cols` that read a_y, fitted again with a_y read
+/// from the gyro (`gyro_ep`, [`super::epochs::with_gyro_lateral`]) on the
+/// design and statistics `read` ended with; empty where no model column
+/// reads a_y or a fit fails. The design's other columns stay as they were.
+pub fn gyro_reading(
+    inputs: &Inputs<'_>,
+    read: &Read,
+    gyro_ep: &Epochs,
+    cols: &[usize],
+) -> Vec<FormSpread> {
+    let Some((beta, _)) = read.fit.as_ref() else {
+        return Vec::new();
+    };
+    let cx = locate::Context {
+        revs: inputs.revs,
+        gnss: inputs.gnss,
+        ep: gyro_ep,
+    };
+    let d2 = design::rebuild_lateral(
+        &read.design,
+        inputs.base_points,
+        gyro_ep,
+        inputs.settings,
+        inputs.excluded,
+        &cx,
+        inputs.plain,
+    );
+    if d2.candidates != read.design.candidates || d2.rows != read.design.rows {
+        return Vec::new();
+    }
+    let changed: Vec<usize> = (0..d2.columns.len())
+        .filter(|&c| d2.columns.get(c) != read.design.columns.get(c))
+        .collect();
+    if !cols.iter().any(|c| changed.contains(c)) {
+        return Vec::new();
+    }
+    let s2 = read.stats.with_columns_changed(&d2, &changed);
+    let Some(beta_g) = s2.fit(cols, |_| true) else {
+        return Vec::new();
+    };
+    cols.iter()
+        .enumerate()
+        .filter(|(_, c)| changed.contains(c))
+        .filter(|(i, _)| beta[*i].is_finite() && beta_g[*i].is_finite())
+        .map(|(i, &column)| FormSpread {
+            column,
+            wheels: beta[i],
+            gyro: beta_g[i],
+        })
+        .collect()
+}
+
 /// Where the plain reading's shrinkage puts the estimate: the plain fit
 /// finds k0 = k / (1 + k x) with x = 2 v^2 / t averaged where the
 /// fingerprint's information is (weights (v a_y)^2), so k = k0 / (1 - k0 x).

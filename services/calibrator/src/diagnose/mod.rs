@@ -218,8 +218,15 @@ pub struct Finding {
     pub variant: String,
     /// Parameter values.
     pub parameters: BTreeMap<String, f64>,
-    /// Their 1-sigma (delete-one-block jackknife).
+    /// Their 1-sigma: the delete-one-block jackknife's, and for an effect
+    /// that reads a_y (side-slip, load transfer) its model-form part in
+    /// quadrature ([`Finding::form_sigmas`]).
     pub sigmas: BTreeMap<String, f64>,
+    /// The model-form part of a sigma, where there is one: the difference
+    /// between the estimates with a_y read from the wheels and from the
+    /// gyro, over sqrt 2 ([`lateral::FormSpread::sigma`]).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub form_sigmas: BTreeMap<String, f64>,
     /// Their units.
     pub units: BTreeMap<String, String>,
     /// Held-out position RMSE of the model before this effect entered, m.
@@ -739,6 +746,18 @@ pub fn diagnose_with_progress(
     };
     let lateral =
         lateral::read_through_estimate(&inputs, ep, design, stats, &cols, load_transfer_col);
+    // The effects that read a_y, estimated again with a_y read from the
+    // gyro: their spread is the linear form's uncertainty, added to the
+    // published sigma.
+    let form_spread = epochs::with_gyro_lateral(
+        &lateral.ep,
+        &revs,
+        base.c_rl_m,
+        base.c_rr_m,
+        base.track_width_m,
+    )
+    .map(|gep| lateral::gyro_reading(&inputs, &lateral, &gep, &cols))
+    .unwrap_or_default();
     let lateral::Read {
         ep,
         design,
@@ -816,7 +835,11 @@ pub fn diagnose_with_progress(
     let (beta, sigma) =
         final_fit.unwrap_or_else(|| (DVector::zeros(cols.len()), DVector::zeros(cols.len())));
     let coef = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| beta[i]);
-    let coef_sigma = |c: usize| cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
+    let form_of = |c: usize| form_spread.iter().find(|f| f.column == c);
+    let coef_sigma = |c: usize| {
+        let noise = cols.iter().position(|&x| x == c).map_or(0.0, |i| sigma[i]);
+        form_of(c).map_or(noise, |f| noise.hypot(f.sigma()))
+    };
     let accepted: Vec<&Candidate> = sel
         .accepted
         .iter()
@@ -836,12 +859,25 @@ pub fn diagnose_with_progress(
         let mut parameters = BTreeMap::new();
         let mut sigmas = BTreeMap::new();
         let mut units = BTreeMap::new();
+        let mut form_sigmas = BTreeMap::new();
+        let mut form_words = Vec::new();
         for p in &cand.params {
             let (v, s) = p.reported(coef(p.column), coef_sigma(p.column));
             let spec = p.param.spec();
             parameters.insert(spec.name.to_string(), v);
             sigmas.insert(spec.name.to_string(), s);
             units.insert(spec.name.to_string(), spec.unit.to_string());
+            if let Some(f) = form_of(p.column) {
+                let (g, fs) = p.reported(f.gyro, f.sigma());
+                form_sigmas.insert(spec.name.to_string(), fs);
+                form_words.push(format!(
+                    "{} {} with a_y read from the gyro instead (the difference over sqrt 2, {}, \
+                     is in its sigma as the linear form's uncertainty)",
+                    spec.name,
+                    compare::sig3(g),
+                    compare::sig3(fs)
+                ));
+            }
         }
         for (param, t) in variant_params(cand) {
             let spec = param.spec();
@@ -901,6 +937,11 @@ pub fn diagnose_with_progress(
             }
             _ => evidence,
         };
+        let evidence = if form_words.is_empty() {
+            evidence
+        } else {
+            format!("{evidence}; {}", form_words.join("; "))
+        };
         let wald_z = wald_tests
             .iter()
             .find(|t| t.effect == cand.effect)
@@ -910,6 +951,7 @@ pub fn diagnose_with_progress(
             variant: cand.variant.clone(),
             parameters,
             sigmas,
+            form_sigmas,
             units,
             holdout_rmse_before_m: rmse_prev,
             holdout_rmse_after_m: rmse_now,
