@@ -308,24 +308,35 @@ fn build_reusing(
         if moving(x) && x.v_gnss > 0.0 {
             let rel = vnoise / x.v_odo;
             rows.push((Channel::Speed, i, b));
-            y.push(x.v_gnss / x.v_odo - 1.0);
+            // Chord against chord (`Epoch::v_chord`): the columns' scale
+            // terms are relative to the wheels' arc, the same to first order.
+            y.push(x.v_gnss / x.v_chord - 1.0);
             wrel.push(1.0 / (rel * rel + 1e-8));
-            let cw = unwrap_near(x.course_gnss - x.psi_odo, last_cw);
+            let cw = unwrap_near(x.course_gnss - x.course_odo, last_cw);
             last_cw = Some(cw);
             rows.push((Channel::CourseWheel, i, b));
             y.push(cw);
             wrel.push(1.0 / (rel * rel + 1e-8));
-            if ep.has_gyro && x.psi_gyro.is_finite() {
-                let cg = unwrap_near(x.course_gnss - x.psi_gyro, last_cg);
+            if ep.has_gyro && x.course_gyro.is_finite() {
+                let cg = unwrap_near(x.course_gnss - x.course_gyro, last_cg);
                 last_cg = Some(cg);
                 rows.push((Channel::CourseGyro, i, b));
                 y.push(cg);
                 wrel.push(1.0 / (rel * rel + 1e-8));
             }
             if ep.has_heading && x.heading.is_finite() {
+                // The sensor reads the heading at the fix, the GNSS course
+                // is the chord over the interval: the chord's departure
+                // from the heading, as the gyro (else the wheels) shapes
+                // it, is taken back out.
+                let chord_minus_heading = if x.course_gyro.is_finite() && x.psi_gyro.is_finite() {
+                    x.course_gyro - x.psi_gyro
+                } else {
+                    x.course_odo - x.psi_odo
+                };
                 rows.push((Channel::Heading, i, b));
                 y.push(vehicle_model::two_wheel::wrap_angle(
-                    x.heading - x.course_gnss,
+                    x.heading - (x.course_gnss - chord_minus_heading),
                 ));
                 wrel.push(1.0 / (rel * rel + 1e-6));
             }

@@ -30,16 +30,30 @@ pub struct Epoch {
     pub course_gnss: f64,
     /// 2W speed over the interval, m/s.
     pub v_odo: f64,
+    /// Length of the 2W model's displacement over the interval (its chord)
+    /// over the interval's duration, m/s: what the GNSS speed over the same
+    /// interval measures (in a corner the chord is shorter than the arc by
+    /// about (w T)^2 / 6, T the half interval).
+    pub v_chord: f64,
     /// 2W yaw rate over the interval, rad/s.
     pub w_odo: f64,
     /// 2W heading at the fix (cumulative, not wrapped), rad.
     pub psi_odo: f64,
+    /// Direction of the 2W model's displacement over the interval (the
+    /// wheels' track from the fix before to the fix after), near
+    /// `psi_odo`, rad: what the GNSS course over the same interval
+    /// measures (a chord, not the heading at the middle fix).
+    pub course_odo: f64,
     /// Distance travelled since the start at the fix, m.
     pub s_m: f64,
     /// Integral of a_y over distance since the start, m^2/s^2 (load transfer).
     pub int_ay_ds: f64,
     /// Gyro heading at the fix (cumulative integral of gz), rad; NaN without IMU.
     pub psi_gyro: f64,
+    /// Direction of the displacement over the interval with the gyro's
+    /// heading and the wheels' distance, near `psi_gyro`, rad; NaN
+    /// without IMU.
+    pub course_gyro: f64,
     /// Mean gyro rate over the interval, rad/s; NaN without IMU.
     pub gz: f64,
     /// Longitudinal acceleration from the 2W speed, m/s^2.
@@ -186,6 +200,40 @@ pub fn build(
         }
         int_ax.push(acc);
     }
+    // The displacement over distance under each heading (cumulative east
+    // and north per wheel step): the course the GNSS sees over an
+    // interval is the direction of the displacement, which in a corner
+    // being entered or left differs from the heading at the middle fix by
+    // about w_dot T^2 / 6 (T the half interval); read against the heading
+    // it correlates with the heading change within a corner, whichever the
+    // turn, and looks like a track error.
+    let displacement = |psi_at: &dyn Fn(usize) -> Option<f64>| -> Vec<[f64; 2]> {
+        let mut out = Vec::with_capacity(wt.len());
+        let mut acc = [0.0f64; 2];
+        let mut last: Option<f64> = None;
+        for i in 0..wt.len() {
+            let now = psi_at(i);
+            if i > 0 {
+                let ds = 0.5 * ((dl[i] - dl[i - 1]) + (dr[i] - dr[i - 1]));
+                if let (Some(p0), Some(p1)) = (last, now) {
+                    let p = 0.5 * (p0 + p1);
+                    if ds.is_finite() && p.is_finite() {
+                        acc[0] += ds * p.cos();
+                        acc[1] += ds * p.sin();
+                    }
+                }
+            }
+            last = now;
+            out.push(acc);
+        }
+        out
+    };
+    let disp_odo = displacement(&|i| Some((dr[i] - dl[i]) / track));
+    let disp_gyro = if imu.is_empty() {
+        Vec::new()
+    } else {
+        displacement(&|i| interp(&it, &psi_g, wt[i]))
+    };
     let heading: Vec<(f64, f64)> = drive
         .heading
         .as_deref()
@@ -243,6 +291,31 @@ pub fn build(
             (Some(g0), Some(g1)) if has_ax => (g1 - g0) / dt,
             _ => f64::NAN,
         };
+        // The displacement's direction over [a, c], near `near` (the
+        // heading at the middle fix where the car barely moves).
+        let displaced = |disp: &[[f64; 2]]| -> Option<(f64, f64)> {
+            Some((
+                at_xy(&wt, disp, 0, c.t_s)? - at_xy(&wt, disp, 0, a.t_s)?,
+                at_xy(&wt, disp, 1, c.t_s)? - at_xy(&wt, disp, 1, a.t_s)?,
+            ))
+        };
+        let chord = |disp: &[[f64; 2]], near: f64| -> f64 {
+            match displaced(disp) {
+                Some((dx, dy)) if dx.hypot(dy) > 0.0 && near.is_finite() => {
+                    near + wrap_angle(dy.atan2(dx) - near)
+                }
+                _ => near,
+            }
+        };
+        let psi_b = (rb - lb) / track;
+        let psi_gyro_b = interp(&it, &psi_g, b.t_s).unwrap_or(f64::NAN);
+        let course_odo = chord(&disp_odo, psi_b);
+        let v_chord = displaced(&disp_odo).map_or(v_odo, |(dx, dy)| dx.hypot(dy) / dt);
+        let course_gyro = if disp_gyro.is_empty() {
+            f64::NAN
+        } else {
+            chord(&disp_gyro, psi_gyro_b)
+        };
         let heading_at = {
             let i = heading.partition_point(|h| h.0 < b.t_s);
             if i > 0 && i < heading.len() && heading[i].0 - heading[i - 1].0 < max_gap.max(0.5) {
@@ -261,11 +334,14 @@ pub fn build(
             v_gnss: vx.hypot(vy),
             course_gnss: vy.atan2(vx),
             v_odo,
+            v_chord,
             w_odo,
-            psi_odo: (rb - lb) / track,
+            psi_odo: psi_b,
+            course_odo,
             s_m: 0.5 * (lb + rb),
             int_ay_ds: ay_b,
-            psi_gyro: interp(&it, &psi_g, b.t_s).unwrap_or(f64::NAN),
+            psi_gyro: psi_gyro_b,
+            course_gyro,
             gz,
             a_x: 0.0,
             a_y: lateral_acceleration_from_wheels(v_odo, w_odo, k_z, track),
@@ -446,6 +522,23 @@ fn int_ay_gyro(
         out.push(acc);
     }
     out
+}
+
+/// Component `k` of a series of 2-vectors at `t`, linearly interpolated.
+fn at_xy(ts: &[f64], vs: &[[f64; 2]], k: usize, t: f64) -> Option<f64> {
+    if ts.is_empty() || vs.len() != ts.len() || t < ts[0] || t > ts[ts.len() - 1] {
+        return None;
+    }
+    let i = ts.partition_point(|&x| x <= t);
+    if i == 0 {
+        return Some(vs[0][k]);
+    }
+    if i >= ts.len() {
+        return Some(vs[ts.len() - 1][k]);
+    }
+    let (t0, t1) = (ts[i - 1], ts[i]);
+    let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
+    Some(vs[i - 1][k] + f * (vs[i][k] - vs[i - 1][k]))
 }
 
 /// Pearson correlation of pairs (0 when undefined).
