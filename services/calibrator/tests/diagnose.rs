@@ -516,3 +516,60 @@ fn the_course_and_speed_channels_compare_a_chord_with_a_chord() {
         "against the chord it does not: {k_chord} ± {s_chord} s^2 (middle heading {k_tangent})"
     );
 }
+
+#[test]
+fn a_latency_moves_the_dead_reckoned_points_of_every_block_never_drops_a_fix() {
+    // The position columns are finite differences of the dead-reckoned
+    // points at the same fixes. When a fix at t was placed at t - tau only
+    // if the block's wheels reached back that far, a latency kick dropped
+    // the block's first fix on most blocks and their latency column was
+    // left empty: on a drive with low-noise GNSS the positions then put the
+    // latency into an antenna offset and a slip.
+    use calibrator::diagnose::{epochs, locate};
+    use vehicle_model::effects::EffectTerms;
+    let drive = drive_with(Some(Effect::GnssLatency), 2, VehicleKind::Van);
+    let truth = drive.truth_params.clone().expect("truth");
+    let (c_rl, c_rr) = (truth.circumference_m.rl, truth.circumference_m.rr);
+    let track = drive.vehicle.track_width_m;
+    let revs = drive.wheel_revolutions().expect("revs");
+    let ep = epochs::build(&drive, &revs, c_rl, c_rr, track, 0.05, 0.0);
+    let gnss = drive.gnss.as_deref().unwrap_or(&[]);
+    let cx = locate::Context {
+        revs: &revs,
+        gnss,
+        ep: &ep,
+    };
+    let model = |tau: f64| locate::Model {
+        c_rl,
+        c_rr,
+        track_m: track,
+        terms: EffectTerms {
+            gnss_latency_s: tau,
+            ..EffectTerms::default()
+        },
+        slip_side: 0,
+    };
+    let t0 = revs.first().map_or(0.0, |r| r.t_s);
+    let block_s = 42.0;
+    let mut blocks = 0;
+    // Blocks inside the drive (the first and last have no wheels beyond
+    // the drive's ends to place a late fix with).
+    for b in 1..11 {
+        // Block starts that fall between two fixes.
+        let (a, z) = (
+            t0 + 0.03 + b as f64 * block_s,
+            t0 + 0.03 + (b + 1) as f64 * block_s,
+        );
+        for source in [locate::HeadingSource::Wheels, locate::HeadingSource::Gyro] {
+            let Some(p0) = locate::dr_points(&model(0.0), source, &cx, a, z) else {
+                continue;
+            };
+            for tau in [0.08, 0.25, -0.08] {
+                let p1 = locate::dr_points(&model(tau), source, &cx, a, z).expect("points");
+                assert_eq!(p0.t, p1.t, "block {b}, tau {tau}: the same fixes");
+            }
+            blocks += 1;
+        }
+    }
+    assert!(blocks >= 18, "{blocks} blocks dead-reckoned");
+}

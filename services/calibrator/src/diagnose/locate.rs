@@ -119,6 +119,11 @@ impl Context<'_> {
     }
 }
 
+/// How far beyond a block the wheels are dead-reckoned, s: more than any
+/// plausible GNSS latency (the catalogue's range) and its finite-difference
+/// step.
+pub const DR_MARGIN_S: f64 = 1.0;
+
 /// Dead-reckon `model` from a zero pose over the wheel samples in [t0, t1]
 /// and give, for each fix in that span, the fix and the model's antenna
 /// there (not aligned). `None` with fewer than three fixes.
@@ -131,8 +136,13 @@ pub fn dr_points(
 ) -> Option<DrPoints> {
     let revs = cx.revs;
     let t_start = revs.first()?.t_s;
-    let i0 = revs.partition_point(|r| r.t_s < t0);
-    let i1 = revs.partition_point(|r| r.t_s <= t1);
+    // The wheels are dead-reckoned a margin beyond the block on each side,
+    // so that the fixes of the block are the same whatever the latency
+    // (a fix at t is placed at t - tau): the position columns are finite
+    // differences over the same fixes, and a latency that dropped the
+    // block's first fix left its column empty on most blocks.
+    let i0 = revs.partition_point(|r| r.t_s < t0 - DR_MARGIN_S);
+    let i1 = revs.partition_point(|r| r.t_s <= t1 + DR_MARGIN_S);
     if i1 <= i0 + 1 {
         return None;
     }
@@ -200,6 +210,27 @@ pub fn dr_points(
         }
         last_gyro = gyro_now;
         poses.push((r.t_s, pose));
+    }
+    // The pose at the block's first wheel sample is the zero pose: what the
+    // margin before it adds is for fixes placed before the block starts
+    // only. (Starting the zero pose a margin earlier would turn and shift
+    // the block's track by what a kicked model does in the margin; the
+    // design projects out a block's rigid motion only to first order, and
+    // a heading kick's turn over the margin left its square in the
+    // columns: measured, the position channels' left/right nuisance moved
+    // by 7 % on a multibody drive.)
+    let k0 = poses
+        .partition_point(|(tp, _)| *tp < t0)
+        .min(poses.len() - 1);
+    let origin = poses[k0].1;
+    let (so, co) = (-origin.yaw).sin_cos();
+    for (_, p) in poses.iter_mut() {
+        let (dx, dy) = (p.x - origin.x, p.y - origin.y);
+        *p = Pose2 {
+            x: co * dx - so * dy,
+            y: so * dx + co * dy,
+            yaw: p.yaw - origin.yaw,
+        };
     }
     let arm = model.terms.lever_arm_m;
     let mut model_pts = Vec::with_capacity(fixes.len());

@@ -765,55 +765,6 @@ pub fn diagnose_with_progress(
         fit: final_fit,
         steps: lateral_steps,
     } = lateral;
-    if let Ok(which) = std::env::var("DEBUG_CHANNELS") {
-        let sets: Vec<Vec<Effect>> = which
-            .split(';')
-            .map(|g| g.split(',').filter_map(Effect::from_id).collect())
-            .collect();
-        for set in sets {
-            let mut cols = design.nuisance.clone();
-            for e in &set {
-                if let Some(c) = design.candidates.iter().find(|c| c.effect == *e) {
-                    cols.extend(c.columns.iter().copied());
-                }
-            }
-            for ch in [
-                Channel::Speed,
-                Channel::CourseWheel,
-                Channel::CourseGyro,
-                Channel::Position,
-                Channel::PositionGyro,
-            ] {
-                let mut d2 = design.clone();
-                for (i, r) in d2.rows.iter().enumerate() {
-                    if r.0 != ch {
-                        d2.w[i] = 0.0;
-                    }
-                }
-                let st = BlockStats::new(&d2);
-                if let Some((b, sg)) = st.fit_with_sigmas(&cols) {
-                    let last: Vec<String> = cols
-                        .iter()
-                        .enumerate()
-                        .skip(design.nuisance.len())
-                        .map(|(i, c)| {
-                            format!("{} {:.4} ± {:.4}", design.column_names[*c], b[i], sg[i])
-                        })
-                        .collect();
-                    eprintln!("DEBUG {:?}: {}", ch, last.join(", "));
-                }
-            }
-            if let Some((b, sg)) = stats.fit_with_sigmas(&cols) {
-                let last: Vec<String> = cols
-                    .iter()
-                    .enumerate()
-                    .skip(design.nuisance.len())
-                    .map(|(i, c)| format!("{} {:.4} ± {:.4}", design.column_names[*c], b[i], sg[i]))
-                    .collect();
-                eprintln!("DEBUG all: {}", last.join(", "));
-            }
-        }
-    }
     let cx = locate::Context {
         revs: &revs,
         gnss,
