@@ -17,6 +17,15 @@ fn drive_with(effect: Option<Effect>, seed: u64, vehicle: VehicleKind) -> interf
     simulate(&cfg).expect("simulate")
 }
 
+/// A `mixed` drive of the saloon with a load transfer of `k_z` alone.
+fn load_transfer_drive(seed: u64, k_z: f64) -> interfaces::drive::Drive {
+    let mut cfg = SimConfig::new(Scenario::Mixed, seed);
+    cfg.vehicle = VehicleKind::Saloon;
+    cfg.effects = EffectSettings::none();
+    cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z });
+    simulate(&cfg).expect("simulate")
+}
+
 /// The relative track error the simulator put into `drive`.
 fn track_rel_truth(drive: &interfaces::drive::Drive) -> f64 {
     drive
@@ -121,12 +130,8 @@ fn a_load_transfer_is_sized_through_its_own_lateral_acceleration_not_confidently
     let truth = 5.25e-4;
     // Seed 5 is the one whose noise sigma alone left the widest pull (4.0).
     for seed in [2, 5] {
-        let mut cfg = SimConfig::new(Scenario::Mixed, seed);
-        cfg.vehicle = VehicleKind::Saloon;
-        cfg.effects = EffectSettings::none();
-        cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z: truth });
         let d = diagnose(
-            &simulate(&cfg).expect("simulate"),
+            &load_transfer_drive(seed, truth),
             &DiagnoseConfig::default(),
         )
         .expect("diagnose");
@@ -387,11 +392,7 @@ fn the_gyros_reading_of_the_lateral_acceleration_is_the_one_the_wheels_bend() {
     // through k_z it is the gyro's again.
     use calibrator::diagnose::epochs;
     let k_z = 5.25e-4;
-    let mut cfg = SimConfig::new(Scenario::Mixed, 1);
-    cfg.vehicle = VehicleKind::Saloon;
-    cfg.effects = EffectSettings::none();
-    cfg.effects.load_transfer_radius = Some(simulator::LoadTransferRadius { k_z });
-    let drive = simulate(&cfg).expect("simulate");
+    let drive = load_transfer_drive(1, k_z);
     let truth = drive.truth_params.clone().expect("truth");
     let (c_rl, c_rr) = (truth.circumference_m.rl, truth.circumference_m.rr);
     let t = drive.vehicle.track_width_m;

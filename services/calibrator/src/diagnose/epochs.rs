@@ -207,9 +207,9 @@ pub fn build(
     // about w_dot T^2 / 6 (T the half interval); read against the heading
     // it correlates with the heading change within a corner, whichever the
     // turn, and looks like a track error.
-    let displacement = |psi_at: &dyn Fn(usize) -> Option<f64>| -> Vec<[f64; 2]> {
-        let mut out = Vec::with_capacity(wt.len());
-        let mut acc = [0.0f64; 2];
+    let displacement = |psi_at: &dyn Fn(usize) -> Option<f64>| -> [Vec<f64>; 2] {
+        let mut out = [Vec::with_capacity(wt.len()), Vec::with_capacity(wt.len())];
+        let (mut east, mut north) = (0.0, 0.0);
         let mut last: Option<f64> = None;
         for i in 0..wt.len() {
             let now = psi_at(i);
@@ -218,22 +218,19 @@ pub fn build(
                 if let (Some(p0), Some(p1)) = (last, now) {
                     let p = 0.5 * (p0 + p1);
                     if ds.is_finite() && p.is_finite() {
-                        acc[0] += ds * p.cos();
-                        acc[1] += ds * p.sin();
+                        east += ds * p.cos();
+                        north += ds * p.sin();
                     }
                 }
             }
             last = now;
-            out.push(acc);
+            out[0].push(east);
+            out[1].push(north);
         }
         out
     };
     let disp_odo = displacement(&|i| Some((dr[i] - dl[i]) / track));
-    let disp_gyro = if imu.is_empty() {
-        Vec::new()
-    } else {
-        displacement(&|i| interp(&it, &psi_g, wt[i]))
-    };
+    let disp_gyro = (!imu.is_empty()).then(|| displacement(&|i| interp(&it, &psi_g, wt[i])));
     let heading: Vec<(f64, f64)> = drive
         .heading
         .as_deref()
@@ -293,13 +290,13 @@ pub fn build(
         };
         // The displacement's direction over [a, c], near `near` (the
         // heading at the middle fix where the car barely moves).
-        let displaced = |disp: &[[f64; 2]]| -> Option<(f64, f64)> {
+        let displaced = |disp: &[Vec<f64>; 2]| -> Option<(f64, f64)> {
             Some((
-                at_xy(&wt, disp, 0, c.t_s)? - at_xy(&wt, disp, 0, a.t_s)?,
-                at_xy(&wt, disp, 1, c.t_s)? - at_xy(&wt, disp, 1, a.t_s)?,
+                interp(&wt, &disp[0], c.t_s)? - interp(&wt, &disp[0], a.t_s)?,
+                interp(&wt, &disp[1], c.t_s)? - interp(&wt, &disp[1], a.t_s)?,
             ))
         };
-        let chord = |disp: &[[f64; 2]], near: f64| -> f64 {
+        let chord = |disp: &[Vec<f64>; 2], near: f64| -> f64 {
             match displaced(disp) {
                 Some((dx, dy)) if dx.hypot(dy) > 0.0 && near.is_finite() => {
                     near + wrap_angle(dy.atan2(dx) - near)
@@ -311,11 +308,9 @@ pub fn build(
         let psi_gyro_b = interp(&it, &psi_g, b.t_s).unwrap_or(f64::NAN);
         let course_odo = chord(&disp_odo, psi_b);
         let v_chord = displaced(&disp_odo).map_or(v_odo, |(dx, dy)| dx.hypot(dy) / dt);
-        let course_gyro = if disp_gyro.is_empty() {
-            f64::NAN
-        } else {
-            chord(&disp_gyro, psi_gyro_b)
-        };
+        let course_gyro = disp_gyro
+            .as_ref()
+            .map_or(f64::NAN, |d| chord(d, psi_gyro_b));
         let heading_at = {
             let i = heading.partition_point(|h| h.0 < b.t_s);
             if i > 0 && i < heading.len() && heading[i].0 - heading[i - 1].0 < max_gap.max(0.5) {
@@ -522,23 +517,6 @@ fn int_ay_gyro(
         out.push(acc);
     }
     out
-}
-
-/// Component `k` of a series of 2-vectors at `t`, linearly interpolated.
-fn at_xy(ts: &[f64], vs: &[[f64; 2]], k: usize, t: f64) -> Option<f64> {
-    if ts.is_empty() || vs.len() != ts.len() || t < ts[0] || t > ts[ts.len() - 1] {
-        return None;
-    }
-    let i = ts.partition_point(|&x| x <= t);
-    if i == 0 {
-        return Some(vs[0][k]);
-    }
-    if i >= ts.len() {
-        return Some(vs[ts.len() - 1][k]);
-    }
-    let (t0, t1) = (ts[i - 1], ts[i]);
-    let f = if t1 > t0 { (t - t0) / (t1 - t0) } else { 0.0 };
-    Some(vs[i - 1][k] + f * (vs[i][k] - vs[i - 1][k]))
 }
 
 /// Pearson correlation of pairs (0 when undefined).

@@ -134,29 +134,9 @@ pub fn read_through_estimate(
     let mut run = vec![k];
     for _ in 0..STEPS {
         let ep2 = (inputs.epochs_at)(k);
-        let cx2 = locate::Context {
-            revs: inputs.revs,
-            gnss: inputs.gnss,
-            ep: &ep2,
-        };
-        let d2 = design::rebuild_lateral(
-            &now.design,
-            inputs.base_points,
-            &ep2,
-            inputs.settings,
-            inputs.excluded,
-            &cx2,
-            inputs.plain,
-        );
-        // The same candidates in the same columns, or the selection's
-        // indices would not hold.
-        if d2.candidates != now.design.candidates || d2.rows != now.design.rows {
+        let Some((d2, s2, _)) = reread(inputs, &now.design, &now.stats, &ep2) else {
             break;
-        }
-        let changed: Vec<usize> = (0..d2.columns.len())
-            .filter(|&c| d2.columns.get(c) != now.design.columns.get(c))
-            .collect();
-        let s2 = now.stats.with_columns_changed(&d2, &changed);
+        };
         let Some(f2) = fit_all(&s2) else {
             break;
         };
@@ -239,30 +219,12 @@ pub fn gyro_reading(
     let Some((beta, _)) = read.fit.as_ref() else {
         return Vec::new();
     };
-    let cx = locate::Context {
-        revs: inputs.revs,
-        gnss: inputs.gnss,
-        ep: gyro_ep,
-    };
-    let d2 = design::rebuild_lateral(
-        &read.design,
-        inputs.base_points,
-        gyro_ep,
-        inputs.settings,
-        inputs.excluded,
-        &cx,
-        inputs.plain,
-    );
-    if d2.candidates != read.design.candidates || d2.rows != read.design.rows {
+    let Some((_, s2, changed)) = reread(inputs, &read.design, &read.stats, gyro_ep) else {
         return Vec::new();
-    }
-    let changed: Vec<usize> = (0..d2.columns.len())
-        .filter(|&c| d2.columns.get(c) != read.design.columns.get(c))
-        .collect();
+    };
     if !cols.iter().any(|c| changed.contains(c)) {
         return Vec::new();
     }
-    let s2 = read.stats.with_columns_changed(&d2, &changed);
     let Some(beta_g) = s2.fit(cols, |_| true) else {
         return Vec::new();
     };
@@ -276,6 +238,41 @@ pub fn gyro_reading(
             gyro: beta_g[i],
         })
         .collect()
+}
+
+/// The design and its block statistics again with a_y as the epochs `ep`
+/// read it: only the columns that read a_y are recomputed
+/// ([`design::rebuild_lateral`]) and only their statistics updated; with
+/// the indices of the columns that changed. `None` if the candidates or
+/// rows came out otherwise (the selection's indices would not hold).
+fn reread(
+    inputs: &Inputs<'_>,
+    old: &Design,
+    stats: &BlockStats,
+    ep: &Epochs,
+) -> Option<(Design, BlockStats, Vec<usize>)> {
+    let cx = locate::Context {
+        revs: inputs.revs,
+        gnss: inputs.gnss,
+        ep,
+    };
+    let d2 = design::rebuild_lateral(
+        old,
+        inputs.base_points,
+        ep,
+        inputs.settings,
+        inputs.excluded,
+        &cx,
+        inputs.plain,
+    );
+    if d2.candidates != old.candidates || d2.rows != old.rows {
+        return None;
+    }
+    let changed: Vec<usize> = (0..d2.columns.len())
+        .filter(|&c| d2.columns.get(c) != old.columns.get(c))
+        .collect();
+    let s2 = stats.with_columns_changed(&d2, &changed);
+    Some((d2, s2, changed))
 }
 
 /// Where the plain reading's shrinkage puts the estimate: the plain fit

@@ -52,7 +52,7 @@ use serde::Serialize;
 use stats::distributions::normal_quantile;
 use stats::{mad_sigma, median_of_finite as median};
 use std::collections::BTreeMap;
-use vehicle_model::effects::EffectTerms;
+use vehicle_model::effects::{EffectTerms, READS_LATERAL_ACCELERATION};
 
 /// Settings of a diagnosis. [`Default`] is what `calibrator diagnose` uses.
 #[derive(Debug, Clone, PartialEq)]
@@ -748,16 +748,25 @@ pub fn diagnose_with_progress(
         lateral::read_through_estimate(&inputs, ep, design, stats, &cols, load_transfer_col);
     // The effects that read a_y, estimated again with a_y read from the
     // gyro: their spread is the linear form's uncertainty, added to the
-    // published sigma.
-    let form_spread = epochs::with_gyro_lateral(
-        &lateral.ep,
-        &revs,
-        base.c_rl_m,
-        base.c_rr_m,
-        base.track_width_m,
-    )
-    .map(|gep| lateral::gyro_reading(&inputs, &lateral, &gep, &cols))
-    .unwrap_or_default();
+    // published sigma. Only where the model has such an effect.
+    let reads_ay = sel
+        .accepted
+        .iter()
+        .flat_map(|&i| &lateral.design.candidates[i].params)
+        .any(|p| READS_LATERAL_ACCELERATION.contains(&p.param));
+    let form_spread = if reads_ay {
+        epochs::with_gyro_lateral(
+            &lateral.ep,
+            &revs,
+            base.c_rl_m,
+            base.c_rr_m,
+            base.track_width_m,
+        )
+        .map(|gep| lateral::gyro_reading(&inputs, &lateral, &gep, &cols))
+        .unwrap_or_default()
+    } else {
+        Vec::new()
+    };
     let lateral::Read {
         ep,
         design,
