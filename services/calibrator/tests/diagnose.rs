@@ -120,6 +120,87 @@ fn a_gnss_antenna_away_from_the_axle_is_found() {
     );
 }
 
+/// Our simulator's seed-3 compact drive with a side-slip and an antenna
+/// 1.2 m ahead of the axle: corners at similar speeds, so the two are
+/// barely told apart. The antenna is decided under the wheels' heading,
+/// where the held-out guard asks most blocks to gain, and its gain sits in
+/// the corners of a few (signed-rank z about 1.1): it was refused there at
+/// a joint Wald z of 11. The gyro's heading shows it as well, and a bias of
+/// the wheels' heading (what the ranks guard against) is not in that
+/// reading, so it faces the gyro's guard: both effects are found.
+#[test]
+fn an_antenna_the_gyros_heading_shows_too_is_not_refused_for_its_ranks() {
+    use calibrator::diagnose::decide::{guard_source, WaldOutcome, WHEEL_HEADING_GUARD_Z};
+    use calibrator::diagnose::limit::InformationSource;
+    use calibrator::diagnose::DecidedBy;
+    let mut cfg = SimConfig::new(Scenario::Mixed, 3);
+    cfg.vehicle = VehicleKind::Compact;
+    cfg.effects = EffectSettings::none();
+    cfg.effects.switch_on(Effect::SideSlip);
+    cfg.effects.switch_on(Effect::GnssLeverArm);
+    let drive = simulate(&cfg).expect("simulate");
+    let d = diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose");
+    let found: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
+    assert_eq!(found.len(), 2, "{found:?}");
+    let f = |e: Effect| {
+        d.findings
+            .iter()
+            .find(|f| f.effect == e)
+            .unwrap_or_else(|| panic!("{e} not found: {found:?}"))
+    };
+    let truth = |p: Param| {
+        drive
+            .truth_params
+            .as_ref()
+            .and_then(|t| t.effect_param(p))
+            .expect("truth")
+    };
+    // What the change is about: the antenna's held-out gain is shared by
+    // too few blocks for the ranks, and the gyro's reading vouches for it.
+    let antenna = f(Effect::GnssLeverArm);
+    assert_eq!(antenna.decided_by, DecidedBy::Wald);
+    let w = d
+        .wald
+        .iter()
+        .find(|w| w.test.effect == Effect::GnssLeverArm)
+        .expect("its Wald test");
+    assert_eq!(w.outcome, WaldOutcome::Accepted);
+    assert!(w.holdout_z.expect("ranks") < WHEEL_HEADING_GUARD_Z, "{w:?}");
+    let limit = d.information_limit.as_ref().expect("limit");
+    let l = limit
+        .effects
+        .iter()
+        .find(|l| l.effect == Effect::GnssLeverArm)
+        .expect("antenna's limit");
+    assert_eq!(l.source, InformationSource::PositionsWheelHeading);
+    assert_eq!(
+        guard_source(limit, Effect::GnssLeverArm, w.test.z_critical),
+        InformationSource::PositionsGyroHeading
+    );
+    // The sizes. The side-slip is within 2 sigma of the truth. The
+    // antenna's finding (the held-out design's fit with the side-slip
+    // beside it) is 0.96 +- 0.08 m against 1.2: 3 of its sigmas low, an
+    // honest-sigma gap not closed here; it is asserted within 25 %.
+    let slip = f(Effect::SideSlip);
+    let (k, s) = (
+        slip.parameter(Param::SideSlipGain).expect("k_beta"),
+        slip.sigma(Param::SideSlipGain).expect("sigma"),
+    );
+    assert!(
+        (k - truth(Param::SideSlipGain)).abs() < 2.0 * s,
+        "{k} ± {s}"
+    );
+    let x = antenna.parameter(Param::LeverArmX).expect("x_m");
+    let x_true = truth(Param::LeverArmX);
+    assert!((x - x_true).abs() < 0.25 * x_true, "{x} against {x_true}");
+    // And the held-out positions are predicted better with both.
+    assert!(
+        d.fit.after.holdout_position_rmse_m < d.fit.before.holdout_position_rmse_m,
+        "{:?}",
+        d.fit
+    );
+}
+
 #[test]
 fn a_load_transfer_is_sized_through_its_own_lateral_acceleration_not_confidently_low() {
     // The diagnosis reads a_y from the wheels' yaw rate, which the load

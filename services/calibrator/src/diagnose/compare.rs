@@ -33,7 +33,7 @@
 //!
 //! Pure: two diagnoses in, a comparison out.
 
-use super::decide::{guard_passes, step_down};
+use super::decide::{guard_passes, guard_source, step_down};
 use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
@@ -544,14 +544,16 @@ fn effect_differences(
 }
 
 /// The held-out guard's relative gain for `effect` in `d`, its
-/// signed-rank z and the information source the effect is decided on.
+/// signed-rank z and the information source whose guard it faces
+/// ([`guard_source`]).
 fn guard_of(d: &Diagnosis, effect: Effect) -> Option<(f64, Option<f64>, InformationSource)> {
     let w = d.wald.iter().find(|w| w.test.effect == effect)?;
     let source = d
         .information_limit
         .as_ref()
-        .and_then(|l| l.effects.iter().find(|e| e.effect == effect))
-        .map_or(InformationSource::PositionsWheelHeading, |e| e.source);
+        .map_or(InformationSource::PositionsWheelHeading, |l| {
+            guard_source(l, effect, w.test.z_critical)
+        });
     Some((w.holdout_gain?, w.holdout_z, source))
 }
 

@@ -113,6 +113,39 @@ pub struct EffectLimit {
     /// below it: [`Joint::held_at_zero`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<Joint>,
+    /// The joint fit under the other heading source, for an effect both
+    /// see (the one not decided under): a second reading of the same
+    /// fixes whose dead-reckoning errors are the other sensor's. The
+    /// held-out guard of an effect decided under the wheels' heading reads
+    /// it ([`super::decide::guard_passes`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub other_source: Option<OtherSource>,
+}
+
+/// An effect's joint fit under the heading source it is not decided
+/// under.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct OtherSource {
+    /// That source.
+    pub source: InformationSource,
+    /// The joint estimate there, reported unit.
+    pub estimate: f64,
+    /// Its sigma, reported unit.
+    pub sigma: f64,
+    /// `estimate / sigma`.
+    pub wald_z: f64,
+}
+
+impl OtherSource {
+    fn of(l: &EffectLimit) -> Option<OtherSource> {
+        let j = l.joint.as_ref()?;
+        Some(OtherSource {
+            source: l.source,
+            estimate: j.estimate?,
+            sigma: j.sigma?,
+            wald_z: j.wald_z?,
+        })
+    }
 }
 
 impl EffectLimit {
@@ -1349,10 +1382,18 @@ pub(super) fn decisive_sigma(l: &EffectLimit) -> f64 {
 /// knows it better. Chosen by the sigma, never by the estimate, so the
 /// choice does not favour a finding; the false-alarm redraws
 /// ([`super::montecarlo`]) choose the same way on every draw.
-fn keep_better(limits: &mut BTreeMap<Effect, EffectLimit>, l: EffectLimit) {
-    match limits.get(&l.effect) {
-        Some(old) if decisive_sigma(old) <= decisive_sigma(&l) => {}
-        _ => {
+/// The one not kept is remembered in the kept one's
+/// [`EffectLimit::other_source`].
+fn keep_better(limits: &mut BTreeMap<Effect, EffectLimit>, mut l: EffectLimit) {
+    match limits.get_mut(&l.effect) {
+        Some(old) if decisive_sigma(old) <= decisive_sigma(&l) => {
+            old.other_source = OtherSource::of(&l);
+        }
+        Some(old) => {
+            l.other_source = OtherSource::of(old);
+            *old = l;
+        }
+        None => {
             limits.insert(l.effect, l);
         }
     }
@@ -1603,6 +1644,7 @@ pub(super) fn limit_of(
         sigma_segments: fit.and_then(|f| f.sigma_segments.map(shown)),
         wald_z: fit.map(|f| f.estimate / f.sigma()),
         joint: None,
+        other_source: None,
     }
 }
 
@@ -2166,6 +2208,10 @@ mod tests {
         let kept = &limits[&Effect::GnssLeverArm];
         assert_eq!(kept.source, InformationSource::PositionsGyroHeading);
         assert!((decisive_sigma(kept) - 0.125).abs() < 1e-12);
+        // The one displaced is remembered as the other source's reading.
+        let other = kept.other_source.expect("the wheels' fit is kept beside");
+        assert_eq!(other.source, InformationSource::PositionsWheelHeading);
+        assert!((other.wald_z - 4.0).abs() < 1e-9, "{other:?}");
         // Another limit with a larger |z| but a larger sigma does not
         // displace it: the choice never looks at the estimate.
         keep_better(
