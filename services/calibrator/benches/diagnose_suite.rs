@@ -415,8 +415,11 @@ fn main() {
                         est
                     });
                     if let Some(sg) = f.sigma(dp).filter(|s| *s > 0.0) {
-                        let form = f.form_sigmas.get(dp.spec().name).copied().unwrap_or(0.0);
-                        let noise = (sg * sg - form * form).max(0.0).sqrt();
+                        let part = |m: &BTreeMap<String, f64>| {
+                            m.get(dp.spec().name).copied().unwrap_or(0.0)
+                        };
+                        let (form, reading) = (part(&f.form_sigmas), part(&f.reading_sigmas));
+                        let noise = (sg * sg - form * form - reading * reading).max(0.0).sqrt();
                         let scale = if relative { truth.abs() } else { 1.0 };
                         let off = (est - truth).abs();
                         t.coef_pull

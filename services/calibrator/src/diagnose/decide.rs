@@ -531,7 +531,7 @@ pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) 
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::super::design::{Channel, SEEN_BY_GYRO};
     use super::*;
 
@@ -721,7 +721,11 @@ mod tests {
     /// A drive's limit holding one effect decided under the wheels'
     /// heading at joint z `z`, and its joint fit under the gyro's heading
     /// at `z_gyro` (none where `None`).
-    fn wheels_decided(effect: Effect, z: f64, z_gyro: Option<f64>) -> InformationLimit {
+    pub(in super::super) fn wheels_decided(
+        effect: Effect,
+        z: f64,
+        z_gyro: Option<f64>,
+    ) -> InformationLimit {
         use super::super::limit::{limit_of, CoefFit, Joint, OtherSource};
         let fit = CoefFit {
             estimate: z * 0.1,

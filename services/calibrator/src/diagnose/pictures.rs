@@ -1181,6 +1181,7 @@ mod tests {
             parameters: BTreeMap::from([("k".to_string(), 0.0041)]),
             sigmas: BTreeMap::from([("k".to_string(), 0.0003)]),
             form_sigmas: BTreeMap::new(),
+            reading_sigmas: BTreeMap::new(),
             units: BTreeMap::from([("k".to_string(), "rad/(m/s^2)".to_string())]),
             holdout_rmse_before_m: 3.2,
             holdout_rmse_after_m: 1.1,
