@@ -361,10 +361,7 @@ pub fn compare(
     let mut channels = channel_distances(recording, simulation, &pairs, cfg);
     holm_channels(&mut channels);
     let mut findings = match declared {
-        Some(d) => {
-            let found: Vec<Effect> = recording.findings.iter().map(|f| f.effect).collect();
-            mend_declared(d, &effects, &found)
-        }
+        Some(d) => mend_declared(d, &effects),
         None => next_twin(recording, simulation, &effects),
     };
     compass_terms(&mut findings, recording, simulation, declared);
@@ -776,33 +773,11 @@ fn units_of(effect: Effect, params: &BTreeMap<String, f64>) -> BTreeMap<String, 
 }
 
 /// The physics a mended simulation should carry, from what it declares:
-/// each named effect's main parameter moved by the difference, and each
-/// declared effect the recording found (`found`) moved by it too where the
-/// two are alike; the rest as declared.
-///
-/// Alike is no difference beyond Holm's critical z, not none: a knob that
-/// does not map one to one onto the estimate leaves a remainder after a
-/// mend (our load transfer shows about 0.8 of its knob), and the drives'
-/// difference is the best estimate of it. On the multibody Ford the load
-/// transfer was alike after two mends (twin 3.18e-4 against the
-/// recording's 3.45e-4, z 1.6) while the course against the wheels, which
-/// integrates it, still differed (p 0.004); with the knob moved by that
-/// difference it is within its noise. An effect only the simulation shows,
-/// or neither, stays as declared: there the difference is noise about
-/// zero.
-fn mend_declared(
-    declared: &Declared,
-    effects: &[EffectDifference],
-    found: &[Effect],
-) -> Vec<TwinEffect> {
+/// each named effect's main parameter moved by the difference, the rest
+/// as declared.
+fn mend_declared(declared: &Declared, effects: &[EffectDifference]) -> Vec<TwinEffect> {
     let mut out: Vec<TwinEffect> = Vec::new();
-    let moves = |d: &EffectDifference| {
-        d.verdict.named()
-            || (d.verdict == DifferenceVerdict::Alike
-                && found.contains(&d.effect)
-                && declared.contains_key(&d.effect.to_string()))
-    };
-    for d in effects.iter().filter(|d| moves(d)) {
+    for d in effects.iter().filter(|d| d.verdict.named()) {
         let (Some([r, _]), Some([s, _])) = (d.recording, d.simulation) else {
             continue;
         };
@@ -827,7 +802,7 @@ fn mend_declared(
             parameters,
             units,
             from: format!(
-                "{} moved by the difference the drives show ({:+.4} {}{}){}",
+                "{} moved by the difference the drives show ({:+.4} {}){}",
                 if now.is_some() {
                     "the simulation's declared value"
                 } else {
@@ -835,11 +810,6 @@ fn mend_declared(
                 },
                 r - s,
                 d.unit,
-                if d.verdict.named() {
-                    ""
-                } else {
-                    "; alike, found in the recording"
-                },
                 if moved == wanted {
                     String::new()
                 } else {
@@ -1073,7 +1043,7 @@ mod tests {
                 DifferenceVerdict::Alike,
             ),
         ];
-        let m = mend_declared(&declared, &effects, &[]);
+        let m = mend_declared(&declared, &effects);
         let get = |e: Effect, p: &str| {
             m.iter()
                 .find(|t| t.effect == e)
@@ -1084,22 +1054,6 @@ mod tests {
         assert!((get(Effect::GnssLeverArm, "x_m").unwrap() - 0.6).abs() < 1e-12);
         assert!(m.iter().all(|t| t.effect != Effect::TrackWidth));
         assert_eq!(m.len(), 3);
-        // The gyro bias alike, but found in the recording: moved by the
-        // difference too (18 + 0.2), and says so. Found in the recording
-        // but not declared (the track width): nothing to move.
-        let found = [Effect::GyroBias, Effect::TrackWidth];
-        let m = mend_declared(&declared, &effects, &found);
-        let bias = m
-            .iter()
-            .find(|t| t.effect == Effect::GyroBias)
-            .expect("bias");
-        assert!((bias.parameters["b_deg_h"] - 18.2).abs() < 1e-9, "{bias:?}");
-        assert!(
-            bias.from.contains("alike, found in the recording"),
-            "{}",
-            bias.from
-        );
-        assert!(m.iter().all(|t| t.effect != Effect::TrackWidth));
         // A simulation with more latency than the recording, moved by the
         // difference past zero: held at zero (the simulator refuses a
         // negative latency), and the mend says so.
@@ -1110,7 +1064,7 @@ mod tests {
             0.05,
             DifferenceVerdict::Excess,
         )];
-        let m = mend_declared(&Declared::new(), &late, &[]);
+        let m = mend_declared(&Declared::new(), &late);
         let t = m.first().expect("the latency mended");
         assert_eq!(t.parameters.get("tau_s"), Some(&0.0));
         assert!(t.from.contains("plausible range"), "{}", t.from);
