@@ -1528,15 +1528,23 @@ fn second_reading(cand: &Candidate, limit: Option<&limit::InformationLimit>) -> 
 }
 
 /// The model parameters a candidate's variant fixes (the drift's time
-/// constant: `time_constant_s=600`).
+/// constant: `time_constant_s=600`), from each of its comma-separated
+/// `name=value` pieces that names one (`time_constant_s=1200,
+/// seen_by=gyro_heading` fixes 1200 s).
 fn variant_params(cand: &Candidate) -> Vec<(Param, f64)> {
-    let (name, value) = cand.variant.split_once('=').unwrap_or_default();
-    cand.effect
-        .spec()
-        .model
-        .iter()
-        .filter(|p| p.spec().name == name)
-        .filter_map(|&p| value.parse().ok().map(|v| (p, v)))
+    cand.variant
+        .split(", ")
+        .filter_map(|piece| piece.split_once('='))
+        .filter_map(|(name, value)| {
+            let p = cand
+                .effect
+                .spec()
+                .model
+                .iter()
+                .copied()
+                .find(|p| p.spec().name == name)?;
+            value.parse().ok().map(|v| (p, v))
+        })
         .collect()
 }
 
@@ -1830,6 +1838,24 @@ mod tests {
             columns: vec![0],
             params: vec![Column::of(effect.main_fitted(), 0)],
         }
+    }
+
+    #[test]
+    fn a_variant_fixes_its_time_constant_whatever_else_it_says() {
+        let d = Effect::RadiusDrift;
+        let t = Param::DriftTimeConstant;
+        assert_eq!(
+            variant_params(&cand(d, "time_constant_s=1200")),
+            vec![(t, 1200.0)]
+        );
+        // The gyro's variant of a drift keeps its time constant (it fell
+        // back to the catalogue's 600 s before).
+        assert_eq!(
+            variant_params(&cand(d, "time_constant_s=1200, seen_by=gyro_heading")),
+            vec![(t, 1200.0)]
+        );
+        assert!(variant_params(&cand(d, "seen_by=gyro_heading")).is_empty());
+        assert!(variant_params(&cand(Effect::GnssLeverArm, "")).is_empty());
     }
 
     #[test]
