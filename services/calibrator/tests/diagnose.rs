@@ -26,12 +26,12 @@ fn load_transfer_drive(seed: u64, k_z: f64) -> interfaces::drive::Drive {
     simulate(&cfg).expect("simulate")
 }
 
-/// The relative track error the simulator put into `drive`.
-fn track_rel_truth(drive: &interfaces::drive::Drive) -> f64 {
+/// The value of `param` the simulator put into `drive`.
+fn truth(drive: &interfaces::drive::Drive, param: Param) -> f64 {
     drive
         .truth_params
         .as_ref()
-        .and_then(|t| t.effect_param(Param::TrackRel))
+        .and_then(|t| t.effect_param(param))
         .expect("truth")
 }
 
@@ -66,7 +66,7 @@ fn a_drive_with_nothing_left_out_gives_no_findings() {
 #[test]
 fn a_concealed_track_width_is_found_named_and_sized_and_the_fit_improves() {
     let drive = drive_with(Some(Effect::TrackWidth), 3, VehicleKind::Compact);
-    let truth = track_rel_truth(&drive);
+    let truth = truth(&drive, Param::TrackRel);
     let d = diagnose(&drive, &DiagnoseConfig::default()).expect("diagnose");
     let ids: Vec<Effect> = d.findings.iter().map(|f| f.effect).collect();
     assert_eq!(ids, vec![Effect::TrackWidth], "{d:#?}");
@@ -148,13 +148,6 @@ fn an_antenna_the_gyros_heading_shows_too_is_not_refused_for_its_ranks() {
             .find(|f| f.effect == e)
             .unwrap_or_else(|| panic!("{e} not found: {found:?}"))
     };
-    let truth = |p: Param| {
-        drive
-            .truth_params
-            .as_ref()
-            .and_then(|t| t.effect_param(p))
-            .expect("truth")
-    };
     // What the change is about: the antenna's held-out gain is shared by
     // too few blocks for the ranks, and the gyro's reading vouches for it.
     let antenna = f(Effect::GnssLeverArm);
@@ -174,7 +167,7 @@ fn an_antenna_the_gyros_heading_shows_too_is_not_refused_for_its_ranks() {
         .expect("antenna's limit");
     assert_eq!(l.source, InformationSource::PositionsWheelHeading);
     assert_eq!(
-        guard_source(limit, Effect::GnssLeverArm, w.test.z_critical),
+        guard_source(limit, &w.test),
         InformationSource::PositionsGyroHeading
     );
     // The sizes. The side-slip is within 2 sigma of the truth; its sigma
@@ -199,11 +192,11 @@ fn an_antenna_the_gyros_heading_shows_too_is_not_refused_for_its_ranks() {
         slip.sigma(Param::SideSlipGain).expect("sigma"),
     );
     assert!(
-        (k - truth(Param::SideSlipGain)).abs() < 2.0 * s,
+        (k - truth(&drive, Param::SideSlipGain)).abs() < 2.0 * s,
         "{k} ± {s}"
     );
     let x = antenna.parameter(Param::LeverArmX).expect("x_m");
-    let x_true = truth(Param::LeverArmX);
+    let x_true = truth(&drive, Param::LeverArmX);
     assert!((x - x_true).abs() < 0.25 * x_true, "{x} against {x_true}");
     // And the held-out positions are predicted better with both.
     assert!(
@@ -431,7 +424,7 @@ fn a_live_attempt_with_a_diagnosis_carries_the_accepted_terms() {
     use calibrator::live::attempt;
     use calibrator::CalibrationConfig;
     let drive = drive_with(Some(Effect::TrackWidth), 3, VehicleKind::Compact);
-    let truth = track_rel_truth(&drive);
+    let truth = truth(&drive, Param::TrackRel);
     let nominal = vehicle_model::two_wheel::TwoWheelParams {
         c_rl: drive.vehicle.nominal_circumference_m,
         c_rr: drive.vehicle.nominal_circumference_m,

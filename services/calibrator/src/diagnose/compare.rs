@@ -552,7 +552,7 @@ fn guard_of(d: &Diagnosis, effect: Effect) -> Option<(f64, Option<f64>, Informat
         .information_limit
         .as_ref()
         .map_or(InformationSource::PositionsWheelHeading, |l| {
-            guard_source(l, effect, w.test.z_critical)
+            guard_source(l, &w.test)
         });
     Some((w.holdout_gain?, w.holdout_z, source))
 }

@@ -134,10 +134,10 @@ pub fn guard_passes(holdout_gain: f64, holdout_z: Option<f64>, source: Informati
     holdout_gain > 0.0 && ranks
 }
 
-/// The source whose guard `effect` faces with `z_critical` (Holm's for
-/// it): the one it was decided under, except an effect decided under the
-/// wheels' heading that the gyro's heading shows as well (its joint fit
-/// there beyond `z_critical`, of the same sign): it faces the gyro's
+/// The source whose guard the effect of Wald test `t` faces: the one it
+/// was decided under, except an effect decided under the wheels' heading
+/// that the gyro's heading shows as well (its joint fit there beyond the
+/// test's critical z, of the same sign as the test's): it faces the gyro's
 /// guard, the aggregate held-out gain without the ranks. The ranks guard
 /// against a bias of the wheels' heading itself (tyre physics beyond the
 /// catalogue's forms, alike in every segment); a reading of the same fixes
@@ -145,23 +145,16 @@ pub fn guard_passes(holdout_gain: f64, holdout_z: Option<f64>, source: Informati
 /// drive with a side-slip and an antenna the antenna was called at Wald z
 /// 11 under the wheels' heading and refused for its ranks (z 1.1): its
 /// gain sits in the corners of a few blocks.
-pub fn guard_source(
-    limit: &InformationLimit,
-    effect: Effect,
-    z_critical: f64,
-) -> InformationSource {
-    let Some(l) = limit.effects.iter().find(|l| l.effect == effect) else {
+pub fn guard_source(limit: &InformationLimit, t: &WaldTest) -> InformationSource {
+    let Some(l) = limit.effects.iter().find(|l| l.effect == t.effect) else {
         return InformationSource::PositionsWheelHeading;
     };
-    if l.source != InformationSource::PositionsWheelHeading {
-        return l.source;
-    }
-    let decided = l.joint.as_ref().and_then(|j| j.wald_z).or(l.wald_z);
-    match (decided, l.other_source) {
-        (Some(z), Some(o))
-            if o.source == InformationSource::PositionsGyroHeading
-                && o.wald_z.abs() > z_critical
-                && o.wald_z.signum() == z.signum() =>
+    match l.other_source {
+        Some(o)
+            if l.source == InformationSource::PositionsWheelHeading
+                && o.source == InformationSource::PositionsGyroHeading
+                && o.wald_z.abs() > t.z_critical
+                && o.wald_z.signum() == t.z.signum() =>
         {
             o.source
         }
@@ -308,11 +301,7 @@ pub(super) fn apply(
             out.push(decided(WaldOutcome::NoModel, None));
             continue;
         };
-        if !guard_passes(
-            g.relative,
-            Some(g.z),
-            guard_source(limit, t.effect, t.z_critical),
-        ) {
+        if !guard_passes(g.relative, Some(g.z), guard_source(limit, t)) {
             guarded.push((out.len(), ci));
             out.push(decided(WaldOutcome::Guarded, Some(g)));
             continue;
@@ -441,8 +430,7 @@ fn enter_together(
         return;
     }
     let wheels = guarded.iter().any(|&(k, _)| {
-        let t = &out[k].test;
-        guard_source(limit, t.effect, t.z_critical) == InformationSource::PositionsWheelHeading
+        guard_source(limit, &out[k].test) == InformationSource::PositionsWheelHeading
     });
     let source = if wheels {
         InformationSource::PositionsWheelHeading
@@ -766,22 +754,31 @@ pub(super) mod tests {
     #[test]
     fn an_effect_the_gyros_heading_shows_too_faces_the_gyros_guard() {
         use InformationSource::*;
+        let test = |effect: Effect, z: f64| WaldTest {
+            effect,
+            z,
+            joint: true,
+            rank: 0,
+            z_critical: 3.6,
+            significant: true,
+        };
         let e = Effect::GnssLeverArm;
+        let t = test(e, 11.3);
         // Shown under both headings, the same sign: the aggregate's guard.
         let both = wheels_decided(e, 11.3, Some(11.5));
-        assert_eq!(guard_source(&both, e, 3.6), PositionsGyroHeading);
+        assert_eq!(guard_source(&both, &t), PositionsGyroHeading);
         // A gain few blocks share now passes (it did not under the ranks).
-        assert!(guard_passes(0.025, Some(1.1), guard_source(&both, e, 3.6)));
+        assert!(guard_passes(0.025, Some(1.1), guard_source(&both, &t)));
         // Not beyond the critical z there, of the other sign, or never
         // fitted there (the track width): the ranks are asked.
         for other in [Some(3.0), Some(-11.5), None] {
             let l = wheels_decided(e, 11.3, other);
-            assert_eq!(guard_source(&l, e, 3.6), PositionsWheelHeading, "{other:?}");
-            assert!(!guard_passes(0.025, Some(1.1), guard_source(&l, e, 3.6)));
+            assert_eq!(guard_source(&l, &t), PositionsWheelHeading, "{other:?}");
+            assert!(!guard_passes(0.025, Some(1.1), guard_source(&l, &t)));
         }
         let track = wheels_decided(Effect::TrackWidth, -4.0, None);
         assert_eq!(
-            guard_source(&track, Effect::TrackWidth, 3.6),
+            guard_source(&track, &test(Effect::TrackWidth, -4.0)),
             PositionsWheelHeading
         );
     }

@@ -117,7 +117,7 @@ pub struct EffectLimit {
     /// see (the one not decided under): a second reading of the same
     /// fixes whose dead-reckoning errors are the other sensor's. The
     /// held-out guard of an effect decided under the wheels' heading reads
-    /// it ([`super::decide::guard_passes`]).
+    /// it ([`super::decide::guard_source`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub other_source: Option<OtherSource>,
 }

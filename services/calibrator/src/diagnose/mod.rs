@@ -1500,25 +1500,11 @@ fn second_reading(cand: &Candidate, limit: Option<&limit::InformationLimit>) -> 
     if READS_LATERAL_ACCELERATION.contains(&main) {
         return None;
     }
-    // Each `name=value` of the variant that names a model parameter holds
-    // it at the value the limit holds it at (the catalogue's typical).
-    let same_form = cand.variant.split(", ").all(|piece| {
-        let Some((name, value)) = piece.split_once('=') else {
-            return true;
-        };
-        match cand
-            .effect
-            .spec()
-            .model
-            .iter()
-            .find(|p| p.spec().name == name)
-        {
-            Some(p) => value
-                .parse::<f64>()
-                .is_ok_and(|v| (v - p.spec().typical).abs() <= 1e-9 * p.spec().typical.abs()),
-            None => true,
-        }
-    });
+    // Each model parameter the variant fixes is held where the limit holds
+    // it (the catalogue's typical).
+    let same_form = variant_params(cand)
+        .iter()
+        .all(|(p, v)| (v - p.spec().typical).abs() <= 1e-9 * p.spec().typical.abs());
     let l = limit?.effects.iter().find(|l| l.effect == cand.effect)?;
     if !same_form || l.estimate_of != main.spec().name {
         return None;
