@@ -90,6 +90,39 @@ fn a_planted_antenna_is_named_then_gone_after_the_mend() {
         .any(|f| f.effect == Effect::GnssLeverArm));
 }
 
+/// The channels a fingerprint reaches, which the mend reads to move an
+/// alike effect whose channel still differs, are where the design's
+/// columns are: the load transfer bends the wheels' heading only, speed
+/// growth changes the speed only, the gyro scale the gyro's heading only.
+#[test]
+fn the_fingerprints_are_in_the_channels_their_columns_reach() {
+    use calibrator::diagnose::design::Channel;
+    let d = diagnose(&drive(3, &[]), &DiagnoseConfig::default()).expect("diagnose");
+    let of = |e: Effect| {
+        d.fingerprints
+            .iter()
+            .find(|(x, _)| *x == e)
+            .map(|(_, c)| c.clone())
+            .unwrap_or_else(|| panic!("{e} has no fingerprint: {:?}", d.fingerprints))
+    };
+    let lt = of(Effect::LoadTransferRadius);
+    assert!(lt.contains(&Channel::CourseWheel), "{lt:?}");
+    assert!(lt.contains(&Channel::Position), "{lt:?}");
+    for c in [Channel::Speed, Channel::CourseGyro, Channel::Heading] {
+        assert!(!lt.contains(&c), "{c:?} in {lt:?}");
+    }
+    let growth = of(Effect::SpeedRadiusGrowth);
+    assert!(growth.contains(&Channel::Speed), "{growth:?}");
+    for c in [Channel::CourseWheel, Channel::CourseGyro, Channel::Heading] {
+        assert!(!growth.contains(&c), "{c:?} in {growth:?}");
+    }
+    let scale = of(Effect::GyroScale);
+    assert!(scale.contains(&Channel::CourseGyro), "{scale:?}");
+    for c in [Channel::Speed, Channel::CourseWheel, Channel::Position] {
+        assert!(!scale.contains(&c), "{c:?} in {scale:?}");
+    }
+}
+
 #[test]
 fn a_null_pair_names_nothing() {
     let c = compared(&drive(3, &[]), &drive(2, &[]));

@@ -933,6 +933,26 @@ fn build_reusing(
 /// (alone, or after the effect's own variant and a comma).
 pub const SEEN_BY_GYRO: &str = "seen_by=gyro_heading";
 
+impl Design {
+    /// The channels whose rows carry any of `cand`'s columns: where its
+    /// fingerprint is, on this drive.
+    pub fn channels_of(&self, cand: &Candidate) -> Vec<Channel> {
+        let mut out: Vec<Channel> = Vec::new();
+        for &c in &cand.columns {
+            let Some(col) = self.columns.get(c) else {
+                continue;
+            };
+            for ((ch, _, _), v) in self.rows.iter().zip(col) {
+                if *v != 0.0 && v.is_finite() && !out.contains(ch) {
+                    out.push(*ch);
+                }
+            }
+        }
+        out.sort();
+        out
+    }
+}
+
 impl Candidate {
     /// Whether it is an effect's variant fitted on the gyro's heading
     /// channels only ([`SEEN_BY_GYRO`]).

@@ -596,6 +596,32 @@ pub struct Diagnosis {
     /// The plain model's residual channels (not in the JSON).
     #[serde(skip)]
     pub channels: Vec<ChannelSeries>,
+    /// Per candidate effect, the residual channels its fingerprint is in
+    /// on this drive, over all its variants (not in the JSON).
+    #[serde(skip)]
+    pub fingerprints: Vec<(Effect, Vec<Channel>)>,
+}
+
+/// Per candidate effect, the channels its columns reach on this drive
+/// (every variant's together), in the catalogue's order.
+fn fingerprints(design: &Design) -> Vec<(Effect, Vec<Channel>)> {
+    let mut out: Vec<(Effect, Vec<Channel>)> = Vec::new();
+    for cand in &design.candidates {
+        let chs = design.channels_of(cand);
+        match out.iter_mut().find(|(e, _)| *e == cand.effect) {
+            Some((_, have)) => {
+                for c in chs {
+                    if !have.contains(&c) {
+                        have.push(c);
+                    }
+                }
+                have.sort();
+            }
+            None => out.push((cand.effect, chs)),
+        }
+    }
+    out.sort_by_key(|(e, _)| Effect::ALL.iter().position(|x| x == e));
+    out
 }
 
 /// Diagnose a drive.
@@ -1161,6 +1187,7 @@ pub fn diagnose_with_progress(
         tracks,
         blocks,
         channels,
+        fingerprints: fingerprints(&design),
     })
 }
 

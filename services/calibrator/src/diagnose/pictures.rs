@@ -1171,6 +1171,7 @@ mod tests {
             tracks: TrackPlot::default(),
             blocks: Vec::new(),
             channels: Vec::new(),
+            fingerprints: Vec::new(),
         }
     }
 
