@@ -2,7 +2,7 @@
 """Score the twin loop (issue 38) on a suite written by `make_drives.py suite`.
 
     twin_score.py OUT_DIR [--bin DIR] [--rerun] [--only PREFIX] [--mends N]
-                  [--twin-dir NAME] [--effect-forms FORMS]
+                  [--twin-dir NAME] [--effect-forms FORMS] [--replicates R]
 
 For each drive of OUT_DIR/manifest.json (a recording from a multibody
 vehicle model that is not ours, with effects the tools are not told):
@@ -12,6 +12,12 @@ vehicle model that is not ours, with effects the tools are not told):
   3. sensor-bridge simulate --like DRIVE --effects-from c1.json --seed 2 --out t1
   4. calibrator compare DRIVE t1 --json c2.json --before c1.json
   (and with --mends 2, once more: t2, c3.json)
+  5. with --replicates R: the last twin's physics again under R other
+     noise seeds (101, 102, ...; DRIVE/twin/rK, rcK.json), each compared
+     with the recording. One twin's noise draw decides "alike" for a
+     drive, and the 13 drives of a route share their twins' seeds, so a
+     route's drives pass or fail together; the replicates show how much
+     of "alike after the mends" is the draw.
 
 The tools read the recording's sensor files only; the manifest (what was
 put in) is read here, to score. Scoring as score.py: a drive's targets
@@ -83,6 +89,28 @@ def loop(b, drive, rerun, mends, twin_dir="twin", forms=None):
     return cs, times
 
 
+def replicates(b, drive, rerun, mends, count, twin_dir="twin", forms=None):
+    """The last twin's physics (c{mends}.json) under `count` other noise
+    seeds, each compared with the recording: their comparisons."""
+    out = os.path.join(drive, twin_dir)
+    cs = []
+    for r in range(1, count + 1):
+        t = os.path.join(out, f"r{r}")
+        c = os.path.join(out, f"rc{r}.json")
+        if not rerun and os.path.exists(c):
+            cs.append(json.load(open(c)))
+            continue
+        sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(100 + r), "--out", t]
+        if mends > 0:
+            sim += ["--effects-from", os.path.join(out, f"c{mends}.json")]
+        if forms:
+            sim += ["--effect-forms", forms]
+        sh(sim)
+        sh([os.path.join(b, "calibrator"), "compare", drive, t, "--json", c])
+        cs.append(json.load(open(c)))
+    return cs
+
+
 def named(c):
     return [e["effect"] for e in c["effects"] if e["verdict"] in ("lacking", "excess")]
 
@@ -98,6 +126,8 @@ def main():
                     help="each drive's subfolder for the twins and comparisons (an A/B keeps both)")
     ap.add_argument("--effect-forms", default=None,
                     help="passed to `simulate --like` (physical or catalogue; its default otherwise)")
+    ap.add_argument("--replicates", type=int, default=0,
+                    help="the last twin's physics again under this many other noise seeds")
     a = ap.parse_args()
     manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
     per_effect = defaultdict(lambda: [0, 0])
@@ -112,6 +142,9 @@ def main():
     after_holm = [0] * a.mends
     times = []
     channels_after = defaultdict(lambda: [0, 0])
+    # Per route (the drive's name up to its first '-'): drives, alike after
+    # the last mend, replicates alike, replicates run.
+    per_route = defaultdict(lambda: [0, 0, 0, 0])
     for case in manifest:
         if not case["drive"].startswith(a.only):
             continue
@@ -143,6 +176,17 @@ def main():
         for ch in cs[-1]["channels"]:
             channels_after[ch["channel"]][1] += 1
             channels_after[ch["channel"]][0] += ch["within_noise"]
+        route = per_route[case["drive"].split("-")[0]]
+        route[0] += 1
+        route[1] += cs[-1].get("channels_differing", 0) == 0
+        if a.replicates:
+            try:
+                rs = replicates(a.bin, drive, a.rerun, a.mends, a.replicates, a.twin_dir, a.effect_forms)
+            except RuntimeError as e:
+                print(f"{case['drive']} (replicates): {e}", file=sys.stderr)
+                rs = []
+            route[2] += sum(r.get("channels_differing", 0) == 0 for r in rs)
+            route[3] += len(rs)
         rows.append((case["drive"], truth, first, [named(c) for c in cs[1:]],
                      [f"{c['channels_within_noise']}/{len(c['channels'])}" for c in cs]))
     n = len(rows)
@@ -164,6 +208,14 @@ def main():
                + ", ".join(f"after mend {k + 1} {after_named[k]}/{n}" for k in range(a.mends)))
     out.append("- per channel within its noise level after the last mend: "
                + ", ".join(f"{c} {k}/{m}" for c, (k, m) in channels_after.items()))
+    out.append("- no channel differing after the last mend, per route (its drives share their twins' noise seeds): "
+               + ", ".join(f"{r} {v[1]}/{v[0]}" for r, v in sorted(per_route.items())))
+    if a.replicates:
+        ok = sum(v[2] for v in per_route.values())
+        run = sum(v[3] for v in per_route.values())
+        out.append(f"- the last twin's physics under {a.replicates} other noise seeds: no channel differing on "
+                   f"{ok}/{run} ({100 * ok / max(run, 1):.0f} %); per route "
+                   + ", ".join(f"{r} {v[2]}/{v[3]}" for r, v in sorted(per_route.items())))
     if times:
         out.append(f"- twin + comparison, median {sorted(times)[len(times) // 2]:.1f} s per drive (max {max(times):.1f} s)")
     out.append("")
