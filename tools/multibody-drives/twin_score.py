@@ -73,20 +73,28 @@ def loop(b, drive, rerun, mends, twin_dir="twin", forms=None):
             cs.append(json.load(open(c)))
             continue
         t0 = time.time()
-        sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(k + 1), "--out", t]
-        if k > 0:
-            sim += ["--effects-from", os.path.join(out, f"c{k}.json")]
-        if forms:
-            sim += ["--effect-forms", forms]
-        sh(sim)
-        cmp = [os.path.join(b, "calibrator"), "compare", drive, t, "--json", c]
-        if k > 0:
-            cmp += ["--before", os.path.join(out, f"c{k}.json")]
-        sh(cmp)
+        before = os.path.join(out, f"c{k}.json") if k > 0 else None
+        twin_compared(b, drive, k + 1, before, forms, t, c, before)
         times.append(time.time() - t0)
         cs.append(json.load(open(c)))
     json.dump(times, open(tfile, "w"))
     return cs, times
+
+
+def twin_compared(b, drive, seed, effects_from, forms, t, c, before=None):
+    """The twin of `drive` under noise `seed` (with the physics of
+    `effects_from` if given) written to `t`, compared with the recording
+    into `c` (against the comparison `before` if given)."""
+    sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(seed), "--out", t]
+    if effects_from:
+        sim += ["--effects-from", effects_from]
+    if forms:
+        sim += ["--effect-forms", forms]
+    sh(sim)
+    cmp = [os.path.join(b, "calibrator"), "compare", drive, t, "--json", c]
+    if before:
+        cmp += ["--before", before]
+    sh(cmp)
 
 
 def replicates(b, drive, rerun, mends, count, twin_dir="twin", forms=None):
@@ -100,13 +108,8 @@ def replicates(b, drive, rerun, mends, count, twin_dir="twin", forms=None):
         if not rerun and os.path.exists(c):
             cs.append(json.load(open(c)))
             continue
-        sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(100 + r), "--out", t]
-        if mends > 0:
-            sim += ["--effects-from", os.path.join(out, f"c{mends}.json")]
-        if forms:
-            sim += ["--effect-forms", forms]
-        sh(sim)
-        sh([os.path.join(b, "calibrator"), "compare", drive, t, "--json", c])
+        physics = os.path.join(out, f"c{mends}.json") if mends > 0 else None
+        twin_compared(b, drive, 100 + r, physics, forms, t, c)
         cs.append(json.load(open(c)))
     return cs
 

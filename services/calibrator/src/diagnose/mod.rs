@@ -605,23 +605,23 @@ pub struct Diagnosis {
 /// Per candidate effect, the channels its columns reach on this drive
 /// (every variant's together), in the catalogue's order.
 fn fingerprints(design: &Design) -> Vec<(Effect, Vec<Channel>)> {
-    let mut out: Vec<(Effect, Vec<Channel>)> = Vec::new();
-    for cand in &design.candidates {
-        let chs = design.channels_of(cand);
-        match out.iter_mut().find(|(e, _)| *e == cand.effect) {
-            Some((_, have)) => {
-                for c in chs {
-                    if !have.contains(&c) {
-                        have.push(c);
-                    }
-                }
-                have.sort();
-            }
-            None => out.push((cand.effect, chs)),
-        }
-    }
-    out.sort_by_key(|(e, _)| Effect::ALL.iter().position(|x| x == e));
-    out
+    Effect::ALL
+        .iter()
+        .filter_map(|&e| {
+            let mut chs: Vec<Channel> = design
+                .candidates
+                .iter()
+                .filter(|c| c.effect == e)
+                .flat_map(|c| design.channels_of(c))
+                .collect();
+            chs.sort();
+            chs.dedup();
+            // A candidate's columns carry something on the drive (those
+            // that do not are set aside as untestable), so an empty list is
+            // an effect with no candidate.
+            (!chs.is_empty()).then_some((e, chs))
+        })
+        .collect()
 }
 
 /// Diagnose a drive.
