@@ -7,6 +7,8 @@
 //! - [`collect`]: wire samples collected into a drive.
 //! - [`effects`]: the stable ids of the physics catalogue.
 //! - [`latency_trace`]: the latency trace file the latency bench reads.
+//! - [`speed_map`]: the wheels' speed reading beyond the catalogue, as a
+//!   comparison measures it and a twin carries it.
 //!
 //! With the `bus` feature (on by default, off for the workspace's pure
 //! libraries), the process side:
@@ -25,4 +27,5 @@ pub mod latency_trace;
 pub mod logging;
 #[cfg(feature = "bus")]
 pub mod sensors;
+pub mod speed_map;
 pub mod wire;

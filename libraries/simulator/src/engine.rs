@@ -55,6 +55,8 @@ struct Model {
     forms: EffectForms,
     k_v: f64,
     drift: Option<(f64, f64)>,
+    /// The wheels' speed reading beyond the catalogue.
+    speed_map: Option<interfaces::speed_map::SpeedMap>,
 }
 
 /// Wheel order in arrays: rl, rr, fl, fr.
@@ -119,6 +121,7 @@ impl Model {
             forms: config.effect_forms,
             k_v: e.speed_radius_growth.map_or(0.0, |g| g.k_v),
             drift: e.radius_drift.map(|d| (d.d, d.time_constant_s)),
+            speed_map: config.speed_map.clone(),
             spec,
         }
     }
@@ -311,7 +314,10 @@ impl Model {
         if let Some((d, tc)) = self.drift {
             growth *= 1.0 + d * (1.0 - (-t / tc).exp());
         }
-        let common = sec / growth;
+        let mut common = sec / growth;
+        if let Some(m) = &self.speed_map {
+            common /= 1.0 + m.at(vx, st.dvx);
+        }
         // Lateral load change of each wheel relative to its static load:
         // the suspension's lagged loads, or in the catalogue's forms the
         // body's lateral acceleration now.
@@ -435,6 +441,15 @@ fn validate(config: &SimConfig) -> Result<(), SimError> {
     }
     if let Some(t) = e.gnss_latency {
         check("gnss_latency", t.tau_s, 0.0, 5.0)?;
+    }
+    if let Some(m) = &config.speed_map {
+        // A wheel reading off by a fifth is a different wheel, not physics.
+        if !m.is_valid() || m.max_abs() > 0.2 {
+            return bad(format!(
+                "speed_map must have ascending edges, one value more than edges, finite, and |m| at most 0.2 (largest {:.4})",
+                m.max_abs()
+            ));
+        }
     }
     let s = &config.sensors;
     for (name, v) in [
@@ -1144,6 +1159,27 @@ fn extra_keys(
             Value::String(config.effect_forms.name().into()),
         );
     }
+    if let Some(m) = &config.speed_map {
+        let steps = |s: &interfaces::speed_map::Steps| {
+            table(vec![
+                (
+                    "edges",
+                    Value::Array(s.edges.iter().map(|&x| f(x)).collect()),
+                ),
+                (
+                    "values",
+                    Value::Array(s.values.iter().map(|&x| f(x)).collect()),
+                ),
+            ])
+        };
+        extra.insert(
+            "speed_map".into(),
+            table(vec![
+                ("speed_m_s", steps(&m.speed_m_s)),
+                ("accel_m_s2", steps(&m.accel_m_s2)),
+            ]),
+        );
+    }
     extra.insert(
         "driven_axle".into(),
         Value::String(
@@ -1253,5 +1289,68 @@ mod tests {
         let tp = d.truth_params.unwrap();
         assert_eq!(tp.effects.len(), 1);
         assert_eq!(tp.extra.get("seed"), Some(&Value::Integer(2)));
+    }
+
+    /// A speed map turns the wheels `1 / (1 + m)` times as fast where it
+    /// applies and nowhere else, and truth.toml says what was carried.
+    #[test]
+    fn a_speed_map_slows_the_wheels_where_it_applies() {
+        use interfaces::speed_map::{SpeedMap, Steps};
+        let mut c = SimConfig::new(Scenario::Mixed, 2);
+        c.duration_s = Some(120.0);
+        c.effects = EffectSettings::none();
+        let plain = run(&c).unwrap();
+        let map = SpeedMap {
+            speed_m_s: Steps {
+                edges: vec![5.0],
+                values: vec![0.0, 0.02],
+            },
+            accel_m_s2: Steps::zero(),
+        };
+        c.speed_map = Some(map.clone());
+        let mapped = run(&c).unwrap();
+        // Over 1 s steps, by the truth's speed there: the revolutions'
+        // ratio, summed (a tick's quantisation per step averages out).
+        let (p, m) = (&plain.wheels.samples, &mapped.wheels.samples);
+        let truth = plain.truth.as_ref().unwrap();
+        let (mut fast, mut slow) = ([0.0, 0.0], [0.0, 0.0]);
+        for k in (100..p.len()).step_by(100) {
+            let (dp, dm) = (p[k].rl - p[k - 100].rl, m[k].rl - m[k - 100].rl);
+            let dx = truth[k].x_m - truth[k - 100].x_m;
+            let dy = truth[k].y_m - truth[k - 100].y_m;
+            let v = dx.hypot(dy);
+            if v > 6.0 {
+                slow[0] += dm;
+                slow[1] += dp;
+            } else if v < 4.0 {
+                fast[0] += dm;
+                fast[1] += dp;
+            }
+        }
+        assert!(slow[1] > 500.0 && fast[1] > 50.0, "{slow:?} {fast:?}");
+        assert!((slow[0] / slow[1] - 1.0 / 1.02).abs() < 2e-3, "{slow:?}");
+        assert!((fast[0] / fast[1] - 1.0).abs() < 0.01, "{fast:?}");
+        let tp = mapped.truth_params.unwrap();
+        let Some(Value::Table(table)) = tp.extra.get("speed_map") else {
+            panic!("no speed_map table in truth.toml: {:?}", tp.extra);
+        };
+        let values = |signal: &str| match table.get(signal) {
+            Some(Value::Table(t)) => t.get("values").cloned(),
+            _ => None,
+        };
+        assert_eq!(
+            values("speed_m_s"),
+            Some(Value::Array(vec![Value::Float(0.0), Value::Float(0.02)]))
+        );
+        assert!(!plain.truth_params.unwrap().extra.contains_key("speed_map"));
+        // A map beyond a fifth is refused.
+        c.speed_map = Some(SpeedMap {
+            speed_m_s: Steps {
+                edges: vec![],
+                values: vec![0.5],
+            },
+            accel_m_s2: Steps::zero(),
+        });
+        assert!(matches!(run(&c), Err(SimError::InvalidConfig(_))));
     }
 }

@@ -234,6 +234,10 @@ pub struct SimConfig {
     pub step_s: f64,
     /// How the vehicle effects act ([`EffectForms::Physical`] unless set).
     pub effect_forms: EffectForms,
+    /// The wheels' speed reading beyond the catalogue (a comparison's
+    /// measured map, `calibrator compare`): every wheel turns
+    /// `1 / (1 + m(v, a_x))` times as fast. `None`: none.
+    pub speed_map: Option<interfaces::speed_map::SpeedMap>,
 }
 
 impl SimConfig {
@@ -260,6 +264,7 @@ impl SimConfig {
             nominal_circumference_m: None,
             step_s: 0.001,
             effect_forms: EffectForms::Physical,
+            speed_map: None,
         };
         match scenario {
             Scenario::Paper => {

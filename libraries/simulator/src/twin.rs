@@ -397,6 +397,9 @@ pub struct TwinConfig {
     /// in the catalogue's forms a knob means what a diagnosis's estimate
     /// means).
     pub effect_forms: EffectForms,
+    /// The wheels' speed reading beyond the catalogue (a comparison's
+    /// `twin_speed_map`); `None`: none.
+    pub speed_map: Option<interfaces::speed_map::SpeedMap>,
 }
 
 /// What is taken from elsewhere than the drive: a diagnosis's GNSS noise
@@ -423,6 +426,8 @@ pub struct TwinOptions {
     pub smoothing_m: f64,
     /// How the effects act.
     pub effect_forms: EffectForms,
+    /// The wheels' speed reading beyond the catalogue.
+    pub speed_map: Option<interfaces::speed_map::SpeedMap>,
 }
 
 impl TwinOptions {
@@ -437,6 +442,7 @@ impl TwinOptions {
             seed: 1,
             smoothing_m: DEFAULT_SMOOTHING_M,
             effect_forms: EffectForms::Physical,
+            speed_map: None,
         }
     }
 }
@@ -702,6 +708,7 @@ impl TwinConfig {
                 seed: options.seed,
                 step_s,
                 effect_forms: options.effect_forms,
+                speed_map: options.speed_map.clone(),
             },
             numbers,
             notes,
@@ -744,6 +751,7 @@ fn sim_config(c: &TwinConfig) -> Result<(SimConfig, VehicleSpec), SimError> {
     config.sensors = c.sensors;
     config.step_s = c.step_s;
     config.effect_forms = c.effect_forms;
+    config.speed_map = c.speed_map.clone();
     config.unworn_circumference_m = Some(c0);
     config.nominal_circumference_m = Some(v.nominal_circumference_m);
     config.wear_mm = WheelWear {

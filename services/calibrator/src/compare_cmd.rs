@@ -4,9 +4,11 @@
 
 use anyhow::{Context, Result};
 use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, Declared, Summary};
+use calibrator::diagnose::speed_map::SpeedMapDifference;
 use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
 use clap::Args;
 use interfaces::drive::Drive;
+use interfaces::speed_map::SpeedMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -79,7 +81,19 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     // a simulator's own statement of what it simulated); the recording's
     // truth is never read.
     let declared: Option<Declared> = sim.truth_params.as_ref().map(|t| t.effects.clone());
-    let c = compare(&dr, &ds, declared.as_ref(), &CompareConfig::default());
+    let declared_map = declared_speed_map(&sim).with_context(|| {
+        format!(
+            "{}: truth.toml's speed_map is not a speed map",
+            args.simulation.display()
+        )
+    })?;
+    let c = compare(
+        &dr,
+        &ds,
+        declared.as_ref(),
+        declared_map.as_ref(),
+        &CompareConfig::default(),
+    );
     print!("{}", render_text(&c, before.as_ref()));
     if let Some(path) = &args.json {
         let w = Written {
@@ -96,6 +110,24 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         write_page(args, dir, &c, [&real, &sim], [&dr, &ds], before.as_ref())?;
     }
     Ok(())
+}
+
+/// The wheels' speed map a simulation says it carries (its truth.toml's
+/// `speed_map`, as our twin writes it).
+fn declared_speed_map(sim: &Drive) -> Result<Option<SpeedMap>> {
+    let Some(v) = sim
+        .truth_params
+        .as_ref()
+        .and_then(|t| t.extra.get("speed_map"))
+    else {
+        return Ok(None);
+    };
+    let m: SpeedMap = serde_json::from_value(serde_json::to_value(v)?)?;
+    anyhow::ensure!(
+        m.is_valid(),
+        "edges must ascend, with one value more than edges, all finite"
+    );
+    Ok(Some(m))
 }
 
 /// An earlier comparison's verdicts and channel distances, from its JSON.
@@ -135,6 +167,14 @@ fn write_page(
     ];
     if let Some(b) = before {
         pictures.push(("mend.svg".into(), pics::mend_svg(b, c).context(draw)?));
+    }
+    if let Some(m) = &c.speed_map {
+        for signal in ["speed", "a_x"] {
+            pictures.push((
+                format!("speed_map_{signal}.svg"),
+                pics::speed_map_svg(m, signal).context(draw)?,
+            ));
+        }
     }
     for ch in &c.channels {
         pictures.push((
@@ -236,6 +276,9 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
             if ch.differs { "; differs (Holm)" } else { "" }
         );
     }
+    if let Some(m) = &c.speed_map {
+        render_speed_map(&mut s, m);
+    }
     if let Some(b) = before {
         let was: Vec<String> = b.named().map(|e| e.effect.to_string()).collect();
         let _ = writeln!(
@@ -271,4 +314,43 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
         }
     );
     s
+}
+
+/// Where the speed channel parts over speed and acceleration, and whether
+/// a named effect speaks for it.
+fn render_speed_map(s: &mut String, m: &SpeedMapDifference) {
+    let differing: Vec<_> = m.differing().collect();
+    if differing.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "the speed channel over speed and acceleration ({} bins differ, Holm 5 %){}:",
+        differing.len(),
+        if m.unexplained {
+            "; no effect named speaks for it: unexplained by the catalogue".to_string()
+        } else if m.named_in_channel.is_empty() {
+            String::new()
+        } else {
+            format!("; named in it: {}", m.named_in_channel.join(", "))
+        }
+    );
+    for b in differing {
+        let (what, unit) = if b.signal == "speed" {
+            ("at", "m/s")
+        } else {
+            ("at a_x", "m/s^2 (against holding the speed)")
+        };
+        let _ = writeln!(
+            s,
+            "  - {what} {:.1} to {:.1} {unit}: the recording's wheels read {:+.2} % against the simulation's (sigma {:.2} %, z {:.1}; {} and {} rows)",
+            b.lo,
+            b.hi,
+            -100.0 * b.difference,
+            100.0 * b.sigma,
+            b.z,
+            b.rows[0],
+            b.rows[1]
+        );
+    }
 }

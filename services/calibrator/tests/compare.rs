@@ -28,7 +28,7 @@ fn compared(recording: &Drive, simulation: &Drive) -> Comparison {
         ..DiagnoseConfig::default()
     };
     let ds = diagnose(simulation, &cfg).expect("diagnose the simulation");
-    compare(&dr, &ds, None, &CompareConfig::default())
+    compare(&dr, &ds, None, None, &CompareConfig::default())
 }
 
 /// The mended simulation's effect knobs from the comparison's findings
@@ -123,6 +123,64 @@ fn the_fingerprints_are_in_the_channels_their_columns_reach() {
     }
 }
 
+/// Physics no catalogue effect names: the recording's wheels read 3 %
+/// slow between 9 and 15 m/s (a bump no speed growth, slip, warm-up or
+/// slope shapes). The comparison finds the speed channel apart, locates
+/// the difference in the speed bins that hold the bump, with nothing
+/// named for it, and maps it; the twin carrying the map is alike.
+#[test]
+fn a_speed_bump_no_effect_names_is_located_mapped_and_gone_after_the_mend() {
+    use interfaces::speed_map::{SpeedMap, Steps};
+    let bump = SpeedMap {
+        speed_m_s: Steps {
+            edges: vec![9.0, 15.0],
+            values: vec![0.0, 0.03, 0.0],
+        },
+        accel_m_s2: Steps::zero(),
+    };
+    let with_map = |seed: u64, map: Option<SpeedMap>| {
+        let mut cfg = SimConfig::new(Scenario::Mixed, seed);
+        cfg.effects = EffectSettings::none();
+        cfg.duration_s = Some(600.0);
+        cfg.speed_map = map;
+        simulate(&cfg).expect("simulate")
+    };
+    let recording = with_map(1, Some(bump.clone()));
+    let before = compared(&recording, &drive(2, &[]));
+    let speed = |c: &Comparison| {
+        c.channels
+            .iter()
+            .find(|ch| ch.channel == "speed")
+            .cloned()
+            .expect("the speed channel")
+    };
+    assert!(speed(&before).differs, "{:#?}", before.channels);
+    let m = before.speed_map.as_ref().expect("the speed map");
+    let differing: Vec<_> = m.differing().collect();
+    assert!(!differing.is_empty(), "{:#?}", m.bins);
+    for b in &differing {
+        // Speed bins only: where the bump is, the recording's wheels read
+        // slow (its residual higher); elsewhere the mirror of that about
+        // the drive's level, which its calibration set.
+        assert_eq!(b.signal, "speed", "{b:?}");
+        let inside = b.lo < 15.0 && b.hi > 9.0;
+        assert_eq!(b.difference > 0.0, inside, "{b:?}");
+    }
+    assert!(differing.iter().any(|b| b.lo < 15.0 && b.hi > 9.0));
+    assert!(m.unexplained, "{:?}", m.named_in_channel);
+    let mended_map = before.twin_speed_map.clone().expect("a map to carry");
+    assert!(
+        mended_map.at(12.0, 0.0) - mended_map.at(22.0, 0.0) > 0.01,
+        "{mended_map:?}"
+    );
+
+    let after = compared(&recording, &with_map(4, Some(mended_map)));
+    assert!(!speed(&after).differs, "{:#?}", after.channels);
+    let m = after.speed_map.as_ref().expect("the speed map");
+    assert_eq!(m.differing().count(), 0, "{:#?}", m.bins);
+    assert!(after.alike(), "{:#?}", after.channels);
+}
+
 #[test]
 fn a_null_pair_names_nothing() {
     let c = compared(&drive(3, &[]), &drive(2, &[]));
@@ -135,6 +193,10 @@ fn a_null_pair_names_nothing() {
         c.effects
     );
     assert!(c.parting.is_empty(), "{:?}", c.parting);
+    let m = c.speed_map.as_ref().expect("the speed map");
+    assert_eq!(m.differing().count(), 0, "{:#?}", m.bins);
+    assert!(!m.unexplained);
+    assert_eq!(c.channels_differing, 0, "{:#?}", c.channels);
     assert_eq!(c.matched_blocks, 12);
     assert!(c.findings.is_empty(), "{:?}", c.findings);
 }

@@ -21,6 +21,9 @@ pub struct EffectsFile {
     pub information_limit: Option<InformationLimit>,
     /// The calibrated plain model.
     pub base_model: Option<BaseModel>,
+    /// The wheels' speed reading beyond the catalogue that a comparison
+    /// measured (`calibrator compare --json`); carried by the twin.
+    pub twin_speed_map: Option<interfaces::speed_map::SpeedMap>,
 }
 
 /// One finding: a catalogue id and its parameters in the reported units.
@@ -130,6 +133,22 @@ pub fn effects_of(
     Ok((effects, notes))
 }
 
+/// The wheels' speed map a comparison's JSON asks the twin to carry
+/// (`twin_speed_map`), checked.
+pub fn speed_map_of(
+    file: &EffectsFile,
+    path: &Path,
+) -> Result<Option<interfaces::speed_map::SpeedMap>, TwinError> {
+    match &file.twin_speed_map {
+        Some(m) if !m.is_valid() => Err(TwinError::EffectsFile {
+            path: path.to_path_buf(),
+            reason: "twin_speed_map: edges must ascend, with one value more than edges, all finite"
+                .into(),
+        }),
+        m => Ok(m.clone()),
+    }
+}
+
 /// Build, simulate and write the twin; returns its length in seconds.
 pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
     let loaded = read_drive(like).map_err(|source| TwinError::Read {
@@ -160,6 +179,7 @@ pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
         options.base_model = file
             .base_model
             .map(|b| (b.c_rl_m, b.c_rr_m, b.track_width_m));
+        options.speed_map = speed_map_of(&file, path)?;
     }
     for spec in &args.effects {
         options.effects.apply_spec(spec)?;
@@ -242,5 +262,32 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("unknown parameter `k`"), "{err}");
+    }
+
+    #[test]
+    fn a_comparisons_speed_map_is_carried_and_a_malformed_one_refused() {
+        let json = r#"{"findings": [], "twin_speed_map": {
+            "speed_m_s": {"edges": [8.0, 16.0], "values": [0.01, 0.0, -0.002]},
+            "accel_m_s2": {"edges": [], "values": [0.0]}}}"#;
+        let file: EffectsFile = serde_json::from_str(json).unwrap();
+        let m = speed_map_of(&file, Path::new("c.json"))
+            .unwrap()
+            .expect("the map");
+        assert_eq!(m.at(5.0, 0.0), 0.01);
+        assert_eq!(m.at(20.0, 2.0), -0.002);
+        let none: EffectsFile = serde_json::from_str(r#"{"findings": []}"#).unwrap();
+        assert!(speed_map_of(&none, Path::new("c.json")).unwrap().is_none());
+        let bad: EffectsFile = serde_json::from_str(
+            r#"{"twin_speed_map": {"speed_m_s": {"edges": [8.0], "values": [0.01]},
+                "accel_m_s2": {"edges": [], "values": [0.0]}}}"#,
+        )
+        .unwrap();
+        let err = speed_map_of(&bad, Path::new("c.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("c.json") && err.contains("twin_speed_map"),
+            "{err}"
+        );
     }
 }

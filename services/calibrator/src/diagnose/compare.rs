@@ -34,10 +34,13 @@
 //! Pure: two diagnoses in, a comparison out.
 
 use super::decide::{guard_passes, guard_source, step_down};
+use super::design::Channel;
 use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
+use super::speed_map::{speed_map_difference, SpeedMapDifference};
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
 use interfaces::effects::{Effect, Param};
+use interfaces::speed_map::SpeedMap;
 use serde::{Deserialize, Serialize};
 use stats::distributions::normal_quantile;
 use std::collections::BTreeMap;
@@ -173,8 +176,16 @@ pub struct ChannelDistance {
     /// Its noise level: the 95 % point of the distance over swaps of
     /// matched blocks between the two.
     pub noise_level: f64,
-    /// The share of swaps at or beyond the distance (a p-value).
+    /// The channel's p-value, which Holm's procedure reads: the
+    /// distance's; for the speed channel the smaller of the distance's
+    /// and its map's, doubled.
     pub p_value: f64,
+    /// The share of swaps at or beyond the distance.
+    pub p_distance: f64,
+    /// The speed channel's map: its least bin's p-value times the bins
+    /// ([`super::speed_map`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub p_map: Option<f64>,
     /// `distance <= noise_level`.
     pub within_noise: bool,
     /// Beyond the noise at the family's level: Holm's step-down over the
@@ -233,6 +244,16 @@ pub struct Comparison {
     /// have.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub recording_noise: Option<RecordingNoise>,
+    /// The speed channel's difference over speed and longitudinal
+    /// acceleration ([`super::speed_map`]): where the wheels' reading
+    /// parts, whether or not a catalogue effect names it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub speed_map: Option<SpeedMapDifference>,
+    /// The map a mended twin carries (`sensor-bridge simulate
+    /// --effects-from` reads it): the simulation's own, moved by the
+    /// speed channel's difference where that channel differs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub twin_speed_map: Option<SpeedMap>,
 }
 
 /// A drive's GNSS error model per axis: white sigma (m), Gauss-Markov
@@ -343,6 +364,9 @@ pub type Declared = BTreeMap<String, BTreeMap<String, f64>>;
 /// Compare `recording` with `simulation` (both diagnosed with the same
 /// block length).
 ///
+/// `declared_map`: the wheels' speed map the simulation carries (its
+/// truth.toml's `speed_map`), moved where the speed channel differs.
+///
 /// `declared`: the physics the simulation says it holds (effect id ->
 /// parameter -> value, reported units; for our twin, its truth.toml's
 /// `[effects]`), when known: the mend then moves each named effect's
@@ -353,13 +377,77 @@ pub fn compare(
     recording: &Diagnosis,
     simulation: &Diagnosis,
     declared: Option<&Declared>,
+    declared_map: Option<&SpeedMap>,
     cfg: &CompareConfig,
 ) -> Comparison {
     let (effects, effects_missing) = effect_differences(recording, simulation);
     let pairs = matched_blocks(recording, simulation);
     let parting = parting_spans(recording, simulation, &pairs);
     let mut channels = channel_distances(recording, simulation, &pairs, cfg);
+    let mut speed_map = match (
+        recording
+            .channels
+            .iter()
+            .find(|c| c.channel == Channel::Speed),
+        simulation
+            .channels
+            .iter()
+            .find(|c| c.channel == Channel::Speed),
+    ) {
+        (Some(r), Some(s)) => {
+            let blocks: Vec<(usize, usize)> = pairs
+                .iter()
+                .map(|&(i, j)| (recording.blocks[i].block, simulation.blocks[j].block))
+                .collect();
+            speed_map_difference(r, s, &blocks, declared_map)
+        }
+        _ => None,
+    };
+    // The speed channel is judged on its distance and on its map
+    // together (Bonferroni over the two).
+    if let (Some(m), Some(ch)) = (
+        &speed_map,
+        channels
+            .iter_mut()
+            .find(|c| c.channel == Channel::Speed.name()),
+    ) {
+        let p_map = m.p_value();
+        ch.p_map = Some(p_map);
+        ch.p_value = (2.0 * ch.p_distance.min(p_map)).min(1.0);
+    }
     holm_channels(&mut channels);
+    let speed_differs = channels
+        .iter()
+        .any(|c| c.channel == Channel::Speed.name() && c.differs);
+    if let Some(m) = speed_map.as_mut() {
+        // Where the channel parts is asked only where it parts: bins are
+        // not named on a channel that is alike (on twins of one physics
+        // under two noise seeds, the hard-braking bin of one route passed
+        // Holm over the bins at z 5 while no channel differed).
+        if !speed_differs {
+            for b in &mut m.bins {
+                b.differs = false;
+            }
+        }
+        m.mend(speed_differs);
+        m.named_in_channel = effects
+            .iter()
+            .filter(|d| d.verdict.named())
+            .filter(|d| {
+                recording
+                    .fingerprints
+                    .iter()
+                    .any(|(e, chs)| *e == d.effect && chs.contains(&Channel::Speed))
+            })
+            .map(|d| d.effect.to_string())
+            .collect();
+        m.unexplained =
+            speed_differs && m.differing().next().is_some() && m.named_in_channel.is_empty();
+    }
+    let twin_speed_map = match &speed_map {
+        Some(m) => m.mended.clone(),
+        None => declared_map.cloned(),
+    };
     let mut findings = match declared {
         Some(d) => mend_declared(d, &effects, &remainder_carriers(recording, &channels)),
         None => next_twin(recording, simulation, &effects),
@@ -389,6 +477,8 @@ pub fn compare(
                 noise_north: l.noise_north,
                 segment_s: l.segment_s,
             }),
+        speed_map,
+        twin_speed_map,
     }
 }
 
@@ -634,6 +724,9 @@ fn parting_spans(
     spans
 }
 
+/// Residuals with their weights: (value, weight).
+type Weighted = Vec<(f64, f64)>;
+
 /// Per channel in both drives: the distance of the residual distributions
 /// and its noise level from swapping matched blocks.
 fn channel_distances(
@@ -648,19 +741,33 @@ fn channel_distances(
         let Some(cs) = simulation.channels.iter().find(|c| c.channel == cr.channel) else {
             continue;
         };
-        // Residuals per matched block pair.
-        let per_block = |rows: &[(usize, f64, f64)], block: usize| -> Vec<f64> {
-            rows.iter()
-                .filter(|r| r.0 == block && r.2.is_finite())
-                .map(|r| r.2)
+        // The speed channel about each drive's own level (a constant in
+        // r_v / v is the circumference's scale, which each drive's
+        // calibration sets, and the twin takes from the recording's: not
+        // physics the simulation lacks), each row weighted by the square
+        // of the speed (the GNSS chord's relative noise goes as 1 / v: a
+        // plain distance spends its power on the walking-pace rows).
+        let speed = cr.channel == Channel::Speed;
+        let (lr, ls) = if speed {
+            (speed_level(cr), speed_level(cs))
+        } else {
+            (0.0, 0.0)
+        };
+        // Residuals (value, weight) per matched block pair.
+        let per_block = |s: &super::ChannelSeries, block: usize, level: f64| -> Vec<(f64, f64)> {
+            s.rows
+                .iter()
+                .zip(&s.signals)
+                .filter(|(r, x)| r.0 == block && r.2.is_finite() && (!speed || x[0].is_finite()))
+                .map(|(r, x)| (r.2 - level, if speed { x[0] * x[0] } else { 1.0 }))
                 .collect()
         };
-        let groups: Vec<(Vec<f64>, Vec<f64>)> = pairs
+        let groups: Vec<(Weighted, Weighted)> = pairs
             .iter()
             .map(|&(i, j)| {
                 (
-                    per_block(&cr.rows, recording.blocks[i].block),
-                    per_block(&cs.rows, simulation.blocks[j].block),
+                    per_block(cr, recording.blocks[i].block, lr),
+                    per_block(cs, simulation.blocks[j].block, ls),
                 )
             })
             .filter(|(a, b)| !a.is_empty() && !b.is_empty())
@@ -668,7 +775,7 @@ fn channel_distances(
         if groups.len() < 2 {
             continue;
         }
-        let gather = |swap: &[bool]| -> (Vec<f64>, Vec<f64>) {
+        let gather = |swap: &[bool]| -> (Weighted, Weighted) {
             let mut a = Vec::new();
             let mut b = Vec::new();
             for ((x, y), &s) in groups.iter().zip(swap) {
@@ -679,15 +786,18 @@ fn channel_distances(
             (a, b)
         };
         let (mut a, mut b) = gather(&vec![false; groups.len()]);
-        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+        let rms = |v: &[(f64, f64)]| {
+            let w: f64 = v.iter().map(|x| x.1).sum();
+            (v.iter().map(|x| x.1 * x.0 * x.0).sum::<f64>() / w.max(1e-300)).sqrt()
+        };
         let rms_pair = [rms(&a), rms(&b)];
         let samples = [a.len(), b.len()];
-        let distance = wasserstein1(&mut a, &mut b);
+        let distance = wasserstein1_weighted(&mut a, &mut b);
         let mut swapped: Vec<f64> = (0..cfg.swaps)
             .map(|_| {
                 let swap: Vec<bool> = (0..groups.len()).map(|_| rng.next() > 0.0).collect();
                 let (mut a, mut b) = gather(&swap);
-                wasserstein1(&mut a, &mut b)
+                wasserstein1_weighted(&mut a, &mut b)
             })
             .collect();
         swapped.sort_by(f64::total_cmp);
@@ -701,11 +811,31 @@ fn channel_distances(
             distance,
             noise_level,
             p_value: (beyond + 1) as f64 / (cfg.swaps + 1) as f64,
+            p_distance: (beyond + 1) as f64 / (cfg.swaps + 1) as f64,
+            p_map: None,
             within_noise: distance <= noise_level,
             differs: false,
         });
     }
     out
+}
+
+/// The speed channel's level: its mean weighted by the square of the
+/// speed (the GNSS chord's relative noise goes as `1 / v`).
+pub fn speed_level(s: &super::ChannelSeries) -> f64 {
+    let (mut sw, mut swy) = (0.0, 0.0);
+    for (r, x) in s.rows.iter().zip(&s.signals) {
+        if r.2.is_finite() && x[0].is_finite() {
+            let w = x[0] * x[0];
+            sw += w;
+            swy += w * r.2;
+        }
+    }
+    if sw > 0.0 {
+        swy / sw
+    } else {
+        0.0
+    }
 }
 
 /// Holm's step-down procedure over the channels' p-values at the family's
@@ -727,28 +857,42 @@ fn holm_channels(channels: &mut [ChannelDistance]) {
 /// The Wasserstein-1 distance of two samples' empirical distributions (the
 /// area between their distribution functions); sorts both.
 pub fn wasserstein1(a: &mut [f64], b: &mut [f64]) -> f64 {
-    if a.is_empty() || b.is_empty() {
-        return f64::NAN;
-    }
     a.sort_by(f64::total_cmp);
     b.sort_by(f64::total_cmp);
-    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let mut wa: Vec<(f64, f64)> = a.iter().map(|&x| (x, 1.0)).collect();
+    let mut wb: Vec<(f64, f64)> = b.iter().map(|&x| (x, 1.0)).collect();
+    wasserstein1_weighted(&mut wa, &mut wb)
+}
+
+/// The Wasserstein-1 distance of two weighted samples (value, weight):
+/// the area between their weighted distribution functions; sorts both.
+/// NaN when either is empty or weighs nothing.
+pub fn wasserstein1_weighted(a: &mut [(f64, f64)], b: &mut [(f64, f64)]) -> f64 {
+    let (wa, wb): (f64, f64) = (a.iter().map(|x| x.1).sum(), b.iter().map(|x| x.1).sum());
+    if a.is_empty() || b.is_empty() || wa <= 0.0 || wb <= 0.0 {
+        return f64::NAN;
+    }
+    a.sort_by(|x, y| x.0.total_cmp(&y.0));
+    b.sort_by(|x, y| x.0.total_cmp(&y.0));
     let (mut i, mut j) = (0, 0);
-    let mut x = a[0].min(b[0]);
+    let (mut ca, mut cb) = (0.0, 0.0);
+    let mut x = a[0].0.min(b[0].0);
     let mut area = 0.0;
     while i < a.len() || j < b.len() {
         let next = match (a.get(i), b.get(j)) {
-            (Some(&p), Some(&q)) => p.min(q),
-            (Some(&p), None) => p,
-            (None, Some(&q)) => q,
+            (Some(p), Some(q)) => p.0.min(q.0),
+            (Some(p), None) => p.0,
+            (None, Some(q)) => q.0,
             (None, None) => break,
         };
-        area += (i as f64 / na - j as f64 / nb).abs() * (next - x);
+        area += (ca / wa - cb / wb).abs() * (next - x);
         x = next;
-        while a.get(i).is_some_and(|&p| p <= x) {
+        while let Some(p) = a.get(i).filter(|p| p.0 <= x) {
+            ca += p.1;
             i += 1;
         }
-        while b.get(j).is_some_and(|&q| q <= x) {
+        while let Some(q) = b.get(j).filter(|q| q.0 <= x) {
+            cb += q.1;
             j += 1;
         }
     }
@@ -1157,6 +1301,18 @@ mod tests {
         let t = m.first().expect("the latency mended");
         assert_eq!(t.parameters.get("tau_s"), Some(&0.0));
         assert!(t.from.contains("plausible range"), "{}", t.from);
+    }
+
+    #[test]
+    fn a_weight_counts_as_that_many_copies() {
+        let mut a = vec![(0.0, 2.0), (1.0, 1.0)];
+        let mut b = vec![(0.5, 1.0)];
+        let mut a3 = vec![0.0, 0.0, 1.0];
+        let mut b3 = vec![0.5];
+        let w = wasserstein1_weighted(&mut a, &mut b);
+        assert!((w - wasserstein1(&mut a3, &mut b3)).abs() < 1e-12);
+        assert!((w - 0.5).abs() < 1e-12, "{w}");
+        assert!(wasserstein1_weighted(&mut [], &mut b).is_nan());
     }
 
     #[test]

@@ -3,12 +3,14 @@
 //! by block with the spans where the two part, each residual channel's two
 //! distributions (quantile against quantile), and, given the comparison
 //! before a mend, each channel's distance before and after against its
-//! noise level.
+//! noise level; and the speed channel over speed and over the
+//! longitudinal acceleration, each drive's level per bin.
 //!
 //! Pure: the comparison (and the fixes) in, SVG and HTML out.
 
 pub use super::compare::sig3;
 use super::compare::{ChannelDistance, Comparison, Summary};
+use super::speed_map::SpeedMapDifference;
 use super::Diagnosis;
 use report::{Axis, Band, Cell, Colour, Figure, FigureError, Mark, Page, Series};
 
@@ -116,6 +118,80 @@ pub fn effects_svg(c: &Comparison) -> Result<String, FigureError> {
             .with_mark(Mark::Dots { radius: 7 }),
     )
     .svg()
+}
+
+/// The speed channel over one signal (`speed` or `a_x`): each drive's
+/// level per bin (a horizontal segment over the bin), the difference's
+/// 2-sigma bar at the bin's middle about the simulation's level, and a
+/// vermillion ring on a bin that differs.
+pub fn speed_map_svg(m: &SpeedMapDifference, signal: &str) -> Result<String, FigureError> {
+    let bins: Vec<_> = m.bins.iter().filter(|b| b.signal == signal).collect();
+    let (title, axis, unit, what) = if signal == "speed" {
+        (
+            "The speed channel over the speed",
+            "wheels' speed",
+            "m/s",
+            "each drive's level in each speed bin",
+        )
+    } else {
+        (
+            "The speed channel over the longitudinal acceleration",
+            "longitudinal acceleration",
+            "m/s^2",
+            "each drive's departure from its level where the car holds its speed (0 by definition)",
+        )
+    };
+    let seg = |level: f64, lo: f64, hi: f64| vec![[lo, 100.0 * level], [hi, 100.0 * level]];
+    let rec: Vec<Vec<[f64; 2]>> = bins.iter().map(|b| seg(b.recording, b.lo, b.hi)).collect();
+    let sim: Vec<Vec<[f64; 2]>> = bins.iter().map(|b| seg(b.simulation, b.lo, b.hi)).collect();
+    let bars: Vec<Vec<[f64; 2]>> = bins
+        .iter()
+        .map(|b| {
+            let x = 0.5 * (b.lo + b.hi);
+            let c = 100.0 * b.simulation + 100.0 * b.difference;
+            vec![[x, c - 200.0 * b.sigma], [x, c + 200.0 * b.sigma]]
+        })
+        .collect();
+    let differing: Vec<[f64; 2]> = bins
+        .iter()
+        .filter(|b| b.differs)
+        .map(|b| [0.5 * (b.lo + b.hi), 100.0 * b.recording])
+        .collect();
+    let (lo, hi) = bins
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), b| {
+            (l.min(b.lo), h.max(b.hi))
+        });
+    let mut fig = Figure::new(
+        title,
+        Axis::linear(axis, unit),
+        Axis::linear("GNSS against the wheels, relative", "%"),
+    )
+    .describe(&format!(
+        "The speed channel's residual (GNSS chord over the wheels' chord, minus 1) about each \
+         drive's level, {what}: recording blue, simulation orange; the recording's 2-sigma bar \
+         (jackknife over the matched blocks) at each bin's middle; a vermillion ring marks a bin \
+         that differs (Holm over the bins, 5 %). Above zero the wheels read slow against the GNSS."
+    ));
+    if lo.is_finite() && hi.is_finite() {
+        fig = fig.with(Series::line(
+            "zero",
+            vec![[lo, 0.0], [hi, 0.0]],
+            Colour::GREY,
+        ));
+    }
+    fig.with(Series::lines("recording", rec, Colour::BLUE))
+        .with(Series::lines("simulation", sim, Colour::ORANGE))
+        .with(Series::lines(
+            "recording, 2 sigma of the difference",
+            bars,
+            Colour::BLUE,
+        ))
+        .with(
+            Series::dots("bin that differs", differing, Colour::VERMILLION)
+                .with_mark(Mark::Dots { radius: 7 }),
+        )
+        .svg()
 }
 
 /// The plain model's position RMSE block by block in both drives, the
@@ -425,6 +501,56 @@ pub fn index_html(
         ],
         &rows,
     );
+    if let Some(m) = &c.speed_map {
+        page.heading("The speed channel over speed and acceleration");
+        let differing: Vec<_> = m.differing().collect();
+        page.paragraph(&if differing.is_empty() {
+            "No bin differs (Holm over the bins, 5 %).".to_string()
+        } else if m.unexplained {
+            format!(
+                "{} bins differ, and no effect named speaks for the speed channel: physics the \
+                 catalogue does not hold. The mended simulation carries the map.",
+                differing.len()
+            )
+        } else {
+            format!(
+                "{} bins differ; named in the speed channel: {}.",
+                differing.len(),
+                if m.named_in_channel.is_empty() {
+                    "nothing".to_string()
+                } else {
+                    m.named_in_channel.join(", ")
+                }
+            )
+        });
+        let rows: Vec<Vec<Cell>> = m
+            .bins
+            .iter()
+            .map(|b| {
+                vec![
+                    Cell::Text(b.signal.clone()),
+                    Cell::Text(format!("{:.1} to {:.1}", b.lo, b.hi)),
+                    Cell::Text(format!("{} / {}", b.rows[0], b.rows[1])),
+                    Cell::Number(format!("{:+.2}", 100.0 * b.difference)),
+                    Cell::Number(format!("{:.2}", 100.0 * b.sigma)),
+                    Cell::Text(format!("{:.4}", b.p_value)),
+                    Cell::Text(if b.differs { "yes" } else { "no" }.into()),
+                ]
+            })
+            .collect();
+        page.table(
+            &[
+                "signal",
+                "bin",
+                "rows recording / simulation",
+                "difference, %",
+                "sigma, %",
+                "p",
+                "differs",
+            ],
+            &rows,
+        );
+    }
     for (name, svg) in pictures {
         page.figure(name, svg, "");
     }

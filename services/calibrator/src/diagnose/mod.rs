@@ -39,6 +39,7 @@ pub mod pictures;
 pub mod pool;
 pub mod pool_pictures;
 pub mod select;
+pub mod speed_map;
 
 use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
 use design::{Candidate, Channel, Design, DesignSettings};
@@ -524,6 +525,9 @@ pub struct ChannelSeries {
     pub channel: Channel,
     /// Per row: block, time (s), residual (the channel's unit).
     pub rows: Vec<(usize, f64, f64)>,
+    /// Per row: the wheels' speed (m/s) and longitudinal acceleration
+    /// (m/s^2) at its epoch, the signals a difference is mapped over.
+    pub signals: Vec<[f64; 2]>,
 }
 
 /// The tracks of the blocks, before and after, for pictures.
@@ -1101,15 +1105,22 @@ pub fn diagnose_with_progress(
         .collect();
     let channels: Vec<ChannelSeries> = Channel::ALL
         .iter()
-        .map(|&c| ChannelSeries {
-            channel: c,
-            rows: design
+        .map(|&c| {
+            let (rows, signals) = design
                 .rows
                 .iter()
                 .zip(&design.y)
                 .filter(|((ch, _, _), _)| *ch == c)
-                .filter_map(|(&(_, i, b), &y)| Some((b, ep.epochs.get(i)?.t_s, y)))
-                .collect(),
+                .filter_map(|(&(_, i, b), &y)| {
+                    let x = ep.epochs.get(i)?;
+                    Some(((b, x.t_s, y), [x.v_odo, x.a_x]))
+                })
+                .unzip();
+            ChannelSeries {
+                channel: c,
+                rows,
+                signals,
+            }
         })
         .filter(|c| !c.rows.is_empty())
         .collect();

@@ -1,0 +1,451 @@
+//! Where a recording's speed channel parts from a simulation's, over the
+//! signals the wheels' reading depends on, when no catalogue effect names
+//! the difference (issue 38).
+//!
+//! The speed channel's residual (`v_gnss / v_wheels - 1`, chord against
+//! chord) is fitted on each drive by weighted least squares as an additive,
+//! piecewise-constant function of the wheels' speed and the longitudinal
+//! acceleration, `f(v) + g(a_x)` with `g = 0` where the car holds its
+//! speed ([`interfaces::speed_map::SpeedMap`]). The speed bins are 4 m/s
+//! wide up to 20 m/s, then 5 m/s; the acceleration bins are braking
+//! (below -1 m/s^2), mild braking, holding the speed (within 0.3 m/s^2),
+//! mild and hard acceleration. A bin is kept only where both drives have
+//! enough rows in it, else merged into its neighbour (a speed bin into the
+//! one below, an acceleration bin towards holding the speed). Weights are
+//! the square of the speed (the GNSS chord's relative noise goes as
+//! `1 / v`).
+//!
+//! Each drive's residuals are taken about its own level (the speed
+//! channel's weighted mean: a constant is the circumference's scale, which
+//! each drive's calibration sets). Each bin's difference (recording minus
+//! simulation) has its sigma from the jackknife over the matched block
+//! pairs (the GNSS error is correlated within a block, not across: whole
+//! blocks are left out), its p-value from Student's t with one degree of
+//! freedom fewer than the blocks that hold the bin; Holm's procedure over
+//! the bins at the family's 5 % says which bins differ. (Swapping blocks
+//! between the drives, as the channels' distances do, gives valid
+//! p-values too, but a difference that every block shows widens the
+//! swaps' spread, and with a bin in six blocks no swap test can reach
+//! Holm's level.)
+//!
+//! The speed channel's p-value is the smaller of its distance's and the
+//! map's (the least bin's times the bins), doubled: a difference that
+//! depends on the speed or the acceleration can leave the pooled
+//! distributions nearly alike.
+//!
+//! A bin is said to differ only where the speed channel differs (the
+//! comparison clears the bins' verdicts on an alike channel: the channels'
+//! family comes first).
+//!
+//! The mend: where the speed channel differs, the twin's map moves by the
+//! difference, each bin's shrunk towards zero by `max(0, 1 - 1/z^2)` (a
+//! bin at the noise moves little, one far beyond it nearly fully), its
+//! recording-weighted mean taken out (the calibrated circumference holds
+//! that). Where the channel does not differ the twin keeps its map.
+//!
+//! Pure: two channel series in, the map's difference out.
+
+use super::compare::speed_level;
+use super::limit::FAMILY_ALPHA;
+use super::ChannelSeries;
+use interfaces::speed_map::{SpeedMap, Steps};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+use stats::distributions::f_sf;
+
+/// Fewest rows a bin needs in each drive.
+const MIN_ROWS: usize = 40;
+/// The acceleration edges before merging, m/s^2: braking, mild braking,
+/// holding the speed, mild and hard acceleration.
+const ACCEL_EDGES: [f64; 4] = [-1.0, -0.3, 0.3, 1.0];
+/// The speed edges before merging, m/s.
+const SPEED_EDGES: [f64; 7] = [4.0, 8.0, 12.0, 16.0, 20.0, 25.0, 30.0];
+
+/// One bin of the map: what each drive shows there and their difference.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MapBin {
+    /// `speed` (m/s) or `a_x` (m/s^2).
+    pub signal: String,
+    /// Lower bound (the data's least value for the first bin).
+    pub lo: f64,
+    /// Upper bound (the data's largest value for the last bin).
+    pub hi: f64,
+    /// Rows in the bin: recording, simulation.
+    pub rows: [usize; 2],
+    /// Matched block pairs holding rows of the bin (in either drive).
+    pub blocks: usize,
+    /// The recording's level (speed bins) or its departure from holding
+    /// the speed (acceleration bins), relative speed.
+    pub recording: f64,
+    /// The simulation's.
+    pub simulation: f64,
+    /// Recording minus simulation.
+    pub difference: f64,
+    /// Its sigma: the jackknife over the matched block pairs.
+    pub sigma: f64,
+    /// `difference / sigma`.
+    pub z: f64,
+    /// Two-sided, Student's t with one degree of freedom fewer than
+    /// `blocks`.
+    pub p_value: f64,
+    /// Holm's decision over the bins at the family's 5 %, where the speed
+    /// channel differs (false on an alike channel).
+    pub differs: bool,
+}
+
+/// The speed channel's difference over speed and acceleration, and the
+/// map a mended twin should carry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SpeedMapDifference {
+    /// Speed bins, then acceleration bins (holding the speed is the
+    /// reference and has none).
+    pub bins: Vec<MapBin>,
+    /// The recording's rows where the car holds its speed.
+    pub holding_rows: [usize; 2],
+    /// The difference as a map: each bin shrunk towards zero by
+    /// `max(0, 1 - 1/z^2)`, the recording-weighted mean taken out.
+    pub shrunk: SpeedMap,
+    /// What the simulation carried (its truth's `speed_map`), if any.
+    pub declared: Option<SpeedMap>,
+    /// What the mended simulation should carry: the declared map plus
+    /// `shrunk` where the speed channel differs, else the declared map
+    /// (set by [`SpeedMapDifference::mend`]).
+    pub mended: Option<SpeedMap>,
+    /// The effects named between the two drives whose fingerprint is in
+    /// the speed channel (filled in by the comparison).
+    pub named_in_channel: Vec<String>,
+    /// The speed channel differs, bins of it differ, and no named effect
+    /// speaks for it: physics the catalogue does not hold.
+    pub unexplained: bool,
+}
+
+impl SpeedMapDifference {
+    /// The bins that differ.
+    pub fn differing(&self) -> impl Iterator<Item = &MapBin> {
+        self.bins.iter().filter(|b| b.differs)
+    }
+
+    /// The map's own p-value for the speed channel: its smallest bin's,
+    /// times the bins (Bonferroni), at most 1.
+    pub fn p_value(&self) -> f64 {
+        let least = self.bins.iter().map(|b| b.p_value).fold(1.0_f64, f64::min);
+        (least * self.bins.len() as f64).min(1.0)
+    }
+
+    /// Set what the mended simulation carries: where the speed channel
+    /// differs, the declared map moved by the shrunk difference.
+    pub fn mend(&mut self, channel_differs: bool) {
+        self.mended = if channel_differs {
+            Some(
+                self.declared
+                    .as_ref()
+                    .map_or(self.shrunk.clone(), |d| d.plus(&self.shrunk)),
+            )
+        } else {
+            self.declared.clone()
+        };
+    }
+}
+
+/// The bins of a signal: inner edges and the data's range.
+struct Bins {
+    edges: Vec<f64>,
+    lo: f64,
+    hi: f64,
+}
+
+impl Bins {
+    fn of(&self, x: f64) -> usize {
+        self.edges.iter().take_while(|&&e| x >= e).count()
+    }
+    fn count(&self) -> usize {
+        self.edges.len() + 1
+    }
+    fn bounds(&self, k: usize) -> (f64, f64) {
+        let lo = if k == 0 { self.lo } else { self.edges[k - 1] };
+        let hi = self.edges.get(k).copied().unwrap_or(self.hi);
+        (lo, hi)
+    }
+}
+
+/// Per-group normal equations of one drive.
+#[derive(Clone)]
+struct Normals {
+    n: DMatrix<f64>,
+    b: DVector<f64>,
+}
+
+impl Normals {
+    fn zeros(p: usize) -> Normals {
+        Normals {
+            n: DMatrix::zeros(p, p),
+            b: DVector::zeros(p),
+        }
+    }
+}
+
+type Row = (usize, f64, f64);
+
+/// Bins on `edges` over the data `all`, with every bin holding at least
+/// [`MIN_ROWS`] rows of each drive: a sparse bin loses the edge `merge`
+/// names (`None`: the bins cannot be made; nothing is fitted).
+fn merged(
+    mut edges: Vec<f64>,
+    all: &[f64],
+    rec: &[Row],
+    sim: &[Row],
+    signal: impl Fn(&Row) -> f64,
+    merge: impl Fn(&Bins, usize, usize) -> Option<usize>,
+) -> Option<Bins> {
+    let lo = all.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = all.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    loop {
+        let bins = Bins {
+            edges: edges.clone(),
+            lo,
+            hi,
+        };
+        let count =
+            |rows: &[Row], k: usize| rows.iter().filter(|r| bins.of(signal(r)) == k).count();
+        let Some(k) =
+            (0..bins.count()).find(|&k| count(rec, k) < MIN_ROWS || count(sim, k) < MIN_ROWS)
+        else {
+            return Some(bins);
+        };
+        let edge = merge(&bins, k, edges.len())?;
+        if edge >= edges.len() {
+            return None;
+        }
+        edges.remove(edge);
+    }
+}
+
+/// The speed channel's map difference between `recording` and
+/// `simulation` over their matched blocks (`pairs`: recording block,
+/// simulation block). `None` where the drives have too few rows to fit it.
+pub fn speed_map_difference(
+    recording: &ChannelSeries,
+    simulation: &ChannelSeries,
+    pairs: &[(usize, usize)],
+    declared: Option<&SpeedMap>,
+) -> Option<SpeedMapDifference> {
+    let usable = |s: &ChannelSeries| -> Vec<(usize, f64, f64)> {
+        s.rows
+            .iter()
+            .zip(&s.signals)
+            .filter(|(r, x)| r.2.is_finite() && x[0].is_finite() && x[1].is_finite())
+            .map(|(r, x)| (r.0, x[0], x[1]))
+            .collect()
+    };
+    let rec_rows = usable(recording);
+    let sim_rows = usable(simulation);
+    if rec_rows.len() < 5 * MIN_ROWS || sim_rows.len() < 5 * MIN_ROWS {
+        return None;
+    }
+    // Speed bins: fixed edges, a sparse bin merged into the one below
+    // (the first into the one above).
+    let v: Vec<f64> = rec_rows.iter().chain(&sim_rows).map(|r| r.1).collect();
+    let speed = merged(
+        SPEED_EDGES.to_vec(),
+        &v,
+        &rec_rows,
+        &sim_rows,
+        |r| r.1,
+        |_, k, _| Some(k.saturating_sub(1)),
+    )?;
+    // Acceleration bins: a sparse one merged towards holding the speed.
+    let a: Vec<f64> = rec_rows.iter().chain(&sim_rows).map(|r| r.2).collect();
+    let accel = merged(
+        ACCEL_EDGES.to_vec(),
+        &a,
+        &rec_rows,
+        &sim_rows,
+        |r| r.2,
+        |bins, k, _| {
+            let (lo, hi) = bins.bounds(k);
+            if hi <= 0.0 {
+                Some(k)
+            } else if lo >= 0.0 {
+                k.checked_sub(1)
+            } else {
+                None
+            }
+        },
+    )?;
+    let holding = accel.of(0.0);
+    // Columns: every speed bin; every acceleration bin but holding.
+    let accel_cols: Vec<usize> = (0..accel.count()).filter(|&k| k != holding).collect();
+    let p = speed.count() + accel_cols.len();
+    let column_of = |v: f64, a: f64| -> (usize, Option<usize>) {
+        let ka = accel.of(a);
+        (
+            speed.of(v),
+            accel_cols
+                .iter()
+                .position(|&k| k == ka)
+                .map(|i| speed.count() + i),
+        )
+    };
+    // Per matched pair: each drive's normal equations over its block.
+    let normals = |s: &ChannelSeries, block: usize, level: f64| -> Normals {
+        let mut out = Normals::zeros(p);
+        for (r, x) in s.rows.iter().zip(&s.signals) {
+            if r.0 != block || !(r.2.is_finite() && x[0].is_finite() && x[1].is_finite()) {
+                continue;
+            }
+            let w = x[0] * x[0];
+            let (cv, ca) = column_of(x[0], x[1]);
+            let cols: Vec<usize> = std::iter::once(cv).chain(ca).collect();
+            for &i in &cols {
+                out.b[i] += w * (r.2 - level);
+                for &j in &cols {
+                    out.n[(i, j)] += w;
+                }
+            }
+        }
+        out
+    };
+    let groups: Vec<(Normals, Normals)> = pairs
+        .iter()
+        .map(|&(br, bs)| {
+            (
+                normals(recording, br, speed_level(recording)),
+                normals(simulation, bs, speed_level(simulation)),
+            )
+        })
+        .filter(|(r, s)| r.n.trace() > 0.0 && s.n.trace() > 0.0)
+        .collect();
+    if groups.len() < 2 {
+        return None;
+    }
+    let solve = |sum: &Normals| -> Option<DVector<f64>> {
+        let ridge = 1e-9 * sum.n.trace().max(1e-300);
+        let m = &sum.n + DMatrix::identity(p, p) * ridge;
+        m.cholesky().map(|c| c.solve(&sum.b))
+    };
+    let fit = |leave: Option<usize>| -> Option<(DVector<f64>, DVector<f64>)> {
+        let mut a = Normals::zeros(p);
+        let mut b = Normals::zeros(p);
+        for (g, (r, s)) in groups.iter().enumerate() {
+            if Some(g) == leave {
+                continue;
+            }
+            a.n += &r.n;
+            a.b += &r.b;
+            b.n += &s.n;
+            b.b += &s.b;
+        }
+        Some((solve(&a)?, solve(&b)?))
+    };
+    let (cr, cs) = fit(None)?;
+    let d0 = &cr - &cs;
+    // Jackknife over the matched block pairs.
+    let n = groups.len() as f64;
+    let mut leave_one: Vec<DVector<f64>> = Vec::with_capacity(groups.len());
+    for g in 0..groups.len() {
+        let (a, b) = fit(Some(g))?;
+        leave_one.push(a - b);
+    }
+    let mean: DVector<f64> = leave_one.iter().fold(DVector::zeros(p), |acc, d| acc + d) / n;
+    let var: DVector<f64> = leave_one.iter().fold(DVector::zeros(p), |acc, d| {
+        let e = d - &mean;
+        acc + e.component_mul(&e)
+    }) * ((n - 1.0) / n);
+    // The blocks that hold a bin, in either drive: its degrees of freedom.
+    let held: Vec<usize> = (0..p)
+        .map(|k| {
+            groups
+                .iter()
+                .filter(|(r, s)| r.n[(k, k)] > 0.0 || s.n[(k, k)] > 0.0)
+                .count()
+        })
+        .collect();
+    let rows_in = |rows: &[(usize, f64, f64)], col: usize| {
+        rows.iter()
+            .filter(|r| {
+                let (cv, ca) = column_of(r.1, r.2);
+                cv == col || ca == Some(col)
+            })
+            .count()
+    };
+    let mut bins: Vec<MapBin> = (0..p)
+        .map(|k| {
+            let (signal, (lo, hi)) = if k < speed.count() {
+                ("speed", speed.bounds(k))
+            } else {
+                ("a_x", accel.bounds(accel_cols[k - speed.count()]))
+            };
+            let sigma = var[k].sqrt();
+            let z = if sigma > 0.0 { d0[k] / sigma } else { 0.0 };
+            let dof = held[k].saturating_sub(1);
+            MapBin {
+                signal: signal.to_string(),
+                lo,
+                hi,
+                rows: [rows_in(&rec_rows, k), rows_in(&sim_rows, k)],
+                recording: cr[k],
+                simulation: cs[k],
+                difference: d0[k],
+                blocks: held[k],
+                sigma,
+                z,
+                p_value: if dof == 0 || sigma <= 0.0 {
+                    1.0
+                } else {
+                    f_sf(z * z, 1.0, dof as f64)
+                },
+                differs: false,
+            }
+        })
+        .collect();
+    // Holm over the bins.
+    let mut order: Vec<usize> = (0..bins.len()).collect();
+    order.sort_by(|&i, &j| bins[i].p_value.total_cmp(&bins[j].p_value));
+    for (rank, &i) in order.iter().enumerate() {
+        if bins[i].p_value <= FAMILY_ALPHA / (bins.len() - rank) as f64 {
+            bins[i].differs = true;
+        } else {
+            break;
+        }
+    }
+    let holding_rows = [
+        rec_rows.iter().filter(|r| accel.of(r.2) == holding).count(),
+        sim_rows.iter().filter(|r| accel.of(r.2) == holding).count(),
+    ];
+    let shrink = |b: &MapBin| b.difference * (1.0 - 1.0 / (b.z * b.z).max(1e-12)).max(0.0);
+    let mut speed_values: Vec<f64> = bins[..speed.count()].iter().map(shrink).collect();
+    let mut accel_values = vec![0.0; accel.count()];
+    for (i, &k) in accel_cols.iter().enumerate() {
+        accel_values[k] = shrink(&bins[speed.count() + i]);
+    }
+    // The recording-weighted mean out: the circumference holds it.
+    let (mut sw, mut swm) = (0.0, 0.0);
+    for r in &rec_rows {
+        let w = r.1 * r.1;
+        sw += w;
+        swm += w * (speed_values[speed.of(r.1)] + accel_values[accel.of(r.2)]);
+    }
+    let mean = if sw > 0.0 { swm / sw } else { 0.0 };
+    for x in &mut speed_values {
+        *x -= mean;
+    }
+    let shrunk = SpeedMap {
+        speed_m_s: Steps {
+            edges: speed.edges.clone(),
+            values: speed_values,
+        },
+        accel_m_s2: Steps {
+            edges: accel.edges.clone(),
+            values: accel_values,
+        },
+    };
+    Some(SpeedMapDifference {
+        bins,
+        holding_rows,
+        shrunk,
+        declared: declared.cloned(),
+        mended: declared.cloned(),
+        named_in_channel: Vec::new(),
+        unexplained: false,
+    })
+}
