@@ -14,7 +14,9 @@
 use super::engine::{self, Custom, Prescribed};
 use super::route::{Attrs, Route, DS};
 use super::scenarios::ScenarioRoute;
-use super::twin_noise::{drive_numbers, interp, running_max, window_means, DriveNumbers, Odometer};
+use super::twin_noise::{
+    drive_numbers, interp, restamp, running_max, stamp_jitter, window_means, DriveNumbers, Odometer,
+};
 use super::{
     EffectForms, EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind,
     VehicleSpec, WheelWear,
@@ -383,6 +385,10 @@ pub struct TwinConfig {
     pub sensors: SensorSettings,
     /// GNSS outages on the drive's clock, s.
     pub gnss_gaps: Vec<(f64, f64)>,
+    /// The recording's GNSS stamp jitter: per fix, the receiver's regular
+    /// epoch and the stamp's jitter about it, s
+    /// ([`super::twin_noise::stamp_jitter`]); empty: regular stamps.
+    pub gnss_stamp_jitter: Vec<(f64, f64)>,
     /// The accuracy the recording's receiver claims for its fixes (the
     /// median of `sigma_m`), written with every fix of the twin; `None`
     /// when the recording claims none (the twin then claims none either).
@@ -662,6 +668,19 @@ impl TwinConfig {
                     .join(", ")
             }
         ));
+        let stamps: Vec<f64> = fixes.iter().map(|f| f.t_s).collect();
+        let gnss_stamp_jitter = stamp_jitter(&stamps);
+        notes.push(if gnss_stamp_jitter.is_empty() {
+            "GNSS time stamps: no regular receiver's jitter measured; the twin's stamps are regular".into()
+        } else {
+            let rms = (gnss_stamp_jitter.iter().map(|j| j.1 * j.1).sum::<f64>()
+                / gnss_stamp_jitter.len() as f64)
+                .sqrt();
+            format!(
+                "GNSS time stamps jitter by {:.1} ms RMS about the receiver's regular epochs; the twin's fixes carry the same jitter",
+                1000.0 * rms
+            )
+        });
         let v = &drive.vehicle;
         let (c_rl_m, c_rr_m, track_width_m) = match options.base_model {
             Some(b) => {
@@ -703,6 +722,7 @@ impl TwinConfig {
                 },
                 sensors,
                 gnss_gaps: numbers.gnss_gaps.clone(),
+                gnss_stamp_jitter,
                 claimed_sigma_m: claimed_sigma(fixes),
                 effects,
                 seed: options.seed,
@@ -832,12 +852,25 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
     for f in drive.gnss.iter_mut().flatten() {
         f.sigma_m = c.claimed_sigma_m;
     }
+    // So is its stamps' jitter.
+    let jitter_rms = if c.gnss_stamp_jitter.is_empty() {
+        0.0
+    } else {
+        (c.gnss_stamp_jitter.iter().map(|j| j.1 * j.1).sum::<f64>()
+            / c.gnss_stamp_jitter.len() as f64)
+            .sqrt()
+    };
+    if let Some(fixes) = drive.gnss.as_mut() {
+        restamp(fixes, &c.gnss_stamp_jitter);
+    }
     if let Some(tp) = drive.truth_params.as_mut() {
         tp.extra.remove("scenario");
         tp.extra.remove("vehicle");
         tp.extra
             .insert("twin_of".into(), Value::String(c.source.clone()));
         tp.extra.insert("t0_s".into(), Value::Float(t0));
+        tp.extra
+            .insert("gnss_stamp_jitter_rms_s".into(), Value::Float(jitter_rms));
     }
     Ok(drive)
 }
@@ -1078,6 +1111,15 @@ pub fn apply_finding(
     let mut set_any = false;
     for (name, &value) in parameters {
         match e.simulated_param(name) {
+            // A tyre's stiffness is the knob's inverse: none is a knob at
+            // zero, which the mend's clamp to the physical sign can give.
+            Some(_)
+                if matches!(e, Effect::SideSlip | Effect::LongitudinalSlip) && value == 0.0 =>
+            {
+                effects.switch_off(e);
+                notes.push(format!("{effect}.{name} = {value}: none, the effect off"));
+                return Ok(notes);
+            }
             Some(p) => {
                 effects.set(e, Some(p), value)?;
                 set_any = true;
@@ -1181,6 +1223,11 @@ mod tests {
         assert_eq!(notes.len(), 1);
         assert!(e.road_grade.is_none());
         assert!(apply_finding(&mut e, "side_slip", &params(&[("k_beta", -0.01)])).is_err());
+        // The mend's clamp at the physical sign gives a slip of zero: off.
+        apply_finding(&mut e, "longitudinal_slip", &params(&[("k_s", 0.004)])).unwrap();
+        let notes = apply_finding(&mut e, "longitudinal_slip", &params(&[("k_s", 0.0)])).unwrap();
+        assert!(e.longitudinal_slip.is_none(), "{notes:?}");
+        assert!(notes[0].contains("off"), "{notes:?}");
         assert!(apply_finding(&mut e, "nope", &params(&[])).is_err());
     }
 }

@@ -429,7 +429,22 @@ pub fn compare(
                 b.differs = false;
             }
         }
-        m.mend(speed_differs);
+        // A knob moving in this mend: named, or (against a declared
+        // simulation) found in the recording with a channel of it
+        // differing.
+        let carriers = if declared.is_some() {
+            remainder_carriers(recording, &channels)
+        } else {
+            Vec::new()
+        };
+        let moves = |e: Effect| {
+            carriers.contains(&e) || effects.iter().any(|d| d.effect == e && d.verdict.named())
+        };
+        m.mend(
+            speed_differs,
+            moves(Effect::LongitudinalSlip),
+            moves(Effect::SpeedRadiusGrowth),
+        );
         m.named_in_channel = effects
             .iter()
             .filter(|d| d.verdict.named())

@@ -41,7 +41,11 @@
 //! difference, each bin's shrunk towards zero by `max(0, 1 - 1/z^2)` (a
 //! bin at the noise moves little, one far beyond it nearly fully), its
 //! recording-weighted mean taken out (the calibrated circumference holds
-//! that). Where the channel does not differ the twin keeps its map.
+//! that), less what a catalogue knob moving in the same mend carries: the
+//! part linear in a_x when the longitudinal slip moves, in v^2 when the
+//! speed growth does (on the multibody s2 route the map's acceleration
+//! bins and the slip's knob moved together for one difference and drove
+//! the knob to zero). Where the channel does not differ the twin keeps its map.
 //!
 //! Pure: two channel series in, the map's difference out.
 
@@ -103,8 +107,12 @@ pub struct SpeedMapDifference {
     /// The recording's rows where the car holds its speed.
     pub holding_rows: [usize; 2],
     /// The difference as a map: each bin shrunk towards zero by
-    /// `max(0, 1 - 1/z^2)`, the recording-weighted mean taken out.
+    /// `max(0, 1 - 1/z^2)`, its recording-weighted mean taken out.
     pub shrunk: SpeedMap,
+    /// The parts of `shrunk` the catalogue's forms shape, per bin (not in
+    /// the JSON).
+    #[serde(skip)]
+    pub catalogue_parts: CataloguePart,
     /// What the simulation carried (its truth's `speed_map`), if any.
     pub declared: Option<SpeedMap>,
     /// What the mended simulation should carry: the declared map plus
@@ -133,18 +141,41 @@ impl SpeedMapDifference {
     }
 
     /// Set what the mended simulation carries: where the speed channel
-    /// differs, the declared map moved by the shrunk difference.
-    pub fn mend(&mut self, channel_differs: bool) {
+    /// differs, the declared map moved by the shrunk difference, less the
+    /// part a knob moving in the same mend carries (`slip_moves`: the
+    /// longitudinal slip's, linear in a_x; `growth_moves`: the speed
+    /// growth's, linear in v^2), so that one difference does not move both
+    /// a knob and the map (on the multibody s2 route the map's acceleration
+    /// bins and the slip's knob moved together and drove the knob to zero).
+    pub fn mend(&mut self, channel_differs: bool, slip_moves: bool, growth_moves: bool) {
         self.mended = if channel_differs {
-            Some(
-                self.declared
-                    .as_ref()
-                    .map_or(self.shrunk.clone(), |d| d.plus(&self.shrunk)),
-            )
+            let mut step = self.shrunk.clone();
+            if slip_moves {
+                for (x, p) in step.accel_m_s2.values.iter_mut().zip(&self.catalogue_parts.accel) {
+                    *x -= p;
+                }
+            }
+            if growth_moves {
+                for (x, p) in step.speed_m_s.values.iter_mut().zip(&self.catalogue_parts.speed) {
+                    *x -= p;
+                }
+            }
+            Some(self.declared.as_ref().map_or(step.clone(), |d| d.plus(&step)))
         } else {
             self.declared.clone()
         };
     }
+}
+
+/// The parts of a map the catalogue's forms shape, per bin of `shrunk`:
+/// linear in a_x (the longitudinal slip) over the acceleration bins, in
+/// v^2 (the speed growth) over the speed bins.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CataloguePart {
+    /// Per acceleration bin (0 where the car holds its speed).
+    pub accel: Vec<f64>,
+    /// Per speed bin.
+    pub speed: Vec<f64>,
 }
 
 /// The bins of a signal: inner edges and the data's range.
@@ -418,6 +449,48 @@ pub fn speed_map_difference(
     for (i, &k) in accel_cols.iter().enumerate() {
         accel_values[k] = shrink(&bins[speed.count() + i]);
     }
+    // What the catalogue's forms shape: the part of the map linear in
+    // a_x (the longitudinal slip) and in v^2 (the speed growth), fitted
+    // over the recording's rows, and each bin's rows' mean a_x and v^2
+    // (`SpeedMapDifference::mend` takes out what a moving knob carries).
+    let mut a_mean = vec![(0.0, 0.0); accel.count()];
+    let mut v2_mean = vec![(0.0, 0.0); speed.count()];
+    let mut nrm = DMatrix::<f64>::zeros(3, 3);
+    let mut rhs = DVector::<f64>::zeros(3);
+    for r in &rec_rows {
+        let w = r.1 * r.1;
+        let (kv, ka) = (speed.of(r.1), accel.of(r.2));
+        a_mean[ka].0 += w * r.2;
+        a_mean[ka].1 += w;
+        v2_mean[kv].0 += w * r.1 * r.1;
+        v2_mean[kv].1 += w;
+        let x = [1.0, r.2, r.1 * r.1];
+        let m = speed_values[kv] + accel_values[ka];
+        for i in 0..3 {
+            rhs[i] += w * x[i] * m;
+            for j in 0..3 {
+                nrm[(i, j)] += w * x[i] * x[j];
+            }
+        }
+    }
+    let ridge = DMatrix::identity(3, 3) * (1e-12 * nrm.trace().max(1e-300));
+    let c = (nrm + ridge)
+        .cholesky()
+        .map_or(DVector::zeros(3), |ch| ch.solve(&rhs));
+    let mean_of = |(s, w): (f64, f64)| if w > 0.0 { s / w } else { 0.0 };
+    let a_hold = mean_of(a_mean[holding]);
+    let catalogue_parts = CataloguePart {
+        accel: (0..accel.count())
+            .map(|k| {
+                if k == holding {
+                    0.0
+                } else {
+                    c[1] * (mean_of(a_mean[k]) - a_hold)
+                }
+            })
+            .collect(),
+        speed: (0..speed.count()).map(|k| c[2] * mean_of(v2_mean[k])).collect(),
+    };
     // The recording-weighted mean out: the circumference holds it.
     let (mut sw, mut swm) = (0.0, 0.0);
     for r in &rec_rows {
@@ -443,6 +516,7 @@ pub fn speed_map_difference(
         bins,
         holding_rows,
         shrunk,
+        catalogue_parts,
         declared: declared.cloned(),
         mended: declared.cloned(),
         named_in_channel: Vec::new(),
