@@ -136,3 +136,61 @@ fn a_null_recording_against_its_twin_names_nothing() {
     );
     assert!(named(Path::new(&p("c.json"))).is_empty(), "{text}");
 }
+
+/// The twin of a real drive carries its GNSS stamps' jitter: wid-trial02's
+/// logger stamps its 5 Hz fixes 0.19, 0.20, 0.21 s apart (3.4 ms RMS about
+/// the receiver's epochs), which alone puts a chord's speed off by about
+/// 1 %; the twin's fix intervals scatter as the recording's, and its speed
+/// channel is then within its noise level of the recording's. Skipped
+/// with a message when `../shared/data/real` is absent.
+#[test]
+fn the_twin_of_a_real_drive_carries_its_gnss_stamp_jitter() {
+    let Some(real) = drive_io::dev_data::real_drive("wid-trial02") else {
+        eprintln!("skipped: no real drive under ../shared/data/real");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let twin = dir.path().join("twin").display().to_string();
+    let real_s = real.display().to_string();
+    run(
+        Bin::SensorBridge,
+        &["simulate", "--like", &real_s, "--out", &twin],
+    );
+    let intervals = |p: &Path| -> Vec<f64> {
+        let d = drive_io::read_drive(p).expect("read").drive;
+        let t: Vec<f64> = d.gnss.expect("fixes").iter().map(|f| f.t_s).collect();
+        t.windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|d| (0.15..0.25).contains(d))
+            .collect()
+    };
+    let sd = |v: &[f64]| {
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / v.len() as f64).sqrt()
+    };
+    let (r, t) = (sd(&intervals(&real)), sd(&intervals(Path::new(&twin))));
+    assert!(r > 0.003, "the recording's intervals scatter by {r} s");
+    assert!(
+        (t / r - 1.0).abs() < 0.25,
+        "twin {t} s against the recording's {r} s"
+    );
+    let c = dir.path().join("c.json");
+    run(
+        Bin::Calibrator,
+        &[
+            "compare",
+            &real_s,
+            &twin,
+            "--json",
+            &c.display().to_string(),
+        ],
+    );
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&c).unwrap()).unwrap();
+    let speed = v["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|ch| ch["channel"] == "speed")
+        .expect("the speed channel");
+    assert_eq!(speed["differs"], false, "{speed}");
+}

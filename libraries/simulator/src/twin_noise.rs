@@ -377,8 +377,10 @@ const STAMP_SLOW_HALF_FIXES: usize = 25;
 /// (about 1 % here). The epochs are counted off the median interval
 /// (gaps as whole intervals); the stamp's departure from its count, less
 /// the running median over 51 fixes (an offset, a latency, a clock's
-/// drift), is the jitter. Empty when the fixes are too few or a jitter
-/// reaches half an interval (the stamps are not a regular receiver's).
+/// drift), is the jitter. A fix whose jitter reaches half an interval is
+/// left out (wid-trial02's first two fixes are 0.04 s apart); empty when
+/// the fixes are too few or more than a tenth are left out (the stamps
+/// are not a regular receiver's).
 pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
     let Some(dt) = median_interval(stamps) else {
         return Vec::new();
@@ -393,7 +395,7 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
         let mut n = vec![0.0];
         for w in stamps.windows(2) {
             let last = n[n.len() - 1];
-            n.push(last + ((w[1] - w[0]) / dt).round().max(1.0));
+            n.push(last + ((w[1] - w[0]) / dt).round());
         }
         n
     };
@@ -412,10 +414,16 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
         let mut window: Vec<f64> = e[i.saturating_sub(k)..(i + k + 1).min(e.len())].to_vec();
         window.sort_by(f64::total_cmp);
         let jitter = e[i] - window[window.len() / 2];
-        if jitter.abs() >= 0.5 * dt {
-            return Vec::new();
+        // A fix off the receiver's epochs, or a second on one epoch (an
+        // odd first fix), is left out.
+        let shared = i > 0 && n[i] == n[i - 1];
+        if jitter.abs() < 0.5 * dt && !shared {
+            out.push((stamps[i] - jitter, jitter));
         }
-        out.push((stamps[i] - jitter, jitter));
+    }
+    // Stamps mostly off a regular grid are not a receiver's jitter.
+    if out.len() * 10 < stamps.len() * 9 {
+        return Vec::new();
     }
     out
 }
@@ -468,6 +476,10 @@ mod tests {
             .collect();
         let j = stamp_jitter(&stamps);
         assert_eq!(j.len(), stamps.len());
+        // An odd fix off the epochs is left out, the rest kept.
+        let mut odd = stamps.clone();
+        odd.insert(1, stamps[0] + 0.04);
+        assert_eq!(stamp_jitter(&odd).len(), stamps.len());
         let (mut worst, mut sum) = (0.0_f64, 0.0);
         for (i, k) in (0..600).filter(|k| !(200..215).contains(k)).enumerate() {
             worst = worst.max((j[i].1 - jit(k)).abs());

@@ -151,16 +151,30 @@ impl SpeedMapDifference {
         self.mended = if channel_differs {
             let mut step = self.shrunk.clone();
             if slip_moves {
-                for (x, p) in step.accel_m_s2.values.iter_mut().zip(&self.catalogue_parts.accel) {
+                for (x, p) in step
+                    .accel_m_s2
+                    .values
+                    .iter_mut()
+                    .zip(&self.catalogue_parts.accel)
+                {
                     *x -= p;
                 }
             }
             if growth_moves {
-                for (x, p) in step.speed_m_s.values.iter_mut().zip(&self.catalogue_parts.speed) {
+                for (x, p) in step
+                    .speed_m_s
+                    .values
+                    .iter_mut()
+                    .zip(&self.catalogue_parts.speed)
+                {
                     *x -= p;
                 }
             }
-            Some(self.declared.as_ref().map_or(step.clone(), |d| d.plus(&step)))
+            Some(
+                self.declared
+                    .as_ref()
+                    .map_or(step.clone(), |d| d.plus(&step)),
+            )
         } else {
             self.declared.clone()
         };
@@ -489,7 +503,9 @@ pub fn speed_map_difference(
                 }
             })
             .collect(),
-        speed: (0..speed.count()).map(|k| c[2] * mean_of(v2_mean[k])).collect(),
+        speed: (0..speed.count())
+            .map(|k| c[2] * mean_of(v2_mean[k]))
+            .collect(),
     };
     // The recording-weighted mean out: the circumference holds it.
     let (mut sw, mut swm) = (0.0, 0.0);
