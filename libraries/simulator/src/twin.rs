@@ -23,6 +23,9 @@ use super::{
 };
 use interfaces::drive::{toml_value::Value, Drive};
 use interfaces::effects::Effect;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use std::collections::BTreeMap;
 use std::f64::consts::TAU;
 
@@ -389,6 +392,10 @@ pub struct TwinConfig {
     /// epoch and the stamp's jitter about it, s
     /// ([`super::twin_noise::stamp_jitter`]); empty: regular stamps.
     pub gnss_stamp_jitter: Vec<(f64, f64)>,
+    /// The recording's rear wheel speed noise (rl, rr), rev/s, where its
+    /// wheels are speeds ([`super::twin_noise::wheel_speed_noise`]); added
+    /// to the twin's rear wheels as white noise on their speed.
+    pub wheel_speed_sigma_rev_s: Option<[f64; 2]>,
     /// The accuracy the recording's receiver claims for its fixes (the
     /// median of `sigma_m`), written with every fix of the twin; `None`
     /// when the recording claims none (the twin then claims none either).
@@ -681,6 +688,14 @@ impl TwinConfig {
                 1000.0 * rms
             )
         });
+        if let Some([l, r]) = numbers.wheel_speed_sigma_rev_s {
+            notes.push(format!(
+                "wheel speed noise (the recording's wheels are speeds): rl {:.4}, rr {:.4} rad/s at {:.0} Hz, added to the twin's rear wheels",
+                l * std::f64::consts::TAU,
+                r * std::f64::consts::TAU,
+                numbers.wheel_rate_hz
+            ));
+        }
         let v = &drive.vehicle;
         let (c_rl_m, c_rr_m, track_width_m) = match options.base_model {
             Some(b) => {
@@ -723,6 +738,7 @@ impl TwinConfig {
                 sensors,
                 gnss_gaps: numbers.gnss_gaps.clone(),
                 gnss_stamp_jitter,
+                wheel_speed_sigma_rev_s: numbers.wheel_speed_sigma_rev_s,
                 claimed_sigma_m: claimed_sigma(fixes),
                 effects,
                 seed: options.seed,
@@ -863,6 +879,22 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
     if let Some(fixes) = drive.gnss.as_mut() {
         restamp(fixes, &c.gnss_stamp_jitter);
     }
+    // And its wheels' speed noise, where its wheels are speeds: white on
+    // the speed, so a random walk on the revolutions.
+    if let Some([sl, sr]) = c.wheel_speed_sigma_rev_s {
+        let mut rng = ChaCha8Rng::seed_from_u64(c.seed ^ 0x3ee1_5eed);
+        let (mut el, mut er) = (0.0, 0.0);
+        let mut last_t = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
+        for w in &mut drive.wheels.samples {
+            let dt = w.t_s - last_t;
+            last_t = w.t_s;
+            let (nl, nr): (f64, f64) = (rng.sample(StandardNormal), rng.sample(StandardNormal));
+            el += sl * nl * dt;
+            er += sr * nr * dt;
+            w.rl += el;
+            w.rr += er;
+        }
+    }
     if let Some(tp) = drive.truth_params.as_mut() {
         tp.extra.remove("scenario");
         tp.extra.remove("vehicle");
@@ -871,6 +903,12 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
         tp.extra.insert("t0_s".into(), Value::Float(t0));
         tp.extra
             .insert("gnss_stamp_jitter_rms_s".into(), Value::Float(jitter_rms));
+        if let Some([l, r]) = c.wheel_speed_sigma_rev_s {
+            tp.extra.insert(
+                "wheel_speed_sigma_rev_s".into(),
+                Value::Array(vec![Value::Float(l), Value::Float(r)]),
+            );
+        }
     }
     Ok(drive)
 }

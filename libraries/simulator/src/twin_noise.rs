@@ -239,6 +239,11 @@ pub struct DriveNumbers {
     /// [`GAP_PERIODS`] fix periods, and the stretches before the first and
     /// after the last fix (drive clock), s.
     pub gnss_gaps: Vec<(f64, f64)>,
+    /// The rear wheels' speed noise (rl, rr), revolutions per second, where
+    /// the drive's wheels are speeds (rad/s or m/s; counted ticks and
+    /// revolutions have their own quantisation, which the twin copies):
+    /// [`wheel_speed_noise`].
+    pub wheel_speed_sigma_rev_s: Option<[f64; 2]>,
 }
 
 /// The numbers of `drive` for a simulation at step `step_s`; an error
@@ -334,7 +339,45 @@ pub fn drive_numbers(
         heading_sigma_deg,
         standstill_s,
         gnss_gaps,
+        wheel_speed_sigma_rev_s: wheel_speed_noise(drive),
     })
+}
+
+/// Rows of the wheel speed needed for its noise.
+const MIN_NOISE_ROWS: usize = 200;
+
+/// The rear wheels' white speed noise, revolutions per second, where the
+/// drive's wheels are speeds: the robust spread of the speed's second
+/// difference over 100 Hz-ish samples while moving (above 1 rev/s), over
+/// the square root of 6 (what white noise gives; the car's own
+/// acceleration changes hardly show in a second difference). `None` for
+/// ticks and revolutions, or too few moving rows.
+pub fn wheel_speed_noise(drive: &Drive) -> Option<[f64; 2]> {
+    let to_rev_s = match drive.wheels.units.rl {
+        WheelUnit::RadS => 1.0 / std::f64::consts::TAU,
+        WheelUnit::MS => 1.0 / drive.vehicle.nominal_circumference_m,
+        WheelUnit::Rev | WheelUnit::Ticks => return None,
+    };
+    if drive.wheels.units.rr != drive.wheels.units.rl || !to_rev_s.is_finite() {
+        return None;
+    }
+    let w = &drive.wheels.samples;
+    let sigma = |f: &dyn Fn(&interfaces::drive::WheelSample) -> f64| -> Option<f64> {
+        let mut d: Vec<f64> = w
+            .windows(3)
+            .filter(|s| s.iter().all(|x| f(x) * to_rev_s > 1.0))
+            .map(|s| (f(&s[2]) - 2.0 * f(&s[1]) + f(&s[0])) * to_rev_s)
+            .collect();
+        if d.len() < MIN_NOISE_ROWS {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        let med = d[d.len() / 2];
+        let mut dev: Vec<f64> = d.iter().map(|x| (x - med).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        Some(1.4826 * dev[dev.len() / 2] / 6f64.sqrt())
+    };
+    Some([sigma(&|s| s.rl)?, sigma(&|s| s.rr)?])
 }
 
 /// The compass's white noise: the robust spread of each yaw about the
@@ -463,6 +506,50 @@ pub fn restamp(fixes: &mut [interfaces::drive::GnssSample], jitter: &[(f64, f64)
 mod tests {
     use super::*;
     use interfaces::drive::GnssSample;
+
+    /// Wheels reported as speeds with white noise: the noise comes back
+    /// from the moving rows; counted revolutions have none to copy.
+    #[test]
+    fn a_speed_wheels_white_noise_is_measured_while_moving() {
+        use rand::{Rng, SeedableRng};
+        let mut c = crate::SimConfig::new(crate::Scenario::Mixed, 3);
+        c.duration_s = Some(180.0);
+        c.effects = crate::EffectSettings::none();
+        c.sensors.wheels.ticks_per_rev = None;
+        let mut d = crate::simulate(&c).unwrap();
+        assert!(
+            wheel_speed_noise(&d).is_none(),
+            "revolutions have no speed noise"
+        );
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let sigma = 0.05; // rad/s
+        let revs: Vec<(f64, f64, f64)> = d
+            .wheels
+            .samples
+            .iter()
+            .map(|w| (w.t_s, w.rl, w.rr))
+            .collect();
+        for (k, w) in d.wheels.samples.iter_mut().enumerate() {
+            let (a, b) = (revs[k.saturating_sub(1)], revs[(k + 1).min(revs.len() - 1)]);
+            let dt = (b.0 - a.0).max(1e-9);
+            let n: [f64; 2] = [
+                rng.sample(rand_distr::StandardNormal),
+                rng.sample(rand_distr::StandardNormal),
+            ];
+            w.rl = (b.1 - a.1) / dt * std::f64::consts::TAU + sigma * n[0];
+            w.rr = (b.2 - a.2) / dt * std::f64::consts::TAU + sigma * n[1];
+        }
+        d.wheels.units.rl = WheelUnit::RadS;
+        d.wheels.units.rr = WheelUnit::RadS;
+        let [l, r] = wheel_speed_noise(&d).expect("speeds with noise");
+        for x in [l, r] {
+            let rad = x * std::f64::consts::TAU;
+            assert!(
+                (rad / sigma - 1.0).abs() < 0.15,
+                "{rad} rad/s against {sigma}"
+            );
+        }
+    }
 
     /// A logger's jitter on a 5 Hz receiver whose clock runs 0.3 s late
     /// and drifts: the jitter comes back, the offset and drift do not, and
