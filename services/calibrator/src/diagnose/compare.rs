@@ -36,7 +36,7 @@
 use super::decide::{guard_passes, guard_source, step_down};
 use super::design::Channel;
 use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
-use super::speed_map::{speed_map_difference, SpeedMapDifference};
+use super::speed_map::{speed_level, speed_map_difference, SpeedMapDifference};
 use super::{BaseModel, Diagnosis};
 use crate::error_model::Normal;
 use interfaces::effects::{Effect, Param};
@@ -833,24 +833,6 @@ fn channel_distances(
         });
     }
     out
-}
-
-/// The speed channel's level: its mean weighted by the square of the
-/// speed (the GNSS chord's relative noise goes as `1 / v`).
-pub fn speed_level(s: &super::ChannelSeries) -> f64 {
-    let (mut sw, mut swy) = (0.0, 0.0);
-    for (r, x) in s.rows.iter().zip(&s.signals) {
-        if r.2.is_finite() && x[0].is_finite() {
-            let w = x[0] * x[0];
-            sw += w;
-            swy += w * r.2;
-        }
-    }
-    if sw > 0.0 {
-        swy / sw
-    } else {
-        0.0
-    }
 }
 
 /// Holm's step-down procedure over the channels' p-values at the family's

@@ -49,7 +49,6 @@
 //!
 //! Pure: two channel series in, the map's difference out.
 
-use super::compare::speed_level;
 use super::limit::FAMILY_ALPHA;
 use super::ChannelSeries;
 use interfaces::speed_map::{SpeedMap, Steps};
@@ -190,6 +189,24 @@ pub struct CataloguePart {
     pub accel: Vec<f64>,
     /// Per speed bin.
     pub speed: Vec<f64>,
+}
+
+/// The speed channel's level: its mean weighted by the square of the
+/// speed (the GNSS chord's relative noise goes as `1 / v`).
+pub fn speed_level(s: &super::ChannelSeries) -> f64 {
+    let (mut sw, mut swy) = (0.0, 0.0);
+    for (r, x) in s.rows.iter().zip(&s.signals) {
+        if r.2.is_finite() && x[0].is_finite() {
+            let w = x[0] * x[0];
+            sw += w;
+            swy += w * r.2;
+        }
+    }
+    if sw > 0.0 {
+        swy / sw
+    } else {
+        0.0
+    }
 }
 
 /// The bins of a signal: inner edges and the data's range.
