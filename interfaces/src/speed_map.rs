@@ -13,6 +13,12 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The bin `x` falls in on ascending inner `edges`: 0 below the first,
+/// `edges.len()` at or above the last.
+pub fn bin_of(edges: &[f64], x: f64) -> usize {
+    edges.iter().take_while(|&&e| x >= e).count()
+}
+
 /// One piecewise-constant function of a signal.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Steps {
@@ -34,7 +40,7 @@ impl Steps {
 
     /// The bin `x` falls in.
     pub fn bin(&self, x: f64) -> usize {
-        self.edges.iter().take_while(|&&e| x >= e).count()
+        bin_of(&self.edges, x)
     }
 
     /// The value at `x` (0 where the steps are malformed).

@@ -15,7 +15,8 @@ use super::engine::{self, Custom, Prescribed};
 use super::route::{Attrs, Route, DS};
 use super::scenarios::ScenarioRoute;
 use super::twin_noise::{
-    drive_numbers, interp, restamp, running_max, stamp_jitter, window_means, DriveNumbers, Odometer,
+    drive_numbers, interp, restamp, running_max, stamp_jitter, stamp_jitter_rms, window_means,
+    DriveNumbers, Odometer,
 };
 use super::{
     EffectForms, EffectSettings, Scenario, SensorSettings, SimConfig, SimError, VehicleKind,
@@ -680,9 +681,7 @@ impl TwinConfig {
         notes.push(if gnss_stamp_jitter.is_empty() {
             "GNSS time stamps: no regular receiver's jitter measured; the twin's stamps are regular".into()
         } else {
-            let rms = (gnss_stamp_jitter.iter().map(|j| j.1 * j.1).sum::<f64>()
-                / gnss_stamp_jitter.len() as f64)
-                .sqrt();
+            let rms = stamp_jitter_rms(&gnss_stamp_jitter);
             format!(
                 "GNSS time stamps jitter by {:.1} ms RMS about the receiver's regular epochs; the twin's fixes carry the same jitter",
                 1000.0 * rms
@@ -869,13 +868,7 @@ pub fn simulate_twin(c: &TwinConfig) -> Result<Drive, SimError> {
         f.sigma_m = c.claimed_sigma_m;
     }
     // So is its stamps' jitter.
-    let jitter_rms = if c.gnss_stamp_jitter.is_empty() {
-        0.0
-    } else {
-        (c.gnss_stamp_jitter.iter().map(|j| j.1 * j.1).sum::<f64>()
-            / c.gnss_stamp_jitter.len() as f64)
-            .sqrt()
-    };
+    let jitter_rms = stamp_jitter_rms(&c.gnss_stamp_jitter);
     if let Some(fixes) = drive.gnss.as_mut() {
         restamp(fixes, &c.gnss_stamp_jitter);
     }

@@ -471,6 +471,14 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
     out
 }
 
+/// The RMS of a [`stamp_jitter`], s (0 for none).
+pub fn stamp_jitter_rms(jitter: &[(f64, f64)]) -> f64 {
+    if jitter.is_empty() {
+        return 0.0;
+    }
+    (jitter.iter().map(|j| j.1 * j.1).sum::<f64>() / jitter.len() as f64).sqrt()
+}
+
 /// Put a recording's stamp jitter (`stamp_jitter`) on the twin's fixes: a
 /// fix within half an interval of a recorded epoch takes that epoch's
 /// jitter, as long as the stamps stay increasing. Returns how many fixes

@@ -51,7 +51,7 @@
 
 use super::limit::FAMILY_ALPHA;
 use super::ChannelSeries;
-use interfaces::speed_map::{SpeedMap, Steps};
+use interfaces::speed_map::{bin_of, SpeedMap, Steps};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use stats::distributions::f_sf;
@@ -169,11 +169,10 @@ impl SpeedMapDifference {
                     *x -= p;
                 }
             }
-            Some(
-                self.declared
-                    .as_ref()
-                    .map_or(step.clone(), |d| d.plus(&step)),
-            )
+            Some(match &self.declared {
+                Some(d) => d.plus(&step),
+                None => step,
+            })
         } else {
             self.declared.clone()
         };
@@ -218,7 +217,7 @@ struct Bins {
 
 impl Bins {
     fn of(&self, x: f64) -> usize {
-        self.edges.iter().take_while(|&&e| x >= e).count()
+        bin_of(&self.edges, x)
     }
     fn count(&self) -> usize {
         self.edges.len() + 1
@@ -257,7 +256,7 @@ fn merged(
     rec: &[Row],
     sim: &[Row],
     signal: impl Fn(&Row) -> f64,
-    merge: impl Fn(&Bins, usize, usize) -> Option<usize>,
+    merge: impl Fn(&Bins, usize) -> Option<usize>,
 ) -> Option<Bins> {
     let lo = all.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = all.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -274,7 +273,7 @@ fn merged(
         else {
             return Some(bins);
         };
-        let edge = merge(&bins, k, edges.len())?;
+        let edge = merge(&bins, k)?;
         if edge >= edges.len() {
             return None;
         }
@@ -313,7 +312,7 @@ pub fn speed_map_difference(
         &rec_rows,
         &sim_rows,
         |r| r.1,
-        |_, k, _| Some(k.saturating_sub(1)),
+        |_, k| Some(k.saturating_sub(1)),
     )?;
     // Acceleration bins: a sparse one merged towards holding the speed.
     let a: Vec<f64> = rec_rows.iter().chain(&sim_rows).map(|r| r.2).collect();
@@ -323,7 +322,7 @@ pub fn speed_map_difference(
         &rec_rows,
         &sim_rows,
         |r| r.2,
-        |bins, k, _| {
+        |bins, k| {
             let (lo, hi) = bins.bounds(k);
             if hi <= 0.0 {
                 Some(k)
@@ -349,6 +348,8 @@ pub fn speed_map_difference(
         )
     };
     // Per matched pair: each drive's normal equations over its block.
+    // Each drive's level once (the fit is about it).
+    let (level_rec, level_sim) = (speed_level(recording), speed_level(simulation));
     let normals = |s: &ChannelSeries, block: usize, level: f64| -> Normals {
         let mut out = Normals::zeros(p);
         for (r, x) in s.rows.iter().zip(&s.signals) {
@@ -371,8 +372,8 @@ pub fn speed_map_difference(
         .iter()
         .map(|&(br, bs)| {
             (
-                normals(recording, br, speed_level(recording)),
-                normals(simulation, bs, speed_level(simulation)),
+                normals(recording, br, level_rec),
+                normals(simulation, bs, level_sim),
             )
         })
         .filter(|(r, s)| r.n.trace() > 0.0 && s.n.trace() > 0.0)
