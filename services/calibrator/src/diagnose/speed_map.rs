@@ -146,9 +146,31 @@ impl SpeedMapDifference {
     /// growth's, linear in v^2), so that one difference does not move both
     /// a knob and the map (on the multibody s2 route the map's acceleration
     /// bins and the slip's knob moved together and drove the knob to zero).
-    pub fn mend(&mut self, channel_differs: bool, slip_moves: bool, growth_moves: bool) {
+    ///
+    /// `latency_move_s`: the GNSS latency's knob moves by this much in the
+    /// same mend; the map that move makes in the speed channel (in
+    /// `-a_x / v`, not additive in v and a_x) is taken out. On the
+    /// multibody s3 route the map's acceleration bins took the recording's
+    /// 0.065 s latency while the latency's knob moved by it too; the twin
+    /// then showed four times the recording's slip.
+    pub fn mend(
+        &mut self,
+        channel_differs: bool,
+        slip_moves: bool,
+        growth_moves: bool,
+        latency_move_s: Option<f64>,
+    ) {
         self.mended = if channel_differs {
             let mut step = self.shrunk.clone();
+            if let Some(tau) = latency_move_s.filter(|t| t.is_finite()) {
+                let (sp, ac) = &self.catalogue_parts.latency;
+                for (x, p) in step.speed_m_s.values.iter_mut().zip(sp) {
+                    *x -= tau * p;
+                }
+                for (x, p) in step.accel_m_s2.values.iter_mut().zip(ac) {
+                    *x -= tau * p;
+                }
+            }
             if slip_moves {
                 for (x, p) in step
                     .accel_m_s2
@@ -180,14 +202,18 @@ impl SpeedMapDifference {
 }
 
 /// The parts of a map the catalogue's forms shape, per bin of `shrunk`:
-/// linear in a_x (the longitudinal slip) over the acceleration bins, in
-/// v^2 (the speed growth) over the speed bins.
+/// linear in a_x (the longitudinal slip) over the acceleration bins and in
+/// v^2 (the speed growth) over the speed bins; and the map a second of
+/// GNSS latency makes (the fixes describe `t - tau`: `-a_x / v`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct CataloguePart {
     /// Per acceleration bin (0 where the car holds its speed).
     pub accel: Vec<f64>,
     /// Per speed bin.
     pub speed: Vec<f64>,
+    /// A second of GNSS latency's map: per speed bin, then per
+    /// acceleration bin (0 where the car holds its speed).
+    pub latency: (Vec<f64>, Vec<f64>),
 }
 
 /// The speed channel's level: its mean weighted by the square of the
@@ -485,10 +511,12 @@ pub fn speed_map_difference(
     // a_x (the longitudinal slip) and in v^2 (the speed growth), fitted
     // over the recording's rows, and each bin's rows' mean a_x and v^2
     // (`SpeedMapDifference::mend` takes out what a moving knob carries).
+    const FORMS: usize = 3;
+    let form = |r: &Row| [1.0, r.2, r.1 * r.1];
     let mut a_mean = vec![(0.0, 0.0); accel.count()];
     let mut v2_mean = vec![(0.0, 0.0); speed.count()];
-    let mut nrm = DMatrix::<f64>::zeros(3, 3);
-    let mut rhs = DVector::<f64>::zeros(3);
+    let mut nrm = DMatrix::<f64>::zeros(FORMS, FORMS);
+    let mut rhs = DVector::<f64>::zeros(FORMS);
     for r in &rec_rows {
         let w = r.1 * r.1;
         let (kv, ka) = (speed.of(r.1), accel.of(r.2));
@@ -496,21 +524,45 @@ pub fn speed_map_difference(
         a_mean[ka].1 += w;
         v2_mean[kv].0 += w * r.1 * r.1;
         v2_mean[kv].1 += w;
-        let x = [1.0, r.2, r.1 * r.1];
+        let x = form(r);
         let m = speed_values[kv] + accel_values[ka];
-        for i in 0..3 {
+        for i in 0..FORMS {
             rhs[i] += w * x[i] * m;
-            for j in 0..3 {
+            for j in 0..FORMS {
                 nrm[(i, j)] += w * x[i] * x[j];
             }
         }
     }
-    let ridge = DMatrix::identity(3, 3) * (1e-12 * nrm.trace().max(1e-300));
+    let ridge = DMatrix::identity(FORMS, FORMS) * (1e-12 * nrm.trace().max(1e-300));
     let c = (nrm + ridge)
         .cholesky()
-        .map_or(DVector::zeros(3), |ch| ch.solve(&rhs));
+        .map_or(DVector::zeros(FORMS), |ch| ch.solve(&rhs));
     let mean_of = |(s, w): (f64, f64)| if w > 0.0 { s / w } else { 0.0 };
     let a_hold = mean_of(a_mean[holding]);
+    // A second of latency is not additive in v and a_x: its map is the
+    // weighted least-squares projection of -a_x / v onto the map's bins
+    // (over the recording's rows; what the knob's move makes there).
+    let mut pn = DMatrix::<f64>::zeros(p, p);
+    let mut pb = DVector::<f64>::zeros(p);
+    for r in &rec_rows {
+        let w = r.1 * r.1;
+        let (cv, ca) = column_of(r.1, r.2);
+        let cols: Vec<usize> = std::iter::once(cv).chain(ca).collect();
+        for &i in &cols {
+            pb[i] -= w * r.2 / r.1.max(1e-3);
+            for &j in &cols {
+                pn[(i, j)] += w;
+            }
+        }
+    }
+    let pridge = DMatrix::identity(p, p) * (1e-9 * pn.trace().max(1e-300));
+    let lat = (pn + pridge)
+        .cholesky()
+        .map_or(DVector::zeros(p), |ch| ch.solve(&pb));
+    let mut lat_accel = vec![0.0; accel.count()];
+    for (i, &k) in accel_cols.iter().enumerate() {
+        lat_accel[k] = lat[speed.count() + i];
+    }
     let catalogue_parts = CataloguePart {
         accel: (0..accel.count())
             .map(|k| {
@@ -524,6 +576,10 @@ pub fn speed_map_difference(
         speed: (0..speed.count())
             .map(|k| c[2] * mean_of(v2_mean[k]))
             .collect(),
+        latency: (
+            lat.rows(0, speed.count()).iter().copied().collect(),
+            lat_accel,
+        ),
     };
     // The recording-weighted mean out: the circumference holds it.
     let (mut sw, mut swm) = (0.0, 0.0);
@@ -556,4 +612,67 @@ pub fn speed_map_difference(
         named_in_channel: Vec::new(),
         unexplained: false,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::design::Channel;
+
+    /// A speed channel of 12 blocks over speeds 4-28 m/s and accelerations
+    /// -2..2 m/s^2, its residual `f(v, a_x)` plus white noise of 0.002.
+    fn series(f: impl Fn(f64, f64) -> f64, seed: u64) -> ChannelSeries {
+        let mut state = seed;
+        let mut uniform = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut rows, mut signals) = (Vec::new(), Vec::new());
+        for i in 0..6000 {
+            let v = 4.0 + 24.0 * uniform();
+            let a = -2.0 + 4.0 * uniform();
+            let noise = 0.002 * (uniform() + uniform() + uniform() - 1.5) * 2.0;
+            rows.push((i / 500, i as f64 * 0.1, f(v, a) + noise));
+            signals.push([v, a]);
+        }
+        ChannelSeries {
+            channel: Channel::Speed,
+            rows,
+            signals,
+        }
+    }
+
+    #[test]
+    fn a_latency_moving_in_the_mend_takes_its_part_out_of_the_map() {
+        // The recording's fixes 0.06 s late: its speed residual -tau a_x / v.
+        let tau = 0.06;
+        let rec = series(|v, a| -tau * a / v, 1);
+        let sim = series(|_, _| 0.0, 2);
+        let pairs: Vec<(usize, usize)> = (0..12).map(|b| (b, b)).collect();
+        let mut m = speed_map_difference(&rec, &sim, &pairs, None).expect("a map");
+        let largest = |s: &SpeedMap| {
+            s.speed_m_s
+                .values
+                .iter()
+                .chain(&s.accel_m_s2.values)
+                .fold(0.0_f64, |x, y| x.max(y.abs()))
+        };
+        // The map alone takes the latency's signature (about 0.004-0.03
+        // at the acceleration bins' ends).
+        m.mend(true, false, false, None);
+        let alone = largest(m.mended.as_ref().expect("mended"));
+        assert!(alone > 0.004, "{alone}");
+        // With the latency's knob moving by the 0.06 s, what is left of it
+        // is small.
+        m.mend(true, false, false, Some(tau));
+        let with_knob = largest(m.mended.as_ref().expect("mended"));
+        assert!(with_knob < 0.25 * alone, "{with_knob} against {alone}");
+        // A slip's knob moving takes the part linear in a_x only: the
+        // latency's a_x / v is partly that, not all of it.
+        m.mend(true, true, false, None);
+        let with_slip = largest(m.mended.as_ref().expect("mended"));
+        assert!(with_slip < alone && with_slip > with_knob, "{with_slip}");
+    }
 }
