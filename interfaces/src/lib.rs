@@ -9,6 +9,8 @@
 //! - [`latency_trace`]: the latency trace file the latency bench reads.
 //! - [`speed_map`]: the wheels' speed reading beyond the catalogue, as a
 //!   comparison measures it and a twin carries it.
+//! - [`yaw_wander`]: the wheels' slow yaw-rate error against the gyro, as
+//!   a comparison measures it and a twin carries it.
 //!
 //! With the `bus` feature (on by default, off for the workspace's pure
 //! libraries), the process side:
@@ -29,3 +31,4 @@ pub mod logging;
 pub mod sensors;
 pub mod speed_map;
 pub mod wire;
+pub mod yaw_wander;

@@ -451,6 +451,14 @@ fn validate(config: &SimConfig) -> Result<(), SimError> {
             ));
         }
     }
+    if let Some(w) = &config.yaw_wander {
+        if !w.is_valid() {
+            return bad(format!(
+                "yaw_wander must have sigma_rad_s within [0, 0.1] and tau_s within [0.01, 10000] (got {} rad/s, {} s)",
+                w.sigma_rad_s, w.tau_s
+            ));
+        }
+    }
     let s = &config.sensors;
     for (name, v) in [
         ("gnss.white_sigma_m", s.gnss.white_sigma_m),
@@ -769,6 +777,14 @@ pub(crate) fn run_custom(config: &SimConfig, custom: &Custom) -> Result<Drive, S
     let end_step = duration.map(|d| (d / dt).round() as u64);
     let limit_steps = (DEFAULT_TIME_LIMIT_S / dt) as u64;
     let mut rec = Recorder::new(config, &periods, end_step);
+    rec.wander = config.yaw_wander.as_ref().map(|w| {
+        Wander::new(
+            w,
+            model.track_rear_true,
+            [model.c_static[RL], model.c_static[RR]],
+            config.seed,
+        )
+    });
     rec.denied = prescribed
         .map(|p| p.gnss_denied.clone())
         .unwrap_or_default();
@@ -897,6 +913,50 @@ fn route_done(route: &Route, driver: &Driver, stops: &Stops) -> bool {
     }
 }
 
+/// Slower than this the car stands for the wheels' yaw wander, m/s.
+const WANDER_MOVING_M_S: f64 = 0.5;
+
+/// The wheels' yaw wander on the rear wheels' revolutions: a Gauss-Markov
+/// yaw rate `w` that turns the right wheel faster and the left slower by
+/// `w track / 2` of surface speed while the car moves (its own noise
+/// stream, so that no other noise of a seed changes with it).
+struct Wander {
+    gm: GaussMarkov,
+    rng: ChaCha8Rng,
+    /// Half the rear track over each rear wheel's circumference, 1/rad.
+    gain: [f64; 2],
+    /// The revolutions added so far (rl, rr).
+    added: [f64; 2],
+    last_t: Option<f64>,
+}
+
+impl Wander {
+    fn new(w: &interfaces::yaw_wander::YawWander, track_m: f64, c: [f64; 2], seed: u64) -> Wander {
+        let mut rng = rng_stream(seed, 7);
+        Wander {
+            gm: GaussMarkov::new(w.sigma_rad_s, w.tau_s, &mut rng),
+            rng,
+            gain: [0.5 * track_m / c[0], 0.5 * track_m / c[1]],
+            added: [0.0; 2],
+            last_t: None,
+        }
+    }
+
+    /// The revolutions added up to `t` (rl, rr), the car at `vx`.
+    fn advance(&mut self, t: f64, vx: f64) -> [f64; 2] {
+        let dt = self.last_t.map_or(0.0, |last| t - last);
+        self.last_t = Some(t);
+        if dt > 0.0 {
+            let w = self.gm.step(dt, &mut self.rng);
+            if vx > WANDER_MOVING_M_S {
+                self.added[0] -= w * self.gain[0] * dt;
+                self.added[1] += w * self.gain[1] * dt;
+            }
+        }
+        self.added
+    }
+}
+
 /// The sensors: their noise sources, the effects that act on them, and
 /// the samples they have taken.
 struct Recorder<'a> {
@@ -919,6 +979,8 @@ struct Recorder<'a> {
     ticks: Option<f64>,
     /// Time intervals without fixes (a twin's recorded outages).
     denied: Vec<(f64, f64)>,
+    /// The wheels' yaw wander, when the configuration carries one.
+    wander: Option<Wander>,
     wheels: Vec<WheelSample>,
     truth: Vec<TruthSample>,
     gnss: Vec<GnssSample>,
@@ -968,6 +1030,7 @@ impl<'a> Recorder<'a> {
             lever: e.gnss_lever_arm.map_or((0.0, 0.0), |l| (l.x_m, l.y_m)),
             ticks: sensors.wheels.ticks_per_rev.map(f64::from),
             denied: Vec::new(),
+            wander: None,
             wheels: Vec::with_capacity(capacity(periods.wheel)),
             truth: Vec::with_capacity(capacity(periods.wheel)),
             gnss: Vec::with_capacity(capacity(periods.gnss)),
@@ -986,9 +1049,15 @@ impl<'a> Recorder<'a> {
             });
         }
         let (ticks, phase) = (self.ticks, self.phase);
+        let mut revs = st.revs;
+        if let Some(w) = self.wander.as_mut() {
+            let [l, r] = w.advance(t, st.vx);
+            revs[RL] += l;
+            revs[RR] += r;
+        }
         let value = |i: usize| match ticks {
-            Some(n) => (st.revs[i] * n + phase[i]).floor(),
-            None => st.revs[i],
+            Some(n) => (revs[i] * n + phase[i]).floor(),
+            None => revs[i],
         };
         self.wheels.push(WheelSample {
             t_s: t,
@@ -1180,6 +1249,15 @@ fn extra_keys(
             ]),
         );
     }
+    if let Some(w) = &config.yaw_wander {
+        extra.insert(
+            "yaw_wander".into(),
+            table(vec![
+                ("sigma_rad_s", f(w.sigma_rad_s)),
+                ("tau_s", f(w.tau_s)),
+            ]),
+        );
+    }
     extra.insert(
         "driven_axle".into(),
         Value::String(
@@ -1350,6 +1428,71 @@ mod tests {
                 values: vec![0.5],
             },
             accel_m_s2: Steps::zero(),
+        });
+        assert!(matches!(run(&c), Err(SimError::InvalidConfig(_))));
+    }
+
+    #[test]
+    fn a_yaw_wander_turns_the_rear_wheels_apart_by_a_gauss_markov_yaw_rate() {
+        use interfaces::yaw_wander::YawWander;
+        let mut c = SimConfig::new(Scenario::Mixed, 3);
+        c.duration_s = Some(300.0);
+        c.effects = EffectSettings::none();
+        c.sensors.wheels.ticks_per_rev = None;
+        let plain = run(&c).unwrap();
+        let w = YawWander {
+            sigma_rad_s: 0.01,
+            tau_s: 4.0,
+        };
+        c.yaw_wander = Some(w);
+        let wandered = run(&c).unwrap();
+        // Its own noise stream: every other sensor is the same draw.
+        assert_eq!(plain.gnss, wandered.gnss);
+        assert_eq!(plain.imu, wandered.imu);
+        // The yaw rate it adds, over 1 s steps while moving: the rear
+        // wheels' added surface distance apart over the track.
+        let circ = c.true_circumferences();
+        let track = c.vehicle.spec().track_rear_m;
+        let (p, m) = (&plain.wheels.samples, &wandered.wheels.samples);
+        let added =
+            |k: usize| ((m[k].rr - p[k].rr) * circ.rr - (m[k].rl - p[k].rl) * circ.rl) / track;
+        let moving = |k: usize| p[k].rl - p[k - 100].rl > 1.0;
+        let rates: Vec<f64> = (100..p.len())
+            .step_by(100)
+            .filter(|&k| moving(k))
+            .map(|k| added(k) - added(k - 100))
+            .collect();
+        assert!(rates.len() > 150, "{}", rates.len());
+        let n = rates.len() as f64;
+        let mean = rates.iter().sum::<f64>() / n;
+        let sd = (rates.iter().map(|r| (r - mean) * (r - mean)).sum::<f64>() / n).sqrt();
+        // A 1 s mean of the process keeps most of its variance at tau 4 s
+        // (0.92 of sigma); over 300 s it is drawn from about 40 correlation
+        // times.
+        assert!(sd > 0.6 * w.sigma_rad_s && sd < 1.3 * w.sigma_rad_s, "{sd}");
+        let lag1: f64 = rates
+            .windows(2)
+            .map(|x| (x[0] - mean) * (x[1] - mean))
+            .sum::<f64>()
+            / (n * sd * sd);
+        assert!(lag1 > 0.5, "lag-1 autocorrelation {lag1}");
+        // Standing still, nothing is added.
+        let still: Vec<usize> = (100..p.len())
+            .step_by(100)
+            .filter(|&k| p[k].rl == p[k - 100].rl)
+            .collect();
+        assert!(still.len() > 3, "the drive stands for {} s", still.len());
+        for k in still {
+            assert_eq!(added(k), added(k - 100), "at sample {k}");
+        }
+        let tp = wandered.truth_params.unwrap();
+        let Some(Value::Table(table)) = tp.extra.get("yaw_wander") else {
+            panic!("no yaw_wander table in truth.toml: {:?}", tp.extra);
+        };
+        assert_eq!(table.get("tau_s"), Some(&Value::Float(4.0)));
+        c.yaw_wander = Some(YawWander {
+            sigma_rad_s: 0.5,
+            tau_s: 4.0,
         });
         assert!(matches!(run(&c), Err(SimError::InvalidConfig(_))));
     }

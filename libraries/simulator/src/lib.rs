@@ -238,6 +238,10 @@ pub struct SimConfig {
     /// measured map, `calibrator compare`): every wheel turns
     /// `1 / (1 + m(v, a_x))` times as fast. `None`: none.
     pub speed_map: Option<interfaces::speed_map::SpeedMap>,
+    /// The wheels' yaw wander (a comparison's measure of it, `calibrator
+    /// compare`): a Gauss-Markov yaw rate the rear wheels read beyond the
+    /// body's. `None`: none.
+    pub yaw_wander: Option<interfaces::yaw_wander::YawWander>,
 }
 
 impl SimConfig {
@@ -265,6 +269,7 @@ impl SimConfig {
             step_s: 0.001,
             effect_forms: EffectForms::Physical,
             speed_map: None,
+            yaw_wander: None,
         };
         match scenario {
             Scenario::Paper => {

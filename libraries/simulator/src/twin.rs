@@ -414,6 +414,9 @@ pub struct TwinConfig {
     /// The wheels' speed reading beyond the catalogue (a comparison's
     /// `twin_speed_map`); `None`: none.
     pub speed_map: Option<interfaces::speed_map::SpeedMap>,
+    /// The wheels' yaw wander (a comparison's `twin_yaw_wander`); `None`:
+    /// none.
+    pub yaw_wander: Option<interfaces::yaw_wander::YawWander>,
 }
 
 /// What is taken from elsewhere than the drive: a diagnosis's GNSS noise
@@ -442,6 +445,8 @@ pub struct TwinOptions {
     pub effect_forms: EffectForms,
     /// The wheels' speed reading beyond the catalogue.
     pub speed_map: Option<interfaces::speed_map::SpeedMap>,
+    /// The wheels' yaw wander.
+    pub yaw_wander: Option<interfaces::yaw_wander::YawWander>,
 }
 
 impl TwinOptions {
@@ -457,6 +462,7 @@ impl TwinOptions {
             smoothing_m: DEFAULT_SMOOTHING_M,
             effect_forms: EffectForms::Physical,
             speed_map: None,
+            yaw_wander: None,
         }
     }
 }
@@ -744,6 +750,7 @@ impl TwinConfig {
                 step_s,
                 effect_forms: options.effect_forms,
                 speed_map: options.speed_map.clone(),
+                yaw_wander: options.yaw_wander,
             },
             numbers,
             notes,
@@ -787,6 +794,7 @@ fn sim_config(c: &TwinConfig) -> Result<(SimConfig, VehicleSpec), SimError> {
     config.step_s = c.step_s;
     config.effect_forms = c.effect_forms;
     config.speed_map = c.speed_map.clone();
+    config.yaw_wander = c.yaw_wander;
     config.unworn_circumference_m = Some(c0);
     config.nominal_circumference_m = Some(v.nominal_circumference_m);
     config.wear_mm = WheelWear {

@@ -3,12 +3,15 @@
 //! and the page ([`calibrator::diagnose::compare`]).
 
 use anyhow::{Context, Result};
-use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, Declared, Summary};
+use calibrator::diagnose::compare::{
+    compare, Carried, CompareConfig, Comparison, Declared, Summary,
+};
 use calibrator::diagnose::speed_map::SpeedMapDifference;
 use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
 use clap::Args;
 use interfaces::drive::Drive;
 use interfaces::speed_map::SpeedMap;
+use interfaces::yaw_wander::YawWander;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -87,11 +90,21 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
             args.simulation.display()
         )
     })?;
+    let declared_wander = declared_yaw_wander(&sim).with_context(|| {
+        format!(
+            "{}: truth.toml's yaw_wander is not a yaw wander",
+            args.simulation.display()
+        )
+    })?;
+    let carried = Carried {
+        speed_map: declared_map,
+        yaw_wander: declared_wander,
+    };
     let c = compare(
         &dr,
         &ds,
         declared.as_ref(),
-        declared_map.as_ref(),
+        &carried,
         &CompareConfig::default(),
     );
     print!("{}", render_text(&c, before.as_ref()));
@@ -128,6 +141,24 @@ fn declared_speed_map(sim: &Drive) -> Result<Option<SpeedMap>> {
         "edges must ascend, with one value more than edges, all finite"
     );
     Ok(Some(m))
+}
+
+/// The wheels' yaw wander a simulation says it carries (its truth.toml's
+/// `yaw_wander`, as our twin writes it).
+fn declared_yaw_wander(sim: &Drive) -> Result<Option<YawWander>> {
+    let Some(v) = sim
+        .truth_params
+        .as_ref()
+        .and_then(|t| t.extra.get("yaw_wander"))
+    else {
+        return Ok(None);
+    };
+    let w: YawWander = serde_json::from_value(serde_json::to_value(v)?)?;
+    anyhow::ensure!(
+        w.is_valid(),
+        "sigma_rad_s must lie within [0, 0.1] and tau_s within [0.01, 10000]"
+    );
+    Ok(Some(w))
 }
 
 /// An earlier comparison's verdicts and channel distances, from its JSON.
@@ -175,6 +206,12 @@ fn write_page(
                 pics::speed_map_svg(m, signal).context(draw)?,
             ));
         }
+    }
+    if let Some(w) = &c.yaw_wander {
+        pictures.push((
+            "yaw_wander.svg".into(),
+            pics::yaw_wander_svg(w).context(draw)?,
+        ));
     }
     for ch in &c.channels {
         pictures.push((
@@ -279,6 +316,9 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
     if let Some(m) = &c.speed_map {
         render_speed_map(&mut s, m);
     }
+    if let Some(w) = &c.yaw_wander {
+        render_yaw_wander(&mut s, w);
+    }
     if let Some(b) = before {
         let was: Vec<String> = b.named().map(|e| e.effect.to_string()).collect();
         let _ = writeln!(
@@ -291,6 +331,14 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
                 was.join(", ")
             },
             named.len()
+        );
+    }
+    if let Some(w) = &c.twin_yaw_wander {
+        let _ = writeln!(
+            s,
+            "the mended simulation's wheels should wander in yaw by {} rad/s at {} s",
+            pics::sig3(w.sigma_rad_s),
+            pics::sig3(w.tau_s)
         );
     }
     let _ = writeln!(
@@ -314,6 +362,32 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
         }
     );
     s
+}
+
+/// The wheels' yaw wander of the two drives, and what the mend does with
+/// it.
+fn render_yaw_wander(s: &mut String, w: &calibrator::diagnose::yaw_wander::WanderDifference) {
+    let one = |m: &calibrator::diagnose::yaw_wander::WanderMeasure| {
+        format!(
+            "{} rad/s at {} s (white {} rad/sqrt(s))",
+            pics::sig3(m.sigma_rad_s),
+            pics::sig3(m.tau_s),
+            pics::sig3(m.white_rad_sqrt_s)
+        )
+    };
+    let _ = writeln!(
+        s,
+        "the wheels' yaw wander against the gyro: recording {}, simulation {}; variance difference z {:+.1} (critical {:.1}){}",
+        one(&w.recording),
+        one(&w.simulation),
+        w.z,
+        w.z_critical,
+        if w.explains {
+            "; the course against the wheels differs with it: the mend carries it"
+        } else {
+            ""
+        }
+    );
 }
 
 /// Where the speed channel parts over speed and acceleration, and whether

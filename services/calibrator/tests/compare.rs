@@ -2,7 +2,9 @@
 //! and 3): a planted effect named and gone after the mend, a null pair
 //! with nothing named, and the command's files.
 
-use calibrator::diagnose::compare::{compare, CompareConfig, Comparison, DifferenceVerdict};
+use calibrator::diagnose::compare::{
+    compare, Carried, CompareConfig, Comparison, DifferenceVerdict,
+};
 use calibrator::diagnose::{diagnose, DiagnoseConfig};
 use interfaces::drive::Drive;
 use interfaces::effects::{Effect, Param};
@@ -28,7 +30,13 @@ fn compared(recording: &Drive, simulation: &Drive) -> Comparison {
         ..DiagnoseConfig::default()
     };
     let ds = diagnose(simulation, &cfg).expect("diagnose the simulation");
-    compare(&dr, &ds, None, None, &CompareConfig::default())
+    compare(
+        &dr,
+        &ds,
+        None,
+        &Carried::default(),
+        &CompareConfig::default(),
+    )
 }
 
 /// The mended simulation's effect knobs from the comparison's findings
@@ -178,6 +186,54 @@ fn a_speed_bump_no_effect_names_is_located_mapped_and_gone_after_the_mend() {
     assert!(!speed(&after).differs, "{:#?}", after.channels);
     let m = after.speed_map.as_ref().expect("the speed map");
     assert_eq!(m.differing().count(), 0, "{:#?}", m.bins);
+    assert!(after.alike(), "{:#?}", after.channels);
+}
+
+#[test]
+fn a_wheel_yaw_wander_no_effect_names_is_measured_carried_and_gone_after_the_mend() {
+    use interfaces::yaw_wander::YawWander;
+    let planted = YawWander {
+        sigma_rad_s: 0.006,
+        tau_s: 4.0,
+    };
+    let with_wander = |seed: u64, wander: Option<YawWander>| {
+        let mut cfg = SimConfig::new(Scenario::Mixed, seed);
+        cfg.effects = EffectSettings::none();
+        cfg.duration_s = Some(600.0);
+        cfg.yaw_wander = wander;
+        simulate(&cfg).expect("simulate")
+    };
+    let recording = with_wander(1, Some(planted));
+    let before = compared(&recording, &drive(2, &[]));
+    let course = |c: &Comparison| {
+        c.channels
+            .iter()
+            .find(|ch| ch.channel == "course_wheel")
+            .cloned()
+            .expect("the course against the wheels")
+    };
+    assert!(course(&before).differs, "{:#?}", before.channels);
+    assert_eq!(before.named().count(), 0, "{:#?}", before.effects);
+    let w = before.yaw_wander.as_ref().expect("both drives' wander");
+    assert!(w.explains, "{w:#?}");
+    // The recording's wander is measured near what was planted (a 1 s mean
+    // of it keeps 0.9 of its sigma; 600 s is about 150 correlation times).
+    assert!(
+        (w.recording.sigma_rad_s / planted.sigma_rad_s - 1.0).abs() < 0.35,
+        "{:?}",
+        w.recording
+    );
+    let carried = before.twin_yaw_wander.expect("a wander to carry");
+    assert!(
+        carried.sigma_rad_s > 0.5 * planted.sigma_rad_s
+            && carried.sigma_rad_s < 1.5 * planted.sigma_rad_s,
+        "{carried:?}"
+    );
+
+    let after = compared(&recording, &with_wander(4, Some(carried)));
+    assert!(!course(&after).differs, "{:#?}", after.channels);
+    let w = after.yaw_wander.as_ref().expect("both drives' wander");
+    assert!(!w.explains, "{w:#?}");
     assert!(after.alike(), "{:#?}", after.channels);
 }
 

@@ -66,7 +66,7 @@ fn a_pure_sinusoid_of_the_heading_is_named_and_a_null_drive_is_not() {
 
 #[test]
 fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives() {
-    use calibrator::diagnose::compare::{compare, CompareConfig, DifferenceVerdict};
+    use calibrator::diagnose::compare::{compare, Carried, CompareConfig, DifferenceVerdict};
     use calibrator::diagnose::pool::pool;
     let sinusoid = sinusoid();
     let vehicle = VehicleKind::Compact;
@@ -79,7 +79,13 @@ fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives()
     // The recording with the compass error against a simulation without:
     // the three terms' difference names it, though the constant terms'
     // difference alone is within the noise.
-    let c = compare(&a, &null_a, None, None, &CompareConfig::default());
+    let c = compare(
+        &a,
+        &null_a,
+        None,
+        &Carried::default(),
+        &CompareConfig::default(),
+    );
     let row = c
         .effects
         .iter()
@@ -104,7 +110,7 @@ fn a_sinusoid_is_named_against_a_twin_without_it_and_shown_over_several_drives()
         "{next:?}"
     );
     // The drive against itself: nothing to name.
-    let same = compare(&a, &a, None, None, &CompareConfig::default());
+    let same = compare(&a, &a, None, &Carried::default(), &CompareConfig::default());
     assert!(same.named().all(|e| e.effect != Effect::HeadingBias));
 
     // Two drives of the car with it: the pooled three terms show it; two

@@ -24,6 +24,9 @@ pub struct EffectsFile {
     /// The wheels' speed reading beyond the catalogue that a comparison
     /// measured (`calibrator compare --json`); carried by the twin.
     pub twin_speed_map: Option<interfaces::speed_map::SpeedMap>,
+    /// The wheels' yaw wander that a comparison measured (`calibrator
+    /// compare --json`); carried by the twin.
+    pub twin_yaw_wander: Option<interfaces::yaw_wander::YawWander>,
 }
 
 /// One finding: a catalogue id and its parameters in the reported units.
@@ -149,6 +152,24 @@ pub fn speed_map_of(
     }
 }
 
+/// The wheels' yaw wander a comparison's JSON asks the twin to carry
+/// (`twin_yaw_wander`), checked.
+pub fn yaw_wander_of(
+    file: &EffectsFile,
+    path: &Path,
+) -> Result<Option<interfaces::yaw_wander::YawWander>, TwinError> {
+    match file.twin_yaw_wander {
+        Some(w) if !w.is_valid() => Err(TwinError::EffectsFile {
+            path: path.to_path_buf(),
+            reason: format!(
+                "twin_yaw_wander: sigma_rad_s must lie within [0, 0.1] and tau_s within [0.01, 10000] (got {} rad/s, {} s)",
+                w.sigma_rad_s, w.tau_s
+            ),
+        }),
+        w => Ok(w),
+    }
+}
+
 /// Build, simulate and write the twin; returns its length in seconds.
 pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
     let loaded = read_drive(like).map_err(|source| TwinError::Read {
@@ -180,6 +201,7 @@ pub fn run(args: &SimulateArgs, like: &Path) -> Result<f64, TwinError> {
             .base_model
             .map(|b| (b.c_rl_m, b.c_rr_m, b.track_width_m));
         options.speed_map = speed_map_of(&file, path)?;
+        options.yaw_wander = yaw_wander_of(&file, path)?;
     }
     for spec in &args.effects {
         options.effects.apply_spec(spec)?;
@@ -287,6 +309,28 @@ mod tests {
             .to_string();
         assert!(
             err.contains("c.json") && err.contains("twin_speed_map"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_comparisons_yaw_wander_is_carried_and_a_malformed_one_refused() {
+        let json = r#"{"findings": [], "twin_yaw_wander": {"sigma_rad_s": 0.004, "tau_s": 3.0}}"#;
+        let file: EffectsFile = serde_json::from_str(json).unwrap();
+        let w = yaw_wander_of(&file, Path::new("c.json"))
+            .unwrap()
+            .expect("a wander");
+        assert_eq!((w.sigma_rad_s, w.tau_s), (0.004, 3.0));
+        let none: EffectsFile = serde_json::from_str(r#"{"findings": []}"#).unwrap();
+        assert!(yaw_wander_of(&none, Path::new("c.json")).unwrap().is_none());
+        let bad: EffectsFile =
+            serde_json::from_str(r#"{"twin_yaw_wander": {"sigma_rad_s": 0.004, "tau_s": 0.0}}"#)
+                .unwrap();
+        let err = yaw_wander_of(&bad, Path::new("c.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("c.json") && err.contains("twin_yaw_wander"),
             "{err}"
         );
     }

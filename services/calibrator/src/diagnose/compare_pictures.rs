@@ -3,14 +3,17 @@
 //! by block with the spans where the two part, each residual channel's two
 //! distributions (quantile against quantile), and, given the comparison
 //! before a mend, each channel's distance before and after against its
-//! noise level; and the speed channel over speed and over the
-//! longitudinal acceleration, each drive's level per bin.
+//! noise level; the speed channel over speed and over the longitudinal
+//! acceleration, each drive's level per bin; and the wheels' yaw wander
+//! against the gyro in both drives (its structure function, measured and
+//! fitted).
 //!
 //! Pure: the comparison (and the fixes) in, SVG and HTML out.
 
 pub use super::compare::sig3;
 use super::compare::{ChannelDistance, Comparison, Summary};
 use super::speed_map::SpeedMapDifference;
+use super::yaw_wander::WanderDifference;
 use super::Diagnosis;
 use report::{Axis, Band, Cell, Colour, Figure, FigureError, Mark, Page, Series};
 
@@ -192,6 +195,55 @@ pub fn speed_map_svg(m: &SpeedMapDifference, signal: &str) -> Result<String, Fig
                 .with_mark(Mark::Dots { radius: 7 }),
         )
         .svg()
+}
+
+/// The wheels' heading against the gyro's over lags: each drive's RMS
+/// increment measured (dots) and fitted (white + Gauss-Markov, lines).
+pub fn yaw_wander_svg(w: &WanderDifference) -> Result<String, FigureError> {
+    let pts = |i: usize, m: &super::yaw_wander::WanderMeasure| -> Vec<[f64; 2]> {
+        m.structure
+            .iter()
+            .filter(|x| x[i] > 0.0)
+            .map(|x| [x[0], 1000.0 * x[i].sqrt()])
+            .collect()
+    };
+    Figure::new(
+        "The wheels' heading against the gyro's",
+        Axis::log("lag", "s"),
+        Axis::log("RMS change over the lag", "mrad"),
+    )
+    .describe(&format!(
+        "The wheels' yaw rate less the gyro's (the gyro's scale against the track, its bias and \
+         the load transfer's v^2 term fitted out), integrated, its RMS change over each lag: \
+         measured (dots) and fitted as white noise plus a Gauss-Markov wander (lines); recording \
+         blue ({} rad/s at {} s), simulation orange ({} rad/s at {} s). A wander grows as the lag \
+         up to its correlation time, white noise as its square root.",
+        sig3(w.recording.sigma_rad_s),
+        sig3(w.recording.tau_s),
+        sig3(w.simulation.sigma_rad_s),
+        sig3(w.simulation.tau_s),
+    ))
+    .with(Series::dots(
+        "recording, measured",
+        pts(1, &w.recording),
+        Colour::BLUE,
+    ))
+    .with(Series::line(
+        "recording, fitted",
+        pts(2, &w.recording),
+        Colour::BLUE,
+    ))
+    .with(Series::dots(
+        "simulation, measured",
+        pts(1, &w.simulation),
+        Colour::ORANGE,
+    ))
+    .with(Series::line(
+        "simulation, fitted",
+        pts(2, &w.simulation),
+        Colour::ORANGE,
+    ))
+    .svg()
 }
 
 /// The plain model's position RMSE block by block in both drives, the
@@ -550,6 +602,25 @@ pub fn index_html(
             ],
             &rows,
         );
+    }
+    if let Some(w) = &c.yaw_wander {
+        page.heading("The wheels' yaw wander against the gyro");
+        page.paragraph(&format!(
+            "Recording {} rad/s at {} s, simulation {} rad/s at {} s (Gauss-Markov part); their \
+             variances differ at z {:+.1} against a critical {:.1} (jackknife over the blocks). {}",
+            sig3(w.recording.sigma_rad_s),
+            sig3(w.recording.tau_s),
+            sig3(w.simulation.sigma_rad_s),
+            sig3(w.simulation.tau_s),
+            w.z,
+            w.z_critical,
+            if w.explains {
+                "The course against the wheels differs with it: the mended simulation's wheels \
+                 carry the recording's wander."
+            } else {
+                "The mend does not move it."
+            }
+        ));
     }
     for (name, svg) in pictures {
         page.figure(name, svg, "");

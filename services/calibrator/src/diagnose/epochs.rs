@@ -14,7 +14,7 @@ use vehicle_model::two_wheel::wrap_angle;
 const G: f64 = 9.80665;
 
 /// One epoch: a GNSS fix and the model over the interval around it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Epoch {
     /// Time of the fix, s.
     pub t_s: f64,

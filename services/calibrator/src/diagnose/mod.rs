@@ -40,6 +40,7 @@ pub mod pool;
 pub mod pool_pictures;
 pub mod select;
 pub mod speed_map;
+pub mod yaw_wander;
 
 use crate::{calibrate, CalibrationConfig, CalibrationError, TimeOffsetMode, TrackWidthMode};
 use design::{Candidate, Channel, Design, DesignSettings};
@@ -604,6 +605,10 @@ pub struct Diagnosis {
     /// on this drive, over all its variants (not in the JSON).
     #[serde(skip)]
     pub fingerprints: Vec<(Effect, Vec<Channel>)>,
+    /// The wheels' yaw wander against the gyro ([`yaw_wander::measure`]);
+    /// `None` without a gyro or with too little drive to fit it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub yaw_wander: Option<yaw_wander::WanderMeasure>,
 }
 
 /// Per candidate effect, the channels its columns reach on this drive
@@ -1199,6 +1204,7 @@ pub fn diagnose_with_progress(
         blocks,
         channels,
         fingerprints: fingerprints(&design),
+        yaw_wander: yaw_wander::measure(&ep.epochs, block_s, cfg.min_speed_m_s),
     })
 }
 

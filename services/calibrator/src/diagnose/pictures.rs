@@ -1172,6 +1172,7 @@ mod tests {
             blocks: Vec::new(),
             channels: Vec::new(),
             fingerprints: Vec::new(),
+            yaw_wander: None,
         }
     }
 
