@@ -141,7 +141,7 @@ def main():
     after_named = [0] * a.mends
     after_alike = [0] * a.mends
     before_alike = 0
-    unexplained = carries_map = 0
+    unexplained = carries_map = carries_wander = wander_moved = 0
     before_holm = 0
     after_holm = [0] * a.mends
     times = []
@@ -172,6 +172,8 @@ def main():
             null_false.append(bool(extra))
         unexplained += any((c.get("speed_map") or {}).get("unexplained", False) for c in cs)
         carries_map += len(cs) > 1 and bool(cs[-2].get("twin_speed_map"))
+        carries_wander += len(cs) > 1 and bool(cs[-2].get("twin_yaw_wander"))
+        wander_moved += any((c.get("yaw_wander") or {}).get("explains", False) for c in cs[:-1])
         before_alike += cs[0]["channels_within_noise"] == len(cs[0]["channels"])
         before_holm += cs[0].get("channels_differing", 0) == 0
         for k in range(a.mends):
@@ -224,6 +226,8 @@ def main():
                    + ", ".join(f"{r} {v[2]}/{v[3]}" for r, v in sorted(per_route.items())))
     out.append(f"- the speed channel unexplained by the catalogue (it differs, bins of its map differ, no effect named in it) "
                f"in some comparison of the loop: {unexplained}/{n}; the last mend's twin carries a speed map: {carries_map}/{n}")
+    out.append(f"- the wheels' yaw wander moved by a mend (the course against the wheels differs, no named effect in it, "
+               f"the wander differs): {wander_moved}/{n}; the last mend's twin carries a wander: {carries_wander}/{n}")
     if times:
         out.append(f"- twin + comparison, median {sorted(times)[len(times) // 2]:.1f} s per drive (max {max(times):.1f} s)")
     out.append("")
