@@ -84,13 +84,25 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     // a simulator's own statement of what it simulated); the recording's
     // truth is never read.
     let declared: Option<Declared> = sim.truth_params.as_ref().map(|t| t.effects.clone());
-    let declared_map = declared_speed_map(&sim).with_context(|| {
+    let declared_map = declared_extra(
+        &sim,
+        "speed_map",
+        SpeedMap::is_valid,
+        "edges must ascend, with one value more than edges, all finite",
+    )
+    .with_context(|| {
         format!(
             "{}: truth.toml's speed_map is not a speed map",
             args.simulation.display()
         )
     })?;
-    let declared_wander = declared_yaw_wander(&sim).with_context(|| {
+    let declared_wander = declared_extra(
+        &sim,
+        "yaw_wander",
+        YawWander::is_valid,
+        "sigma_rad_s must lie within [0, 0.1] and tau_s within [0.01, 10000]",
+    )
+    .with_context(|| {
         format!(
             "{}: truth.toml's yaw_wander is not a yaw wander",
             args.simulation.display()
@@ -125,40 +137,21 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
-/// The wheels' speed map a simulation says it carries (its truth.toml's
-/// `speed_map`, as our twin writes it).
-fn declared_speed_map(sim: &Drive) -> Result<Option<SpeedMap>> {
-    let Some(v) = sim
-        .truth_params
-        .as_ref()
-        .and_then(|t| t.extra.get("speed_map"))
-    else {
+/// What a simulation says it carries under `key` of its truth.toml (our
+/// twin writes `speed_map` and `yaw_wander`), checked by `valid`
+/// (`rule` says what a valid one is).
+fn declared_extra<T: serde::de::DeserializeOwned>(
+    sim: &Drive,
+    key: &str,
+    valid: impl Fn(&T) -> bool,
+    rule: &str,
+) -> Result<Option<T>> {
+    let Some(v) = sim.truth_params.as_ref().and_then(|t| t.extra.get(key)) else {
         return Ok(None);
     };
-    let m: SpeedMap = serde_json::from_value(serde_json::to_value(v)?)?;
-    anyhow::ensure!(
-        m.is_valid(),
-        "edges must ascend, with one value more than edges, all finite"
-    );
-    Ok(Some(m))
-}
-
-/// The wheels' yaw wander a simulation says it carries (its truth.toml's
-/// `yaw_wander`, as our twin writes it).
-fn declared_yaw_wander(sim: &Drive) -> Result<Option<YawWander>> {
-    let Some(v) = sim
-        .truth_params
-        .as_ref()
-        .and_then(|t| t.extra.get("yaw_wander"))
-    else {
-        return Ok(None);
-    };
-    let w: YawWander = serde_json::from_value(serde_json::to_value(v)?)?;
-    anyhow::ensure!(
-        w.is_valid(),
-        "sigma_rad_s must lie within [0, 0.1] and tau_s within [0.01, 10000]"
-    );
-    Ok(Some(w))
+    let x: T = serde_json::from_value(serde_json::to_value(v)?)?;
+    anyhow::ensure!(valid(&x), "{rule}");
+    Ok(Some(x))
 }
 
 /// An earlier comparison's verdicts and channel distances, from its JSON.
