@@ -30,7 +30,9 @@ use interfaces::drive::{Drive, ImuSample, Wheel, WheelSample, WheelUnit};
 use std::borrow::Cow;
 use std::f64::consts::{FRAC_PI_2, TAU};
 
+mod gnss_epochs;
 mod set_aside;
+pub use gnss_epochs::{gnss_on_epochs, MIN_JITTER_S, MIN_SCATTER_GAIN};
 pub use set_aside::{set_aside_impossible, MAX_SET_ASIDE_SHARE, SPIKE_LOOKAHEAD};
 
 /// Fastest plausible car, m/s.
@@ -360,6 +362,24 @@ pub enum Finding {
         /// The wheel stream's median sample interval, s.
         median_interval_s: f64,
     },
+    /// GNSS stamps that jitter about the receiver's regular epochs, the
+    /// fixes read at their epochs ([`gnss_on_epochs`]).
+    #[error(
+        "gnss: the stamps jitter by {:.1} ms RMS about the receiver's regular epochs; {fixes} fixes \
+         are read at their epochs (each fix's distance from its neighbours' line: {scatter_stamps_m:.3} m \
+         at the stamps, {scatter_epochs_m:.3} m at the epochs)",
+        1000.0 * jitter_rms_s
+    )]
+    GnssStampsOnEpochs {
+        /// The stamps' jitter about the epochs, RMS, s.
+        jitter_rms_s: f64,
+        /// Fixes moved to their epochs.
+        fixes: usize,
+        /// The fixes' RMS distance from their neighbours' line at the stamps, m.
+        scatter_stamps_m: f64,
+        /// The same at the epochs, m.
+        scatter_epochs_m: f64,
+    },
 }
 
 impl Finding {
@@ -377,7 +397,8 @@ impl Finding {
             | Finding::ImuStuck { .. }
             | Finding::WheelStuck { .. }
             | Finding::TrackWidthContradicted { .. }
-            | Finding::WheelPause { .. } => Severity::Warning,
+            | Finding::WheelPause { .. }
+            | Finding::GnssStampsOnEpochs { .. } => Severity::Warning,
         }
     }
 
@@ -571,7 +592,8 @@ fn counter_wraps(samples: &[WheelSample], wheel: Wheel) -> Option<(u32, Vec<(usi
 
 /// The drive as the models read it: counters that wrap unwrapped
 /// ([`unwrap_wheel_counters`]), then wheel values beyond any car set aside
-/// ([`set_aside_impossible`]), with a finding for each repair (and
+/// ([`set_aside_impossible`]), then GNSS stamps that jitter read at the
+/// receiver's epochs ([`gnss_on_epochs`]), with a finding for each repair (and
 /// [`Finding::ImpossibleWheelRate`], an error, for a rear wheel that is
 /// impossible throughout). The drive is borrowed when nothing was repaired.
 pub fn repaired(drive: &Drive) -> (Cow<'_, Drive>, Vec<Finding>) {
@@ -583,6 +605,10 @@ pub fn repaired(drive: &Drive) -> (Cow<'_, Drive>, Vec<Finding>) {
     }
     if let Some((d, f)) = set_aside_impossible(&current) {
         findings.extend(f);
+        current = Cow::Owned(d);
+    }
+    if let Some((d, f)) = gnss_on_epochs(&current) {
+        findings.push(f);
         current = Cow::Owned(d);
     }
     (current, findings)

@@ -6,6 +6,7 @@
 
 use super::SimError;
 use interfaces::drive::{Drive, WheelUnit};
+pub use stats::stamps::{stamp_jitter, stamp_jitter_rms};
 
 /// Wheels slower than this count as standing, m/s.
 pub const STANDSTILL_M_S: f64 = 0.05;
@@ -405,80 +406,6 @@ fn compass_sigma(yaw: &[f64]) -> Option<f64> {
     Some(sigma.to_degrees())
 }
 
-/// Fixes either side of a fix whose stamps' median makes the slow part of
-/// the stamp error (an offset, a drifting clock) that the jitter is
-/// measured from.
-const STAMP_SLOW_HALF_FIXES: usize = 25;
-
-/// The jitter of a recording's GNSS time stamps: per fix, the receiver's
-/// regular epoch (the stamp less its jitter) and the jitter, s.
-///
-/// A logger that stamps a fix when it arrives puts the arrival's jitter on
-/// a position the receiver took on its regular epoch: the intervals read
-/// 0.19, 0.20, 0.21 s at 5 Hz (wid-trial02: 3.4 ms RMS), and a speed over
-/// one interval is off by the two stamps' difference over the interval
-/// (about 1 % here). The epochs are counted off the median interval
-/// (gaps as whole intervals); the stamp's departure from its count, less
-/// the running median over 51 fixes (an offset, a latency, a clock's
-/// drift), is the jitter. A fix whose jitter reaches half an interval is
-/// left out (wid-trial02's first two fixes are 0.04 s apart); empty when
-/// the fixes are too few or more than a tenth are left out (the stamps
-/// are not a regular receiver's).
-pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
-    let Some(dt) = median_interval(stamps) else {
-        return Vec::new();
-    };
-    if stamps.len() < 2 * STAMP_SLOW_HALF_FIXES + 1 || dt <= 0.0 {
-        return Vec::new();
-    }
-    // Epochs counted off the interval, then the interval from the count
-    // over the whole drive (the median interval of jittered stamps is off
-    // by a part of the jitter), and counted again.
-    let count = |dt: f64| -> Vec<f64> {
-        let mut n = vec![0.0];
-        for w in stamps.windows(2) {
-            let last = n[n.len() - 1];
-            n.push(last + ((w[1] - w[0]) / dt).round());
-        }
-        n
-    };
-    let first = count(dt);
-    let total = first[first.len() - 1];
-    let dt = (stamps[stamps.len() - 1] - stamps[0]) / total;
-    let n = count(dt);
-    let e: Vec<f64> = stamps
-        .iter()
-        .zip(&n)
-        .map(|(s, n)| s - stamps[0] - n * dt)
-        .collect();
-    let k = STAMP_SLOW_HALF_FIXES;
-    let mut out = Vec::with_capacity(stamps.len());
-    for i in 0..e.len() {
-        let mut window: Vec<f64> = e[i.saturating_sub(k)..(i + k + 1).min(e.len())].to_vec();
-        window.sort_by(f64::total_cmp);
-        let jitter = e[i] - window[window.len() / 2];
-        // A fix off the receiver's epochs, or a second on one epoch (an
-        // odd first fix), is left out.
-        let shared = i > 0 && n[i] == n[i - 1];
-        if jitter.abs() < 0.5 * dt && !shared {
-            out.push((stamps[i] - jitter, jitter));
-        }
-    }
-    // Stamps mostly off a regular grid are not a receiver's jitter.
-    if out.len() * 10 < stamps.len() * 9 {
-        return Vec::new();
-    }
-    out
-}
-
-/// The RMS of a [`stamp_jitter`], s (0 for none).
-pub fn stamp_jitter_rms(jitter: &[(f64, f64)]) -> f64 {
-    if jitter.is_empty() {
-        return 0.0;
-    }
-    (jitter.iter().map(|j| j.1 * j.1).sum::<f64>() / jitter.len() as f64).sqrt()
-}
-
 /// Put a recording's stamp jitter (`stamp_jitter`) on the twin's fixes: a
 /// fix within half an interval of a recorded epoch takes that epoch's
 /// jitter, as long as the stamps stay increasing. Returns how many fixes
@@ -559,29 +486,17 @@ mod tests {
         }
     }
 
-    /// A logger's jitter on a 5 Hz receiver whose clock runs 0.3 s late
-    /// and drifts: the jitter comes back, the offset and drift do not, and
-    /// a twin's regular fixes take the jitter of the epoch they match.
+    /// A twin's regular fixes take the jitter of the recording's epoch
+    /// they match (a 5 Hz receiver whose clock runs 0.3 s late and drifts,
+    /// with a gap); the fixes in the gap keep their stamps.
     #[test]
-    fn the_stamps_jitter_is_measured_without_offset_or_drift_and_copied() {
+    fn a_twins_regular_fixes_take_the_jitter_of_the_epoch_they_match() {
         let jit = |k: usize| 0.01 * (((k * 7919) % 11) as f64 / 5.0 - 1.0);
         let stamps: Vec<f64> = (0..600)
             .filter(|k| !(200..215).contains(k))
             .map(|k| 0.3 + k as f64 * 0.2 * (1.0 + 2e-5) + jit(k))
             .collect();
         let j = stamp_jitter(&stamps);
-        assert_eq!(j.len(), stamps.len());
-        // An odd fix off the epochs is left out, the rest kept.
-        let mut odd = stamps.clone();
-        odd.insert(1, stamps[0] + 0.04);
-        assert_eq!(stamp_jitter(&odd).len(), stamps.len());
-        let (mut worst, mut sum) = (0.0_f64, 0.0);
-        for (i, k) in (0..600).filter(|k| !(200..215).contains(k)).enumerate() {
-            worst = worst.max((j[i].1 - jit(k)).abs());
-            sum += j[i].1;
-        }
-        assert!(worst < 3e-3, "{worst}");
-        assert!((sum / j.len() as f64).abs() < 1e-3);
         // The twin's fixes on the regular epochs (the recording's clock).
         let mut fixes: Vec<GnssSample> = (0..600)
             .map(|k| GnssSample {
@@ -599,12 +514,5 @@ mod tests {
         assert!(fixes.windows(2).all(|w| w[1].t_s > w[0].t_s));
         let d = fixes[100].t_s - (0.3 + 100.0 * 0.2 * (1.0 + 2e-5));
         assert!((d - jit(100)).abs() < 3e-3, "{d} against {}", jit(100));
-        // Regular stamps have no jitter; irregular ones are not a receiver's.
-        let regular: Vec<f64> = (0..300).map(|k| k as f64 * 0.1).collect();
-        assert!(stamp_jitter(&regular).iter().all(|j| j.1.abs() < 1e-9));
-        let wild: Vec<f64> = (0..300)
-            .map(|k| (k as f64 * 0.1) + 0.06 * ((k % 2) as f64))
-            .collect();
-        assert!(stamp_jitter(&wild).is_empty());
     }
 }

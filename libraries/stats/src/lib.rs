@@ -14,6 +14,7 @@
 //! says so. Pure: numbers in, numbers out.
 
 pub mod distributions;
+pub mod stamps;
 
 use std::f64::consts::{PI, TAU};
 

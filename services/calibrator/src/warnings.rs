@@ -65,6 +65,9 @@ pub enum WarningCode {
     /// Wheel values beyond any car (a logger glitch) were set aside; the
     /// rest of the channel is used.
     WheelSamplesSetAside,
+    /// The GNSS stamps jitter about the receiver's regular epochs; the
+    /// fixes were read at their epochs.
+    GnssStampsOnEpochs,
     /// An IMU value is exactly constant while the wheels show motion (a
     /// dead or stuck sensor); it was not used where stuck.
     ImuStuck,

@@ -88,6 +88,9 @@ pub fn drive<'a>(
                     f.to_string(),
                 ));
             }
+            Finding::GnssStampsOnEpochs { .. } => {
+                warnings.push(Warning::new(WarningCode::GnssStampsOnEpochs, f.to_string()));
+            }
             _ => return Err(CalibrationError::ImplausibleInput(f.clone())),
         }
     }

@@ -1,0 +1,157 @@
+//! The stamps of a regular series: a receiver's epochs and a logger's
+//! jitter about them ([`stamp_jitter`]). Used by the readers (the fixes
+//! read at their epochs) and the simulator's twin (the jitter copied).
+
+/// The median of the positive intervals between successive times, s.
+fn median_interval(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    crate::upper_median(&mut d)
+}
+
+/// Fixes either side of a fix whose stamps' median makes the slow part of
+/// the stamp error (an offset, a drifting clock) that the jitter is
+/// measured from.
+const STAMP_SLOW_HALF_FIXES: usize = 25;
+
+/// The jitter of a recording's GNSS time stamps: per fix, the receiver's
+/// regular epoch (the stamp less its jitter) and the jitter, s.
+///
+/// A logger that stamps a fix when it arrives puts the arrival's jitter on
+/// a position the receiver took on its regular epoch: the intervals read
+/// 0.19, 0.20, 0.21 s at 5 Hz (wid-trial02: 3.4 ms RMS), and a speed over
+/// one interval is off by the two stamps' difference over the interval
+/// (about 1 % here). The epochs are counted off the median interval
+/// (gaps as whole intervals); the stamp's departure from its count, less
+/// the running median over 51 fixes (an offset, a latency, a clock's
+/// drift), is the jitter. A fix whose jitter reaches half an interval is
+/// left out (wid-trial02's first two fixes are 0.04 s apart); empty when
+/// the fixes are too few or more than a tenth are left out (the stamps
+/// are not a regular receiver's).
+pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
+    let Some(dt) = median_interval(stamps) else {
+        return Vec::new();
+    };
+    if stamps.len() < 2 * STAMP_SLOW_HALF_FIXES + 1 || dt <= 0.0 {
+        return Vec::new();
+    }
+    // Epochs counted off the interval, then the interval from the count
+    // over the whole drive (the median interval of jittered stamps is off
+    // by a part of the jitter), and counted again.
+    let count = |dt: f64| -> Vec<f64> {
+        let mut n = vec![0.0];
+        for w in stamps.windows(2) {
+            let last = n[n.len() - 1];
+            n.push(last + ((w[1] - w[0]) / dt).round());
+        }
+        n
+    };
+    let first = count(dt);
+    let total = first[first.len() - 1];
+    let dt = (stamps[stamps.len() - 1] - stamps[0]) / total;
+    let n = count(dt);
+    let e: Vec<f64> = stamps
+        .iter()
+        .zip(&n)
+        .map(|(s, n)| s - stamps[0] - n * dt)
+        .collect();
+    let k = STAMP_SLOW_HALF_FIXES;
+    let mut out = Vec::with_capacity(stamps.len());
+    for i in 0..e.len() {
+        let mut window: Vec<f64> = e[i.saturating_sub(k)..(i + k + 1).min(e.len())].to_vec();
+        window.sort_by(f64::total_cmp);
+        let jitter = e[i] - window[window.len() / 2];
+        // A fix off the receiver's epochs, or a second on one epoch (an
+        // odd first fix), is left out.
+        let shared = i > 0 && n[i] == n[i - 1];
+        if jitter.abs() < 0.5 * dt && !shared {
+            out.push((stamps[i] - jitter, jitter));
+        }
+    }
+    // Stamps mostly off a regular grid are not a receiver's jitter.
+    if out.len() * 10 < stamps.len() * 9 {
+        return Vec::new();
+    }
+    out
+}
+
+/// The RMS of a [`stamp_jitter`], s (0 for none).
+pub fn stamp_jitter_rms(jitter: &[(f64, f64)]) -> f64 {
+    if jitter.is_empty() {
+        return 0.0;
+    }
+    (jitter.iter().map(|j| j.1 * j.1).sum::<f64>() / jitter.len() as f64).sqrt()
+}
+
+/// Each stamp's receiver epoch from its [`stamp_jitter`] (`jitter`, in
+/// stamp order): the stamp less its jitter, or the stamp itself for a fix
+/// the jitter left out.
+pub fn epochs_of(stamps: &[f64], jitter: &[(f64, f64)]) -> Vec<f64> {
+    let mut epochs = stamps.to_vec();
+    let mut k = 0;
+    for (i, s) in stamps.iter().enumerate() {
+        while k < jitter.len() && jitter[k].0 + jitter[k].1 < s - 1e-9 {
+            k += 1;
+        }
+        if k < jitter.len() && (jitter[k].0 + jitter[k].1 - s).abs() <= 1e-9 {
+            epochs[i] = jitter[k].0;
+            k += 1;
+        }
+    }
+    epochs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A logger's jitter on a 5 Hz receiver whose clock runs 0.3 s late
+    /// and drifts: the jitter comes back, the offset and drift do not.
+    #[test]
+    fn the_stamps_jitter_is_measured_without_offset_or_drift() {
+        let jit = |k: usize| 0.01 * (((k * 7919) % 11) as f64 / 5.0 - 1.0);
+        let stamps: Vec<f64> = (0..600)
+            .filter(|k| !(200..215).contains(k))
+            .map(|k| 0.3 + k as f64 * 0.2 * (1.0 + 2e-5) + jit(k))
+            .collect();
+        let j = stamp_jitter(&stamps);
+        assert_eq!(j.len(), stamps.len());
+        // An odd fix off the epochs is left out, the rest kept.
+        let mut odd = stamps.clone();
+        odd.insert(1, stamps[0] + 0.04);
+        assert_eq!(stamp_jitter(&odd).len(), stamps.len());
+        let (mut worst, mut sum) = (0.0_f64, 0.0);
+        for (i, k) in (0..600).filter(|k| !(200..215).contains(k)).enumerate() {
+            worst = worst.max((j[i].1 - jit(k)).abs());
+            sum += j[i].1;
+        }
+        assert!(worst < 3e-3, "{worst}");
+        assert!((sum / j.len() as f64).abs() < 1e-3);
+        assert!(
+            (stamp_jitter_rms(&j) - 0.0063).abs() < 1.5e-3,
+            "{}",
+            stamp_jitter_rms(&j)
+        );
+        // Each stamp's epoch, the odd fix keeping its stamp.
+        let e = epochs_of(&odd, &stamp_jitter(&odd));
+        assert_eq!(e[1], odd[1]);
+        for (i, k) in (0..600)
+            .filter(|k| !(200..215).contains(k))
+            .enumerate()
+            .skip(1)
+        {
+            let want = 0.3 + k as f64 * 0.2 * (1.0 + 2e-5);
+            assert!(
+                (e[i + 1] - want).abs() < 3e-3,
+                "{} against {want}",
+                e[i + 1]
+            );
+        }
+        // Regular stamps have no jitter; irregular ones are not a receiver's.
+        let regular: Vec<f64> = (0..300).map(|k| k as f64 * 0.1).collect();
+        assert!(stamp_jitter(&regular).iter().all(|j| j.1.abs() < 1e-9));
+        let wild: Vec<f64> = (0..300)
+            .map(|k| (k as f64 * 0.1) + 0.06 * ((k % 2) as f64))
+            .collect();
+        assert!(stamp_jitter(&wild).is_empty());
+    }
+}
