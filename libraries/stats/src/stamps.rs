@@ -34,8 +34,37 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
     if stamps.len() < 2 * STAMP_SLOW_HALF_FIXES + 1 || dt <= 0.0 {
         return Vec::new();
     }
+    // Runs between long gaps, each on its own grid.
+    let mut out = Vec::with_capacity(stamps.len());
+    let mut start = 0;
+    for i in 1..=stamps.len() {
+        if i == stamps.len() || stamps[i] - stamps[i - 1] > MAX_COUNTED_GAP * dt {
+            out.extend(run_jitter(&stamps[start..i], dt));
+            start = i;
+        }
+    }
+    // Stamps mostly off a regular grid are not a receiver's jitter.
+    if out.len() * 10 < stamps.len() * 9 {
+        return Vec::new();
+    }
+    out
+}
+
+/// A gap of more than this many intervals ends a run of counted epochs:
+/// over a long gap the count of intervals loses the grid (a logger paused
+/// for 600 s comes back a fraction of an interval off it, and the fixes
+/// whose running median spans the gap would read that fraction as
+/// jitter), so each run is counted on its own.
+pub const MAX_COUNTED_GAP: f64 = 10.0;
+
+/// [`stamp_jitter`] of one run without long gaps (`dt`: the drive's
+/// median interval); empty for a run too short for the running median.
+fn run_jitter(stamps: &[f64], dt: f64) -> Vec<(f64, f64)> {
+    if stamps.len() < 2 * STAMP_SLOW_HALF_FIXES + 1 {
+        return Vec::new();
+    }
     // Epochs counted off the interval, then the interval from the count
-    // over the whole drive (the median interval of jittered stamps is off
+    // over the whole run (the median interval of jittered stamps is off
     // by a part of the jitter), and counted again.
     let count = |dt: f64| -> Vec<f64> {
         let mut n = vec![0.0];
@@ -47,6 +76,9 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
     };
     let first = count(dt);
     let total = first[first.len() - 1];
+    if total <= 0.0 {
+        return Vec::new();
+    }
     let dt = (stamps[stamps.len() - 1] - stamps[0]) / total;
     let n = count(dt);
     let e: Vec<f64> = stamps
@@ -60,16 +92,14 @@ pub fn stamp_jitter(stamps: &[f64]) -> Vec<(f64, f64)> {
         let mut window: Vec<f64> = e[i.saturating_sub(k)..(i + k + 1).min(e.len())].to_vec();
         window.sort_by(f64::total_cmp);
         let jitter = e[i] - window[window.len() / 2];
-        // A fix off the receiver's epochs, or a second on one epoch (an
-        // odd first fix), is left out.
-        let shared = i > 0 && n[i] == n[i - 1];
+        // A fix off the receiver's epochs is left out, and so are both
+        // fixes that count to one epoch (wid-trial02's first two, 0.04 s
+        // apart): which of the two is the epoch's cannot be told, and
+        // moving either puts two fixes milliseconds apart.
+        let shared = (i > 0 && n[i] == n[i - 1]) || (i + 1 < n.len() && n[i] == n[i + 1]);
         if jitter.abs() < 0.5 * dt && !shared {
             out.push((stamps[i] - jitter, jitter));
         }
-    }
-    // Stamps mostly off a regular grid are not a receiver's jitter.
-    if out.len() * 10 < stamps.len() * 9 {
-        return Vec::new();
     }
     out
 }
@@ -115,10 +145,11 @@ mod tests {
             .collect();
         let j = stamp_jitter(&stamps);
         assert_eq!(j.len(), stamps.len());
-        // An odd fix off the epochs is left out, the rest kept.
+        // An odd fix on the first fix's epoch: both are left out (which is
+        // the epoch's cannot be told), the rest kept.
         let mut odd = stamps.clone();
         odd.insert(1, stamps[0] + 0.04);
-        assert_eq!(stamp_jitter(&odd).len(), stamps.len());
+        assert_eq!(stamp_jitter(&odd).len(), stamps.len() - 1);
         let (mut worst, mut sum) = (0.0_f64, 0.0);
         for (i, k) in (0..600).filter(|k| !(200..215).contains(k)).enumerate() {
             worst = worst.max((j[i].1 - jit(k)).abs());
@@ -131,9 +162,9 @@ mod tests {
             "{}",
             stamp_jitter_rms(&j)
         );
-        // Each stamp's epoch, the odd fix keeping its stamp.
+        // Each stamp's epoch, the two on one epoch keeping their stamps.
         let e = epochs_of(&odd, &stamp_jitter(&odd));
-        assert_eq!(e[1], odd[1]);
+        assert_eq!((e[0], e[1]), (odd[0], odd[1]));
         for (i, k) in (0..600)
             .filter(|k| !(200..215).contains(k))
             .enumerate()
@@ -146,6 +177,20 @@ mod tests {
                 e[i + 1]
             );
         }
+        // A logger paused for 600 s comes back 0.37 intervals off the
+        // grid: each side is counted on its own, no fix reads the fraction.
+        let paused: Vec<f64> = stamps
+            .iter()
+            .map(|t| if *t > 60.0 { t + 600.074 } else { *t })
+            .collect();
+        let jp = stamp_jitter(&paused);
+        assert_eq!(jp.len(), paused.len());
+        let worst = jp
+            .iter()
+            .zip((0..600).filter(|k| !(200..215).contains(k)))
+            .map(|(j, k)| (j.1 - jit(k)).abs())
+            .fold(0.0_f64, f64::max);
+        assert!(worst < 3e-3, "{worst}");
         // Regular stamps have no jitter; irregular ones are not a receiver's.
         let regular: Vec<f64> = (0..300).map(|k| k as f64 * 0.1).collect();
         assert!(stamp_jitter(&regular).iter().all(|j| j.1.abs() < 1e-9));

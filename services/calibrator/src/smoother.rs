@@ -122,6 +122,57 @@ pub(crate) fn smooth_positions(
     inputs: Option<&[Input]>,
     set_aside: Option<&[bool]>,
 ) -> Result<PosTrack, CalibrationError> {
+    let n = fixes.len();
+    let mut starts: Vec<usize> = (1..n)
+        .filter(|&j| fixes[j].t - fixes[j - 1].t > SMOOTHER_SPLIT_GAP_S)
+        .collect();
+    if starts.is_empty() {
+        return smooth_run(fixes, z, q, gate, inputs, set_aside);
+    }
+    starts.insert(0, 0);
+    starts.push(n);
+    let mut out = PosTrack {
+        t: Vec::with_capacity(n),
+        s: Vec::with_capacity(n),
+        cov: Vec::with_capacity(n),
+        accepted: Vec::with_capacity(n),
+    };
+    for w in starts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let run = smooth_run(
+            &fixes[a..b],
+            &z[a..b],
+            q,
+            gate,
+            inputs.map(|i| &i[a..b]),
+            set_aside.map(|s| &s[a..b]),
+        )?;
+        out.t.extend(run.t);
+        out.s.extend(run.s);
+        out.cov.extend(run.cov);
+        out.accepted.extend(run.accepted);
+    }
+    Ok(out)
+}
+
+/// A gap between fixes longer than this, s, splits the smoother into runs
+/// smoothed on their own: across it the filter's covariance grows with
+/// the gap's cube, nothing of the car's motion on one side constrains the
+/// other, and a logger paused for 600 s left the smoothed velocity at
+/// 600 m/s for half a minute after it (the 2W fit then diverged). The
+/// reference is not valid inside such a gap anyway (`max_gnss_gap_s`).
+const SMOOTHER_SPLIT_GAP_S: f64 = 120.0;
+
+/// [`smooth_positions`] of one run without a gap beyond
+/// [`SMOOTHER_SPLIT_GAP_S`].
+fn smooth_run(
+    fixes: &[RefFix],
+    z: &[[f64; 2]],
+    q: f64,
+    gate: f64,
+    inputs: Option<&[Input]>,
+    set_aside: Option<&[bool]>,
+) -> Result<PosTrack, CalibrationError> {
     let mut weights = vec![1.0; fixes.len()];
     let mut track = smooth_pass(fixes, z, q, gate, inputs, set_aside, &weights)?;
     for _ in 0..SMOOTHER_REWEIGHTS {
@@ -344,4 +395,45 @@ fn smooth_pass(
         cov: ps,
         accepted,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fixes(t0: f64, x0: f64, n: usize, v: f64) -> Vec<RefFix> {
+        (0..n)
+            .map(|k| {
+                let t = t0 + 0.2 * k as f64;
+                // A centimetre of noise, deterministic.
+                let e = 0.01 * (((k * 7919) % 11) as f64 / 5.0 - 1.0);
+                RefFix {
+                    t,
+                    x: x0 + v * (t - t0) + e,
+                    y: 2.0 * e,
+                    sigma: 0.02,
+                    accepted: true,
+                }
+            })
+            .collect()
+    }
+
+    /// A logger paused for 600 s: the fixes after it are smoothed as if
+    /// the drive began there (no velocity carried over the gap, none made
+    /// up from it), and the car's 5 m/s is what the smoother reads on both
+    /// sides.
+    #[test]
+    fn a_gap_of_minutes_splits_the_smoother() {
+        let before = fixes(0.0, 0.0, 300, 5.0);
+        let after = fixes(660.0, -150.0, 300, 5.0);
+        let all: Vec<RefFix> = before.iter().chain(&after).copied().collect();
+        let z: Vec<[f64; 2]> = all.iter().map(|f| [f.x, f.y]).collect();
+        let whole = smooth_positions(&all, &z, 1.0, 5.0, None, None).unwrap();
+        let za: Vec<[f64; 2]> = after.iter().map(|f| [f.x, f.y]).collect();
+        let alone = smooth_positions(&after, &za, 1.0, 5.0, None, None).unwrap();
+        assert_eq!(&whole.s[300..], &alone.s[..]);
+        for s in &whole.s {
+            assert!((s[2] - 5.0).abs() < 0.3 && s[3].abs() < 0.3, "{s:?}");
+        }
+    }
 }

@@ -1020,7 +1020,8 @@ struct Carrier {
 /// 1. those the recording found whose fingerprint is in such a channel;
 /// 2. per such channel, the effect of its fingerprint whose difference is
 ///    the largest, where that difference alone is beyond two-sided 5 % on
-///    `dof` degrees of freedom. Unadjusted on purpose: the channel's
+///    `dof` degrees of freedom and the recording's estimate is a plausible
+///    size ([`recording_plausible`]). Unadjusted on purpose: the channel's
 ///    difference is already the family's decision (Holm over the
 ///    channels); this picks what explains it and does not test whether
 ///    there is anything. Nothing is named by it.
@@ -1067,6 +1068,7 @@ fn remainder_carriers(
         let best = effects
             .iter()
             .filter(|d| d.verdict == DifferenceVerdict::Alike && in_channel(d.effect, ch))
+            .filter(|d| recording_plausible(d))
             .filter_map(|d| Some((d.effect, d.z.filter(|z| z.is_finite())?)))
             .filter(|&(_, z)| z.abs() > bar)
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()));
@@ -1083,6 +1085,25 @@ fn remainder_carriers(
         }
     }
     out
+}
+
+/// Whether the recording's estimate of `d`'s effect lies within the
+/// catalogue's plausible range. A difference whose recording side is
+/// beyond it is no explanation to carry: on comma2k19's 60 s of highway
+/// (before its fixes were read at their epochs) the gyro scale read
+/// 0.19 ± 0.10, 38 times typical, was the largest difference (z 2.3) in a
+/// channel that differed by the twin's noise, and the mend put the range's
+/// end, 5 %, into the twin.
+fn recording_plausible(d: &EffectDifference) -> bool {
+    let Some([r, _]) = d.recording else {
+        return false;
+    };
+    let p = d.effect.main_fitted();
+    let (a, b) = (
+        p.to_display(p.spec().plausible.0),
+        p.to_display(p.spec().plausible.1),
+    );
+    r >= a.min(b) && r <= a.max(b)
 }
 
 /// The physics a mended simulation should carry, from what it declares:
@@ -1473,7 +1494,9 @@ mod tests {
             differs,
         };
         let with_z = |effect: Effect, z: f64, v: DifferenceVerdict| {
-            let mut r = row(effect, "k", 1.0, 0.0, v);
+            let p = effect.main_fitted();
+            let typical = p.to_display(p.spec().typical);
+            let mut r = row(effect, "k", typical, 0.0, v);
             r.z = Some(z);
             r
         };
@@ -1520,6 +1543,15 @@ mod tests {
         // A named difference moves anyway; it is not a carrier.
         let named = [with_z(Effect::SideSlip, 5.0, DifferenceVerdict::Lacking)];
         assert!(remainder_carriers(&[], &fingerprints, &course, &named, 11.0).is_empty());
+        // A largest difference whose recording side is beyond the plausible
+        // range is passed over for the next (the track's, z -2.5).
+        let mut wild = effects.clone();
+        wild[0].recording = Some([1.0, 0.5]);
+        let c = remainder_carriers(&[], &fingerprints, &course, &wild, 11.0);
+        assert_eq!(
+            c.iter().map(|c| c.effect).collect::<Vec<_>>(),
+            [Effect::TrackWidth]
+        );
         // No channel differs: nothing carries.
         let alike = [channel("course_wheel", false)];
         assert!(remainder_carriers(&[], &fingerprints, &alike, &effects, 11.0).is_empty());
