@@ -34,7 +34,16 @@ fn wid_gyro_heading_beats_wheel_heading_and_every_outage_is_scored() {
         for report in [&wheels, &gyro] {
             // 134 s and 140 s of drive: starts every 10 s with 30 s left.
             assert_eq!(report.outages.len(), 11, "{name}: {:?}", report.warnings);
-            assert!(report.warnings.is_empty(), "{name}: {:?}", report.warnings);
+            // Nothing but the reading of a jittered logger's fixes at the
+            // receiver's epochs (wid-trial02: 3 ms).
+            assert!(
+                report
+                    .warnings
+                    .iter()
+                    .all(|w| w.starts_with("gnss: the stamps jitter by")),
+                "{name}: {:?}",
+                report.warnings
+            );
             // Both drives start standing: the first outages are aligned on the
             // track after their start, the others on the track before.
             assert_eq!(
