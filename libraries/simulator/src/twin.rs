@@ -509,20 +509,31 @@ impl TwinConfig {
                 y_m: g.y_m,
             })
             .collect();
-        // The fixes at the receiver's epochs: a logger's stamp jitter moves
-        // a fix along the track by its speed times the jitter, which the
-        // twin puts back on its own stamps (`restamp`): neither the path
-        // nor the noise measured about it holds it.
+        // The fixes at the receiver's epochs where the readers take them
+        // there (`stats::stamps::on_epochs`, the one decision): a logger's
+        // stamp jitter moves a fix along the track by its speed times the
+        // jitter, which the twin puts back on its own stamps (`restamp`),
+        // so neither the path nor the noise measured about it holds it.
+        // Where the readers keep the stamps (the jitter lost in the fixes'
+        // own noise: wid-trial04), so does the twin, and the twin is read
+        // as its recording is.
         let stamps: Vec<f64> = fixes.iter().map(|f| f.t_s).collect();
         let gnss_stamp_jitter = stamp_jitter(&stamps);
-        let at_epochs: Vec<TrackPoint> = stats::stamps::epochs_of(&stamps, &gnss_stamp_jitter)
-            .iter()
-            .zip(&track)
-            .map(|(e, p)| TrackPoint {
-                t_s: e - latency,
-                ..*p
-            })
-            .collect();
+        let xs: Vec<f64> = fixes.iter().map(|f| f.x_m).collect();
+        let ys: Vec<f64> = fixes.iter().map(|f| f.y_m).collect();
+        let read_at = stats::stamps::on_epochs(&stamps, &xs, &ys);
+        let at_epochs: Vec<TrackPoint> = match &read_at {
+            Some(r) => r
+                .epochs
+                .iter()
+                .zip(&track)
+                .map(|(e, p)| TrackPoint {
+                    t_s: e - latency,
+                    ..*p
+                })
+                .collect(),
+            None => track.clone(),
+        };
         let declared = match (
             drive.vehicle.gnss.antenna_x_m,
             drive.vehicle.gnss.antenna_y_m,
@@ -576,10 +587,10 @@ impl TwinConfig {
         // the slow wander and the path's placement, the path's shape (the
         // gyro's) takes out the motion; an error model refitted to the
         // residuals of the wheels splits white from wander less surely.
-        let at = if stamp_jitter_rms(&gnss_stamp_jitter) < 1e-4 {
-            ""
-        } else {
+        let at = if read_at.is_some() {
             ", at the receiver's epochs"
+        } else {
+            ""
         };
         // Two measures, each raised by what it does not model: the path's
         // by the wheels' progress it rides on (comma2k19's CAN speeds:

@@ -13,40 +13,7 @@
 use super::Finding;
 use interfaces::drive::Drive;
 
-/// Below this RMS jitter, s, the stamps are left as they are (3 mm at
-/// 30 m/s: below any receiver's noise).
-pub const MIN_JITTER_S: f64 = 1e-4;
-
-/// The epochs must take at least this share of the fixes' scatter about
-/// their neighbours' line (its square: a fifth of the variance) for the
-/// stamps to be moved: a jitter lost in the fixes' own noise changes
-/// nothing the models could use, and every detector downstream would
-/// re-measure the noise from a few per cent of difference (wid-trial04:
-/// 0.114 m at the stamps, 0.110 m at the epochs, kept).
-pub const MIN_SCATTER_GAIN: f64 = 0.1;
-
-/// The RMS distance of each fix from the line between its neighbours at
-/// times `t` (a fix with a neighbour more than 1.5 intervals away is left
-/// out), m, and how many fixes it was taken over.
-fn scatter(t: &[f64], x: &[f64], y: &[f64], dt: f64) -> (f64, usize) {
-    let (mut sum, mut n) = (0.0, 0usize);
-    for i in 1..t.len().saturating_sub(1) {
-        let (a, b) = (t[i] - t[i - 1], t[i + 1] - t[i]);
-        if a <= 0.0 || b <= 0.0 || a > 1.5 * dt || b > 1.5 * dt {
-            continue;
-        }
-        let w = a / (a + b);
-        let ex = x[i] - (x[i - 1] + w * (x[i + 1] - x[i - 1]));
-        let ey = y[i] - (y[i - 1] + w * (y[i + 1] - y[i - 1]));
-        sum += ex * ex + ey * ey;
-        n += 1;
-    }
-    if n == 0 {
-        (f64::NAN, 0)
-    } else {
-        ((sum / n as f64).sqrt(), n)
-    }
-}
+pub use stats::stamps::{MIN_JITTER_S, MIN_SCATTER_GAIN};
 
 /// `drive` with its GNSS fixes at the receiver's epochs, and a
 /// [`Finding::GnssStampsOnEpochs`] saying so; `None` when the stamps are
@@ -56,25 +23,14 @@ fn scatter(t: &[f64], x: &[f64], y: &[f64], dt: f64) -> (f64, usize) {
 pub fn gnss_on_epochs(drive: &Drive) -> Option<(Drive, Finding)> {
     let fixes = drive.gnss.as_deref()?;
     let stamps: Vec<f64> = fixes.iter().map(|f| f.t_s).collect();
-    let jitter = stats::stamps::stamp_jitter(&stamps);
-    let rms = stats::stamps::stamp_jitter_rms(&jitter);
-    if jitter.is_empty() || rms.is_nan() || rms < MIN_JITTER_S {
-        return None;
-    }
-    let epochs = stats::stamps::epochs_of(&stamps, &jitter);
-    if !epochs.windows(2).all(|w| w[1] > w[0]) {
-        return None;
-    }
-    let mut d: Vec<f64> = epochs.windows(2).map(|w| w[1] - w[0]).collect();
-    let dt = stats::upper_median(&mut d)?;
     let x: Vec<f64> = fixes.iter().map(|f| f.x_m).collect();
     let y: Vec<f64> = fixes.iter().map(|f| f.y_m).collect();
-    let (at_stamps, n) = scatter(&stamps, &x, &y, dt);
-    let (at_epochs, _) = scatter(&epochs, &x, &y, dt);
-    let gained = at_epochs <= (1.0 - MIN_SCATTER_GAIN) * at_stamps;
-    if n < 30 || !gained {
-        return None;
-    }
+    let stats::stamps::OnEpochs {
+        epochs,
+        jitter_rms_s: rms,
+        scatter_stamps_m: at_stamps,
+        scatter_epochs_m: at_epochs,
+    } = stats::stamps::on_epochs(&stamps, &x, &y)?;
     let moved = stamps.iter().zip(&epochs).filter(|(s, e)| s != e).count();
     let mut out = drive.clone();
     if let Some(g) = out.gnss.as_mut() {
