@@ -521,7 +521,7 @@ impl TwinConfig {
         let gnss_stamp_jitter = stamp_jitter(&stamps);
         let xs: Vec<f64> = fixes.iter().map(|f| f.x_m).collect();
         let ys: Vec<f64> = fixes.iter().map(|f| f.y_m).collect();
-        let read_at = stats::stamps::on_epochs(&stamps, &xs, &ys);
+        let read_at = stats::stamps::on_epochs_given(&stamps, &gnss_stamp_jitter, &xs, &ys);
         let at_epochs: Vec<TrackPoint> = match &read_at {
             Some(r) => r
                 .epochs

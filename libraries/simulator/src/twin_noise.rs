@@ -6,7 +6,7 @@
 
 use super::SimError;
 use interfaces::drive::{Drive, WheelUnit};
-pub use stats::stamps::{stamp_jitter, stamp_jitter_rms};
+pub use stats::stamps::{median_interval, stamp_jitter, stamp_jitter_rms};
 
 /// Wheels slower than this count as standing, m/s.
 pub const STANDSTILL_M_S: f64 = 0.05;
@@ -182,17 +182,6 @@ pub(crate) fn interp(x: &[f64], y: &[f64], x0: f64) -> f64 {
         return y[j];
     }
     y[i] + (x0 - x[i]) / dx * (y[j] - y[i])
-}
-
-/// The median of the intervals between successive times, s (`None` for
-/// fewer than two times).
-pub fn median_interval(t: &[f64]) -> Option<f64> {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return None;
-    }
-    d.sort_by(f64::total_cmp);
-    Some(d[d.len() / 2])
 }
 
 /// The rate whose period is `interval` rounded to a whole number of

@@ -18,6 +18,9 @@
 //! stamp, as a GNSS receiver does, to the filter behind the service's
 //! [`odometry::rewind::RewindingFusion`]; `FUSION_REWIND_WINDOW=SECONDS`
 //! sets its window (default 1 s; 0: late fixes applied when they come).
+//! `FUSION_AT_STAMPS=1` reads every fix at its stamp, as the service did
+//! before it read jittered fixes at the receiver's epochs
+//! ([`odometry::inputs::GnssEpochs`]).
 
 use anyhow::{bail, Result};
 use interfaces::drive::{Drive, TruthSample};
@@ -25,7 +28,7 @@ use interfaces::wire::PoseMode;
 use odometry::dead_reckoning::{HeadingMode, OdometerConfig};
 use odometry::fused_outages::{fused_outages, inside_95, median_error, FusedOutageConfig};
 use odometry::fusion::{Fusion, FusionConfig};
-use odometry::inputs::{drive_inputs, gnss_late, sort_by_delivery};
+use odometry::inputs::{drive_inputs, drive_inputs_at_stamps, gnss_late, sort_by_delivery, Input};
 use odometry::rewind::{RewindConfig, RewindingFusion};
 use std::path::PathBuf;
 use vehicle_model::estimate::gnss_lever_arm;
@@ -173,7 +176,7 @@ fn run_filter(
     let mut ti = 0usize;
     let verbose = std::env::var("FUSION_VERBOSE").is_ok();
     // In the order they are delivered: the fixes `gnss_late_s` after their time.
-    let mut delivered = drive_inputs(drive)?;
+    let mut delivered = inputs_of(drive)?;
     sort_by_delivery(&mut delivered, gnss_late(gnss_late_s));
     for input in delivered {
         let before = filter.fusion().stats();
@@ -243,7 +246,7 @@ fn print_outages(
         at_antenna,
         ..FusedOutageConfig::default()
     };
-    let outages = fused_outages(&drive_inputs(drive)?, truth, new_fusion, &config)?;
+    let outages = fused_outages(&inputs_of(drive)?, truth, new_fusion, &config)?;
     for o in &outages {
         let end = o.t_start_s + length;
         match o.error_m {
@@ -272,4 +275,16 @@ fn print_outages(
         println!("{inside} of {counted} end inside the 95 % ellipse of the pose's own covariance");
     }
     Ok(())
+}
+
+/// The drive's inputs as the service reads them, or at the stamps with
+/// `FUSION_AT_STAMPS=1`.
+fn inputs_of(drive: &Drive) -> Result<Vec<Input>> {
+    Ok(
+        if std::env::var("FUSION_AT_STAMPS").is_ok_and(|v| v == "1") {
+            drive_inputs_at_stamps(drive)?
+        } else {
+            drive_inputs(drive)?
+        },
+    )
 }

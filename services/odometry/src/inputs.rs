@@ -235,8 +235,60 @@ impl Sequencer {
 }
 
 /// Every sample of a drive that the odometry reads (never `truth`), in
-/// processing order. Wheel values become cumulative revolutions.
+/// processing order, as the service reads them: wheel values become
+/// cumulative revolutions, and GNSS fixes a logger stamped when they
+/// arrived are read at the receiver's epochs as they come
+/// ([`GnssEpochs`]).
 pub fn drive_inputs(drive: &Drive) -> Result<Vec<Input>, WheelConversionError> {
+    drive_inputs_with(drive, true)
+}
+
+/// [`drive_inputs`] with every GNSS fix at its stamp (what the service read
+/// before it took the epochs; for comparisons).
+pub fn drive_inputs_at_stamps(drive: &Drive) -> Result<Vec<Input>, WheelConversionError> {
+    drive_inputs_with(drive, false)
+}
+
+/// GNSS fixes read at the receiver's epochs as they come, in the odometry's
+/// terms: [`stats::stamps::LiveEpochs`] on each fix's stamp and position.
+/// The service and [`drive_inputs`] put every fix through one, in the
+/// order of its stamps, before the fix is sequenced.
+#[derive(Debug, Clone, Default)]
+pub struct GnssEpochs(stats::stamps::LiveEpochs);
+
+impl GnssEpochs {
+    /// No fix seen yet.
+    pub fn new() -> GnssEpochs {
+        GnssEpochs::default()
+    }
+
+    /// `input` with its time at the fix's epoch where it is read there; any
+    /// other input as it is.
+    pub fn read(&mut self, input: Input) -> Input {
+        match input {
+            Input::Gnss {
+                t_s,
+                x_m,
+                y_m,
+                sigma_m,
+            } => Input::Gnss {
+                t_s: self.0.push(t_s, x_m, y_m),
+                x_m,
+                y_m,
+                sigma_m,
+            },
+            other => other,
+        }
+    }
+
+    /// Fixes read at an epoch, fixes seen, and the RMS of the stamps'
+    /// departures from the epochs, s.
+    pub fn counts(&self) -> (u64, u64, f64) {
+        (self.0.moved(), self.0.seen(), self.0.jitter_rms_s())
+    }
+}
+
+fn drive_inputs_with(drive: &Drive, epochs: bool) -> Result<Vec<Input>, WheelConversionError> {
     let revs = drive.wheel_revolutions()?;
     let mut inputs: Vec<Input> = Vec::with_capacity(
         revs.len()
@@ -255,13 +307,15 @@ pub fn drive_inputs(drive: &Drive) -> Result<Vec<Input>, WheelConversionError> {
             gz_rad_s: s.gz_rad_s,
         });
     }
+    let mut reader = GnssEpochs::new();
     for s in drive.gnss.iter().flatten() {
-        inputs.push(Input::Gnss {
+        let fix = Input::Gnss {
             t_s: s.t_s,
             x_m: s.x_m,
             y_m: s.y_m,
             sigma_m: s.sigma_m,
-        });
+        };
+        inputs.push(if epochs { reader.read(fix) } else { fix });
     }
     for s in drive.heading.iter().flatten() {
         inputs.push(Input::Heading {

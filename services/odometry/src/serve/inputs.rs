@@ -5,7 +5,7 @@
 use super::clocks::describe_clocks;
 use interfaces::bus::{Bus, BusError, TopicSubscriber};
 use interfaces::wire::{CircumferenceEstimate, GnssFix, Heading, Imu, WheelRotations};
-use odometry::inputs::{Input, Sequencer};
+use odometry::inputs::{GnssEpochs, Input, Sequencer};
 use std::cell::{Cell, RefCell};
 use vehicle_model::estimate::{Estimate, StreamClocks};
 use vehicle_model::estimate_gate::EstimateGate;
@@ -22,6 +22,8 @@ pub(crate) struct Inputs {
     /// The sensor clocks of the estimate in use: the wheel and IMU stamps
     /// are put on the GNSS clock with them as they are drained.
     pub(crate) clocks: Cell<StreamClocks>,
+    /// The fixes read at the receiver's epochs as they come.
+    pub(crate) gnss_epochs: RefCell<GnssEpochs>,
 }
 
 impl Inputs {
@@ -34,6 +36,7 @@ impl Inputs {
             estimate: bus.subscriber()?,
             gate: RefCell::new(gate),
             clocks: Cell::new(StreamClocks::default()),
+            gnss_epochs: RefCell::new(GnssEpochs::new()),
         })
     }
 
@@ -73,12 +76,12 @@ impl Inputs {
             if s.fix == 0 {
                 continue; // "no fix": the position is not usable (wire contract)
             }
-            sequencer.push(Input::Gnss {
+            sequencer.push(self.gnss_epochs.borrow_mut().read(Input::Gnss {
                 t_s: s.header.t_s(),
                 x_m: s.x_m,
                 y_m: s.y_m,
                 sigma_m: (s.sigma_m > 0.0).then_some(s.sigma_m),
-            });
+            }));
         }
         while let Some(s) = self.heading.receive()? {
             sequencer.push(Input::Heading {

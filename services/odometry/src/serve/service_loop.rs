@@ -525,6 +525,7 @@ impl<'a> Serving<'a> {
         }
         let mut summary = self.summary;
         summary.lost = inputs.lost();
+        summary.gnss_epochs = inputs.gnss_epochs.borrow().counts();
         summary.estimate_version = self.filter.fusion().estimate_version();
         if let Some(path) = &self.config.latency_trace {
             write_latency_trace(path, &self.trace)?;

@@ -35,6 +35,10 @@ pub(crate) struct ServeSummary {
     pub(crate) rewind: RewindStats,
     /// The filter's counters at the end.
     pub(crate) fusion: FusionStats,
+    /// GNSS fixes read at the receiver's epochs, fixes seen, and the RMS of
+    /// the stamps' departures from the epochs, s
+    /// ([`odometry::inputs::GnssEpochs::counts`]).
+    pub(crate) gnss_epochs: (u64, u64, f64),
 }
 
 /// Warn about samples the sequencer dropped since the last report (and count them as skipped).
@@ -80,7 +84,8 @@ pub(crate) fn log_summary(summary: &ServeSummary, gyro_bias_rad_s: f64, window_s
     }
     tracing::info!(
         "odometry: {} wheel samples, {} poses published, {} estimate switch(es), {} samples lost on the bus; \
-         GNSS {} accepted / {} gated out, headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \
+         GNSS {} accepted / {} gated out ({} of {} read at the receiver's epochs, their stamps {:.1} ms RMS off), \
+         headings {} / {}; gyro bias {:.3e} rad/s ({} standstill measurement(s)); \
          {} late sample(s) taken in order ({} inputs processed again), {} later than the {} s window; \
          {} early wakeup(s) before a wheel sample",
         summary.wheel_samples,
@@ -89,6 +94,9 @@ pub(crate) fn log_summary(summary: &ServeSummary, gyro_bias_rad_s: f64, window_s
         summary.lost.iter().sum::<u64>(),
         stats.gnss_accepted,
         stats.gnss_rejected,
+        summary.gnss_epochs.0,
+        summary.gnss_epochs.1,
+        summary.gnss_epochs.2 * 1e3,
         stats.heading_accepted,
         stats.heading_rejected,
         gyro_bias_rad_s,
