@@ -24,9 +24,21 @@ fn run(b: Bin, args: &[&str]) -> String {
     text
 }
 
-fn named(json: &Path) -> Vec<String> {
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// `calibrator compare REC SIM --json JSON EXTRA...`: its text and its JSON.
+fn compare(rec: &str, sim: &str, json: &Path, extra: &[&str]) -> (String, serde_json::Value) {
+    let j = json.display().to_string();
+    let mut args = vec!["compare", rec, sim, "--json", &j];
+    args.extend(extra);
+    let text = run(Bin::Calibrator, &args);
+    (text, read_json(json))
+}
+
+/// The effects a comparison names (lacking or in excess).
+fn named(v: &serde_json::Value) -> Vec<String> {
     v["effects"]
         .as_array()
         .unwrap()
@@ -34,6 +46,16 @@ fn named(json: &Path) -> Vec<String> {
         .filter(|e| e["verdict"] == "lacking" || e["verdict"] == "excess")
         .map(|e| e["effect"].as_str().unwrap().to_string())
         .collect()
+}
+
+/// A comparison's residual channel by name.
+fn channel<'a>(v: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    v["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|ch| ch["channel"] == name)
+        .unwrap_or_else(|| panic!("the {name} channel"))
 }
 
 fn record(dir: &Path, name: &str, seed: &str, effects: &[&str]) -> String {
@@ -67,23 +89,13 @@ fn a_concealed_antenna_is_named_against_the_twin_and_gone_after_the_mend() {
         Bin::SensorBridge,
         &["simulate", "--like", &rec, "--seed", "1", "--out", &p("t0")],
     );
-    let text = run(
-        Bin::Calibrator,
-        &[
-            "compare",
-            &rec,
-            &p("t0"),
-            "--json",
-            &p("c1.json"),
-            "--plots",
-            &p("page"),
-        ],
+    let (text, c1) = compare(
+        &rec,
+        &p("t0"),
+        Path::new(&p("c1.json")),
+        &["--plots", &p("page")],
     );
-    assert_eq!(
-        named(Path::new(&p("c1.json"))),
-        vec!["gnss_lever_arm"],
-        "{text}"
-    );
+    assert_eq!(named(&c1), vec!["gnss_lever_arm"], "{text}");
     assert!(Path::new(&p("page")).join("index.html").is_file());
 
     run(
@@ -102,19 +114,13 @@ fn a_concealed_antenna_is_named_against_the_twin_and_gone_after_the_mend() {
     );
     let truth = std::fs::read_to_string(Path::new(&p("t1")).join("truth.toml")).unwrap();
     assert!(truth.contains("[effects.gnss_lever_arm]"), "{truth}");
-    let text = run(
-        Bin::Calibrator,
-        &[
-            "compare",
-            &rec,
-            &p("t1"),
-            "--json",
-            &p("c2.json"),
-            "--before",
-            &p("c1.json"),
-        ],
+    let (text, c2) = compare(
+        &rec,
+        &p("t1"),
+        Path::new(&p("c2.json")),
+        &["--before", &p("c1.json")],
     );
-    assert!(named(Path::new(&p("c2.json"))).is_empty(), "{text}");
+    assert!(named(&c2).is_empty(), "{text}");
     assert!(
         text.contains("before the mend: 1 named (gnss_lever_arm); now 0"),
         "{text}"
@@ -130,11 +136,8 @@ fn a_null_recording_against_its_twin_names_nothing() {
         Bin::SensorBridge,
         &["simulate", "--like", &rec, "--seed", "1", "--out", &p("t0")],
     );
-    let text = run(
-        Bin::Calibrator,
-        &["compare", &rec, &p("t0"), "--json", &p("c.json")],
-    );
-    assert!(named(Path::new(&p("c.json"))).is_empty(), "{text}");
+    let (text, c) = compare(&rec, &p("t0"), Path::new(&p("c.json")), &[]);
+    assert!(named(&c).is_empty(), "{text}");
 }
 
 /// The twin of a real drive carries its GNSS stamps' jitter: wid-trial02's
@@ -174,30 +177,14 @@ fn the_twin_of_a_real_drive_carries_its_gnss_stamp_jitter() {
         (t / r - 1.0).abs() < 0.25,
         "twin {t} s against the recording's {r} s"
     );
-    let c = dir.path().join("c.json");
-    run(
-        Bin::Calibrator,
-        &[
-            "compare",
-            &real_s,
-            &twin,
-            "--json",
-            &c.display().to_string(),
-        ],
-    );
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&c).unwrap()).unwrap();
-    let speed = v["channels"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|ch| ch["channel"] == "speed")
-        .expect("the speed channel");
+    let (_, v) = compare(&real_s, &twin, &dir.path().join("c.json"), &[]);
+    let speed = channel(&v, "speed");
     assert_eq!(speed["differs"], false, "{speed}");
 }
 
 /// The twin of a drive whose logger stamps its fixes on arrival holds the
 /// recording's noise, not the stamps' jitter twice: comma2k19's 10 Hz fixes
-/// are stamped 8.8 ms RMS off the receiver's epochs, 0.15 m along the
+/// are stamped 9.2 ms RMS off the receiver's epochs, 0.15 m along the
 /// track at highway speed, ten times the fixes' own scatter. The recording
 /// is read at its epochs (the calibrator says so), the twin measures its
 /// GNSS noise at them and puts the jitter back on its own stamps; each
@@ -219,8 +206,7 @@ fn the_twin_of_a_jittered_highway_drive_carries_the_recordings_noise() {
         Bin::Calibrator,
         &["calibrate", &real_s, "--json", &cal.display().to_string()],
     );
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    let v = read_json(&cal);
     assert!(
         v["warnings"]
             .as_array()
@@ -234,18 +220,7 @@ fn the_twin_of_a_jittered_highway_drive_carries_the_recordings_noise() {
         Bin::SensorBridge,
         &["simulate", "--like", &real_s, "--out", &twin],
     );
-    let c = dir.path().join("c.json");
-    run(
-        Bin::Calibrator,
-        &[
-            "compare",
-            &real_s,
-            &twin,
-            "--json",
-            &c.display().to_string(),
-        ],
-    );
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&c).unwrap()).unwrap();
+    let (_, v) = compare(&real_s, &twin, &dir.path().join("c.json"), &[]);
     let channels = v["channels"].as_array().unwrap();
     assert!(channels.len() >= 5, "{channels:?}");
     for ch in channels {

@@ -442,9 +442,8 @@ pub fn compare(
     // What carries the channels that still differ (a mend against a
     // declared simulation only).
     let carriers = if declared.is_some() {
-        let found: Vec<Effect> = recording.findings.iter().map(|f| f.effect).collect();
         remainder_carriers(
-            &found,
+            recording.findings.iter().map(|f| f.effect),
             &recording.fingerprints,
             &channels,
             &effects,
@@ -486,12 +485,7 @@ pub fn compare(
         m.named_in_channel = effects
             .iter()
             .filter(|d| d.verdict.named())
-            .filter(|d| {
-                recording
-                    .fingerprints
-                    .iter()
-                    .any(|(e, chs)| *e == d.effect && chs.contains(&Channel::Speed))
-            })
+            .filter(|d| shows_in(&recording.fingerprints, d.effect, Channel::Speed.name()))
             .map(|d| d.effect.to_string())
             .collect();
         m.unexplained =
@@ -507,10 +501,11 @@ pub fn compare(
         .any(|c| c.channel == Channel::CourseWheel.name() && c.differs)
         && !effects.iter().any(|d| {
             d.verdict.named()
-                && recording
-                    .fingerprints
-                    .iter()
-                    .any(|(e, chs)| *e == d.effect && chs.contains(&Channel::CourseWheel))
+                && shows_in(
+                    &recording.fingerprints,
+                    d.effect,
+                    Channel::CourseWheel.name(),
+                )
         });
     let yaw_wander = match (&recording.yaw_wander, &simulation.yaw_wander) {
         (Some(r), Some(s)) => Some(wander_difference(r, s, carried.yaw_wander, course_open)),
@@ -1038,25 +1033,20 @@ struct Carrier {
 /// `found`: the recording's findings; `fingerprints`: the recording's
 /// channels per candidate effect.
 fn remainder_carriers(
-    found: &[Effect],
+    found: impl IntoIterator<Item = Effect>,
     fingerprints: &[(Effect, Vec<Channel>)],
     channels: &[ChannelDistance],
     effects: &[EffectDifference],
     dof: f64,
 ) -> Vec<Carrier> {
-    let in_channel = |e: Effect, ch: &str| {
-        fingerprints
-            .iter()
-            .any(|(fe, chs)| *fe == e && chs.iter().any(|c| c.name() == ch))
-    };
+    let in_channel = |e: Effect, ch: &str| shows_in(fingerprints, e, ch);
     let differing: Vec<&str> = channels
         .iter()
         .filter(|c| c.differs)
         .map(|c| c.channel)
         .collect();
     let mut out: Vec<Carrier> = found
-        .iter()
-        .copied()
+        .into_iter()
         .filter(|&e| differing.iter().any(|ch| in_channel(e, ch)))
         .map(|effect| Carrier {
             effect,
@@ -1085,6 +1075,15 @@ fn remainder_carriers(
         }
     }
     out
+}
+
+/// Whether `effect`'s fingerprint (`fingerprints`: the recording's
+/// channels per candidate effect) is in the residual channel named
+/// `channel`.
+fn shows_in(fingerprints: &[(Effect, Vec<Channel>)], effect: Effect, channel: &str) -> bool {
+    fingerprints
+        .iter()
+        .any(|(e, chs)| *e == effect && chs.iter().any(|c| c.name() == channel))
 }
 
 /// Whether the recording's estimate of `d`'s effect lies within the
@@ -1517,7 +1516,7 @@ mod tests {
         ];
         let course = [channel("course_wheel", true), channel("course_gyro", false)];
         // Nothing found in the recording: the course's largest difference.
-        let c = remainder_carriers(&[], &fingerprints, &course, &effects, 11.0);
+        let c = remainder_carriers([], &fingerprints, &course, &effects, 11.0);
         assert_eq!(c.len(), 1, "{c:?}");
         assert_eq!(c[0].effect, Effect::SideSlip);
         assert!(c[0].why.contains("course_wheel"), "{}", c[0].why);
@@ -1525,13 +1524,7 @@ mod tests {
         assert!(c.iter().all(|c| c.effect != Effect::GyroBias));
         // A found effect in the channel carries it, and the largest
         // difference beside it.
-        let c = remainder_carriers(
-            &[Effect::TrackWidth],
-            &fingerprints,
-            &course,
-            &effects,
-            11.0,
-        );
+        let c = remainder_carriers([Effect::TrackWidth], &fingerprints, &course, &effects, 11.0);
         assert_eq!(
             c.iter().map(|c| c.effect).collect::<Vec<_>>(),
             [Effect::TrackWidth, Effect::SideSlip]
@@ -1539,22 +1532,22 @@ mod tests {
         assert!(c[0].why.contains("found in the recording"), "{}", c[0].why);
         // Below two-sided 5 % nothing is picked (t on 11 dof: 2.20).
         let weak = [with_z(Effect::SideSlip, 2.1, DifferenceVerdict::Alike)];
-        assert!(remainder_carriers(&[], &fingerprints, &course, &weak, 11.0).is_empty());
+        assert!(remainder_carriers([], &fingerprints, &course, &weak, 11.0).is_empty());
         // A named difference moves anyway; it is not a carrier.
         let named = [with_z(Effect::SideSlip, 5.0, DifferenceVerdict::Lacking)];
-        assert!(remainder_carriers(&[], &fingerprints, &course, &named, 11.0).is_empty());
+        assert!(remainder_carriers([], &fingerprints, &course, &named, 11.0).is_empty());
         // A largest difference whose recording side is beyond the plausible
         // range is passed over for the next (the track's, z -2.5).
         let mut wild = effects.clone();
         wild[0].recording = Some([1.0, 0.5]);
-        let c = remainder_carriers(&[], &fingerprints, &course, &wild, 11.0);
+        let c = remainder_carriers([], &fingerprints, &course, &wild, 11.0);
         assert_eq!(
             c.iter().map(|c| c.effect).collect::<Vec<_>>(),
             [Effect::TrackWidth]
         );
         // No channel differs: nothing carries.
         let alike = [channel("course_wheel", false)];
-        assert!(remainder_carriers(&[], &fingerprints, &alike, &effects, 11.0).is_empty());
+        assert!(remainder_carriers([], &fingerprints, &alike, &effects, 11.0).is_empty());
     }
 
     #[test]
