@@ -282,8 +282,7 @@ fn check_claimed_sigma(fixes: &[Fix], warnings: &mut Vec<Warning>) -> Option<Sig
 /// +-[`CLOCK_SEARCH_S`] with [`offsets::fit_lag`]: the speed of the smoothed
 /// GNSS track against the wheel speed at shifted times, `sum (v_gnss(t) - k
 /// v_wheel(t - tau))^2` (k absorbs the unknown circumference; coarse grid,
-/// then the fine grid and parabola near its minimum; its sigma includes the
-/// lag of a typical longitudinal slip, [`longitudinal_slip_lag`]); where the speed hardly
+/// then the fine grid and parabola near its minimum); where the speed hardly
 /// changes, the GNSS course rate against the wheels' yaw rate (its sigma
 /// includes the side-slip lag `SLIP_GAIN_TYPICAL v`). Not
 /// determined (with the reason and the manoeuvre that would determine it)
@@ -323,11 +322,7 @@ fn estimate_time_offset(p: &Series, track: &PosTrack, rates: &CourseRates) -> St
             intercept,
         )
     };
-    let slip_lag_s = longitudinal_slip_lag(&speeds);
-    let by_speed = fit(&speeds, &speed, false).map(|mut f| {
-        f.sigma_s = f.sigma_s.hypot(slip_lag_s);
-        f
-    });
+    let by_speed = fit(&speeds, &speed, false);
     if let Ok(f) = offsets::judge(by_speed, CLOCK_SEARCH_S) {
         // Determined by the speed: the course rate is not needed.
         return offsets::StreamOffset::determined(&f, "speed");
@@ -342,36 +337,6 @@ fn estimate_time_offset(p: &Series, track: &PosTrack, rates: &CourseRates) -> St
         CLOCK_SEARCH_S,
         "speed changes (accelerating and braking) or turns with GNSS",
     )
-}
-
-/// The lag a longitudinal slip of the catalogue's typical size puts on an
-/// offset found from the speed, s: the wheels turn as if the car went
-/// v (1 + k_s a_x), so the wheel speed leads the GNSS speed by about
-/// k_s v whenever the car accelerates or brakes, and the speed alone
-/// cannot tell that from a late GNSS clock (`speeds`: the GNSS speeds the
-/// offset is fitted to, m/s). Weighted by the acceleration's square, as
-/// the fit is. On comma2k19 the speed reads the GNSS 86 ms late where
-/// `calibrator diagnose`, from the positions, finds a slip k_s 0.0058 and
-/// a latency of -6 ± 12 ms: k_s times the speed is the 86 ms.
-fn longitudinal_slip_lag(speeds: &[(f64, f64)]) -> f64 {
-    let k_s = interfaces::effects::Param::LongitudinalSlipGain
-        .spec()
-        .typical;
-    let (mut sum_va2, mut sum_a2) = (0.0, 0.0);
-    for w in speeds.windows(3) {
-        let dt = w[2].0 - w[0].0;
-        if dt <= 0.0 || dt > 2.0 {
-            continue;
-        }
-        let a = (w[2].1 - w[0].1) / dt;
-        sum_va2 += w[1].1 * a * a;
-        sum_a2 += a * a;
-    }
-    if sum_a2 > 0.0 {
-        k_s * sum_va2 / sum_a2
-    } else {
-        0.0
-    }
 }
 
 /// The GNSS course rate at the accepted epochs of the smoothed track (both
