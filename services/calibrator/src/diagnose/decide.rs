@@ -518,6 +518,100 @@ pub(super) fn implausible(stats: &BlockStats, base: &[usize], cand: &Candidate) 
         .collect()
 }
 
+/// A found effect against one of its catalogue partners (an effect the
+/// catalogue lists as confusable with it, either way round): each alone
+/// under the information source the found effect was decided under, and
+/// the partner's fit with every other effect of that source free, the
+/// found one included. The name is chosen by the joint likelihood
+/// ([`holm`]); this says by how much the two one-effect explanations
+/// differ, and what would settle it where the margin is thin.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PartnerMargin {
+    /// The partner.
+    pub effect: Effect,
+    /// The found effect alone (the nuisances profiled out), its Wald z.
+    pub found_alone_z: f64,
+    /// The partner alone under the same source, its Wald z.
+    pub partner_alone_z: f64,
+    /// `found_alone_z^2 - partner_alone_z^2`: twice the log-likelihood
+    /// ratio of the found effect alone against the partner alone, each one
+    /// parameter on the same fixes (positive: the fixes prefer the found
+    /// effect).
+    pub margin: f64,
+    /// The partner's estimate, sigma (reported unit) and z with every
+    /// other effect free, where the fit exists.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub partner_joint: Option<[f64; 3]>,
+    /// The manoeuvre that would tell the two apart.
+    pub separate_by: String,
+}
+
+/// Whether the catalogue lists `a` and `b` as partners (either way round).
+fn partners(a: Effect, b: Effect) -> bool {
+    let listed = |x: Effect, y: Effect| x.spec().partners.iter().any(|(e, _)| *e == y);
+    a != b && (listed(a, b) || listed(b, a))
+}
+
+/// `effect`'s margins against its catalogue partners in `limit`: those
+/// whose fit alone exists under the source `effect` is decided under.
+pub fn partner_margins(effect: Effect, limit: &InformationLimit) -> Vec<PartnerMargin> {
+    let Some(own) = limit.effects.iter().find(|l| l.effect == effect) else {
+        return Vec::new();
+    };
+    let Some(own_z) = own.wald_z.filter(|z| z.is_finite()) else {
+        return Vec::new();
+    };
+    limit
+        .effects
+        .iter()
+        .filter(|l| partners(effect, l.effect) && l.source == own.source)
+        .filter_map(|l| {
+            let z = l.wald_z.filter(|z| z.is_finite())?;
+            let partner_joint = l
+                .joint
+                .as_ref()
+                .and_then(|j| Some([j.estimate?, j.sigma?, j.wald_z?]));
+            Some(PartnerMargin {
+                effect: l.effect,
+                found_alone_z: own_z,
+                partner_alone_z: z,
+                margin: own_z * own_z - z * z,
+                partner_joint,
+                separate_by: effect.separate_from(l.effect),
+            })
+        })
+        .collect()
+}
+
+/// The margins in words, for a finding's evidence: only partners that
+/// alone would pass a two-sided 5 % test (|z| above 1.96), a rival worth
+/// naming; `None` when there is none.
+pub fn margins_in_words(
+    margins: &[PartnerMargin],
+    unit_of: &dyn Fn(Effect) -> String,
+) -> Option<String> {
+    let words: Vec<String> = margins
+        .iter()
+        .filter(|m| m.partner_alone_z.abs() > 1.96)
+        .map(|m| {
+            let joint = m.partner_joint.map_or(String::new(), |[e, s, z]| {
+                format!(
+                    "; {} with it free {e:.3e} ± {s:.1e} {} (z {z:.1})",
+                    m.effect,
+                    unit_of(m.effect)
+                )
+            });
+            format!(
+                "named over {} (a catalogue partner) by a likelihood margin of {:.0} in \
+                 chi-square: alone z {:.1} against {:.1}{joint}; what would tell them \
+                 apart: {}",
+                m.effect, m.margin, m.found_alone_z, m.partner_alone_z, m.separate_by
+            )
+        })
+        .collect();
+    (!words.is_empty()).then(|| words.join("; "))
+}
+
 #[cfg(test)]
 pub(super) mod tests {
     use super::super::design::{Channel, SEEN_BY_GYRO};
@@ -749,6 +843,48 @@ pub(super) mod tests {
             calibration_noise_north: None,
             effects: vec![l],
         }
+    }
+
+    /// A slip found beside a latency the fixes also show alone: the margin
+    /// is the difference of the two squares, the partner's joint fit and
+    /// the manoeuvre that separates them come with it; an effect the
+    /// catalogue does not list beside it (the antenna, the track) and a
+    /// partner under another source are left out.
+    #[test]
+    fn a_finding_reports_its_margin_against_its_catalogue_partners() {
+        let mut limit = wheels_decided(Effect::LongitudinalSlip, 16.0, None);
+        let latency = wheels_decided(Effect::GnssLatency, 10.0, None).effects[0].clone();
+        let antenna = wheels_decided(Effect::GnssLeverArm, 12.0, None).effects[0].clone();
+        let track = wheels_decided(Effect::TrackWidth, 30.0, None).effects[0].clone();
+        limit.effects.extend([latency, antenna, track]);
+        let m = partner_margins(Effect::LongitudinalSlip, &limit);
+        assert_eq!(m.len(), 1, "{m:?}");
+        assert_eq!(m[0].effect, Effect::GnssLatency);
+        assert!(
+            (m[0].margin - (16.0 * 16.0 - 10.0 * 10.0)).abs() < 1e-6,
+            "{}",
+            m[0].margin
+        );
+        assert!(m[0].partner_joint.is_some());
+        assert!(m[0].separate_by.contains("corners"), "{}", m[0].separate_by);
+        let words = margins_in_words(&m, &|_| "s".to_string()).expect("a rival worth naming");
+        assert!(
+            words.contains("gnss_latency") && words.contains("156"),
+            "{words}"
+        );
+        // Either way round: the latency's margin against the slip is negative.
+        let back = partner_margins(Effect::GnssLatency, &limit);
+        assert!(back
+            .iter()
+            .any(|b| b.effect == Effect::LongitudinalSlip && b.margin < 0.0));
+        // A partner too weak alone to be a rival is kept, not worded.
+        limit.effects[1].wald_z = Some(1.0);
+        let m = partner_margins(Effect::LongitudinalSlip, &limit);
+        assert_eq!(m.len(), 1);
+        assert!(margins_in_words(&m, &|_| String::new()).is_none());
+        // A partner decided under another source has no margin here.
+        limit.effects[1].source = InformationSource::PositionsGyroHeading;
+        assert!(partner_margins(Effect::LongitudinalSlip, &limit).is_empty());
     }
 
     #[test]

@@ -257,6 +257,10 @@ pub struct Finding {
     pub wald_z: Option<f64>,
     /// Why it is believed, in words.
     pub evidence: String,
+    /// Against each of its catalogue partners, how much the fixes prefer
+    /// it ([`decide::partner_margins`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub partners: Vec<decide::PartnerMargin>,
 }
 
 impl Finding {
@@ -1016,6 +1020,20 @@ pub fn diagnose_with_progress(
             .iter()
             .find(|t| t.effect == cand.effect)
             .map(|t| t.z);
+        let partners = information_limit
+            .as_ref()
+            .map(|l| decide::partner_margins(cand.effect, l))
+            .unwrap_or_default();
+        let unit_of = |e: Effect| {
+            information_limit
+                .as_ref()
+                .and_then(|l| l.effects.iter().find(|x| x.effect == e))
+                .map_or(String::new(), |x| x.unit.to_string())
+        };
+        let evidence = match decide::margins_in_words(&partners, &unit_of) {
+            Some(words) => format!("{evidence}; {words}"),
+            None => evidence,
+        };
         findings.push(Finding {
             effect: cand.effect,
             variant: cand.variant.clone(),
@@ -1031,6 +1049,7 @@ pub fn diagnose_with_progress(
             decided_by,
             wald_z,
             evidence,
+            partners,
         });
         rmse_prev = rmse_now;
     }

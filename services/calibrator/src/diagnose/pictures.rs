@@ -1192,6 +1192,7 @@ mod tests {
             decided_by: super::super::DecidedBy::HeldOut,
             wald_z: None,
             evidence: evidence.to_string(),
+            partners: Vec::new(),
         }
     }
 
