@@ -108,6 +108,19 @@ fn a_real_drive_is_calibrated_live_and_the_odometry_takes_the_estimate() {
         "{odo_log}"
     );
 
+    // The service read the jittered fixes at the receiver's epochs as they
+    // came (the calibrator reads this drive at its epochs too).
+    let read_at_epochs = odo_log
+        .split(" read at the receiver's epochs")
+        .next()
+        .and_then(|head| head.rsplit('(').next())
+        .and_then(|counts| counts.split(" of ").next())
+        .and_then(|n| n.trim().parse::<u64>().ok());
+    assert!(
+        read_at_epochs.is_some_and(|n| n > 0),
+        "fixes read at the receiver's epochs: {read_at_epochs:?}\n{odo_log}"
+    );
+
     // The live estimate (fitted before the drive's held-out end) agrees with
     // the offline one on the whole drive within 3 mm (about 0.15 %); both are
     // far from the 1.85 m tyre-size guess.

@@ -949,8 +949,14 @@ fn jackknife(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<D
 /// the error model's sigma of the whole was 0.55 mm. Three runs, not
 /// more: each must be longer than the GNSS error's correlation time, or
 /// the runs move together and the spread is too small (as the block
-/// jackknife's is). `None` for fewer than three blocks or a run whose
-/// removal leaves the fit singular.
+/// jackknife's is). The circumferences only (the first two parameters;
+/// every other row and column zero): a parameter whose information sits in
+/// one stretch of the drive, the antenna's and the track's in its turns,
+/// is barely determined without that third, and the spread would be that
+/// third's absence rather than the estimate's error (wid-trial02's one
+/// U-turn put the antenna's lateral sigma over the 0.1 m the odometry
+/// fuses it at). `None` for fewer than three blocks or a run whose removal
+/// leaves the fit singular.
 fn thirds(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<DMatrix<f64>> {
     let all: Vec<(usize, usize)> = evals
         .iter()
@@ -977,7 +983,15 @@ fn thirds(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<DMat
             .collect();
         estimates.push(solve_reduced(model, &kept)?);
     }
-    jackknife_covariance(&estimates).filter(|c| c.iter().all(|v| v.is_finite()))
+    let mut c = jackknife_covariance(&estimates).filter(|c| c.iter().all(|v| v.is_finite()))?;
+    for i in 0..c.nrows() {
+        for j in 0..c.ncols() {
+            if i >= 2 || j >= 2 {
+                c[(i, j)] = 0.0;
+            }
+        }
+    }
+    Some(c)
 }
 
 /// The covariance of the global parameters from an error model of the
