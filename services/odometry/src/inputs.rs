@@ -264,21 +264,11 @@ impl GnssEpochs {
 
     /// `input` with its time at the fix's epoch where it is read there; any
     /// other input as it is.
-    pub fn read(&mut self, input: Input) -> Input {
-        match input {
-            Input::Gnss {
-                t_s,
-                x_m,
-                y_m,
-                sigma_m,
-            } => Input::Gnss {
-                t_s: self.0.push(t_s, x_m, y_m),
-                x_m,
-                y_m,
-                sigma_m,
-            },
-            other => other,
+    pub fn read(&mut self, mut input: Input) -> Input {
+        if let Input::Gnss { t_s, x_m, y_m, .. } = &mut input {
+            *t_s = self.0.push(*t_s, *x_m, *y_m);
         }
+        input
     }
 
     /// Fixes read at an epoch, fixes seen, and the RMS of the stamps'
