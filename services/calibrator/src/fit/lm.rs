@@ -494,9 +494,6 @@ pub struct Fit {
     pub formal: DMatrix<f64>,
     /// Block-jackknife covariance, when there were enough blocks.
     pub jackknife: Option<DMatrix<f64>>,
-    /// The delete-a-third jackknife's covariance ([`thirds`]): a floor
-    /// under the other sources.
-    pub thirds: Option<DMatrix<f64>>,
     /// Covariance from the error model fitted to the residuals
     /// ([`crate::sigmas::uncertainty::correlated_covariance`]), when it could be fitted.
     pub correlated: Option<DMatrix<f64>>,
@@ -792,14 +789,12 @@ fn covariance(
         None => (None, None),
     };
     let jackknife = jackknife(model, &evals, &accs);
-    let thirds = thirds(model, &evals, &accs);
     let model_track = ModelTrack::from_evals(&mut evals);
     Ok(Fit {
         model_track,
         g: g.to_vec(),
         formal,
         jackknife,
-        thirds,
         correlated,
         error_model,
         residual_rms_m: (sums.sum_sq_m / n_res.max(1) as f64).sqrt(),
@@ -936,64 +931,6 @@ fn jackknife(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<D
     }
 }
 
-/// The delete-a-third jackknife: the drive's blocks of fixes in time
-/// order cut into three runs, the fit (linearised at its solution) repeated
-/// without each, and the spread of the three as the covariance,
-/// `(3-1)/3 sum (x_k - mean)(x_k - mean)^T`. What moves a third of the
-/// drive against the rest (a stretch of correlated GNSS error longer than
-/// the error model's fit can pin down, physics the model leaves out that
-/// acts in one part of the drive) is in it; a drive whose error model
-/// holds gives it the same size as the model's on average, and the
-/// larger of the two is kept. On comma2k19 the three thirds calibrated
-/// apart read 2.2236, 2.2181 and 2.2233 m with sigmas of 0.6-1.2 mm each;
-/// the error model's sigma of the whole was 0.55 mm. Three runs, not
-/// more: each must be longer than the GNSS error's correlation time, or
-/// the runs move together and the spread is too small (as the block
-/// jackknife's is). The circumferences only (the first two parameters;
-/// every other row and column zero): a parameter whose information sits in
-/// one stretch of the drive, the antenna's and the track's in its turns,
-/// is barely determined without that third, and the spread would be that
-/// third's absence rather than the estimate's error (wid-trial02's one
-/// U-turn put the antenna's lateral sigma over the 0.1 m the odometry
-/// fuses it at). `None` for fewer than three blocks or a run whose removal
-/// leaves the fit singular.
-fn thirds(model: &dyn StepModel, evals: &[SegEval], accs: &[Acc]) -> Option<DMatrix<f64>> {
-    let all: Vec<(usize, usize)> = evals
-        .iter()
-        .enumerate()
-        .flat_map(|(si, e)| (0..e.blocks.len()).map(move |b| (si, b)))
-        .collect();
-    if all.len() < 3 || accs.len() != evals.len() {
-        return None;
-    }
-    let mut estimates = Vec::with_capacity(3);
-    for k in 0..3 {
-        let mut left = accs.to_vec();
-        for &(si, b) in &all[k * all.len() / 3..(k + 1) * all.len() / 3] {
-            left[si] = left[si].sub(&evals[si].blocks[b]);
-        }
-        // A segment left with (next to) none of its fixes goes.
-        let kept: Vec<Acc> = left
-            .into_iter()
-            .zip(accs)
-            .filter(|(a, whole)| {
-                a.hll.try_inverse().is_some() && a.hll.trace() >= 1e-9 * whole.hll.trace()
-            })
-            .map(|(a, _)| a)
-            .collect();
-        estimates.push(solve_reduced(model, &kept)?);
-    }
-    let mut c = jackknife_covariance(&estimates).filter(|c| c.iter().all(|v| v.is_finite()))?;
-    for i in 0..c.nrows() {
-        for j in 0..c.ncols() {
-            if i >= 2 || j >= 2 {
-                c[(i, j)] = 0.0;
-            }
-        }
-    }
-    Some(c)
-}
-
 /// The covariance of the global parameters from an error model of the
 /// residuals ([`crate::error_model`]): the fit linearised at its solution,
 /// the model fitted through it, the covariance under the least favourable
@@ -1033,24 +970,21 @@ fn error_model_covariance(
 
 impl Fit {
     /// The covariances the sigmas come from: the formal one (a floor), and
-    /// the error model's where it could be fitted, else the jackknife's,
-    /// and the delete-a-third jackknife's (a floor too).
-    fn sigma_sources(&self) -> [Option<&DMatrix<f64>>; 3] {
+    /// the error model's where it could be fitted, else the jackknife's.
+    fn sigma_sources(&self) -> [Option<&DMatrix<f64>>; 2] {
         [
             Some(&self.formal),
             self.correlated.as_ref().or(self.jackknife.as_ref()),
-            self.thirds.as_ref(),
         ]
     }
 
-    /// Sigmas: the largest of the sources' values, entry by entry.
+    /// Sigmas: the larger of the sources' values, entry by entry.
     pub fn sigmas(&self) -> Sigmas {
-        self.sigma_sources()
-            .iter()
-            .flatten()
-            .fold(Sigmas::from_covariance(&self.formal), |s, c| {
-                s.max(Sigmas::from_covariance(c))
-            })
+        let formal = Sigmas::from_covariance(&self.formal);
+        match self.sigma_sources()[1] {
+            Some(c) => formal.max(Sigmas::from_covariance(c)),
+            None => formal,
+        }
     }
 
     /// The variance of parameter `i`: the larger of the sources'.
