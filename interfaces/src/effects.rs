@@ -259,9 +259,10 @@ impl Effect {
             .find(|p| p.spec().name == name)
     }
 
-    /// How to tell `self` and `other` apart: the catalogue's manoeuvre for
-    /// a known pair, otherwise more of what each needs.
-    pub fn separate_from(self, other: Effect) -> String {
+    /// The catalogue's manoeuvre that tells `self` and `other` apart, where
+    /// either lists the other among its partners (the effects it is
+    /// confusable with); `None` for a pair the catalogue does not list.
+    pub fn partner_manoeuvre(self, other: Effect) -> Option<&'static str> {
         let listed = |a: Effect, b: Effect| {
             a.spec()
                 .partners
@@ -269,7 +270,13 @@ impl Effect {
                 .find(|(p, _)| *p == b)
                 .map(|(_, how)| *how)
         };
-        match listed(self, other).or_else(|| listed(other, self)) {
+        listed(self, other).or_else(|| listed(other, self))
+    }
+
+    /// How to tell `self` and `other` apart: the catalogue's manoeuvre for
+    /// a known pair, otherwise more of what each needs.
+    pub fn separate_from(self, other: Effect) -> String {
+        match self.partner_manoeuvre(other) {
             Some(how) => how.to_string(),
             None => format!(
                 "a drive with more of: {}; and {}",

@@ -249,15 +249,15 @@ pub const LIVE_DECIDE_EVERY: usize = 20;
 /// It keeps the newest [`LIVE_WINDOW_FIXES`] fixes of the current run and,
 /// every [`LIVE_DECIDE_EVERY`] fixes, takes [`on_epochs`]' decision on
 /// them: where the epochs would bring the fixes closer to a smooth motion,
-/// the grid (the newest epoch there and the interval counted over the
-/// window) gives each new fix its epoch, the nearest grid time after the
-/// previous one; a fix that falls half an interval or more off the grid
-/// keeps its stamp. Until the first decision, where the decision says no,
-/// after a gap of more than [`MAX_COUNTED_GAP`] intervals and after a
-/// stamp that does not increase (a clock reset), fixes keep their stamps;
-/// the last two start a new run. The epoch's phase is the running median
-/// of the stamps' departures from the grid, as in [`stamp_jitter`], so a
-/// constant latency of the logger is kept: only the jitter about it goes.
+/// the grid through the window's epochs (its interval and phase medians,
+/// as the whole drive's) gives each new fix its epoch, the nearest grid
+/// time after the previous one; a fix that falls half an interval or more
+/// off the grid keeps its stamp. Until the first decision, where the
+/// decision says no, after a gap of more than [`MAX_COUNTED_GAP`]
+/// intervals and after a stamp that does not increase (a clock reset),
+/// fixes keep their stamps; the last two start a new run. The window's
+/// epochs keep the stamps' slow part ([`stamp_jitter`]), so a constant
+/// latency of the logger is kept: only the jitter about it goes.
 #[derive(Debug, Clone, Default)]
 pub struct LiveEpochs {
     window: std::collections::VecDeque<(f64, f64, f64)>,
@@ -348,12 +348,14 @@ impl LiveEpochs {
         self.last_time = None;
     }
 
+    /// The median interval of the newest 11 stamps (`None` for fewer).
     fn typical_interval(&self) -> Option<f64> {
-        let t: Vec<f64> = self.window.iter().map(|w| w.0).collect();
-        if t.len() < 11 {
+        let n = self.window.len();
+        if n < 11 {
             return None;
         }
-        median_interval(&t[t.len() - 11..])
+        let t: Vec<f64> = self.window.range(n - 11..).map(|w| w.0).collect();
+        median_interval(&t)
     }
 
     /// [`on_epochs`] on the window; the grid of its newest epoch.

@@ -546,12 +546,6 @@ pub struct PartnerMargin {
     pub separate_by: String,
 }
 
-/// Whether the catalogue lists `a` and `b` as partners (either way round).
-fn partners(a: Effect, b: Effect) -> bool {
-    let listed = |x: Effect, y: Effect| x.spec().partners.iter().any(|(e, _)| *e == y);
-    a != b && (listed(a, b) || listed(b, a))
-}
-
 /// `effect`'s margins against its catalogue partners in `limit`: those
 /// whose fit alone exists under the source `effect` is decided under.
 pub fn partner_margins(effect: Effect, limit: &InformationLimit) -> Vec<PartnerMargin> {
@@ -564,7 +558,11 @@ pub fn partner_margins(effect: Effect, limit: &InformationLimit) -> Vec<PartnerM
     limit
         .effects
         .iter()
-        .filter(|l| partners(effect, l.effect) && l.source == own.source)
+        .filter(|l| {
+            l.effect != effect
+                && effect.partner_manoeuvre(l.effect).is_some()
+                && l.source == own.source
+        })
         .filter_map(|l| {
             let z = l.wald_z.filter(|z| z.is_finite())?;
             let partner_joint = l
