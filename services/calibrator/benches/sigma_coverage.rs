@@ -48,6 +48,7 @@ fn main() {
         .unwrap_or(9);
     let mut tallies: BTreeMap<(String, &str), Tally> = BTreeMap::new();
     let mut drives = 0;
+    let mut floored_drives = 0usize;
     for (noise, white, gm, tau) in NOISE {
         for (scenario, share) in SCENARIOS {
             for seed in 1..=(seeds / share).max(1) {
@@ -123,8 +124,15 @@ fn main() {
                         None => t.missing += 1,
                     }
                 }
+                // The thirds' floor (fit::lm::thirds_floor) says so in the basis.
+                let floored = cal
+                    .diagnostics
+                    .sigma_basis
+                    .as_ref()
+                    .is_some_and(|b| b.method.contains("without each third"));
+                floored_drives += usize::from(floored);
                 println!(
-                    "{noise:<40} {:<6} seed {seed} {:<7} c_rl {:+.2} mm (sigma {:.2}), c_rr {:+.2} mm (sigma {:.2}){}",
+                    "{noise:<40} {:<6} seed {seed} {:<7} c_rl {:+.2} mm (sigma {:.2}), c_rr {:+.2} mm (sigma {:.2}){}{}",
                     format!("{scenario:?}"),
                     cfg.vehicle.name(),
                     1e3 * (c.rl - tc.rl),
@@ -139,12 +147,14 @@ fn main() {
                         )
                     } else {
                         String::new()
-                    }
+                    },
+                    if floored { " [sigmas floored by the thirds]" } else { "" }
                 );
             }
         }
     }
     println!();
+    println!("the thirds of the drive disagreed beyond the sigmas (floor applied) on {floored_drives} of {drives} drives");
     println!(
         "{drives} drives ({} seeds of mixed and paper, {} of long, x {} GNSS noise levels)",
         seeds,

@@ -113,6 +113,9 @@ struct GyroModel<'a> {
 }
 
 impl StepModel for GyroModel<'_> {
+    fn scale_params(&self) -> &'static [usize] {
+        &[DISTANCE]
+    }
     fn n_global(&self) -> usize {
         5
     }
