@@ -557,6 +557,14 @@ mod tests {
         );
         // A drift not applied is not used.
         assert_eq!((c.imu_late_s, c.imu_drift_ppm), (0.3, 0.0));
+        // An IMU moved by another shift than its own offset (the GNSS's,
+        // where the wheels' clock moved): that shift is what is applied.
+        let moved = text.replace(
+            r#""offset_s": 0.3, "applied": true"#,
+            r#""offset_s": 0.3, "applied": true, "applied_s": 0.32"#,
+        );
+        let m = Estimate::from_json_str(&moved, "est.json").unwrap();
+        assert_eq!(m.clocks.imu_late_s, 0.32);
         let wire = e.to_wire(Header::from_seconds(1.0, 0), 4);
         assert_eq!(wire.extension_count, 2);
         assert_eq!(wire.extensions[0].effect_code, GNSS_CLOCK_EXTENSION);

@@ -136,6 +136,10 @@ pub struct StreamOffsetFields {
     /// Whether the calibration applied it (only then the odometry does).
     #[serde(default)]
     pub applied: bool,
+    /// The shift applied where it is not `offset_s` (the IMU moved with the
+    /// GNSS where the wheels' clock moved against both), s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub applied_s: Option<f64>,
     /// Its drift.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub drift: Option<ClockDriftFields>,
@@ -247,7 +251,7 @@ impl StreamOffsetFields {
     /// The applied offset, s, else 0.
     fn applied_offset(o: Option<&StreamOffsetFields>) -> f64 {
         o.filter(|o| o.applied)
-            .and_then(|o| o.offset_s)
+            .and_then(|o| o.applied_s.or(o.offset_s))
             .filter(|v| v.is_finite())
             .unwrap_or(0.0)
     }

@@ -442,7 +442,7 @@ mod tests {
     /// The clocks the odometry must apply: the offsets and drifts the
     /// calibration applied.
     fn applied_clocks(cal: &Calibration) -> StreamClocks {
-        let offset = |o: &calibrator::StreamOffset| o.offset_s.filter(|_| o.applied).unwrap_or(0.0);
+        let offset = |o: &calibrator::StreamOffset| o.applied_shift_s();
         let drift = |o: &calibrator::StreamOffset| match (
             o.drift.applied,
             o.drift.drift_ppm,

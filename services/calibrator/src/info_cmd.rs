@@ -34,10 +34,10 @@ fn offset_only(name: &str, o: &StreamOffset) -> String {
             v,
             s,
             o.from.as_deref().unwrap_or("?"),
-            if o.applied {
-                ", applied"
-            } else {
-                ", too small to apply"
+            match (o.applied, o.applied_s) {
+                (true, Some(a)) => format!(", applied as {a:+.3} s (the GNSS's)"),
+                (true, None) => ", applied".to_string(),
+                _ => ", too small to apply".to_string(),
             }
         ),
         _ => format!(

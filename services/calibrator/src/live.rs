@@ -166,7 +166,13 @@ pub struct LiveDrift {
 impl From<&crate::clocks::offsets::StreamOffset> for LiveClock {
     fn from(o: &crate::clocks::offsets::StreamOffset) -> LiveClock {
         LiveClock {
-            offset_s: o.offset_s,
+            // The shift the calibration applied (the IMU's may be the
+            // GNSS's: `StreamOffset::applied_s`).
+            offset_s: if o.applied {
+                o.applied_s.or(o.offset_s)
+            } else {
+                o.offset_s
+            },
             applied: o.applied,
             drift: LiveDrift {
                 drift_ppm: o.drift.drift_ppm,

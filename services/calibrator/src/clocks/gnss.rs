@@ -473,6 +473,7 @@ fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffse
                 j.path
             }),
             applied: false,
+            applied_s: None,
             reason: None,
             drift: direct.drift.clone(),
             weak: None,

@@ -68,17 +68,20 @@ pub fn align<'a>(
     // the drift's reference time). The re-stamp leaves the wheels as they
     // are: their arrays and warnings are kept.
     let drifts = clock_drifts(&series, &imu_clock, &drive, config);
-    let drive = match restamp(&drive, &drifts) {
+    let (drive, timed) = match restamp(&drive, &drifts) {
         Some(d) => {
             warnings.truncate(wheel_warnings);
             let timed = streams::timed(&d, &wheels, &mut warnings)?;
             (imu_clock, series) = on_wheel_clock(&d, config, &wheels, &timed, &mut warnings);
-            Cow::Owned(d)
+            (Cow::Owned(d), timed)
         }
-        None => drive,
+        None => (drive, timed),
     };
     drift_warnings(&drifts, &mut warnings);
     let gnss = gnss::align(&series, &imu_clock, config, &mut warnings)?;
+    if let Some(s) = follow_gnss(&mut imu_clock, &gnss.clock, &mut warnings) {
+        series = streams::series(&drive, config, &wheels, &timed, s, &mut Vec::new());
+    }
     Ok(Aligned {
         drive,
         series,
@@ -102,9 +105,13 @@ pub fn align_offsets<'a>(
         mut warnings,
         ..
     } = checked;
-    let (imu_clock, series) = on_wheel_clock(&drive, config, &wheels, &timed, &mut warnings);
+    let (mut imu_clock, mut series) =
+        on_wheel_clock(&drive, config, &wheels, &timed, &mut warnings);
     let off = ClockDrift::not_checked("drift not looked for");
     let gnss = gnss::align(&series, &imu_clock, config, &mut warnings)?;
+    if let Some(s) = follow_gnss(&mut imu_clock, &gnss.clock, &mut warnings) {
+        series = streams::series(&drive, config, &wheels, &timed, s, &mut Vec::new());
+    }
     Ok(Aligned {
         drive,
         series,
@@ -141,11 +148,7 @@ fn on_wheel_clock(
             warnings,
         )
     };
-    let imu_shift_s = if imu_clock.applied {
-        imu_clock.offset_s.unwrap_or(0.0)
-    } else {
-        0.0
-    };
+    let imu_shift_s = imu_clock.applied_shift_s();
     let series = streams::series(drive, config, wheels, timed, imu_shift_s, warnings);
     (imu_clock, series)
 }
@@ -153,6 +156,60 @@ fn on_wheel_clock(
 /// The largest lag between the wheels' and the gyro's yaw rate that the car
 /// itself can cause, s: an IMU offset within it is reported, not applied.
 pub const IMU_PHYSICAL_LAG_S: f64 = 0.05;
+
+/// Where the IMU's applied offset and the GNSS's agree within
+/// [`IMU_PHYSICAL_LAG_S`], both streams say the same thing: the wheels'
+/// clock moved against both. The IMU's own offset then carries the
+/// wheels' physical lag behind the gyro (tens of milliseconds that the
+/// drive without the clock fault keeps: wid-trial02's -30 ms), and taking
+/// it off with the clock's shift puts the gyro that much away from where
+/// the same drive on a good clock has it (its 30 s outages' median error
+/// 0.225 -> 0.44 m). The IMU is moved by the GNSS's offset instead: its
+/// stamps follow the wheels' clock correction and keep their physical
+/// lag. Only where the GNSS offset is applied and known to better than
+/// half that band ([`IMU_FOLLOWS_GNSS_SIGMA_S`]), no drift is applied to
+/// either, and the two agree; the IMU's own offset stays in the report
+/// (`offset_s`), the shift applied in `applied_s`, and a warning says so.
+/// Returns the IMU's new shift, s, when it moved.
+pub fn imu_follows_gnss(imu: &StreamOffset, gnss: &StreamOffset) -> Option<f64> {
+    if !(imu.applied && gnss.applied) || imu.drift.applied || gnss.drift.applied {
+        return None;
+    }
+    let (i, g, sg) = (imu.offset_s?, gnss.offset_s?, gnss.sigma_s?);
+    let agree = (i - g).abs() < IMU_PHYSICAL_LAG_S;
+    (agree && sg < IMU_FOLLOWS_GNSS_SIGMA_S && g.is_finite()).then_some(g)
+}
+
+/// The largest sigma of a GNSS clock offset the IMU follows
+/// ([`imu_follows_gnss`]), s: half of [`IMU_PHYSICAL_LAG_S`], so that the
+/// GNSS's offset is known better than the lag it stands in for.
+pub const IMU_FOLLOWS_GNSS_SIGMA_S: f64 = 0.5 * IMU_PHYSICAL_LAG_S;
+
+/// [`imu_follows_gnss`] applied to `imu` (its `applied_s` set, a warning
+/// pushed); the IMU's new shift when it moved.
+fn follow_gnss(
+    imu: &mut StreamOffset,
+    gnss: &StreamOffset,
+    warnings: &mut Vec<Warning>,
+) -> Option<f64> {
+    let shift = imu_follows_gnss(imu, gnss)?;
+    let own = imu.offset_s.unwrap_or(0.0);
+    imu.applied_s = Some(shift);
+    warnings.push(Warning::new(
+        WarningCode::TimeOffset,
+        format!(
+            "the IMU and the GNSS are both about {:.0} ms {} than the wheels: the wheels' clock \
+             moved; the IMU's stamps are shifted by the GNSS's {:+.0} ms, not by their own \
+             {:+.0} ms, which carry the wheels' physical lag behind the gyro (within {:.0} ms)",
+            1000.0 * shift.abs(),
+            if shift > 0.0 { "later" } else { "earlier" },
+            1000.0 * shift,
+            1000.0 * own,
+            1000.0 * IMU_PHYSICAL_LAG_S
+        ),
+    ));
+    Some(shift)
+}
 
 /// The IMU clock offset against the wheels ([`offsets::imu_offset`]),
 /// marked applied when it is significant (beyond 3 sigma and one IMU sample
@@ -361,5 +418,49 @@ fn drift_warnings(d: &Drifts, warnings: &mut Vec<Warning>) {
                 ),
             ));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn offset(o: f64, sigma: f64, applied: bool) -> StreamOffset {
+        let mut s = StreamOffset::not_checked("test");
+        s.status = OffsetStatus::Determined;
+        s.offset_s = Some(o);
+        s.sigma_s = Some(sigma);
+        s.applied = applied;
+        s
+    }
+
+    #[test]
+    fn the_imu_follows_the_gnss_only_where_both_say_the_wheels_clock_moved() {
+        // wid-trial02 with its wheel clock 1.5 s early: IMU +1.470, GNSS +1.506 +- 0.012.
+        let (imu, gnss) = (offset(1.470, 0.013, true), offset(1.506, 0.012, true));
+        assert_eq!(imu_follows_gnss(&imu, &gnss), Some(1.506));
+        let mut moved = imu.clone();
+        let mut w = Vec::new();
+        assert_eq!(follow_gnss(&mut moved, &gnss, &mut w), Some(1.506));
+        assert_eq!(
+            (moved.offset_s, moved.applied_s),
+            (Some(1.470), Some(1.506))
+        );
+        assert_eq!(moved.applied_shift_s(), 1.506);
+        assert_eq!(w.len(), 1);
+        // An IMU clock of its own (the two 0.34 s apart): its own offset.
+        assert_eq!(
+            imu_follows_gnss(&offset(-0.330, 0.005, true), &offset(0.006, 0.012, true)),
+            None
+        );
+        // A GNSS offset known to 54 ms only (wid-trial04): no better than the lag.
+        assert_eq!(imu_follows_gnss(&imu, &offset(1.494, 0.054, true)), None);
+        // Either not applied, or a drift applied: nothing moves.
+        assert_eq!(imu_follows_gnss(&offset(0.03, 0.005, false), &gnss), None);
+        assert_eq!(imu_follows_gnss(&imu, &offset(1.506, 0.012, false)), None);
+        let mut drifting = gnss.clone();
+        drifting.drift.applied = true;
+        assert_eq!(imu_follows_gnss(&imu, &drifting), None);
+        assert_eq!(offset(0.03, 0.005, false).applied_shift_s(), 0.0);
     }
 }

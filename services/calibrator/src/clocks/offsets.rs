@@ -77,6 +77,11 @@ pub struct StreamOffset {
     pub from: Option<String>,
     /// Whether the stream's time stamps were shifted by it.
     pub applied: bool,
+    /// Where the stamps were shifted by another value than `offset_s`, that
+    /// value, s: the IMU moved with the GNSS where both show that the
+    /// wheels' clock moved (`crate::clocks::imu_follows_gnss`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub applied_s: Option<f64>,
     /// Why not determined / not checked.
     pub reason: Option<String>,
     /// The slow drift of the stream's clock against the wheels'
@@ -205,6 +210,7 @@ impl StreamOffset {
             sigma_s: None,
             from: None,
             applied: false,
+            applied_s: None,
             reason: Some(reason.to_string()),
             drift: ClockDrift::default(),
             weak: None,
@@ -219,6 +225,7 @@ impl StreamOffset {
             sigma_s: None,
             from: None,
             applied: false,
+            applied_s: None,
             reason: Some(reason),
             drift: ClockDrift::default(),
             weak: None,
@@ -233,10 +240,23 @@ impl StreamOffset {
             sigma_s: Some(fit.sigma_s),
             from: Some(from.to_string()),
             applied: false,
+            applied_s: None,
             reason: None,
             drift: ClockDrift::default(),
             weak: None,
         }
+    }
+
+    /// The shift taken off the stream's stamps: `applied_s`, else
+    /// `offset_s`, where applied; 0 where not.
+    pub fn applied_shift_s(&self) -> f64 {
+        if !self.applied {
+            return 0.0;
+        }
+        self.applied_s
+            .or(self.offset_s)
+            .filter(|v| v.is_finite())
+            .unwrap_or(0.0)
     }
 
     /// The offset when it is determined and significant: beyond 3 sigma and

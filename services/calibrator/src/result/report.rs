@@ -19,10 +19,10 @@ fn clock_offset(o: &StreamOffset) -> String {
             1000.0 * v,
             1000.0 * sd,
             o.from.as_deref().unwrap_or("signals"),
-            if o.applied {
-                ", compensated"
-            } else {
-                ", not applied"
+            match (o.applied, o.applied_s) {
+                (true, Some(a)) => format!(", compensated by {:+.0} ms (the GNSS's)", 1000.0 * a),
+                (true, None) => ", compensated".to_string(),
+                _ => ", not applied".to_string(),
             }
         ),
         (OffsetStatus::NotChecked, _, _) => format!(

@@ -1,0 +1,101 @@
+//! A wheel clock that moved against the GNSS and the IMU, on a real drive:
+//! the calibration finds both offsets, and the IMU is put on the GNSS's
+//! clock correction rather than on its own offset, which carries the
+//! wheels' physical lag behind the gyro (`calibrator::clocks::imu_follows_gnss`).
+//! The dead-reckoning through 30 s outages then matches the drive on a good
+//! clock (as the fault suite scores it: `cargo bench -p integration-tests
+//! --bench fault_suite`). Skipped with a message when `../shared/data/real`
+//! is absent.
+
+use anyhow::Result;
+use calibrator::{calibrate, Calibration, CalibrationConfig};
+use interfaces::drive::Drive;
+use odometry::evaluate::{
+    choose_truth_point, evaluate, EvaluateConfig, TruthPoint, TruthPointChoice,
+};
+use simulator::faults::{apply, Fault};
+use vehicle_model::estimate::Estimate;
+
+fn estimate(cal: &Calibration) -> Estimate {
+    let json = serde_json::to_string(cal).expect("json");
+    Estimate::from_json_str(&json, "calibration").expect("estimate")
+}
+
+/// The median error at the end of 30 s outages, the estimate's clock offsets
+/// applied, scored at `point` from `from_s` on.
+fn outage_median(drive: &Drive, est: &Estimate, point: TruthPoint, from_s: f64) -> Result<f64> {
+    let config = EvaluateConfig {
+        truth_point: point,
+        clocks: est.clocks,
+        ..EvaluateConfig::default()
+    };
+    let report = evaluate(drive, &est.params, &config)?;
+    let mut e: Vec<f64> = report
+        .outages
+        .iter()
+        .filter(|o| o.t_start_s >= from_s - 1e-6)
+        .map(|o| o.error_m)
+        .collect();
+    anyhow::ensure!(e.len() >= 5, "only {} outages scored", e.len());
+    e.sort_by(f64::total_cmp);
+    Ok(e[e.len() / 2])
+}
+
+#[test]
+fn a_moved_wheel_clock_puts_the_imu_on_the_gnss_correction_on_wid_trial02() {
+    let Some(path) = drive_io::dev_data::real_drive("wid-trial02") else {
+        return;
+    };
+    let drive = drive_io::read_drive(&path).expect("read").drive;
+    let config = CalibrationConfig::default();
+    let clean = calibrate(&drive, &config).expect("clean");
+    let clean_est = estimate(&clean);
+    // On a good clock the IMU's -30 ms against the wheels is the wheels'
+    // physical lag and is left alone.
+    assert!(
+        !clean.clock_offsets.imu_s.applied,
+        "{:?}",
+        clean.clock_offsets.imu_s
+    );
+    assert_eq!(clean_est.clocks.imu_late_s, 0.0);
+
+    let shift = -1.5;
+    let faulted = apply(&drive, &Fault::WheelClockShift { s: shift }, 100).expect("fault");
+    let cal = calibrate(&faulted, &config).expect("faulted");
+    let (g, i) = (&cal.clock_offsets.gnss_s, &cal.clock_offsets.imu_s);
+    let (g_off, i_off) = (
+        g.offset_s.expect("gnss offset"),
+        i.offset_s.expect("imu offset"),
+    );
+    // Both streams see the wheels 1.5 s early, the IMU 30 ms less so.
+    assert!(g.applied && i.applied, "{g:?} {i:?}");
+    assert!((g_off + shift).abs() < 0.03, "gnss {g_off}");
+    assert!(
+        (i_off + shift).abs() > 0.02,
+        "imu {i_off}: the physical lag should show"
+    );
+    // The IMU is moved by the GNSS's offset, its own kept in the report.
+    assert_eq!(i.applied_s, Some(g_off));
+    let est = estimate(&cal);
+    assert_eq!(est.clocks.imu_late_s, g_off);
+    assert_eq!(est.clocks.gnss_late_s, g_off);
+    assert!(
+        cal.warnings
+            .iter()
+            .any(|w| w.message.contains("the wheels' clock moved")),
+        "{:?}",
+        cal.warnings
+    );
+
+    // Through 30 s outages it dead-reckons as the drive on a good clock
+    // does (with the IMU's own offset it was 0.44 m against 0.225 m).
+    let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
+    let point =
+        choose_truth_point(&drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
+    let clean_m = outage_median(&drive, &clean_est, point, t0).expect("clean outages");
+    let faulted_m = outage_median(&faulted, &est, point, t0).expect("faulted outages");
+    println!(
+        "median outage error: clean {clean_m:.3} m, wheel clock {shift:+.1} s {faulted_m:.3} m"
+    );
+    assert!(faulted_m <= 1.1 * clean_m, "{faulted_m} against {clean_m}");
+}
