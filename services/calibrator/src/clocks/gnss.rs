@@ -72,8 +72,28 @@ pub fn align(
         if let (Some(tau), Some(sigma)) = (clock.offset_s, clock.sigma_s) {
             let compensate = apply_offset(&mut clock, tau, sigma, config, warnings);
             if compensate {
+                let shift = match gnss_follows_imu(&clock, &direct, imu_clock) {
+                    Some(s) => {
+                        clock.applied_s = Some(s);
+                        warnings.push(Warning::new(
+                            WarningCode::TimeOffset,
+                            format!(
+                                "the GNSS offset rests on the course rate, whose lag behind the yaw \
+                                 rate (the tyres' side-slip) rides on it; beyond the IMU's {:+.0} ms \
+                                 (sigma {:.0} ms, from the yaw rate) it adds {:+.0} ms, within its own \
+                                 3 sigma: the wheels' clock moved, and the GNSS times are shifted by \
+                                 the IMU's offset",
+                                1000.0 * s,
+                                1000.0 * imu_clock.sigma_s.unwrap_or(f64::NAN),
+                                1000.0 * (tau - s),
+                            ),
+                        ));
+                        s
+                    }
+                    None => tau,
+                };
                 for f in &mut fixes {
-                    f.t -= tau;
+                    f.t -= shift;
                 }
                 pass1 = smooth_positions(&fixes, &antenna, Q_ACCEL_FREE, gate, None, None)?;
             }
@@ -198,6 +218,34 @@ fn apply_offset(
     }
     clock.applied = compensate;
     compensate
+}
+
+/// The shift for the GNSS stamps where its offset rests on the course rate
+/// (no speed pair determined it) and the IMU's yaw rate reads the same
+/// clock more sharply: the course rate lags the yaw rate by the tyres'
+/// side-slip (about [`SLIP_GAIN_TYPICAL`] v: 85 ms on the simulated paper
+/// course), which a drive on a good clock leaves unapplied as not
+/// significant, but which rides along once a moved wheel clock makes the
+/// whole offset significant (the paper course with its wheel clock 1.5 s
+/// off: 1.587 s applied, its 30 s outages' median error 1.32 -> 5.6 m).
+/// Where the GNSS's offset beyond the IMU's is within its own 3 sigma, the
+/// IMU's offset is the wheels' clock's shift and the GNSS is moved by it.
+/// Both applied, the IMU's from its yaw rate and sharper than the GNSS's,
+/// no drift on either; else `None`.
+pub fn gnss_follows_imu(
+    gnss: &StreamOffset,
+    direct: &StreamOffset,
+    imu: &StreamOffset,
+) -> Option<f64> {
+    let by_course = direct.from.as_deref() != Some("speed");
+    let yaw = imu.from.as_deref() == Some("yaw rate");
+    if !(by_course && yaw && gnss.applied && imu.applied) || gnss.drift.applied || imu.drift.applied
+    {
+        return None;
+    }
+    let (g, sg, i, si) = (gnss.offset_s?, gnss.sigma_s?, imu.offset_s?, imu.sigma_s?);
+    let within = (g - i).abs() <= 3.0 * sg;
+    (within && si < sg && i.is_finite()).then_some(i)
 }
 
 /// A typical side-slip gain k (beta = -k a_y), rad per m/s^2: the course
@@ -497,5 +545,57 @@ fn joint_gnss_offset(direct: &StreamOffset, pairs: &[PairOffset]) -> StreamOffse
             o
         }
         _ => direct.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn offset(o: f64, sigma: f64, from: &str, applied: bool) -> StreamOffset {
+        let mut s = StreamOffset::not_checked("test");
+        s.status = offsets::OffsetStatus::Determined;
+        s.offset_s = Some(o);
+        s.sigma_s = Some(sigma);
+        s.from = Some(from.to_string());
+        s.applied = applied;
+        s
+    }
+
+    #[test]
+    fn the_gnss_follows_the_imu_only_where_its_offset_rests_on_the_course_rate() {
+        // The paper course with its wheel clock 1.5 s off.
+        let gnss = offset(1.587, 0.074, "wheels-gnss (course rate) + ...", true);
+        let course = offset(1.59, 0.08, "course rate", true);
+        let imu = offset(1.497, 0.009, "yaw rate", true);
+        assert_eq!(gnss_follows_imu(&gnss, &course, &imu), Some(1.497));
+        // Determined by the speed (comma2k19's 86 ms latency): its own.
+        let speed = offset(1.587, 0.015, "speed", true);
+        assert_eq!(
+            gnss_follows_imu(&speed, &speed, &offset(1.482, 0.016, "yaw rate", true)),
+            None
+        );
+        // Beyond its own 3 sigma of the IMU's: a latency of its own.
+        assert_eq!(
+            gnss_follows_imu(&gnss, &course, &offset(1.30, 0.009, "yaw rate", true)),
+            None
+        );
+        // The IMU from its acceleration, or no sharper, or not applied: its own.
+        assert_eq!(
+            gnss_follows_imu(
+                &gnss,
+                &course,
+                &offset(1.497, 0.009, "longitudinal acceleration", true)
+            ),
+            None
+        );
+        assert_eq!(
+            gnss_follows_imu(&gnss, &course, &offset(1.497, 0.09, "yaw rate", true)),
+            None
+        );
+        assert_eq!(
+            gnss_follows_imu(&gnss, &course, &offset(1.497, 0.009, "yaw rate", false)),
+            None
+        );
     }
 }

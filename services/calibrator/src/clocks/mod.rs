@@ -172,7 +172,11 @@ pub const IMU_PHYSICAL_LAG_S: f64 = 0.05;
 /// (`offset_s`), the shift applied in `applied_s`, and a warning says so.
 /// Returns the IMU's new shift, s, when it moved.
 pub fn imu_follows_gnss(imu: &StreamOffset, gnss: &StreamOffset) -> Option<f64> {
-    if !(imu.applied && gnss.applied) || imu.drift.applied || gnss.drift.applied {
+    if !(imu.applied && gnss.applied)
+        || imu.drift.applied
+        || gnss.drift.applied
+        || gnss.applied_s.is_some()
+    {
         return None;
     }
     let (i, g, sg) = (imu.offset_s?, gnss.offset_s?, gnss.sigma_s?);

@@ -1,11 +1,16 @@
-//! A wheel clock that moved against the GNSS and the IMU, on a real drive:
-//! the calibration finds both offsets, and the IMU is put on the GNSS's
-//! clock correction rather than on its own offset, which carries the
-//! wheels' physical lag behind the gyro (`calibrator::clocks::imu_follows_gnss`).
-//! The dead-reckoning through 30 s outages then matches the drive on a good
-//! clock (as the fault suite scores it: `cargo bench -p integration-tests
-//! --bench fault_suite`). Skipped with a message when `../shared/data/real`
-//! is absent.
+//! A wheel clock that moved against the GNSS and the IMU. The calibration
+//! finds both offsets; where one of them carries a physical lag besides
+//! the clock's shift, the stream is moved by the other's, so the
+//! dead-reckoning through 30 s outages matches the drive on a good clock
+//! (as the fault suite scores it: `cargo bench -p integration-tests
+//! --bench fault_suite`):
+//! - on a real drive (wid-trial02) the IMU's offset carries the wheels'
+//!   lag behind the gyro, and the IMU follows the GNSS
+//!   (`calibrator::clocks::imu_follows_gnss`); skipped with a message when
+//!   `../shared/data/real` is absent;
+//! - on the simulated paper course (constant speed) the GNSS's offset rests
+//!   on the course rate, which carries the tyres' side-slip lag, and the
+//!   GNSS follows the IMU (`calibrator::clocks::gnss::gnss_follows_imu`).
 
 use anyhow::Result;
 use calibrator::{calibrate, Calibration, CalibrationConfig};
@@ -14,6 +19,7 @@ use odometry::evaluate::{
     choose_truth_point, evaluate, EvaluateConfig, TruthPoint, TruthPointChoice,
 };
 use simulator::faults::{apply, Fault};
+use simulator::{simulate, Scenario, SimConfig};
 use vehicle_model::estimate::Estimate;
 
 fn estimate(cal: &Calibration) -> Estimate {
@@ -89,6 +95,55 @@ fn a_moved_wheel_clock_puts_the_imu_on_the_gnss_correction_on_wid_trial02() {
 
     // Through 30 s outages it dead-reckons as the drive on a good clock
     // does (with the IMU's own offset it was 0.44 m against 0.225 m).
+    let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
+    let point =
+        choose_truth_point(&drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
+    let clean_m = outage_median(&drive, &clean_est, point, t0).expect("clean outages");
+    let faulted_m = outage_median(&faulted, &est, point, t0).expect("faulted outages");
+    println!(
+        "median outage error: clean {clean_m:.3} m, wheel clock {shift:+.1} s {faulted_m:.3} m"
+    );
+    assert!(faulted_m <= 1.1 * clean_m, "{faulted_m} against {clean_m}");
+}
+
+#[test]
+fn a_moved_wheel_clock_moves_the_gnss_by_the_imu_where_its_offset_rests_on_the_course_rate() {
+    // The paper course at constant speed, as the fault suite draws it.
+    let mut sim = SimConfig::new(Scenario::Paper, 1);
+    // The truth on the GNSS clock, as a recording's (the fault suite's way).
+    sim.effects
+        .switch_off(interfaces::effects::Effect::GnssLatency);
+    let drive = simulate(&sim).expect("simulate");
+    let config = CalibrationConfig::default();
+    let clean = calibrate(&drive, &config).expect("clean");
+    let clean_est = estimate(&clean);
+    // On a good clock the course rate's side-slip lag is not significant.
+    assert!(
+        !clean.clock_offsets.gnss_s.applied,
+        "{:?}",
+        clean.clock_offsets.gnss_s
+    );
+
+    let shift = -1.5;
+    let faulted = apply(&drive, &Fault::WheelClockShift { s: shift }, 100).expect("fault");
+    let cal = calibrate(&faulted, &config).expect("faulted");
+    let (g, i) = (&cal.clock_offsets.gnss_s, &cal.clock_offsets.imu_s);
+    let (g_off, i_off) = (
+        g.offset_s.expect("gnss offset"),
+        i.offset_s.expect("imu offset"),
+    );
+    assert!(g.applied && i.applied, "{g:?} {i:?}");
+    // The course rate's offset carries the side-slip lag (tens of ms).
+    assert!((g_off + shift).abs() > 0.04, "gnss {g_off}");
+    assert!((i_off + shift).abs() < 0.02, "imu {i_off}");
+    assert_eq!(g.applied_s, Some(i_off));
+    assert_eq!(i.applied_s, None);
+    let est = estimate(&cal);
+    assert_eq!(est.clocks.gnss_late_s, i_off);
+    // The circumferences as on a good clock, and the outages too (1.32 m
+    // against 5.6 m with the course rate's offset applied).
+    let rel = |a: f64, b: f64| ((a - b) / b).abs();
+    assert!(rel(cal.circumference_m.rl, clean.circumference_m.rl) < 5e-5);
     let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
     let point =
         choose_truth_point(&drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
