@@ -341,6 +341,33 @@ fn the_real_drives_are_diagnosed() {
             "{name}: {}",
             d.noise.gnss_sigma_m
         );
+        // Every finding's margin against a rival partner carries the
+        // held-out blocks' check, the finding's own gain as it entered.
+        for f in &d.findings {
+            for m in f.partners.iter().filter(|m| m.partner_alone_z.abs() > 1.96) {
+                let [own, _] = m.holdout_gains.expect("the held-out check");
+                assert!((own - f.holdout_channel_gain).abs() < 1e-12, "{name}");
+            }
+        }
+        if name == "comma2k19-seg40" {
+            // Its slip and the GNSS latency: the held-out blocks do not bear
+            // the name out, and the evidence says so (Known limits,
+            // docs/design/diagnose.md).
+            if let Some(f) = d
+                .findings
+                .iter()
+                .find(|f| f.effect == Effect::LongitudinalSlip)
+            {
+                let m = f.partners.iter().find(|m| m.effect == Effect::GnssLatency);
+                let [own, latency] = m.and_then(|m| m.holdout_gains).expect("latency's check");
+                assert!(latency >= own, "{own} {latency}");
+                assert!(
+                    f.evidence.contains("do not bear the name out"),
+                    "{}",
+                    f.evidence
+                );
+            }
+        }
     }
 }
 

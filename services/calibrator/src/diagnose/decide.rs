@@ -544,6 +544,32 @@ pub struct PartnerMargin {
     pub partner_joint: Option<[f64; 3]>,
     /// The manoeuvre that would tell the two apart.
     pub separate_by: String,
+    /// The held-out blocks' relative gain with the found effect and with
+    /// the partner instead, each added to the model the found effect
+    /// entered ([`holdout_against_partners`]): a check on the name that
+    /// does not rest on the error model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub holdout_gains: Option<[f64; 2]>,
+}
+
+/// Fills each margin's [`PartnerMargin::holdout_gains`]: the held-out gain
+/// of `effect` (`found_gain`, the gain it entered with) and of the partner
+/// instead (its best variant), both added to the model `base` the found
+/// effect entered.
+pub(super) fn holdout_against_partners(
+    design: &Design,
+    stats: &BlockStats,
+    base: &[usize],
+    limit: &InformationLimit,
+    found_gain: f64,
+    margins: &mut [PartnerMargin],
+) {
+    for m in margins.iter_mut() {
+        let source = source_of(limit, m.effect);
+        if let Some((_, g)) = best_variant(design, stats, base, m.effect, source) {
+            m.holdout_gains = Some([found_gain, g.relative]);
+        }
+    }
 }
 
 /// `effect`'s margins against its catalogue partners in `limit`: those
@@ -576,6 +602,7 @@ pub fn partner_margins(effect: Effect, limit: &InformationLimit) -> Vec<PartnerM
                 margin: own_z * own_z - z * z,
                 partner_joint,
                 separate_by: effect.separate_from(l.effect),
+                holdout_gains: None,
             })
         })
         .collect()
@@ -599,10 +626,24 @@ pub fn margins_in_words(
                     unit_of(m.effect)
                 )
             });
+            let held_out = m.holdout_gains.map_or(String::new(), |[a, b]| {
+                format!(
+                    "; the held-out blocks gain {:.1} % with it and {:.1} % with {} instead{}",
+                    100.0 * a,
+                    100.0 * b,
+                    m.effect,
+                    if b >= a {
+                        ": they do not bear the name out, which rests on the error model's \
+                         likelihood alone"
+                    } else {
+                        ""
+                    }
+                )
+            });
             format!(
                 "named over {} (a catalogue partner) by a likelihood margin of {:.0} in \
-                 chi-square: alone z {:.1} against {:.1}{joint}; what would tell them \
-                 apart: {}",
+                 chi-square: alone z {:.1} against {:.1}{joint}{held_out}; what would tell \
+                 them apart: {}",
                 m.effect, m.margin, m.found_alone_z, m.partner_alone_z, m.separate_by
             )
         })
@@ -868,6 +909,21 @@ pub(super) mod tests {
         let words = margins_in_words(&m, &|_| "s".to_string()).expect("a rival worth naming");
         assert!(
             words.contains("gnss_latency") && words.contains("156"),
+            "{words}"
+        );
+        // The held-out blocks' check on the name, worded where it is known.
+        let mut held = m.clone();
+        held[0].holdout_gains = Some([0.190, 0.200]);
+        let words = margins_in_words(&held, &|_| "s".to_string()).expect("worded");
+        assert!(
+            words.contains("19.0 % with it and 20.0 % with gnss_latency")
+                && words.contains("do not bear the name out"),
+            "{words}"
+        );
+        held[0].holdout_gains = Some([0.073, 0.036]);
+        let words = margins_in_words(&held, &|_| "s".to_string()).expect("worded");
+        assert!(
+            words.contains("7.3 % with it") && !words.contains("do not bear"),
             "{words}"
         );
         // Either way round: the latency's margin against the slip is negative.

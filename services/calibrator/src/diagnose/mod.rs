@@ -1020,10 +1020,14 @@ pub fn diagnose_with_progress(
             .iter()
             .find(|t| t.effect == cand.effect)
             .map(|t| t.z);
-        let partners = information_limit
+        let mut partners = information_limit
             .as_ref()
             .map(|l| decide::partner_margins(cand.effect, l))
             .unwrap_or_default();
+        if let Some(l) = information_limit.as_ref() {
+            let base = model_columns(&design, &so_far[..k]);
+            decide::holdout_against_partners(&design, &stats, &base, l, g.relative, &mut partners);
+        }
         let unit_of = |e: Effect| {
             information_limit
                 .as_ref()
