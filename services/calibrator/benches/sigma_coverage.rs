@@ -124,12 +124,18 @@ fn main() {
                         None => t.missing += 1,
                     }
                 }
-                // The thirds' floor (fit::lm::thirds_floor) says so in the basis.
+                // The thirds' floor (fit::lm::thirds_floor) says so in the
+                // basis (the 2W fit) or in the warning that takes the scale
+                // from the wheel + gyro model.
                 let floored = cal
                     .diagnostics
                     .sigma_basis
                     .as_ref()
-                    .is_some_and(|b| b.method.contains("without each third"));
+                    .is_some_and(|b| b.method.contains("without each third"))
+                    || cal
+                        .warnings
+                        .iter()
+                        .any(|w| w.message.contains("without each third"));
                 floored_drives += usize::from(floored);
                 println!(
                     "{noise:<40} {:<6} seed {seed} {:<7} c_rl {:+.2} mm (sigma {:.2}), c_rr {:+.2} mm (sigma {:.2}){}{}",

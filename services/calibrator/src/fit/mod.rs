@@ -236,11 +236,16 @@ fn gyro_scale(
         later.push(Warning::new(
             WarningCode::ScaleFromGyroModel,
             format!(
-                "common scale taken from the wheel + gyro model: it fits the GNSS to {:.3} m RMS against {:.3} m for the 2W model, whose scale absorbs the wheels' heading errors; both circumferences x {:.5} (sigma {:.5})",
+                "common scale taken from the wheel + gyro model: it fits the GNSS to {:.3} m RMS against {:.3} m for the 2W model, whose scale absorbs the wheels' heading errors; both circumferences x {:.5} (sigma {:.5}{})",
                 g.residual_rms_m,
                 primary.residual_rms_m.unwrap_or(f64::NAN),
                 g.distance_factor,
-                g.sigma_distance_factor
+                g.sigma_distance_factor,
+                if g.distance_floored_by_thirds {
+                    ": the spread of the drive fitted without each third of it, which disagree beyond the error model"
+                } else {
+                    ""
+                }
             ),
         ));
         if s_mean > 0.002 {
