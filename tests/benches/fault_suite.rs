@@ -18,11 +18,10 @@
 
 use anyhow::{Context, Result};
 use calibrator::{calibrate, Calibration, CalibrationConfig, StreamOffset};
+use integration_tests::outages::{self, outage_median};
 use interfaces::drive::Drive;
 use interfaces::effects::Effect;
-use odometry::evaluate::{
-    choose_truth_point, evaluate, EvaluateConfig, TruthPoint, TruthPointChoice,
-};
+use odometry::evaluate::{choose_truth_point, TruthPointChoice};
 use simulator::faults::{apply, Fault, Stream};
 use simulator::{simulate, Scenario, SimConfig};
 use std::time::Instant;
@@ -68,30 +67,7 @@ fn faults(c_rl: f64, c_rr: f64) -> Vec<Fault> {
 }
 
 fn as_estimate(cal: &Calibration, name: &str) -> Result<Estimate> {
-    let text = serde_json::to_string(cal).context("encoding the calibration")?;
-    Ok(Estimate::from_json_str(&text, name)?)
-}
-
-/// Median outage error (m) over outages starting at or after `from_s`,
-/// scored at `point` (chosen once on the clean drive with its estimate, so
-/// that every fault is scored at the same body point: a fault in the GNSS
-/// must not change where truth.csv is taken to be).
-fn outage_median(drive: &Drive, est: &Estimate, point: TruthPoint, from_s: f64) -> Result<f64> {
-    let config = EvaluateConfig {
-        truth_point: point,
-        clocks: est.clocks,
-        ..EvaluateConfig::default()
-    };
-    let report = evaluate(drive, &est.params, &config)?;
-    let mut e: Vec<f64> = report
-        .outages
-        .iter()
-        .filter(|o| o.t_start_s >= from_s - 1e-6)
-        .map(|o| o.error_m)
-        .collect();
-    anyhow::ensure!(!e.is_empty(), "no outage scored");
-    e.sort_by(f64::total_cmp);
-    Ok(e[e.len() / 2])
+    outages::as_estimate(cal, name).map_err(anyhow::Error::msg)
 }
 
 fn offset_text(o: &StreamOffset) -> String {
@@ -113,7 +89,7 @@ fn run_drive(name: &str, drive: &Drive, only: Option<&str>, rows: &mut Vec<Row>)
     let clean_est = as_estimate(&clean, name)?;
     let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
     let point = choose_truth_point(drive, TruthPointChoice::Auto, clean_est.antenna_m)?;
-    let clean_outage = outage_median(drive, &clean_est, point, t0)?;
+    let clean_outage = outage_median(drive, &clean_est, point, t0).map_err(anyhow::Error::msg)?;
     println!();
     println!(
         "### {name}: clean c_RL {:.5} m, c_RR {:.5} m (sigma {:.2} / {:.2} mm), median outage error {clean_outage:.3} m",

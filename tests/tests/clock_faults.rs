@@ -12,39 +12,36 @@
 //!   on the course rate, which carries the tyres' side-slip lag, and the
 //!   GNSS follows the IMU (`calibrator::clocks::gnss::gnss_follows_imu`).
 
-use anyhow::Result;
 use calibrator::{calibrate, Calibration, CalibrationConfig};
+use integration_tests::outages::{as_estimate, outage_errors};
 use interfaces::drive::Drive;
-use odometry::evaluate::{
-    choose_truth_point, evaluate, EvaluateConfig, TruthPoint, TruthPointChoice,
-};
+use odometry::evaluate::{choose_truth_point, TruthPointChoice};
 use simulator::faults::{apply, Fault};
 use simulator::{simulate, Scenario, SimConfig};
 use vehicle_model::estimate::Estimate;
 
 fn estimate(cal: &Calibration) -> Estimate {
-    let json = serde_json::to_string(cal).expect("json");
-    Estimate::from_json_str(&json, "calibration").expect("estimate")
+    as_estimate(cal, "calibration").expect("estimate")
 }
 
-/// The median error at the end of 30 s outages, the estimate's clock offsets
-/// applied, scored at `point` from `from_s` on.
-fn outage_median(drive: &Drive, est: &Estimate, point: TruthPoint, from_s: f64) -> Result<f64> {
-    let config = EvaluateConfig {
-        truth_point: point,
-        clocks: est.clocks,
-        ..EvaluateConfig::default()
+/// The median 30 s outage error of the clean drive with its estimate and
+/// of the faulted drive with its own, both scored at the clean drive's
+/// truth point from its first wheel sample on.
+fn clean_and_faulted_outages(
+    drive: &Drive,
+    clean_est: &Estimate,
+    faulted: &Drive,
+    est: &Estimate,
+) -> (f64, f64) {
+    let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
+    let point =
+        choose_truth_point(drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
+    let median = |d: &Drive, e: &Estimate| {
+        let errors = outage_errors(d, e, point, t0).expect("outages");
+        assert!(errors.len() >= 5, "only {} outages scored", errors.len());
+        errors[errors.len() / 2]
     };
-    let report = evaluate(drive, &est.params, &config)?;
-    let mut e: Vec<f64> = report
-        .outages
-        .iter()
-        .filter(|o| o.t_start_s >= from_s - 1e-6)
-        .map(|o| o.error_m)
-        .collect();
-    anyhow::ensure!(e.len() >= 5, "only {} outages scored", e.len());
-    e.sort_by(f64::total_cmp);
-    Ok(e[e.len() / 2])
+    (median(drive, clean_est), median(faulted, est))
 }
 
 #[test]
@@ -95,11 +92,7 @@ fn a_moved_wheel_clock_puts_the_imu_on_the_gnss_correction_on_wid_trial02() {
 
     // Through 30 s outages it dead-reckons as the drive on a good clock
     // does (with the IMU's own offset it was 0.44 m against 0.225 m).
-    let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
-    let point =
-        choose_truth_point(&drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
-    let clean_m = outage_median(&drive, &clean_est, point, t0).expect("clean outages");
-    let faulted_m = outage_median(&faulted, &est, point, t0).expect("faulted outages");
+    let (clean_m, faulted_m) = clean_and_faulted_outages(&drive, &clean_est, &faulted, &est);
     println!(
         "median outage error: clean {clean_m:.3} m, wheel clock {shift:+.1} s {faulted_m:.3} m"
     );
@@ -144,11 +137,7 @@ fn a_moved_wheel_clock_moves_the_gnss_by_the_imu_where_its_offset_rests_on_the_c
     // against 5.6 m with the course rate's offset applied).
     let rel = |a: f64, b: f64| ((a - b) / b).abs();
     assert!(rel(cal.circumference_m.rl, clean.circumference_m.rl) < 5e-5);
-    let t0 = drive.wheels.samples.first().map_or(0.0, |w| w.t_s);
-    let point =
-        choose_truth_point(&drive, TruthPointChoice::Auto, clean_est.antenna_m).expect("point");
-    let clean_m = outage_median(&drive, &clean_est, point, t0).expect("clean outages");
-    let faulted_m = outage_median(&faulted, &est, point, t0).expect("faulted outages");
+    let (clean_m, faulted_m) = clean_and_faulted_outages(&drive, &clean_est, &faulted, &est);
     println!(
         "median outage error: clean {clean_m:.3} m, wheel clock {shift:+.1} s {faulted_m:.3} m"
     );
