@@ -79,7 +79,7 @@ pub struct GyroEstimate {
     pub sigma_distance_factor: f64,
     /// Whether that sigma is the spread of the drive fitted without each
     /// third of it, which disagree beyond the other sources
-    /// ([`crate::fit::lm::Fit::thirds`]).
+    /// ([`crate::fit::lm::Fit::floored_by_thirds`]).
     #[serde(default)]
     pub distance_floored_by_thirds: bool,
     /// GNSS antenna position (body x forward, y left, from the rear-axle
@@ -252,10 +252,7 @@ pub fn estimate(
         residual_rms_m: f.residual_rms_m,
         distance_factor: f.g[DISTANCE],
         sigma_distance_factor: sigma(DISTANCE),
-        distance_floored_by_thirds: f.thirds.as_ref().is_some_and(|t| {
-            let floor = t[(DISTANCE, DISTANCE)];
-            floor > 0.0 && floor >= f.variance(DISTANCE)
-        }),
+        distance_floored_by_thirds: f.floored_by_thirds(DISTANCE),
         antenna_m: [f.g[ANTENNA], f.g[ANTENNA + 1]],
         // Known no better than one fix: a receiver's errors are correlated
         // over tens of seconds (multipath, atmosphere; a consumer receiver's

@@ -1020,11 +1020,7 @@ fn thirds_floor(
             if !scale.contains(&i) {
                 return false;
             }
-            let reference = other
-                .map_or(0.0, |c| c[(i, i)])
-                .max(formal[(i, i)])
-                .max(f64::MIN_POSITIVE);
-            thirds[(i, i)] / reference > THIRDS_DISAGREE_RATIO
+            thirds[(i, i)] / base_variance(formal, other, i) > THIRDS_DISAGREE_RATIO
         })
         .collect();
     if !keep.iter().any(|&k| k) {
@@ -1039,6 +1035,16 @@ fn thirds_floor(
         }
     }
     Some(c)
+}
+
+/// The variance of parameter `i` from the sources beside the thirds (the
+/// formal covariance and `other`, the error model's or the jackknife's),
+/// the larger; never zero.
+fn base_variance(formal: &DMatrix<f64>, other: Option<&DMatrix<f64>>, i: usize) -> f64 {
+    other
+        .map_or(0.0, |c| c[(i, i)])
+        .max(formal[(i, i)])
+        .max(f64::MIN_POSITIVE)
 }
 
 /// The covariance of the global parameters from an error model of the
@@ -1109,6 +1115,13 @@ impl Fit {
             .fold(0.0, f64::max)
     }
 
+    /// Whether parameter `i`'s sigma is the thirds' spread: kept only
+    /// where it exceeds the other sources ([`thirds_floor`]), it is then
+    /// the largest.
+    pub fn floored_by_thirds(&self, i: usize) -> bool {
+        self.thirds.as_ref().is_some_and(|t| t[(i, i)] > 0.0)
+    }
+
     /// What the sigmas rest on, for the result.
     pub fn sigma_basis(&self) -> SigmaBasis {
         let mut basis = match (&self.correlated, &self.error_model) {
@@ -1116,13 +1129,10 @@ impl Fit {
             _ => SigmaBasis::jackknife(self.jackknife.is_some()),
         };
         if let Some(t) = &self.thirds {
-            let other = self.correlated.as_ref().or(self.jackknife.as_ref());
+            let other = self.sigma_sources()[1];
             let ratio = (0..t.nrows())
-                .filter(|&i| t[(i, i)] > 0.0)
-                .map(|i| {
-                    let r = other.map_or(0.0, |c| c[(i, i)]).max(self.formal[(i, i)]);
-                    (t[(i, i)] / r.max(f64::MIN_POSITIVE)).sqrt()
-                })
+                .filter(|&i| self.floored_by_thirds(i))
+                .map(|i| (t[(i, i)] / base_variance(&self.formal, other, i)).sqrt())
                 .fold(0.0, f64::max);
             basis.method = format!(
                 "{}; the scale's sigmas raised up to {ratio:.1}x to the spread of the drive \
