@@ -553,13 +553,7 @@ mod tests {
     use super::*;
 
     fn offset(o: f64, sigma: f64, from: &str, applied: bool) -> StreamOffset {
-        let mut s = StreamOffset::not_checked("test");
-        s.status = offsets::OffsetStatus::Determined;
-        s.offset_s = Some(o);
-        s.sigma_s = Some(sigma);
-        s.from = Some(from.to_string());
-        s.applied = applied;
-        s
+        StreamOffset::for_test(o, sigma, from, applied)
     }
 
     #[test]

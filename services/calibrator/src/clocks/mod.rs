@@ -430,12 +430,7 @@ mod tests {
     use super::*;
 
     fn offset(o: f64, sigma: f64, applied: bool) -> StreamOffset {
-        let mut s = StreamOffset::not_checked("test");
-        s.status = OffsetStatus::Determined;
-        s.offset_s = Some(o);
-        s.sigma_s = Some(sigma);
-        s.applied = applied;
-        s
+        StreamOffset::for_test(o, sigma, "yaw rate", applied)
     }
 
     #[test]

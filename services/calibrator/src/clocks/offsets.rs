@@ -247,6 +247,19 @@ impl StreamOffset {
         }
     }
 
+    /// A determined offset of `o` +- `sigma` s from the signals `from`,
+    /// applied or not: what the clock rules' tests start from.
+    #[cfg(test)]
+    pub(crate) fn for_test(o: f64, sigma: f64, from: &str, applied: bool) -> StreamOffset {
+        let mut s = StreamOffset::not_checked("test");
+        s.status = OffsetStatus::Determined;
+        s.offset_s = Some(o);
+        s.sigma_s = Some(sigma);
+        s.from = Some(from.to_string());
+        s.applied = applied;
+        s
+    }
+
     /// The shift taken off the stream's stamps: `applied_s`, else
     /// `offset_s`, where applied; 0 where not.
     pub fn applied_shift_s(&self) -> f64 {
