@@ -1,5 +1,5 @@
 //! Small statistics in one home: medians, the MAD sigma, percentiles,
-//! angle wrapping and the tests' distributions ([`distributions`]), used by the readers, the simulator, the calibration, the
+//! angle wrapping, the 2-D rigid fit of one track on another ([`rigid`]) and the tests' distributions ([`distributions`]), used by the readers, the simulator, the calibration, the
 //! diagnosis and the odometry alike.
 //!
 //! Two medians, because the code base uses both on purpose:
@@ -14,6 +14,7 @@
 //! says so. Pure: numbers in, numbers out.
 
 pub mod distributions;
+pub mod rigid;
 pub mod stamps;
 
 use std::f64::consts::{PI, TAU};

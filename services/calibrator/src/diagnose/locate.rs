@@ -278,37 +278,17 @@ pub fn align(a: &[[f64; 2]], b: &[[f64; 2]]) -> (Vec<[f64; 2]>, f64) {
 
 /// [`align`], also giving the rotation angle, rad.
 pub fn align_with_angle(a: &[[f64; 2]], b: &[[f64; 2]]) -> (Vec<[f64; 2]>, f64, f64) {
-    let n = a.len().min(b.len()) as f64;
-    if n == 0.0 {
+    let n = a.len().min(b.len());
+    let Some(m) = stats::rigid::fit(a.iter().zip(b).map(|(p, q)| (1.0, *p, *q))) else {
         return (Vec::new(), 0.0, 0.0);
-    }
-    let mean = |p: &[[f64; 2]]| {
-        let s = p.iter().fold([0.0, 0.0], |s, q| [s[0] + q[0], s[1] + q[1]]);
-        [s[0] / n, s[1] / n]
     };
-    let (ma, mb) = (mean(a), mean(b));
-    let (mut sxx, mut sxy) = (0.0, 0.0);
-    for (p, q) in a.iter().zip(b) {
-        let (ax, ay) = (p[0] - ma[0], p[1] - ma[1]);
-        let (bx, by) = (q[0] - mb[0], q[1] - mb[1]);
-        sxx += ax * bx + ay * by;
-        sxy += ax * by - ay * bx;
-    }
-    let th = sxy.atan2(sxx);
-    let (s, c) = th.sin_cos();
-    let moved: Vec<[f64; 2]> = a
-        .iter()
-        .map(|p| {
-            let (x, y) = (p[0] - ma[0], p[1] - ma[1]);
-            [mb[0] + c * x - s * y, mb[1] + s * x + c * y]
-        })
-        .collect();
+    let moved: Vec<[f64; 2]> = a.iter().take(n).map(|p| m.apply(*p)).collect();
     let ss: f64 = moved
         .iter()
         .zip(b)
         .map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2))
         .sum();
-    (moved, (ss / n).sqrt(), th)
+    (moved, (ss / n as f64).sqrt(), m.angle)
 }
 
 /// What the car does over a span of epochs, in words: corner side or

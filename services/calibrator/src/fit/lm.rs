@@ -213,9 +213,21 @@ struct EvalSettings {
     record_every: usize,
     /// Keep every fix's linearisation ([`FixLin`]).
     record_rows: bool,
+    /// The curvature given to a fix in Huber's tail along its residual,
+    /// as a fraction of the IRLS weight: 1 is IRLS (the covariances'
+    /// weighting); the cost's own curvature there is 0, and a fraction
+    /// near it makes the fit's steps Newton's, converging in a few steps
+    /// where IRLS crawls at the tail's share.
+    tail_curvature: f64,
 }
 
 const HUBER_K: f64 = 3.0;
+
+/// The curvature along the residual of a fix in Huber's tail, as a
+/// fraction of its IRLS weight, once the fit is near its solution (see
+/// `EvalSettings::tail_curvature`): small enough for Newton's speed, large
+/// enough to keep every segment's normal equations positive definite.
+const TAIL_CURVATURE: f64 = 0.1;
 
 /// sin and cos of a small angle by their series (exact to ~1e-13 below
 /// 0.05 rad), the library functions above that.
@@ -243,8 +255,8 @@ fn huber(u: f64) -> (f64, f64) {
 
 /// Integrate `model` over `seg` from `pose0` and compare with the fixes.
 #[allow(clippy::needless_range_loop)] // small fixed-size numeric kernels read best indexed
-fn eval_segment(
-    model: &dyn StepModel,
+fn eval_segment<M: StepModel>(
+    model: &M,
     g: &[f64],
     seg: &Segment,
     pose0: [f64; 3],
@@ -290,6 +302,11 @@ fn eval_segment(
     };
     for k in seg.k0..seg.k1 {
         if k > seg.k0 {
+            // The state before the step, kept only where a fix falls in
+            // it (the fixes are interpolated between the two).
+            if fi < seg.fixes.end && fixes[fi].t <= p.t[k] {
+                prev = (pose, dx, dy, dth);
+            }
             let Some((ds, dyaw)) = model.increments(k, g, &mut d_ds, &mut d_dyaw) else {
                 break;
             };
@@ -372,21 +389,50 @@ fn eval_segment(
                     [1.0 / sigma, 0.0, (-(py - pose0[1]) + rx) / sigma],
                     [0.0, 1.0 / sigma, ((px - pose0[0]) + ry) / sigma],
                 ];
+                // The curvature rows: the fix's two rows with the IRLS
+                // weight, or, in Huber's tail with `tail_curvature` < 1,
+                // the rows across and along the residual, the one along
+                // it with the cost's own (nearly zero) curvature there.
+                let curv = if w < 1.0 && s.tail_curvature < 1.0 {
+                    let (ux, uy) = (r[0] / u, r[1] / u);
+                    let mix = |a: [f64; 2]| {
+                        (
+                            std::array::from_fn::<f64, MAX_GLOBAL, _>(|i| {
+                                a[0] * jg[0][i] + a[1] * jg[1][i]
+                            }),
+                            std::array::from_fn::<f64, 3, _>(|i| a[0] * jl[0][i] + a[1] * jl[1][i]),
+                        )
+                    };
+                    let (across_g, across_l) = mix([-uy, ux]);
+                    let (along_g, along_l) = mix([ux, uy]);
+                    [
+                        (w, across_g, across_l),
+                        (w * s.tail_curvature, along_g, along_l),
+                    ]
+                } else {
+                    [(w, jg[0], jl[0]), (w, jg[1], jl[1])]
+                };
                 let add = |t: &mut Acc| {
                     for row in 0..2 {
                         for i in 0..ng {
                             t.bg[i] += w * jg[row][i] * r[row];
-                            for j in 0..ng {
-                                t.hgg[(i, j)] += w * jg[row][i] * jg[row][j];
-                            }
-                            for j in 0..3 {
-                                t.hgl[(i, j)] += w * jg[row][i] * jl[row][j];
-                            }
                         }
                         for i in 0..3 {
                             t.bl[i] += w * jl[row][i] * r[row];
+                        }
+                    }
+                    for (wc, cg, cl) in &curv {
+                        for i in 0..ng {
+                            for j in 0..ng {
+                                t.hgg[(i, j)] += wc * cg[i] * cg[j];
+                            }
                             for j in 0..3 {
-                                t.hll[(i, j)] += w * jl[row][i] * jl[row][j];
+                                t.hgl[(i, j)] += wc * cg[i] * cl[j];
+                            }
+                        }
+                        for i in 0..3 {
+                            for j in 0..3 {
+                                t.hll[(i, j)] += wc * cl[i] * cl[j];
                             }
                         }
                     }
@@ -417,7 +463,6 @@ fn eval_segment(
         if s.record_every > 0 && ((k - seg.k0).is_multiple_of(s.record_every) || k + 1 == seg.k1) {
             track.push([pose.x, pose.y]);
         }
-        prev = (pose, dx, dy, dth);
     }
     if let Some(b) = block {
         if in_block > 0 {
@@ -560,8 +605,8 @@ impl ModelTrack {
 /// `length_s`, each started from the reference pose at its start (no
 /// fitting): the track of a model that was not fitted segment-wise (the
 /// paper's method), on the same footing as the batch fit's.
-pub fn anchored_track(
-    model: &dyn StepModel,
+pub fn anchored_track<M: StepModel>(
+    model: &M,
     g: &[f64],
     p: &Series,
     r: &Reference,
@@ -576,6 +621,7 @@ pub fn anchored_track(
         block_fixes: 0,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
         record_rows: false,
+        tail_curvature: 1.0,
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -591,8 +637,8 @@ pub fn anchored_track(
 type StageEnd = (Vec<Segment>, Vec<[f64; 3]>, usize, f64);
 
 /// Fit `model` to the accepted fixes: stages of segment lengths, LM in each.
-pub fn fit(
-    model: &dyn StepModel,
+pub fn fit<M: StepModel>(
+    model: &M,
     p: &Series,
     r: &Reference,
     g0: &[f64],
@@ -626,6 +672,9 @@ pub fn fit(
             .iter()
             .map(|s| [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]])
             .collect();
+        for (seg, pose) in segs.iter().zip(poses.iter_mut()) {
+            *pose = placed(model, &g, seg, *pose, &fixes, p);
+        }
         let mut settings = EvalSettings {
             lever: p.lever_arm,
             scale: 1.0,
@@ -633,6 +682,7 @@ pub fn fit(
             block_fixes: 0,
             record_every: 0,
             record_rows: false,
+            tail_curvature: 1.0,
         };
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
@@ -691,6 +741,9 @@ pub fn fit(
                 // Re-estimate the robust scale as the fit improves (a change
                 // under 2 % is not worth a new cost function).
                 let scale = robust_scale(&evals);
+                // From here on the fit is near its solution and its
+                // steps are Newton's in Huber's tail.
+                settings.tail_curvature = TAIL_CURVATURE;
                 if (scale / settings.scale - 1.0).abs() > 0.02 {
                     settings.scale = scale;
                     (cost, evals) = eval_all(&g, &poses, &settings);
@@ -714,6 +767,53 @@ pub fn fit(
         });
     };
     covariance(model, p, &fixes, &segs, &poses, &g, scale, dropped, steps)
+}
+
+/// A segment's initial pose moved by the rigid motion (rotation and
+/// translation, by weighted least squares in closed form) that best lays
+/// the model's antenna track from `pose` on the segment's fixes: the
+/// reference's pose at a segment start is off by a small heading that
+/// grows into metres along it, which the fit would otherwise first spend
+/// its steps (and its robust scale) on. Unmoved where the fixes do not fix
+/// a rotation.
+fn placed<M: StepModel>(
+    model: &M,
+    g: &[f64],
+    seg: &Segment,
+    pose: [f64; 3],
+    fixes: &[RefFix],
+    p: &Series,
+) -> [f64; 3] {
+    let settings = EvalSettings {
+        lever: p.lever_arm,
+        scale: 1.0,
+        jacobian: false,
+        block_fixes: 0,
+        record_every: usize::MAX,
+        record_rows: false,
+        tail_curvature: 1.0,
+    };
+    let e = eval_segment(model, g, seg, pose, fixes, &settings, p);
+    // Each fix the model reached: its weight, the model's antenna there
+    // and the fix.
+    let pairs = fixes[seg.fixes.clone()]
+        .iter()
+        .zip(&e.residuals_m)
+        .map(|(f, r)| {
+            (
+                1.0 / (f.sigma * f.sigma).max(1e-12),
+                [f.x - r[1], f.y - r[2]],
+                [f.x, f.y],
+            )
+        });
+    // Fewer than 10 m of spread along the fixes: no rotation to speak of.
+    match stats::rigid::fit(pairs) {
+        Some(m) if e.residuals_m.len() >= 3 && m.spread_m2 > 100.0 => {
+            let at = m.apply([pose[0], pose[1]]);
+            [at[0], at[1], pose[2] + m.angle]
+        }
+        _ => pose,
+    }
 }
 
 fn prior_cost(priors: &[(usize, f64, f64)], g: &[f64]) -> f64 {
@@ -745,8 +845,8 @@ fn robust_scale(evals: &[SegEval]) -> f64 {
 /// error-model) and its track and residual, from the segments evaluated
 /// once more with the Jacobians.
 #[allow(clippy::too_many_arguments)]
-fn covariance(
-    model: &dyn StepModel,
+fn covariance<M: StepModel>(
+    model: &M,
     p: &Series,
     fixes: &[RefFix],
     segs: &[Segment],
@@ -767,6 +867,7 @@ fn covariance(
         block_fixes,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
         record_rows: true,
+        tail_curvature: 1.0,
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -1188,6 +1289,56 @@ mod tests {
         let apart = DMatrix::from_diagonal_element(3, 3, 4.0);
         let c = thirds_floor(apart, &formal, Some(&model), &[2]).expect("a floor");
         assert_eq!((c[(0, 0)], c[(1, 1)], c[(2, 2)]), (0.0, 0.0, 4.0));
+    }
+
+    #[test]
+    fn a_segment_start_is_laid_on_its_fixes() {
+        use crate::fit::batch::TwoWheelModel;
+        use simulator::{simulate, Scenario, SimConfig};
+        let mut sim = SimConfig::new(Scenario::Mixed, 2);
+        sim.duration_s = Some(300.0);
+        let drive = simulate(&sim).expect("simulated");
+        let config = crate::config::CalibrationConfig::default();
+        let checked = crate::check::drive(&drive, &config).expect("checked");
+        let aligned = crate::clocks::align(checked, &config).expect("aligned");
+        let r = crate::reference::build(&aligned, &config, &mut Vec::new()).expect("reference");
+        let p = &aligned.series;
+        let model = TwoWheelModel::new(p, Some(p.track), false, false);
+        let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
+        let (segs, _) = make_segments(p, &fixes, 120.0, &|_| false);
+        let g = [p.nominal_c, p.nominal_c];
+        let rms = |seg: &Segment, pose: [f64; 3]| {
+            let settings = EvalSettings {
+                lever: p.lever_arm,
+                scale: 1.0,
+                jacobian: false,
+                block_fixes: 0,
+                record_every: 0,
+                record_rows: false,
+                tail_curvature: 1.0,
+            };
+            let e = eval_segment(&model, &g, seg, pose, &fixes, &settings, p);
+            (e.sum_sq_m / e.residuals.len() as f64).sqrt()
+        };
+        let mut moved = 0;
+        for seg in &segs {
+            let start = [r.x[seg.k0], r.y[seg.k0], r.yaw[seg.k0]];
+            // The start turned by 2 degrees and moved by 5 m.
+            let off = [start[0] + 5.0, start[1] - 3.0, start[2] + 0.035];
+            let placed = placed(&model, &g, seg, off, &fixes, p);
+            let (before, after, at_ref) = (rms(seg, off), rms(seg, placed), rms(seg, start));
+            assert!(
+                after <= before && after <= 1.05 * at_ref,
+                "segment at {}: {before:.2} m off, {after:.2} m placed, {at_ref:.2} m from the reference",
+                seg.k0
+            );
+            moved += usize::from(after < 0.5 * before);
+        }
+        assert!(
+            moved >= segs.len() / 2,
+            "{moved} of {} segments placed",
+            segs.len()
+        );
     }
 
     #[test]

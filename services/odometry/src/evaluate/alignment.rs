@@ -64,15 +64,13 @@ pub(super) fn aligned_start(
             pairs.push((d, [r.x_m, r.y_m]));
         }
     }
-    let (mut rotation, mut dm, mut gm) = procrustes(&pairs)?;
-    let residual = |rotation: f64, dm: [f64; 2], gm: [f64; 2], d: [f64; 2], g: [f64; 2]| {
-        let (s, c) = rotation.sin_cos();
-        let (dx, dy) = (d[0] - dm[0], d[1] - dm[1]);
-        (gm[0] + c * dx - s * dy - g[0]).hypot(gm[1] + s * dx + c * dy - g[1])
-    };
+    let mut motion = procrustes(&pairs)?;
     let residuals: Vec<f64> = pairs
         .iter()
-        .map(|(d, g)| residual(rotation, dm, gm, *d, *g))
+        .map(|(d, g)| {
+            let p = motion.apply(*d);
+            (p[0] - g[0]).hypot(p[1] - g[1])
+        })
         .collect();
     let limit = (3.0 * percentile(&residuals, 0.5)?).max(0.1);
     let kept: Vec<_> = pairs
@@ -82,7 +80,7 @@ pub(super) fn aligned_start(
         .map(|(p, _)| *p)
         .collect();
     if kept.len() < pairs.len() {
-        (rotation, dm, gm) = procrustes(&kept)?;
+        motion = procrustes(&kept)?;
     }
     let (t_end, end) = if t0 == ta {
         span.track.first()?
@@ -90,37 +88,18 @@ pub(super) fn aligned_start(
         span.track.last()?
     };
     debug_assert!(*t_end == t0);
-    let d0 = end.point_at(arm);
-    let (s, c) = rotation.sin_cos();
-    let (dx, dy) = (d0[0] - dm[0], d0[1] - dm[1]);
-    let position = [gm[0] + c * dx - s * dy, gm[1] + s * dx + c * dy];
+    let position = motion.apply(end.point_at(arm));
+    let rotation = motion.angle;
     Some((position, wrap_angle(end.yaw + rotation)))
 }
 
-/// Rotation and centroids laying points `d` onto points `g` (least squares).
-fn procrustes(pairs: &[([f64; 2], [f64; 2])]) -> Option<(f64, [f64; 2], [f64; 2])> {
+/// The rigid motion laying points `d` onto points `g` (least squares);
+/// `None` for fewer than three pairs or a track that did not move (under
+/// 1 m^2 of spread in all).
+fn procrustes(pairs: &[([f64; 2], [f64; 2])]) -> Option<stats::rigid::Rigid2> {
     if pairs.len() < 3 {
         return None;
     }
-    let n = pairs.len() as f64;
-    let (mut dm, mut gm) = ([0.0; 2], [0.0; 2]);
-    for (d, g) in pairs {
-        for j in 0..2 {
-            dm[j] += d[j] / n;
-            gm[j] += g[j] / n;
-        }
-    }
-    let (mut dot, mut cross, mut spread) = (0.0, 0.0, 0.0);
-    for (d, g) in pairs {
-        let (dx, dy, gx, gy) = (d[0] - dm[0], d[1] - dm[1], g[0] - gm[0], g[1] - gm[1]);
-        dot += dx * gx + dy * gy;
-        cross += dx * gy - dy * gx;
-        spread += dx * dx + dy * dy;
-    }
-    // A track that did not move has no direction.
-    if spread < 1.0 {
-        return None;
-    }
-    let rotation = cross.atan2(dot);
-    rotation.is_finite().then_some((rotation, dm, gm))
+    let m = stats::rigid::fit(pairs.iter().map(|(d, g)| (1.0, *d, *g)))?;
+    (m.spread_m2 * pairs.len() as f64 >= 1.0).then_some(m)
 }
