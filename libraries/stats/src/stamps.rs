@@ -103,8 +103,9 @@ fn run_jitter(stamps: &[f64], dt: f64) -> Vec<(f64, f64)> {
     let mut out = Vec::with_capacity(stamps.len());
     for i in 0..e.len() {
         let mut window: Vec<f64> = e[i.saturating_sub(k)..(i + k + 1).min(e.len())].to_vec();
-        window.sort_by(f64::total_cmp);
-        let jitter = e[i] - window[window.len() / 2];
+        let mid = window.len() / 2;
+        let (_, median, _) = window.select_nth_unstable_by(mid, f64::total_cmp);
+        let jitter = e[i] - *median;
         // A fix off the receiver's epochs is left out, and so are both
         // fixes that count to one epoch (wid-trial02's first two, 0.04 s
         // apart): which of the two is the epoch's cannot be told, and
