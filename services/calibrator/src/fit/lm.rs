@@ -221,6 +221,22 @@ struct EvalSettings {
     tail_curvature: f64,
 }
 
+impl EvalSettings {
+    /// A plain evaluation at the fixes' own sigmas: no Jacobian, no
+    /// blocks, nothing recorded, IRLS weighting.
+    fn plain(lever: [f64; 2]) -> EvalSettings {
+        EvalSettings {
+            lever,
+            scale: 1.0,
+            jacobian: false,
+            block_fixes: 0,
+            record_every: 0,
+            record_rows: false,
+            tail_curvature: 1.0,
+        }
+    }
+}
+
 const HUBER_K: f64 = 3.0;
 
 /// The curvature along the residual of a fix in Huber's tail, as a
@@ -615,13 +631,8 @@ pub fn anchored_track<M: StepModel>(
     let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
     let (segs, _) = make_segments(p, &fixes, length_s, &|_| false);
     let settings = EvalSettings {
-        lever: p.lever_arm,
-        scale: 1.0,
-        jacobian: false,
-        block_fixes: 0,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
-        record_rows: false,
-        tail_curvature: 1.0,
+        ..EvalSettings::plain(p.lever_arm)
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -675,15 +686,7 @@ pub fn fit<M: StepModel>(
         for (seg, pose) in segs.iter().zip(poses.iter_mut()) {
             *pose = placed(model, &g, seg, *pose, &fixes, p);
         }
-        let mut settings = EvalSettings {
-            lever: p.lever_arm,
-            scale: 1.0,
-            jacobian: false,
-            block_fixes: 0,
-            record_every: 0,
-            record_rows: false,
-            tail_curvature: 1.0,
-        };
+        let mut settings = EvalSettings::plain(p.lever_arm);
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
             let mut total = 0.0;
@@ -785,13 +788,8 @@ fn placed<M: StepModel>(
     p: &Series,
 ) -> [f64; 3] {
     let settings = EvalSettings {
-        lever: p.lever_arm,
-        scale: 1.0,
-        jacobian: false,
-        block_fixes: 0,
         record_every: usize::MAX,
-        record_rows: false,
-        tail_curvature: 1.0,
+        ..EvalSettings::plain(p.lever_arm)
     };
     let e = eval_segment(model, g, seg, pose, fixes, &settings, p);
     // Each fix the model reached: its weight, the model's antenna there
@@ -1308,15 +1306,7 @@ mod tests {
         let (segs, _) = make_segments(p, &fixes, 120.0, &|_| false);
         let g = [p.nominal_c, p.nominal_c];
         let rms = |seg: &Segment, pose: [f64; 3]| {
-            let settings = EvalSettings {
-                lever: p.lever_arm,
-                scale: 1.0,
-                jacobian: false,
-                block_fixes: 0,
-                record_every: 0,
-                record_rows: false,
-                tail_curvature: 1.0,
-            };
+            let settings = EvalSettings::plain(p.lever_arm);
             let e = eval_segment(&model, &g, seg, pose, &fixes, &settings, p);
             (e.sum_sq_m / e.residuals.len() as f64).sqrt()
         };
