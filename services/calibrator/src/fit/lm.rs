@@ -683,9 +683,6 @@ pub fn fit<M: StepModel>(
             .iter()
             .map(|s| [r.x[s.k0], r.y[s.k0], r.yaw[s.k0]])
             .collect();
-        for (seg, pose) in segs.iter().zip(poses.iter_mut()) {
-            *pose = placed(model, &g, seg, *pose, &fixes, p);
-        }
         let mut settings = EvalSettings::plain(p.lever_arm);
         let mut lambda = 1e-3;
         let eval_all = |g: &[f64], poses: &[[f64; 3]], s: &EvalSettings| -> (f64, Vec<SegEval>) {
@@ -770,48 +767,6 @@ pub fn fit<M: StepModel>(
         });
     };
     covariance(model, p, &fixes, &segs, &poses, &g, scale, dropped, steps)
-}
-
-/// A segment's initial pose moved by the rigid motion (rotation and
-/// translation, by weighted least squares in closed form) that best lays
-/// the model's antenna track from `pose` on the segment's fixes: the
-/// reference's pose at a segment start is off by a small heading that
-/// grows into metres along it, which the fit would otherwise first spend
-/// its steps (and its robust scale) on. Unmoved where the fixes do not fix
-/// a rotation.
-fn placed<M: StepModel>(
-    model: &M,
-    g: &[f64],
-    seg: &Segment,
-    pose: [f64; 3],
-    fixes: &[RefFix],
-    p: &Series,
-) -> [f64; 3] {
-    let settings = EvalSettings {
-        record_every: usize::MAX,
-        ..EvalSettings::plain(p.lever_arm)
-    };
-    let e = eval_segment(model, g, seg, pose, fixes, &settings, p);
-    // Each fix the model reached: its weight, the model's antenna there
-    // and the fix.
-    let pairs = fixes[seg.fixes.clone()]
-        .iter()
-        .zip(&e.residuals_m)
-        .map(|(f, r)| {
-            (
-                1.0 / (f.sigma * f.sigma).max(1e-12),
-                [f.x - r[1], f.y - r[2]],
-                [f.x, f.y],
-            )
-        });
-    // Fewer than 10 m of spread along the fixes: no rotation to speak of.
-    match stats::rigid::fit(pairs) {
-        Some(m) if e.residuals_m.len() >= 3 && m.spread_m2 > 100.0 => {
-            let at = m.apply([pose[0], pose[1]]);
-            [at[0], at[1], pose[2] + m.angle]
-        }
-        _ => pose,
-    }
 }
 
 fn prior_cost(priors: &[(usize, f64, f64)], g: &[f64]) -> f64 {
@@ -1287,48 +1242,6 @@ mod tests {
         let apart = DMatrix::from_diagonal_element(3, 3, 4.0);
         let c = thirds_floor(apart, &formal, Some(&model), &[2]).expect("a floor");
         assert_eq!((c[(0, 0)], c[(1, 1)], c[(2, 2)]), (0.0, 0.0, 4.0));
-    }
-
-    #[test]
-    fn a_segment_start_is_laid_on_its_fixes() {
-        use crate::fit::batch::TwoWheelModel;
-        use simulator::{simulate, Scenario, SimConfig};
-        let mut sim = SimConfig::new(Scenario::Mixed, 2);
-        sim.duration_s = Some(300.0);
-        let drive = simulate(&sim).expect("simulated");
-        let config = crate::config::CalibrationConfig::default();
-        let checked = crate::check::drive(&drive, &config).expect("checked");
-        let aligned = crate::clocks::align(checked, &config).expect("aligned");
-        let r = crate::reference::build(&aligned, &config, &mut Vec::new()).expect("reference");
-        let p = &aligned.series;
-        let model = TwoWheelModel::new(p, Some(p.track), false, false);
-        let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
-        let (segs, _) = make_segments(p, &fixes, 120.0, &|_| false);
-        let g = [p.nominal_c, p.nominal_c];
-        let rms = |seg: &Segment, pose: [f64; 3]| {
-            let settings = EvalSettings::plain(p.lever_arm);
-            let e = eval_segment(&model, &g, seg, pose, &fixes, &settings, p);
-            (e.sum_sq_m / e.residuals.len() as f64).sqrt()
-        };
-        let mut moved = 0;
-        for seg in &segs {
-            let start = [r.x[seg.k0], r.y[seg.k0], r.yaw[seg.k0]];
-            // The start turned by 2 degrees and moved by 5 m.
-            let off = [start[0] + 5.0, start[1] - 3.0, start[2] + 0.035];
-            let placed = placed(&model, &g, seg, off, &fixes, p);
-            let (before, after, at_ref) = (rms(seg, off), rms(seg, placed), rms(seg, start));
-            assert!(
-                after <= before && after <= 1.05 * at_ref,
-                "segment at {}: {before:.2} m off, {after:.2} m placed, {at_ref:.2} m from the reference",
-                seg.k0
-            );
-            moved += usize::from(after < 0.5 * before);
-        }
-        assert!(
-            moved >= segs.len() / 2,
-            "{moved} of {} segments placed",
-            segs.len()
-        );
     }
 
     #[test]
