@@ -3,8 +3,8 @@
 //! form (2-D Procrustes without scaling): how a dead-reckoned track is
 //! placed on GNSS fixes when its start pose is not known.
 //!
-//! One home for the calibration's segment placement, the diagnosis's
-//! held-out blocks and the odometry's outage evaluation.
+//! One home for the diagnosis's held-out blocks and the odometry's outage
+//! evaluation.
 
 /// A rigid motion: rotate about `from_centroid` by `angle`, then move
 /// `from_centroid` onto `to_centroid`.
