@@ -657,6 +657,31 @@ pub fn fit<M: StepModel>(
     breaks: &dyn Fn(usize) -> bool,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Fit, CalibrationError> {
+    fit_with(
+        model,
+        p,
+        r,
+        g0,
+        stage_lengths,
+        breaks,
+        progress,
+        TAIL_CURVATURE,
+    )
+}
+
+/// [`fit`] with the tail's curvature once the robust scale is re-estimated
+/// (`tail_curvature`; 1 is plain IRLS throughout).
+#[allow(clippy::too_many_arguments)]
+fn fit_with<M: StepModel>(
+    model: &M,
+    p: &Series,
+    r: &Reference,
+    g0: &[f64],
+    stage_lengths: &[f64],
+    breaks: &dyn Fn(usize) -> bool,
+    progress: &mut dyn FnMut(f64),
+    tail_curvature: f64,
+) -> Result<Fit, CalibrationError> {
     let ng = model.n_global();
     let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
     let priors = model.priors();
@@ -743,7 +768,7 @@ pub fn fit<M: StepModel>(
                 let scale = robust_scale(&evals);
                 // From here on the fit is near its solution and its
                 // steps are Newton's in Huber's tail.
-                settings.tail_curvature = TAIL_CURVATURE;
+                settings.tail_curvature = tail_curvature;
                 if (scale / settings.scale - 1.0).abs() > 0.02 {
                     settings.scale = scale;
                     (cost, evals) = eval_all(&g, &poses, &settings);
@@ -1242,6 +1267,50 @@ mod tests {
         let apart = DMatrix::from_diagonal_element(3, 3, 4.0);
         let c = thirds_floor(apart, &formal, Some(&model), &[2]).expect("a floor");
         assert_eq!((c[(0, 0)], c[(1, 1)], c[(2, 2)]), (0.0, 0.0, 4.0));
+    }
+
+    #[test]
+    fn newton_steps_in_the_tail_reach_the_minimum_irls_reaches() {
+        use crate::fit::batch::TwoWheelModel;
+        use simulator::{simulate, Scenario, SimConfig};
+        // A drive whose GNSS error wanders (consumer grade): many fixes in
+        // Huber's tail.
+        let mut sim = SimConfig::new(Scenario::Mixed, 4);
+        sim.duration_s = Some(600.0);
+        sim.sensors.gnss.white_sigma_m = 0.5;
+        sim.sensors.gnss.gm_sigma_m = 2.5;
+        sim.sensors.gnss.gm_tau_s = 30.0;
+        let drive = simulate(&sim).expect("simulated");
+        let config = crate::config::CalibrationConfig::default();
+        let checked = crate::check::drive(&drive, &config).expect("checked");
+        let aligned = crate::clocks::align(checked, &config).expect("aligned");
+        let r = crate::reference::build(&aligned, &config, &mut Vec::new()).expect("reference");
+        let p = &aligned.series;
+        let model = TwoWheelModel::new(p, None, false, false);
+        let g0 = [p.nominal_c, p.nominal_c, p.track];
+        let run = |tail: f64| {
+            fit_with(
+                &model,
+                p,
+                &r,
+                &g0,
+                &stages(120.0),
+                &|_| false,
+                &mut |_| {},
+                tail,
+            )
+            .expect("fitted")
+        };
+        let (newton, irls) = (run(TAIL_CURVATURE), run(1.0));
+        for i in 0..3 {
+            let sigma = irls.formal[(i, i)].sqrt();
+            assert!(
+                (newton.g[i] - irls.g[i]).abs() < 0.05 * sigma,
+                "parameter {i}: {} against {} (sigma {sigma})",
+                newton.g[i],
+                irls.g[i]
+            );
+        }
     }
 
     #[test]
