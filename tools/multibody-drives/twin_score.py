@@ -3,6 +3,7 @@
 
     twin_score.py OUT_DIR [--bin DIR] [--rerun] [--only PREFIX] [--mends N]
                   [--twin-dir NAME] [--effect-forms FORMS] [--replicates R]
+                  [--draws K]
 
 For each drive of OUT_DIR/manifest.json (a recording from a multibody
 vehicle model that is not ours, with effects the tools are not told):
@@ -18,6 +19,9 @@ vehicle model that is not ours, with effects the tools are not told):
      drive, and the 13 drives of a route share their twins' seeds, so a
      route's drives pass or fail together; the replicates show how much
      of "alike after the mends" is the draw.
+  6. with --draws K: every twin above is simulated K times (seeds s and
+     1000 s + 1 ... 1000 s + K - 1) and compared with `--draw` for the
+     rest: the effects' differences read the twin's mean.
 
 The tools read the recording's sensor files only; the manifest (what was
 put in) is read here, to score. Scoring as score.py: a drive's targets
@@ -81,17 +85,28 @@ def loop(b, drive, rerun, mends, twin_dir="twin", forms=None):
     return cs, times
 
 
+# Further noise draws of each twin (`--draws`): `compare --draw`.
+DRAWS = 1
+
+
 def twin_compared(b, drive, seed, effects_from, forms, t, c, before=None):
     """The twin of `drive` under noise `seed` (with the physics of
     `effects_from` if given) written to `t`, compared with the recording
-    into `c` (against the comparison `before` if given)."""
-    sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(seed), "--out", t]
-    if effects_from:
-        sim += ["--effects-from", effects_from]
-    if forms:
-        sim += ["--effect-forms", forms]
-    sh(sim)
+    into `c` (against the comparison `before` if given). With DRAWS > 1
+    the same physics is simulated again under seeds 1000 seed + j into
+    `t`-dJ and passed to the comparison as further draws."""
+    outs = [t] + [f"{t}-d{j}" for j in range(1, DRAWS)]
+    for j, out in enumerate(outs):
+        s = seed if j == 0 else 1000 * seed + j
+        sim = [os.path.join(b, "sensor-bridge"), "simulate", "--like", drive, "--seed", str(s), "--out", out]
+        if effects_from:
+            sim += ["--effects-from", effects_from]
+        if forms:
+            sim += ["--effect-forms", forms]
+        sh(sim)
     cmp = [os.path.join(b, "calibrator"), "compare", drive, t, "--json", c]
+    for out in outs[1:]:
+        cmp += ["--draw", out]
     if before:
         cmp += ["--before", before]
     sh(cmp)
@@ -131,7 +146,11 @@ def main():
                     help="passed to `simulate --like` (physical or catalogue; its default otherwise)")
     ap.add_argument("--replicates", type=int, default=0,
                     help="the last twin's physics again under this many other noise seeds")
+    ap.add_argument("--draws", type=int, default=1,
+                    help="noise draws of each twin passed to `compare` (the first and --draw for the rest)")
     a = ap.parse_args()
+    global DRAWS
+    DRAWS = max(1, a.draws)
     manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
     per_effect = defaultdict(lambda: [0, 0])
     rows = []

@@ -4,12 +4,12 @@
 
 use anyhow::{Context, Result};
 use calibrator::diagnose::compare::{
-    compare, Carried, CompareConfig, Comparison, Declared, Summary,
+    compare_draws, Carried, CompareConfig, Comparison, Declared, Summary,
 };
 use calibrator::diagnose::speed_map::SpeedMapDifference;
 use calibrator::diagnose::{compare_pictures as pics, diagnose, DiagnoseConfig, Diagnosis};
 use clap::Args;
-use interfaces::drive::Drive;
+use interfaces::drive::{toml_value, Drive};
 use interfaces::speed_map::SpeedMap;
 use interfaces::yaw_wander::YawWander;
 use std::fmt::Write as _;
@@ -23,6 +23,14 @@ pub struct CompareArgs {
     /// The simulation of the same path (any simulator that writes the drive
     /// format or MCAP; e.g. `sensor-bridge simulate --like RECORDING`).
     pub simulation: PathBuf,
+    /// Another noise draw of the same simulation (the same physics under
+    /// another seed, e.g. `sensor-bridge simulate --like RECORDING --seed
+    /// K`), repeatable: the effects' differences read the simulation as
+    /// the mean of its draws, so its noise weighs less against the
+    /// recording's. Each draw must declare the physics SIMULATION declares
+    /// and hold other GNSS fixes.
+    #[arg(long, value_name = "SIMULATION")]
+    pub draw: Vec<PathBuf>,
     #[command(flatten)]
     pub input: crate::drive_input::DriveInput,
     /// Write the comparison as JSON here (its `findings` are what
@@ -48,6 +56,9 @@ pub struct CompareArgs {
 struct Written<'a> {
     recording: String,
     simulation: String,
+    /// Further noise draws of the simulation (`--draw`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    draws: Vec<String>,
     #[serde(flatten)]
     comparison: &'a Comparison,
 }
@@ -84,6 +95,16 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     // a simulator's own statement of what it simulated); the recording's
     // truth is never read.
     let declared: Option<Declared> = sim.truth_params.as_ref().map(|t| t.effects.clone());
+    let mut draws = Vec::with_capacity(args.draw.len());
+    for path in &args.draw {
+        let d = read(path)?;
+        check_draw(&sim, &args.simulation, &d, path, &draws)?;
+        let dd = diagnose(&d, &cfg)
+            .with_context(|| format!("cannot diagnose the simulation's draw {}", path.display()))?;
+        draws.push((d, dd));
+    }
+    let mut all_sims: Vec<&Diagnosis> = vec![&ds];
+    all_sims.extend(draws.iter().map(|(_, dd)| dd));
     let declared_map = declared_extra(
         &sim,
         "speed_map",
@@ -112,9 +133,9 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         speed_map: declared_map,
         yaw_wander: declared_wander,
     };
-    let c = compare(
+    let c = compare_draws(
         &dr,
-        &ds,
+        &all_sims,
         declared.as_ref(),
         &carried,
         &CompareConfig::default(),
@@ -124,6 +145,7 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
         let w = Written {
             recording: args.recording.display().to_string(),
             simulation: args.simulation.display().to_string(),
+            draws: args.draw.iter().map(|p| p.display().to_string()).collect(),
             comparison: &c,
         };
         let text = serde_json::to_string_pretty(&w).context("cannot encode the comparison")?;
@@ -134,6 +156,53 @@ pub fn run_compare(args: &CompareArgs) -> Result<()> {
     if let Some(dir) = &args.plots {
         write_page(args, dir, &c, [&real, &sim], [&dr, &ds], before.as_ref())?;
     }
+    Ok(())
+}
+
+/// A further noise draw of the simulation is one only when it declares
+/// the same physics (its truth.toml's `[effects]` and what it carries
+/// beyond them, or no truth.toml where the simulation has none) and its
+/// GNSS fixes are not those of the simulation or of an earlier draw: the
+/// same draw twice would shrink the simulation's sigma with no new
+/// information.
+fn check_draw(
+    sim: &Drive,
+    sim_path: &Path,
+    draw: &Drive,
+    path: &Path,
+    earlier: &[(Drive, Diagnosis)],
+) -> Result<()> {
+    fn physics(d: &Drive) -> Option<(&Declared, [Option<&toml_value::Value>; 2])> {
+        d.truth_params.as_ref().map(|t| {
+            (
+                &t.effects,
+                ["speed_map", "yaw_wander"].map(|k| t.extra.get(k)),
+            )
+        })
+    }
+    anyhow::ensure!(
+        physics(draw) == physics(sim),
+        "--draw {}: it declares other physics than the simulation {} (truth.toml's [effects], speed_map or \
+         yaw_wander differ); a draw is the same simulation under another noise seed",
+        path.display(),
+        sim_path.display()
+    );
+    if sim.truth_params.is_none() {
+        tracing::warn!(
+            "--draw {}: neither it nor {} declares its physics (no truth.toml); that they are draws of one \
+             simulation is taken on trust",
+            path.display(),
+            sim_path.display()
+        );
+    }
+    let same = |a: &Drive| a.gnss.is_some() && a.gnss == draw.gnss;
+    anyhow::ensure!(
+        !same(sim) && !earlier.iter().any(|(d, _)| same(d)),
+        "--draw {}: its GNSS fixes are those of {} or of an earlier draw: the same noise draw twice is not a \
+         second draw",
+        path.display(),
+        sim_path.display()
+    );
     Ok(())
 }
 
@@ -236,6 +305,13 @@ fn render_text(c: &Comparison, before: Option<&Summary>) -> String {
     let named: Vec<_> = c.named().collect();
     if let Some(why) = &c.effects_missing {
         let _ = writeln!(s, "the effects could not be compared: {why}");
+    }
+    if c.simulation_draws > 1 {
+        let _ = writeln!(
+            s,
+            "the simulation read as the mean of its {} noise draws",
+            c.simulation_draws
+        );
     }
     if named.is_empty() {
         let _ = writeln!(s, "physics: no effect differs beyond the noise");

@@ -3,7 +3,7 @@
 //! with nothing named, and the command's files.
 
 use calibrator::diagnose::compare::{
-    compare, Carried, CompareConfig, Comparison, DifferenceVerdict,
+    compare, compare_draws, Carried, CompareConfig, Comparison, DifferenceVerdict,
 };
 use calibrator::diagnose::{diagnose, DiagnoseConfig};
 use interfaces::drive::Drive;
@@ -257,6 +257,83 @@ fn a_null_pair_names_nothing() {
     assert!(c.findings.is_empty(), "{:?}", c.findings);
 }
 
+/// Three noise draws of one simulation: the effects' differences read
+/// their mean, with the draws' own sigma over root three or their scatter
+/// where larger, and the channels read the first draw alone; against a
+/// recording without physics nothing is named.
+#[test]
+fn draws_of_the_simulation_are_read_as_their_mean() {
+    let cfg = DiagnoseConfig::default();
+    let dr = diagnose(&drive(1, &["gnss_lever_arm.x_m=0.3".to_string()]), &cfg).expect("diagnose");
+    let cfg = DiagnoseConfig {
+        block_s: Some(dr.noise.block_s),
+        ..cfg
+    };
+    let sims: Vec<_> = [2, 4, 5]
+        .iter()
+        .map(|&k| diagnose(&drive(k, &[]), &cfg).expect("diagnose a draw"))
+        .collect();
+    let one = |d| compare(&dr, d, None, &Carried::default(), &CompareConfig::default());
+    let singles: Vec<Comparison> = sims.iter().map(one).collect();
+    let refs: Vec<_> = sims.iter().collect();
+    let c = compare_draws(
+        &dr,
+        &refs,
+        None,
+        &Carried::default(),
+        &CompareConfig::default(),
+    );
+    assert_eq!(c.simulation_draws, 3);
+    let mut rows = 0;
+    for row in c.effects.iter().filter(|e| e.simulation.is_some()) {
+        let fits: Vec<[f64; 2]> = singles
+            .iter()
+            .map(|s| {
+                s.effects
+                    .iter()
+                    .find(|e| e.effect == row.effect)
+                    .and_then(|e| e.simulation)
+                    .expect("each draw's fit")
+            })
+            .collect();
+        let mean = fits.iter().map(|f| f[0]).sum::<f64>() / 3.0;
+        let own = (fits.iter().map(|f| f[1] * f[1]).sum::<f64>() / 9.0).sqrt();
+        let scatter = (fits.iter().map(|f| (f[0] - mean).powi(2)).sum::<f64>() / 6.0).sqrt();
+        let [m, s] = row.simulation.expect("the mean");
+        assert!(
+            (m - mean).abs() <= 1e-12 * mean.abs().max(1e-9),
+            "{:?}: {m} against {mean}",
+            row.effect
+        );
+        assert!(
+            (s - own.max(scatter)).abs() <= 1e-12 * s,
+            "{:?}: {s}",
+            row.effect
+        );
+        // Never below the recording's own noise: the difference's sigma.
+        let r = row.recording.expect("the recording's fit")[1];
+        assert!(row.sigma.expect("sigma") >= r, "{:?}", row.effect);
+        rows += 1;
+    }
+    assert!(rows >= 10, "{rows} effects read over the draws");
+    // The channels and where the two part: the first draw's.
+    assert_eq!(c.channels, singles[0].channels);
+    assert_eq!(c.parting, singles[0].parting);
+    // The planted antenna is named against the draws, as against each.
+    let named: Vec<Effect> = c.named().map(|e| e.effect).collect();
+    assert_eq!(named, vec![Effect::GnssLeverArm], "{:#?}", c.effects);
+    // A recording without physics against the same draws: nothing named.
+    let null = diagnose(&drive(3, &[]), &cfg).expect("diagnose");
+    let c = compare_draws(
+        &null,
+        &refs,
+        None,
+        &Carried::default(),
+        &CompareConfig::default(),
+    );
+    assert_eq!(c.named().count(), 0, "{:#?}", c.effects);
+}
+
 #[test]
 fn the_command_writes_the_comparison_and_its_page() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -315,6 +392,53 @@ fn the_command_writes_the_comparison_and_its_page() {
         String::from_utf8_lossy(&out.stdout).contains("before the mend: 1 named (gnss_lever_arm)")
     );
     assert!(plots.join("mend.svg").exists());
+    // Further draws of the simulation: another seed is one; the same
+    // folder again, or a drive that declares other physics, is refused
+    // with the reason.
+    let other = dir.path().join("sim2");
+    drive_io::write_drive(&drive(4, &[]), &other).expect("write");
+    let with_draws = |draw: &std::path::Path| {
+        Command::new(env!("CARGO_BIN_EXE_calibrator"))
+            .args(["compare"])
+            .arg(&rec)
+            .arg(&sim)
+            .arg("--draw")
+            .arg(&other)
+            .arg("--draw")
+            .arg(draw)
+            .output()
+            .expect("run")
+    };
+    let out = with_draws(&other);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("sim2") && err.contains("same noise draw"),
+        "{err}"
+    );
+    let out = with_draws(&rec);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("declares other physics"), "{err}");
+    let out = Command::new(env!("CARGO_BIN_EXE_calibrator"))
+        .args(["compare"])
+        .arg(&rec)
+        .arg(&sim)
+        .arg("--draw")
+        .arg(&other)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .expect("run");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json")).expect("parse");
+    assert_eq!(v["simulation_draws"], 2, "{v}");
+    assert_eq!(v["draws"][0], other.display().to_string(), "{v}");
     // A missing simulation is named.
     let out = Command::new(env!("CARGO_BIN_EXE_calibrator"))
         .args(["compare"])

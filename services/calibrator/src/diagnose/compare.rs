@@ -35,7 +35,7 @@
 
 use super::decide::{guard_passes, guard_source, step_down};
 use super::design::Channel;
-use super::limit::{joint_t, EffectLimit, InformationSource, FAMILY_ALPHA};
+use super::limit::{joint_t, EffectLimit, InformationLimit, InformationSource, FAMILY_ALPHA};
 use super::speed_map::{speed_level, speed_map_difference, SpeedMapDifference};
 use super::yaw_wander::{difference as wander_difference, WanderDifference};
 use super::{BaseModel, Diagnosis};
@@ -43,6 +43,7 @@ use crate::error_model::Normal;
 use interfaces::effects::{Effect, Param};
 use interfaces::speed_map::SpeedMap;
 use interfaces::yaw_wander::YawWander;
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use stats::distributions::{normal_quantile, t_quantile};
 use std::collections::BTreeMap;
@@ -217,6 +218,9 @@ pub struct Comparison {
     pub family_alpha: f64,
     /// Block length both were diagnosed with, s.
     pub block_s: f64,
+    /// Noise draws of the simulation whose mean the effects' differences
+    /// read (1: the simulation alone).
+    pub simulation_draws: usize,
     /// Every effect, in catalogue order.
     pub effects: Vec<EffectDifference>,
     /// Where the two part.
@@ -402,8 +406,37 @@ pub fn compare(
     carried: &Carried,
     cfg: &CompareConfig,
 ) -> Comparison {
+    compare_draws(recording, &[simulation], declared, carried, cfg)
+}
+
+/// [`compare`] against several noise draws of one simulation (the same
+/// physics under other noise seeds, `simulations[0]` first): the effects'
+/// differences read the simulation as the mean of its draws, whose sigma
+/// is the draws' own over the square root of their number, or their
+/// scatter about the mean where that is larger (see [`simulation_fit`]).
+/// The recording's noise is the difference's floor; a simulation's is
+/// not, when it can be drawn again. Where along the drive the two part,
+/// the channels and the mend's carried maps read `simulations[0]`.
+///
+/// `simulations` must not be empty (the result is then [`compare`] of
+/// the recording against itself, which names nothing) and its draws must
+/// be independent: the caller checks that they are different draws of
+/// the same physics (`calibrator compare --draw`).
+pub fn compare_draws(
+    recording: &Diagnosis,
+    simulations: &[&Diagnosis],
+    declared: Option<&Declared>,
+    carried: &Carried,
+    cfg: &CompareConfig,
+) -> Comparison {
+    let simulation = simulations.first().copied().unwrap_or(recording);
+    let simulations = if simulations.is_empty() {
+        &[recording][..]
+    } else {
+        simulations
+    };
     let declared_map = carried.speed_map.as_ref();
-    let (effects, effects_missing) = effect_differences(recording, simulation);
+    let (effects, effects_missing) = effect_differences(recording, simulations);
     let pairs = matched_blocks(recording, simulation);
     let parting = parting_spans(recording, simulation, &pairs);
     let mut channels = channel_distances(recording, simulation, &pairs, cfg);
@@ -523,10 +556,11 @@ pub fn compare(
         Some(d) => mend_declared(d, &effects, &carriers),
         None => next_twin(recording, simulation, &effects),
     };
-    compass_terms(&mut findings, recording, simulation, declared);
+    compass_terms(&mut findings, recording, simulations, declared);
     Comparison {
         family_alpha: FAMILY_ALPHA,
         block_s: recording.noise.block_s,
+        simulation_draws: simulations.len(),
         parting,
         matched_blocks: pairs.len(),
         channels_within_noise: channels.iter().filter(|c| c.within_noise).count(),
@@ -585,21 +619,102 @@ fn difference_dof(recording: &Diagnosis, simulation: &Diagnosis) -> f64 {
     }
 }
 
-/// Per effect: both fits, their difference and Holm's decision.
+/// The simulation's fit of `effect` under heading source `source` over
+/// its noise draws: the mean of the draws' estimates and its sigma, the
+/// draws' own sigmas over the square root of their number, or the draws'
+/// scatter about their mean over the same root where that is larger (a
+/// draw's sigma is the larger of its Fisher information's and its
+/// segments' scatter; the draws' scatter is a third reading of the same
+/// noise, and the larger one is kept, as there). `None` when a draw holds
+/// no fit of it. One draw: its own fit.
+fn simulation_fit(
+    limits: &[&InformationLimit],
+    effect: Effect,
+    source: InformationSource,
+) -> Option<[f64; 2]> {
+    let fits = limits
+        .iter()
+        .map(|l| {
+            l.effects
+                .iter()
+                .find(|e| e.effect == effect)
+                .and_then(|e| fit_under(e, source))
+        })
+        .collect::<Option<Vec<[f64; 2]>>>()?;
+    let n = fits.len() as f64;
+    if fits.is_empty() {
+        return None;
+    }
+    let mean = fits.iter().map(|f| f[0]).sum::<f64>() / n;
+    let own = (fits.iter().map(|f| f[1] * f[1]).sum::<f64>() / (n * n)).sqrt();
+    let scatter = if fits.len() > 1 {
+        (fits.iter().map(|f| (f[0] - mean).powi(2)).sum::<f64>() / ((n - 1.0) * n)).sqrt()
+    } else {
+        0.0
+    };
+    Some([mean, own.max(scatter)])
+}
+
+/// The compass bias's three terms over the simulation's draws: their
+/// mean, its covariance (the draws' own over their number squared) and
+/// the fewest blocks of a draw. `None` when a draw has no such fit.
+fn simulation_terms(
+    limits: &[&InformationLimit],
+    effect: Effect,
+) -> Option<(DVector<f64>, DMatrix<f64>, usize)> {
+    let terms = limits
+        .iter()
+        .map(|l| {
+            l.effects
+                .iter()
+                .find(|e| e.effect == effect)?
+                .joint
+                .as_ref()?
+                .terms
+                .clone()
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let n = terms.len() as f64;
+    let blocks = terms.iter().map(|t| t.blocks).min()?;
+    let (mut mean, mut cov) = (DVector::zeros(3), DMatrix::zeros(3, 3));
+    for t in &terms {
+        let (a, c) = t.matrices();
+        mean += a / n;
+        cov += c / (n * n);
+    }
+    Some((mean, cov, blocks))
+}
+
+/// Per effect: both fits, their difference and Holm's decision; the
+/// simulation read over its noise draws (`simulations[0]` first, not
+/// empty).
 fn effect_differences(
     recording: &Diagnosis,
-    simulation: &Diagnosis,
+    simulations: &[&Diagnosis],
 ) -> (Vec<EffectDifference>, Option<String>) {
-    let (Some(lr), Some(ls)) = (&recording.information_limit, &simulation.information_limit) else {
+    let limits = simulations
+        .iter()
+        .map(|d| d.information_limit.as_ref())
+        .collect::<Option<Vec<_>>>();
+    let (Some(lr), Some(limits), Some(simulation)) = (
+        &recording.information_limit,
+        limits.filter(|l| !l.is_empty()),
+        simulations.first().copied(),
+    ) else {
         let why = recording
             .information_limit_missing
             .as_ref()
             .map(|w| format!("the recording: {w}"))
             .or_else(|| {
-                simulation
-                    .information_limit_missing
-                    .as_ref()
-                    .map(|w| format!("the simulation: {w}"))
+                simulations.iter().enumerate().find_map(|(k, d)| {
+                    d.information_limit_missing.as_ref().map(|w| {
+                        if k == 0 {
+                            format!("the simulation: {w}")
+                        } else {
+                            format!("the simulation's draw {}: {w}", k + 1)
+                        }
+                    })
+                })
             })
             .unwrap_or_else(|| "no information limit".into());
         return (Vec::new(), Some(why));
@@ -617,15 +732,14 @@ fn effect_differences(
     // term to show), the difference and sigma shown the constant term's.
     let terms = |l: Option<&EffectLimit>| l?.joint.as_ref()?.terms.clone();
     for er in &lr.effects {
-        let es = ls.effects.iter().find(|e| e.effect == er.effect);
-        let (r, s) = (fit(Some(er)), es.and_then(|l| fit_under(l, er.source)));
+        let (r, s) = (fit(Some(er)), simulation_fit(&limits, er.effect, er.source));
         let (difference, sigma, z) = match (r, s) {
             (Some(r), Some(s)) => {
                 let sigma = r[1].hypot(s[1]);
-                let joint = match (terms(Some(er)), terms(es)) {
-                    (Some(tr), Some(ts)) => {
-                        let ((a, ca), (b, cb)) = (tr.matrices(), ts.matrices());
-                        joint_t(&(a - b), &(ca + cb), tr.blocks.min(ts.blocks), dof)
+                let joint = match (terms(Some(er)), simulation_terms(&limits, er.effect)) {
+                    (Some(tr), Some((b, cb, blocks))) => {
+                        let (a, ca) = tr.matrices();
+                        joint_t(&(a - b), &(ca + cb), tr.blocks.min(blocks), dof)
                     }
                     _ => None,
                 };
@@ -1206,14 +1320,15 @@ fn mend_declared(
 
 /// The compass bias's three terms (a_deg, b_deg, c_deg) in a mend that
 /// names it: the declared terms (zero where not declared) moved by the
-/// difference of the two drives' three-term fits, or without a declared
+/// difference of the two drives' three-term fits (the simulation's the mean
+/// over its draws), or without a declared
 /// simulation the recording's three terms. A compass error that is a
 /// sinusoid of the heading has no constant term to carry alone. Left as
 /// it is where either drive lacks the three-term fit.
 fn compass_terms(
     findings: &mut [TwinEffect],
     recording: &Diagnosis,
-    simulation: &Diagnosis,
+    simulations: &[&Diagnosis],
     declared: Option<&Declared>,
 ) {
     let terms = |d: &Diagnosis| {
@@ -1240,9 +1355,16 @@ fn compass_terms(
     let names = [Param::HeadingA, Param::HeadingB, Param::HeadingC].map(|p| p.spec().name);
     let (values, from) = match declared {
         Some(d) => {
-            let Some(s) = terms(simulation) else {
+            // The mean over the simulation's draws.
+            let draws = simulations
+                .iter()
+                .map(|d| terms(d))
+                .collect::<Option<Vec<_>>>();
+            let Some(draws) = draws.filter(|v| !v.is_empty()) else {
                 return;
             };
+            let n = draws.len() as f64;
+            let s = [0, 1, 2].map(|k| draws.iter().map(|t| t[k]).sum::<f64>() / n);
             let now = d.get(&Effect::HeadingBias.to_string());
             let at = |k: usize| now.and_then(|p| p.get(names[k]).copied()).unwrap_or(0.0);
             (
