@@ -213,17 +213,11 @@ struct EvalSettings {
     record_every: usize,
     /// Keep every fix's linearisation ([`FixLin`]).
     record_rows: bool,
-    /// The curvature given to a fix in Huber's tail along its residual,
-    /// as a fraction of the IRLS weight: 1 is IRLS (the covariances'
-    /// weighting); the cost's own curvature there is 0, and a fraction
-    /// near it makes the fit's steps Newton's, converging in a few steps
-    /// where IRLS crawls at the tail's share.
-    tail_curvature: f64,
 }
 
 impl EvalSettings {
     /// A plain evaluation at the fixes' own sigmas: no Jacobian, no
-    /// blocks, nothing recorded, IRLS weighting.
+    /// blocks, nothing recorded.
     fn plain(lever: [f64; 2]) -> EvalSettings {
         EvalSettings {
             lever,
@@ -232,18 +226,11 @@ impl EvalSettings {
             block_fixes: 0,
             record_every: 0,
             record_rows: false,
-            tail_curvature: 1.0,
         }
     }
 }
 
 const HUBER_K: f64 = 3.0;
-
-/// The curvature along the residual of a fix in Huber's tail, as a
-/// fraction of its IRLS weight, once the fit is near its solution (see
-/// `EvalSettings::tail_curvature`): small enough for Newton's speed, large
-/// enough to keep every segment's normal equations positive definite.
-const TAIL_CURVATURE: f64 = 0.1;
 
 /// sin and cos of a small angle by their series (exact to ~1e-13 below
 /// 0.05 rad), the library functions above that.
@@ -405,29 +392,9 @@ fn eval_segment<M: StepModel>(
                     [1.0 / sigma, 0.0, (-(py - pose0[1]) + rx) / sigma],
                     [0.0, 1.0 / sigma, ((px - pose0[0]) + ry) / sigma],
                 ];
-                // The curvature rows: the fix's two rows with the IRLS
-                // weight, or, in Huber's tail with `tail_curvature` < 1,
-                // the rows across and along the residual, the one along
-                // it with the cost's own (nearly zero) curvature there.
-                let curv = if w < 1.0 && s.tail_curvature < 1.0 {
-                    let (ux, uy) = (r[0] / u, r[1] / u);
-                    let mix = |a: [f64; 2]| {
-                        (
-                            std::array::from_fn::<f64, MAX_GLOBAL, _>(|i| {
-                                a[0] * jg[0][i] + a[1] * jg[1][i]
-                            }),
-                            std::array::from_fn::<f64, 3, _>(|i| a[0] * jl[0][i] + a[1] * jl[1][i]),
-                        )
-                    };
-                    let (across_g, across_l) = mix([-uy, ux]);
-                    let (along_g, along_l) = mix([ux, uy]);
-                    [
-                        (w, across_g, across_l),
-                        (w * s.tail_curvature, along_g, along_l),
-                    ]
-                } else {
-                    [(w, jg[0], jl[0]), (w, jg[1], jl[1])]
-                };
+                // The curvature rows: the fix's two rows with its IRLS
+                // weight.
+                let curv = [(w, jg[0], jl[0]), (w, jg[1], jl[1])];
                 let add = |t: &mut Acc| {
                     for row in 0..2 {
                         for i in 0..ng {
@@ -657,31 +624,6 @@ pub fn fit<M: StepModel>(
     breaks: &dyn Fn(usize) -> bool,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Fit, CalibrationError> {
-    fit_with(
-        model,
-        p,
-        r,
-        g0,
-        stage_lengths,
-        breaks,
-        progress,
-        TAIL_CURVATURE,
-    )
-}
-
-/// [`fit`] with the tail's curvature once the robust scale is re-estimated
-/// (`tail_curvature`; 1 is plain IRLS throughout).
-#[allow(clippy::too_many_arguments)]
-fn fit_with<M: StepModel>(
-    model: &M,
-    p: &Series,
-    r: &Reference,
-    g0: &[f64],
-    stage_lengths: &[f64],
-    breaks: &dyn Fn(usize) -> bool,
-    progress: &mut dyn FnMut(f64),
-    tail_curvature: f64,
-) -> Result<Fit, CalibrationError> {
     let ng = model.n_global();
     let fixes: Vec<RefFix> = r.fixes.iter().filter(|f| f.accepted).copied().collect();
     let priors = model.priors();
@@ -766,9 +708,6 @@ fn fit_with<M: StepModel>(
                 // Re-estimate the robust scale as the fit improves (a change
                 // under 2 % is not worth a new cost function).
                 let scale = robust_scale(&evals);
-                // From here on the fit is near its solution and its
-                // steps are Newton's in Huber's tail.
-                settings.tail_curvature = tail_curvature;
                 if (scale / settings.scale - 1.0).abs() > 0.02 {
                     settings.scale = scale;
                     (cost, evals) = eval_all(&g, &poses, &settings);
@@ -845,7 +784,6 @@ fn covariance<M: StepModel>(
         block_fixes,
         record_every: p.len().div_ceil(REPORT_POINTS).max(1),
         record_rows: true,
-        tail_curvature: 1.0,
     };
     let mut evals: Vec<SegEval> = segs
         .iter()
@@ -1267,50 +1205,6 @@ mod tests {
         let apart = DMatrix::from_diagonal_element(3, 3, 4.0);
         let c = thirds_floor(apart, &formal, Some(&model), &[2]).expect("a floor");
         assert_eq!((c[(0, 0)], c[(1, 1)], c[(2, 2)]), (0.0, 0.0, 4.0));
-    }
-
-    #[test]
-    fn newton_steps_in_the_tail_reach_the_minimum_irls_reaches() {
-        use crate::fit::batch::TwoWheelModel;
-        use simulator::{simulate, Scenario, SimConfig};
-        // A drive whose GNSS error wanders (consumer grade): many fixes in
-        // Huber's tail.
-        let mut sim = SimConfig::new(Scenario::Mixed, 4);
-        sim.duration_s = Some(600.0);
-        sim.sensors.gnss.white_sigma_m = 0.5;
-        sim.sensors.gnss.gm_sigma_m = 2.5;
-        sim.sensors.gnss.gm_tau_s = 30.0;
-        let drive = simulate(&sim).expect("simulated");
-        let config = crate::config::CalibrationConfig::default();
-        let checked = crate::check::drive(&drive, &config).expect("checked");
-        let aligned = crate::clocks::align(checked, &config).expect("aligned");
-        let r = crate::reference::build(&aligned, &config, &mut Vec::new()).expect("reference");
-        let p = &aligned.series;
-        let model = TwoWheelModel::new(p, None, false, false);
-        let g0 = [p.nominal_c, p.nominal_c, p.track];
-        let run = |tail: f64| {
-            fit_with(
-                &model,
-                p,
-                &r,
-                &g0,
-                &stages(120.0),
-                &|_| false,
-                &mut |_| {},
-                tail,
-            )
-            .expect("fitted")
-        };
-        let (newton, irls) = (run(TAIL_CURVATURE), run(1.0));
-        for i in 0..3 {
-            let sigma = irls.formal[(i, i)].sqrt();
-            assert!(
-                (newton.g[i] - irls.g[i]).abs() < 0.05 * sigma,
-                "parameter {i}: {} against {} (sigma {sigma})",
-                newton.g[i],
-                irls.g[i]
-            );
-        }
     }
 
     #[test]
