@@ -276,13 +276,16 @@ fn draws_of_the_simulation_are_read_as_their_mean() {
     let one = |d| compare(&dr, d, None, &Carried::default(), &CompareConfig::default());
     let singles: Vec<Comparison> = sims.iter().map(one).collect();
     let refs: Vec<_> = sims.iter().collect();
-    let c = compare_draws(
-        &dr,
-        &refs,
-        None,
-        &Carried::default(),
-        &CompareConfig::default(),
-    );
+    let against_draws = |rec| {
+        compare_draws(
+            rec,
+            &refs,
+            None,
+            &Carried::default(),
+            &CompareConfig::default(),
+        )
+    };
+    let c = against_draws(&dr);
     assert_eq!(c.simulation_draws, 3);
     let mut rows = 0;
     for row in c.effects.iter().filter(|e| e.simulation.is_some()) {
@@ -324,13 +327,7 @@ fn draws_of_the_simulation_are_read_as_their_mean() {
     assert_eq!(named, vec![Effect::GnssLeverArm], "{:#?}", c.effects);
     // A recording without physics against the same draws: nothing named.
     let null = diagnose(&drive(3, &[]), &cfg).expect("diagnose");
-    let c = compare_draws(
-        &null,
-        &refs,
-        None,
-        &Carried::default(),
-        &CompareConfig::default(),
-    );
+    let c = against_draws(&null);
     assert_eq!(c.named().count(), 0, "{:#?}", c.effects);
 }
 

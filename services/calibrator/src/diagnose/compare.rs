@@ -1356,15 +1356,14 @@ fn compass_terms(
     let (values, from) = match declared {
         Some(d) => {
             // The mean over the simulation's draws.
-            let draws = simulations
+            let limits = simulations
                 .iter()
-                .map(|d| terms(d))
+                .map(|d| d.information_limit.as_ref())
                 .collect::<Option<Vec<_>>>();
-            let Some(draws) = draws.filter(|v| !v.is_empty()) else {
+            let Some((s, _, _)) = limits.and_then(|l| simulation_terms(&l, Effect::HeadingBias))
+            else {
                 return;
             };
-            let n = draws.len() as f64;
-            let s = [0, 1, 2].map(|k| draws.iter().map(|t| t[k]).sum::<f64>() / n);
             let now = d.get(&Effect::HeadingBias.to_string());
             let at = |k: usize| now.and_then(|p| p.get(names[k]).copied()).unwrap_or(0.0);
             (
