@@ -22,6 +22,7 @@ drive whose wheels show at least OWN_GROWTH_ALLOWED against the truth
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -159,6 +160,34 @@ def effective_speed_growth(w):
     return {"k_v": float(-b[1]), "windows": int(m.sum())}
 
 
+def held_size(e, param, case, drive):
+    """The size of effect `e` the drive's wheels hold, where the wheels add
+    their own to the planted one: the track (the planted error of the
+    nominal plus the tyres' own effective track, `effective_terms`, in the
+    diagnosis's sign: 2W heading = true heading (1 + rel)) and the speed
+    growth (`effective_speed_growth`); else the manifest's truth."""
+    tv = case["effects"].get(e, {}).get(param)
+    if e == "track_width" and tv is not None:
+        eff = effective_terms(drive)
+        return -eff["track_rel"] if eff else tv
+    if e == "speed_radius_growth" and tv is not None:
+        eff = effective_speed_growth(drive)
+        return eff["k_v"] if eff else tv
+    return tv
+
+
+def normal_cdf(x):
+    return 0.5 * (1.0 + math.erf(x / math.sqrt(2.0)))
+
+
+def power_at(size, sigma, z_critical):
+    """The chance that a two-sided Wald test at `z_critical` calls an
+    effect of true `size` whose estimate has `sigma`: what the drive's
+    information gives a test that decides on it, at the size it holds."""
+    d = abs(size) / sigma
+    return normal_cdf(d - z_critical) + normal_cdf(-d - z_critical)
+
+
 def median(xs):
     xs = sorted(xs)
     return xs[len(xs) // 2] if xs else None
@@ -176,20 +205,42 @@ def limit_table(limits, null_limit):
     (|z| beyond the family's critical z) as a detector, with its estimate
     against the truth."""
     out = ["", "The information limit (`information_limit` of the JSON): medians over the drives, sizes as multiples of the true size.", "",
-           "| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | wrong names | estimate / truth | abs(estimate - truth) / sigma |",
-           "|---|---|---|---|---|---|---|---|---|"]
+           "| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | expected from the drives' information (Fisher's sigma alone) | the product found | wrong names | estimate / truth | abs(estimate - truth) / sigma |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    totals = [0.0, 0.0, 0.0, 0, 0, 0]
     for k, r in limits.items():
         n = len(r["found"])
         ratio = median(r["ratio"])
         pull = median(r["pull"])
+        pw = r["power"]
+        expected = "-" if not pw else (f"{sum(pw):.1f} ± {math.sqrt(sum(q * (1 - q) for q in pw)):.1f}"
+                                       + ("" if len(pw) == n else f" (of {len(pw)})")
+                                       + f" ({sum(r['power_fisher']):.1f})")
+        if pw:
+            totals[0] += sum(pw)
+            totals[1] += sum(q * (1 - q) for q in pw)
+            totals[2] += sum(r["power_fisher"])
+            totals[3] += sum(r["found"])
+            totals[4] += sum(r["named"])
+            totals[5] += len(pw)
         out.append(f"| {k} | {n} | {fmt_x(median(r['alone']))} | {fmt_x(median(r['joint']))} | "
-                   f"{fmt_x(median(r['test']))} ({len(r['test'])}) | {sum(r['found'])}/{n} | {sum(r['wrong'])} | "
+                   f"{fmt_x(median(r['test']))} ({len(r['test'])}) | {sum(r['found'])}/{n} | {expected} | "
+                   f"{sum(r['named'])}/{n} | {sum(r['wrong'])} | "
                    f"{'-' if ratio is None else f'{ratio:.2f}'} | {'-' if pull is None else f'{pull:.2f}'} |")
     fd = sum(bool(x) for x in null_limit)
     ids = defaultdict(int)
     for x in null_limit:
         for e in x:
             ids[e] += 1
+    out.append(f"| all targets with a size | {totals[5]} | | | | {totals[3]}/{totals[5]} | "
+               f"{totals[0]:.1f} ± {math.sqrt(totals[1]):.1f} ({totals[2]:.1f}) | {totals[4]}/{totals[5]} | | | |")
+    out.append("")
+    out.append("Expected from the drives' information: the sum over the drives of the power of the joint Wald test "
+               "at the size each drive holds (the truth; for the track and the speed growth what the wheels show, "
+               "the tyres' own added: `held_size`), |z| beyond the effect's critical z in Holm's order, with the "
+               "joint sigma the decision uses (the larger of Fisher's under the refitted error model and the segments' "
+               "scatter); ± the binomial spread; in brackets the same with Fisher's sigma alone. A row whose found count sits within that spread of the expected "
+               "misses what its drives' information misses; one well below it loses what the data hold.")
     out.append("")
     out.append(f"joint Wald rule on null drives: {fd} of {len(null_limit)} with an effect beyond the critical z "
                f"(tyre physics aside): {dict(ids) or 'none'}")
@@ -289,12 +340,19 @@ def main():
                 tv = case["effects"].get(e, {}).get(x["parameter"])
                 j = x.get("joint", {})
                 r["found"].append(e in beyond)
+                r["named"].append(e in found)
                 r["wrong"].append(any(b not in truth and b not in allowed for b in beyond))
                 if tv:
                     if x.get("smallest") is not None:
                         r["alone"].append(x["smallest"] / abs(tv))
                     if j.get("smallest") is not None:
                         r["joint"].append(j["smallest"] / abs(tv))
+                    zc = next((w["z_critical"] for w in d.get("wald", []) if w["effect"] == e), lim["z_critical"])
+                    hv = held_size(e, x["parameter"], case, drive)
+                    if j.get("sigma"):
+                        r["power"].append(power_at(hv, j["sigma"], zc))
+                    if j.get("sigma_fisher"):
+                        r["power_fisher"].append(power_at(hv, j["sigma_fisher"], zc))
                     if j.get("estimate") is not None and j.get("sigma"):
                         r["ratio"].append(j["estimate"] / tv)
                         r["pull"].append(abs(j["estimate"] - tv) / j["sigma"])

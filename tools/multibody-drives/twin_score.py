@@ -51,7 +51,7 @@ COPIED = {"gyro_bias": "the twin copies it (measured at standstill)"}
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from score import allowed_on  # noqa: E402
+from score import allowed_on, held_size, power_at  # noqa: E402
 
 
 def sh(args):
@@ -129,6 +129,36 @@ def replicates(b, drive, rerun, mends, count, twin_dir="twin", forms=None):
     return cs
 
 
+def recording_power(case, drive, effect):
+    """The power of the recording's own joint Wald test for `effect` at the
+    size the drive holds (None without DRIVE/diagnosis.json or a size)."""
+    path = os.path.join(drive, "diagnosis.json")
+    if not os.path.exists(path):
+        return None
+    d = json.load(open(path))
+    lim = d.get("information_limit") or {}
+    x = next((x for x in lim.get("effects", []) if x["effect"] == effect), None)
+    if x is None or not (x.get("joint") or {}).get("sigma"):
+        return None
+    size = held_size(effect, x["parameter"], case, drive)
+    if not size:
+        return None
+    zc = next((w["z_critical"] for w in d.get("wald", []) if w["effect"] == effect), lim["z_critical"])
+    return power_at(size, x["joint"]["sigma"], zc)
+
+
+def comparison_power(case, drive, c, effect):
+    """The power of comparison `c`'s own test for `effect` at the size the
+    drive holds (None where `c` has no such row or the drive no size)."""
+    e = next((e for e in c.get("effects", []) if e["effect"] == effect), None)
+    if e is None or not e.get("sigma") or e.get("z_critical") is None:
+        return None
+    size = held_size(effect, e["parameter"], case, drive)
+    if not size:
+        return None
+    return power_at(size, e["sigma"], e["z_critical"])
+
+
 def named(c):
     return [e["effect"] for e in c["effects"] if e["verdict"] in ("lacking", "excess")]
 
@@ -153,6 +183,14 @@ def main():
     DRAWS = max(1, a.draws)
     manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
     per_effect = defaultdict(lambda: [0, 0])
+    # Per effect, the recording's own joint Wald test's power at the size
+    # it holds (DRIVE/diagnosis.json of score.py): the ceiling of what a
+    # comparison can name, no draw of a twin removing the recording's noise.
+    ceiling = defaultdict(list)
+    # The same for the first comparison's own test: its difference's sigma
+    # (the recording's and the twin's draws' together) and Holm's critical
+    # z, at the size the drive holds (the first twin carries none of it).
+    own_power = defaultdict(list)
     rows = []
     wrong = 0
     effect_drives = 0
@@ -187,6 +225,12 @@ def main():
             for t in truth:
                 per_effect[t][1] += 1
                 per_effect[t][0] += t in first
+                p = recording_power(case, drive, t)
+                if p is not None:
+                    ceiling[t].append(p)
+                q = comparison_power(case, drive, cs[0], t)
+                if q is not None:
+                    own_power[t].append(q)
         else:
             null_false.append(bool(extra))
         unexplained += any((c.get("speed_map") or {}).get("unexplained", False) for c in cs)
@@ -219,11 +263,25 @@ def main():
     n = len(rows)
     out = []
     out.append(f"# Twin loop on {a.suite}: {n} drives\n")
-    out.append("| effect | named by the first comparison |")
-    out.append("|---|---|")
+    out.append("| effect | named by the first comparison | expected at the comparison's own sigma | the recording's own test would name (expected) |")
+    out.append("|---|---|---|---|")
     for e, (k, m) in sorted(per_effect.items()):
         note = f"; {COPIED[e]}" if e in COPIED else ""
-        out.append(f"| {e} | {k}/{m} ({100 * k / m:.0f} %){note} |")
+        ps = ceiling.get(e, [])
+        cap = "-" if not ps else (f"{sum(ps):.1f} ± {sum(q * (1 - q) for q in ps) ** 0.5:.1f}"
+                                  + ("" if len(ps) == m else f" (of {len(ps)})"))
+        qs = own_power.get(e, [])
+        own = "-" if not qs else (f"{sum(qs):.1f} ± {sum(q * (1 - q) for q in qs) ** 0.5:.1f}"
+                                  + ("" if len(qs) == m else f" (of {len(qs)})"))
+        out.append(f"| {e} | {k}/{m} ({100 * k / m:.0f} %){note} | {own} | {cap} |")
+    out.append("")
+    out.append("Expected at the comparison's own sigma: the sum over the drives of the power of the first "
+               "comparison's test (its difference's sigma, Holm's critical z) at the size the drive holds; a "
+               "count well below it reads the effect short, not for want of information.")
+    out.append("The last column: the sum over the drives of the recording's own joint Wald test's power at the "
+               "size each drive holds (`score.power_at`, `score.held_size`, from DRIVE/diagnosis.json of "
+               "`score.py --rerun`), ± its binomial spread: the comparison's ceiling, since its difference "
+               "carries the recording's sigma whatever the twin's draws.")
     out.append("")
     out.append(f"- wrong names (outside targets + the model's tyre physics) on effect drives: {wrong}/{effect_drives}")
     out.append(f"- null drives with a name outside the tyre physics: {sum(null_false)}/{len(null_false)}")

@@ -27,6 +27,7 @@
 use calibrator::diagnose::{diagnose, DiagnoseConfig, Diagnosis};
 use interfaces::effects::{Effect, Param};
 use simulator::{simulate, EffectSettings, Scenario, SimConfig, VehicleKind};
+use stats::distributions::normal_cdf;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -85,6 +86,20 @@ struct LimitTally {
     /// Joint estimate / truth, and |estimate - truth| / sigma.
     ratio: Vec<f64>,
     pull: Vec<f64>,
+    /// Per drive, the power of the joint Wald test at the simulated size
+    /// (its critical z in Holm's order): with the decision's sigma, and
+    /// with the Fisher information's sigma alone.
+    power: Vec<(f64, f64)>,
+    /// Drives where the product named it (a finding).
+    named: usize,
+}
+
+/// The chance that a two-sided Wald test at `z_critical` calls an effect of
+/// true `size` whose estimate has `sigma`: what the drive's information
+/// gives a test that decides on it, at the size it holds.
+fn power_at(size: f64, sigma: f64, z_critical: f64) -> f64 {
+    let d = size.abs() / sigma;
+    normal_cdf(d - z_critical) + normal_cdf(-d - z_critical)
 }
 
 fn median_of(v: &[f64]) -> Option<f64> {
@@ -332,6 +347,7 @@ fn main() {
                 let t = limit_tallies.entry(key).or_default();
                 t.drives += 1;
                 t.found += usize::from(beyond.contains(e));
+                t.named += usize::from(d.findings.iter().any(|f| f.effect == *e));
                 t.wrong += usize::from(wrong);
                 let (dp, tp, relative) = main_param(*e);
                 // Sizes against the simulated one (a relative parameter's 1
@@ -347,6 +363,16 @@ fn main() {
                 t.alone.extend(x.smallest.map(rel));
                 let j = x.joint.as_ref();
                 t.joint.extend(j.and_then(|j| j.smallest).map(rel));
+                if let Some((sg, sf)) = j.and_then(|j| Some((j.sigma?, j.sigma_fisher?))) {
+                    if !relative {
+                        let zc = d
+                            .wald
+                            .iter()
+                            .find(|w| w.test.effect == *e)
+                            .map_or(l.z_critical, |w| w.test.z_critical);
+                        t.power.push((power_at(sim, sg, zc), power_at(sim, sf, zc)));
+                    }
+                }
                 if let Some((v, sg)) = j.and_then(|j| Some((j.estimate?, j.sigma?))) {
                     if !relative {
                         t.ratio.push(v / sim);
@@ -514,13 +540,35 @@ fn main() {
     println!();
     println!("The information limit (`information_limit` of the diagnosis): medians over the drives, sizes as multiples of the simulated one.");
     println!();
-    println!("| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | wrong names | estimate / truth | abs(estimate - truth) / sigma |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | expected from the drives' information (Fisher's sigma alone) | the product found | wrong names | estimate / truth | abs(estimate - truth) / sigma |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    // Sums over the rows with a size: expected, its variance, expected
+    // with Fisher's sigma, found by the joint Wald rule, named, drives.
+    let mut totals = (0.0, 0.0, 0.0, 0, 0, 0);
     let x = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}x"));
     let plain = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     for (k, t) in &limit_tallies {
+        let expected = if t.power.is_empty() {
+            "-".to_string()
+        } else {
+            let e: f64 = t.power.iter().map(|p| p.0).sum();
+            let var: f64 = t.power.iter().map(|p| p.0 * (1.0 - p.0)).sum();
+            let ef: f64 = t.power.iter().map(|p| p.1).sum();
+            totals.0 += e;
+            totals.1 += var;
+            totals.2 += ef;
+            totals.3 += t.found;
+            totals.4 += t.named;
+            totals.5 += t.drives;
+            let of = if t.power.len() == t.drives {
+                String::new()
+            } else {
+                format!(" (of {})", t.power.len())
+            };
+            format!("{e:.1} ± {:.1}{of} ({ef:.1})", var.sqrt())
+        };
         println!(
-            "| {k} | {} | {} | {} | {} ({}) | {}/{} | {} | {} | {} |",
+            "| {k} | {} | {} | {} | {} ({}) | {}/{} | {expected} | {}/{} | {} | {} | {} |",
             t.drives,
             x(median_of(&t.alone)),
             x(median_of(&t.joint)),
@@ -528,11 +576,26 @@ fn main() {
             t.test.len(),
             t.found,
             t.drives,
+            t.named,
+            t.drives,
             t.wrong,
             plain(median_of(&t.ratio)),
             plain(median_of(&t.pull))
         );
     }
+    println!(
+        "| rows with a size, together | {} | | | | {}/{} | {:.1} ± {:.1} ({:.1}) | {}/{} | | | |",
+        totals.5,
+        totals.3,
+        totals.5,
+        totals.0,
+        totals.1.sqrt(),
+        totals.2,
+        totals.4,
+        totals.5
+    );
+    println!();
+    println!("Expected from the drives' information: the sum over the drives of the power of the joint Wald test at the simulated size, |z| beyond the effect's critical z in Holm's order, with the joint sigma the decision uses (the larger of Fisher's under the refitted error model and the segments' scatter); ± the binomial spread; in brackets the same with Fisher's sigma alone. A row whose found count sits within that spread of the expected misses what its drives' information misses; one well below it loses what the data hold. Rows whose size is a gain on a measured signal (road grade) have none.");
     println!();
     println!(
         "joint Wald rule on null drives: {} of {} with an effect beyond the critical z (allowed physics aside)",
