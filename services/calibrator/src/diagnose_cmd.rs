@@ -365,7 +365,11 @@ fn information_text(s: &mut String, d: &Diagnosis) {
             }
             _ => format!(" [{}]", e.source.describe()),
         };
-        let _ = writeln!(s, "  {}: {shows}{joint}{test}{alone}", e.effect);
+        let power = e
+            .power_at_typical
+            .map(|p| format!("; a typical one shown with probability {:.2}", p))
+            .unwrap_or_default();
+        let _ = writeln!(s, "  {}: {shows}{joint}{power}{test}{alone}", e.effect);
     }
     let called: Vec<String> = d
         .wald

@@ -78,6 +78,22 @@ fn a_concealed_effect_is_estimated_within_its_sigma_and_shows_at_the_limit() {
         assert!(sigma >= j.sigma_fisher.expect("fisher") * (1.0 - 1e-12));
         // And the size it shows is below the typical one here.
         assert!(x.relative_to_typical.expect("relative") < 1.5, "{x:?}");
+        // The chance of showing a typical one: above 90 % exactly where
+        // the size shown (every other effect free) is under the typical.
+        for y in &l.effects {
+            let (Some(p), Some(shown)) = (y.power_at_typical, y.shown_smallest()) else {
+                assert!(y.shown_smallest().is_none(), "{}: no power", y.effect);
+                continue;
+            };
+            assert!((0.0..=1.0).contains(&p), "{}: {p}", y.effect);
+            assert_eq!(
+                p > 0.9,
+                shown < y.typical,
+                "{}: {p}, {shown} against {}",
+                y.effect,
+                y.typical
+            );
+        }
     }
 }
 

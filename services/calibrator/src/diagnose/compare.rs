@@ -1690,6 +1690,7 @@ mod tests {
             wald_z: None,
             joint: None,
             other_source: other,
+            power_at_typical: None,
         };
         let gyro = InformationSource::PositionsGyroHeading;
         let wheels = InformationSource::PositionsWheelHeading;

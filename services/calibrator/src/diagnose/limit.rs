@@ -32,7 +32,7 @@ use interfaces::effects::{Effect, Param, Scope};
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 use stats::distributions::{
-    bisect, f_sf, noncentral_chi3_cdf, normal_quantile, t_equivalent, t_quantile,
+    bisect, f_sf, noncentral_chi3_cdf, normal_cdf, normal_quantile, t_equivalent, t_quantile,
 };
 use std::collections::BTreeMap;
 
@@ -120,6 +120,16 @@ pub struct EffectLimit {
     /// it ([`super::decide::guard_source`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub other_source: Option<OtherSource>,
+    /// The chance this drive shows an effect of the catalogue's typical
+    /// size: the power of the decision's test there (the Wald test with
+    /// every other effect of its source free where it has that fit, else
+    /// alone) at the strictest critical z of Holm's procedure
+    /// (Bonferroni's), from [`EffectLimit::power_at`]; for the compass
+    /// bias, whose three terms are tested together, read from that test's
+    /// smallest size as if it were one term's (an approximation). Absent
+    /// where the drive holds no information about the effect.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub power_at_typical: Option<f64>,
 }
 
 /// An effect's joint fit under the heading source it is not decided
@@ -165,6 +175,32 @@ impl EffectLimit {
             .as_ref()
             .and_then(|j| j.smallest)
             .or(self.smallest)
+    }
+
+    /// The chance that the test whose smallest size shown is
+    /// [`EffectLimit::shown_smallest`] (90 % power at `z_critical`, two
+    /// sided) calls an effect of `size` (reported unit): the effect's
+    /// sigma is that size over `z_critical + z_0.9` (for a term that acts
+    /// through its square, the square's sigma, so the distance in sigmas
+    /// goes with the size squared). `None` without information.
+    pub fn power_at(&self, size: f64, z_critical: f64) -> Option<f64> {
+        let smallest = self
+            .shown_smallest()
+            .filter(|v| *v > 0.0 && v.is_finite())?;
+        let k = z_critical + normal_quantile(POWER);
+        let ratio = size.abs() / smallest;
+        let distance = if self.estimate_of.ends_with("^2") {
+            k * ratio * ratio
+        } else {
+            k * ratio
+        };
+        Some(normal_cdf(distance - z_critical) + normal_cdf(-distance - z_critical))
+    }
+
+    /// Sets [`EffectLimit::power_at_typical`] for the critical z of the
+    /// limit's family.
+    pub(super) fn set_power_at_typical(&mut self, z_critical: f64) {
+        self.power_at_typical = self.power_at(self.typical, z_critical);
     }
 }
 
@@ -1323,6 +1359,9 @@ pub fn limit_and_information(
         });
     }
     limits.insert(Effect::HeadingBias, heading_limit);
+    for l in limits.values_mut() {
+        l.set_power_at_typical(z_critical);
+    }
     let arr = |n: &PositionNoise| [n.white_sigma_m, n.gm_sigma_m, n.gm_tau_s];
     let limit = InformationLimit {
         family_alpha: FAMILY_ALPHA,
@@ -1645,6 +1684,7 @@ pub(super) fn limit_of(
         wald_z: fit.map(|f| f.estimate / f.sigma()),
         joint: None,
         other_source: None,
+        power_at_typical: None,
     }
 }
 
@@ -1976,6 +2016,57 @@ mod tests {
     fn normals(n: usize, seed: u64) -> Vec<f64> {
         let mut rng = crate::error_model::Normal::new(seed);
         (0..n).map(|_| rng.next()).collect()
+    }
+
+    /// The power at a size is what a test on the effect's estimate does:
+    /// 90 % at the smallest size shown, the level where there is none, and
+    /// the share of draws beyond the critical z elsewhere, for a term that
+    /// acts directly and for one that acts through its square.
+    #[test]
+    fn the_power_at_a_size_is_the_tests_rejection_rate() {
+        let zc = 3.4;
+        for (effect, sigma) in [(Effect::GnssLatency, 0.02), (Effect::RoadGrade, 0.3)] {
+            let fit = CoefFit {
+                estimate: 0.0,
+                sigma_fisher: sigma,
+                sigma_segments: None,
+            };
+            let l = limit_of(
+                effect,
+                Some(fit),
+                zc,
+                InformationSource::PositionsGyroHeading,
+            );
+            let squared = l.estimate_of.ends_with("^2");
+            assert_eq!(squared, effect == Effect::RoadGrade);
+            let smallest = l.shown_smallest().unwrap();
+            let at = |size: f64| l.power_at(size, zc).unwrap();
+            assert!(
+                (at(smallest) - POWER).abs() < 1e-3,
+                "{effect:?}: {}",
+                at(smallest)
+            );
+            let level = 2.0 * (1.0 - normal_cdf(zc));
+            assert!((at(0.0) - level).abs() < 1e-12);
+            // Draws of the estimate about a size between: how often the
+            // Wald test calls it.
+            let p = effect.main_fitted();
+            let size = 0.7 * smallest;
+            let model = size / p.to_display(1.0).abs();
+            let mean = if squared { model * model } else { model };
+            let draws = normals(40_000, 37);
+            let called = draws
+                .iter()
+                .filter(|z| ((mean + sigma * *z) / sigma).abs() > zc)
+                .count() as f64
+                / draws.len() as f64;
+            let want = at(size);
+            assert!(want > 0.05 && want < 0.95, "{effect:?}: {want}");
+            assert!(
+                (called - want).abs() < 4.0 * (want * (1.0 - want) / draws.len() as f64).sqrt(),
+                "{effect:?}: simulated {called}, computed {want}"
+            );
+        }
     }
 
     #[test]

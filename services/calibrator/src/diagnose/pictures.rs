@@ -445,7 +445,8 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
          (east {}, north {}), the sigma raised to the scatter over the {} segments of {:.0} s where \
          that is larger. Sizes are multiples of the catalogue's typical size; the estimate and z \
          are with every other effect of its source free, save those whose sign the physics fixes \
-         and whose fit falls below zero: those are held at zero.</p>",
+         and whose fit falls below zero: those are held at zero. The power is the decision's \
+         test's at the catalogue's typical size, at the strictest critical z of Holm's procedure.</p>",
         100.0 * l.power,
         100.0 * l.family_alpha,
         l.z_critical,
@@ -490,6 +491,11 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
                     (false, format!("<code>{}</code>", escape(e.effect.id()))),
                     (true, times(e.smallest, e.typical)),
                     (true, times(joint.and_then(|j| j.smallest), e.typical)),
+                    (
+                        true,
+                        e.power_at_typical
+                            .map_or("-".to_string(), |p| format!("{:.0} %", 100.0 * p)),
+                    ),
                     (true, test),
                     (false, escape(&estimate)),
                     (false, escape(&verdict)),
@@ -503,6 +509,7 @@ fn information_section(s: &mut Page, d: &Diagnosis) {
             "effect",
             "shows from (alone)",
             "with every other effect free",
+            "a typical one shown (power)",
             "the held-out test needs",
             "estimate ± sigma",
             "Holm's procedure",

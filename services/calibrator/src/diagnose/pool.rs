@@ -300,6 +300,9 @@ pub fn pool(drives: &[&DriveInformation]) -> Option<PooledLimit> {
             });
         }
     }
+    for p in &mut effects {
+        p.limit.set_power_at_typical(z_critical);
+    }
     effects.sort_by_key(|p| car.iter().position(|e| *e == p.limit.effect));
     let wald = step_down(
         decisive_tests(effects.iter().map(|p| &p.limit)),
