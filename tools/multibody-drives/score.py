@@ -21,6 +21,7 @@ drive whose wheels show at least OWN_GROWTH_ALLOWED against the truth
 """
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -160,6 +161,21 @@ def effective_speed_growth(w):
     return {"k_v": float(-b[1]), "windows": int(m.sum())}
 
 
+def drive_key(drive):
+    """What the tools read of `drive` (its sensor files and vehicle.toml),
+    hashed: the suite's pairs whose second effect is the model's own tyre
+    physics (latency + side-slip, antenna + side-slip, track + load
+    transfer) are the drive of the first effect under another label, so
+    a count over drives counts them twice; counts over distinct keys do
+    not."""
+    h = hashlib.md5()
+    for f in ("gnss.csv", "wheels.csv", "imu.csv", "heading.csv", "vehicle.toml"):
+        path = os.path.join(drive, f)
+        if os.path.exists(path):
+            h.update(open(path, "rb").read())
+    return h.hexdigest()
+
+
 def held_size(e, param, case, drive):
     """The size of effect `e` the drive's wheels hold, where the wheels add
     their own to the planted one: the track (the planted error of the
@@ -208,7 +224,13 @@ def limit_table(limits, null_limit):
            "| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | expected from the drives' information (Fisher's sigma alone) | the product found | wrong names | estimate / truth | abs(estimate - truth) / sigma |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
     totals = [0.0, 0.0, 0.0, 0, 0, 0]
+    # (effect, drive key) -> [found by the joint Wald rule, named, power]:
+    # each distinct drive once.
+    distinct = {}
     for k, r in limits.items():
+        e = k.split(" [")[0]
+        for i, key in enumerate(r["key"]):
+            distinct.setdefault((e, key), (r["found"][i], r["named"][i], r["drive_power"][i]))
         n = len(r["found"])
         ratio = median(r["ratio"])
         pull = median(r["pull"])
@@ -234,12 +256,22 @@ def limit_table(limits, null_limit):
             ids[e] += 1
     out.append(f"| all targets with a size | {totals[5]} | | | | {totals[3]}/{totals[5]} | "
                f"{totals[0]:.1f} ± {math.sqrt(totals[1]):.1f} ({totals[2]:.1f}) | {totals[4]}/{totals[5]} | | | |")
+    sized = [v for v in distinct.values() if v[2] is not None]
+    bare = [v for v in distinct.values() if v[2] is None]
+    out.append(f"| distinct (effect, drive) targets with a size | {len(sized)} | | | | {sum(v[0] for v in sized)}/{len(sized)} | "
+               f"{sum(v[2] for v in sized):.1f} ± {math.sqrt(sum(v[2] * (1 - v[2]) for v in sized)):.1f} | "
+               f"{sum(v[1] for v in sized)}/{len(sized)} | | | |")
+    if bare:
+        out.append(f"| distinct targets without a size (the compass bias's three terms) | {len(bare)} | | | | "
+                   f"{sum(v[0] for v in bare)}/{len(bare)} | - | {sum(v[1] for v in bare)}/{len(bare)} | | | |")
     out.append("")
     out.append("Expected from the drives' information: the sum over the drives of the power of the joint Wald test "
                "at the size each drive holds (the truth; for the track and the speed growth what the wheels show, "
                "the tyres' own added: `held_size`), |z| beyond the effect's critical z in Holm's order, with the "
                "joint sigma the decision uses (the larger of Fisher's under the refitted error model and the segments' "
-               "scatter); ± the binomial spread; in brackets the same with Fisher's sigma alone. A row whose found count sits within that spread of the expected "
+               "scatter); ± the binomial spread; in brackets the same with Fisher's sigma alone. 'Distinct': a pair whose "
+               "second effect is the model's own tyre physics is the first effect's drive under another label "
+               "(`drive_key`): counted once. A row whose found count sits within that spread of the expected "
                "misses what its drives' information misses; one well below it loses what the data hold.")
     out.append("")
     out.append(f"joint Wald rule on null drives: {fd} of {len(null_limit)} with an effect beyond the critical z "
@@ -341,6 +373,8 @@ def main():
                 j = x.get("joint", {})
                 r["found"].append(e in beyond)
                 r["named"].append(e in found)
+                r["key"].append(drive_key(drive))
+                r["drive_power"].append(None)
                 r["wrong"].append(any(b not in truth and b not in allowed for b in beyond))
                 if tv:
                     if x.get("smallest") is not None:
@@ -351,6 +385,7 @@ def main():
                     hv = held_size(e, x["parameter"], case, drive)
                     if j.get("sigma"):
                         r["power"].append(power_at(hv, j["sigma"], zc))
+                        r["drive_power"][-1] = r["power"][-1]
                     if j.get("sigma_fisher"):
                         r["power_fisher"].append(power_at(hv, j["sigma_fisher"], zc))
                     if j.get("estimate") is not None and j.get("sigma"):

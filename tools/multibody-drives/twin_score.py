@@ -51,7 +51,7 @@ COPIED = {"gyro_bias": "the twin copies it (measured at standstill)"}
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from score import allowed_on, held_size, power_at  # noqa: E402
+from score import allowed_on, drive_key, held_size, power_at  # noqa: E402
 
 
 def sh(args):
@@ -183,14 +183,19 @@ def main():
     DRAWS = max(1, a.draws)
     manifest = json.load(open(os.path.join(a.suite, "manifest.json")))
     per_effect = defaultdict(lambda: [0, 0])
-    # Per effect, the recording's own joint Wald test's power at the size
-    # it holds (DRIVE/diagnosis.json of score.py): the ceiling of what a
-    # comparison can name, no draw of a twin removing the recording's noise.
-    ceiling = defaultdict(list)
-    # The same for the first comparison's own test: its difference's sigma
-    # (the recording's and the twin's draws' together) and Holm's critical
-    # z, at the size the drive holds (the first twin carries none of it).
-    own_power = defaultdict(list)
+    # Per effect and distinct drive (`score.drive_key`: a pair whose second
+    # effect is the model's own tyre physics is the first effect's drive
+    # under another label): whether the first comparison named it; the
+    # power of the first comparison's own test at the size the drive holds
+    # (its difference's sigma, the recording's and the twin's draws'
+    # together, and Holm's critical z; the first twin carries none of it);
+    # and the power of the recording's own joint Wald test there
+    # (DRIVE/diagnosis.json of score.py): the ceiling of what a comparison
+    # can name, no draw of a twin removing the recording's noise. And the
+    # replicates alike / run per key.
+    distinct = defaultdict(dict)
+    distinct_replicates = {}
+    distinct_wrong = {}
     rows = []
     wrong = 0
     effect_drives = 0
@@ -222,15 +227,13 @@ def main():
         if truth:
             effect_drives += 1
             wrong += bool(extra)
+            distinct_wrong.setdefault(drive_key(drive), bool(extra))
             for t in truth:
                 per_effect[t][1] += 1
                 per_effect[t][0] += t in first
                 p = recording_power(case, drive, t)
-                if p is not None:
-                    ceiling[t].append(p)
                 q = comparison_power(case, drive, cs[0], t)
-                if q is not None:
-                    own_power[t].append(q)
+                distinct[t].setdefault(drive_key(drive), (t in first, q, p))
         else:
             null_false.append(bool(extra))
         unexplained += any((c.get("speed_map") or {}).get("unexplained", False) for c in cs)
@@ -258,32 +261,39 @@ def main():
                 rs = []
             route[2] += sum(r.get("channels_differing", 0) == 0 for r in rs)
             route[3] += len(rs)
+            distinct_replicates.setdefault(drive_key(drive),
+                                           (sum(r.get("channels_differing", 0) == 0 for r in rs), len(rs)))
         rows.append((case["drive"], truth, first, [named(c) for c in cs[1:]],
                      [f"{c['channels_within_noise']}/{len(c['channels'])}" for c in cs]))
     n = len(rows)
     out = []
     out.append(f"# Twin loop on {a.suite}: {n} drives\n")
-    out.append("| effect | named by the first comparison | expected at the comparison's own sigma | the recording's own test would name (expected) |")
+    out.append("| effect | named by the first comparison: distinct drives (labelled) | expected at the comparison's own sigma | the recording's own test would name (expected) |")
     out.append("|---|---|---|---|")
+
+    def expected(xs):
+        xs = [x for x in xs if x is not None]
+        return "-" if not xs else f"{sum(xs):.1f} ± {sum(q * (1 - q) for q in xs) ** 0.5:.1f}"
     for e, (k, m) in sorted(per_effect.items()):
         note = f"; {COPIED[e]}" if e in COPIED else ""
-        ps = ceiling.get(e, [])
-        cap = "-" if not ps else (f"{sum(ps):.1f} ± {sum(q * (1 - q) for q in ps) ** 0.5:.1f}"
-                                  + ("" if len(ps) == m else f" (of {len(ps)})"))
-        qs = own_power.get(e, [])
-        own = "-" if not qs else (f"{sum(qs):.1f} ± {sum(q * (1 - q) for q in qs) ** 0.5:.1f}"
-                                  + ("" if len(qs) == m else f" (of {len(qs)})"))
-        out.append(f"| {e} | {k}/{m} ({100 * k / m:.0f} %){note} | {own} | {cap} |")
+        dv = list(distinct[e].values())
+        kd = sum(v[0] for v in dv)
+        out.append(f"| {e} | {kd}/{len(dv)} ({100 * kd / max(len(dv), 1):.0f} %; labelled {k}/{m}){note} | "
+                   f"{expected(v[1] for v in dv)} | {expected(v[2] for v in dv)} |")
     out.append("")
-    out.append("Expected at the comparison's own sigma: the sum over the drives of the power of the first "
+    out.append("Distinct drives: a pair whose second effect is the model's own tyre physics (latency + side-slip, "
+               "antenna + side-slip, track + load transfer) is its first effect's drive under another label "
+               "(`score.drive_key`), counted once; the labelled count counts it twice.")
+    out.append("Expected at the comparison's own sigma: the sum over the distinct drives of the power of the first "
                "comparison's test (its difference's sigma, Holm's critical z) at the size the drive holds; a "
                "count well below it reads the effect short, not for want of information.")
-    out.append("The last column: the sum over the drives of the recording's own joint Wald test's power at the "
+    out.append("The last column: the sum over the distinct drives of the recording's own joint Wald test's power at the "
                "size each drive holds (`score.power_at`, `score.held_size`, from DRIVE/diagnosis.json of "
                "`score.py --rerun`), ± its binomial spread: the comparison's ceiling, since its difference "
                "carries the recording's sigma whatever the twin's draws.")
     out.append("")
-    out.append(f"- wrong names (outside targets + the model's tyre physics) on effect drives: {wrong}/{effect_drives}")
+    out.append(f"- wrong names (outside targets + the model's tyre physics) on effect drives: {wrong}/{effect_drives} "
+               f"(distinct drives {sum(distinct_wrong.values())}/{len(distinct_wrong)})")
     out.append(f"- null drives with a name outside the tyre physics: {sum(null_false)}/{len(null_false)}")
     out.append(f"- every residual channel within its noise level: before the mend {before_alike}/{n}, "
                + ", ".join(f"after mend {k + 1} {after_alike[k]}/{n}" for k in range(a.mends)))
@@ -301,6 +311,10 @@ def main():
         out.append(f"- the last twin's physics under {a.replicates} other noise seeds: no channel differing on "
                    f"{ok}/{run} ({100 * ok / max(run, 1):.0f} %); per route "
                    + ", ".join(f"{r} {v[2]}/{v[3]}" for r, v in sorted(per_route.items())))
+        dok = sum(v[0] for v in distinct_replicates.values())
+        drun = sum(v[1] for v in distinct_replicates.values())
+        out.append(f"- the same over distinct drives ({len(distinct_replicates)}; a pair whose second effect is the "
+                   f"model's own tyre physics is its first effect's drive): {dok}/{drun} ({100 * dok / max(drun, 1):.0f} %)")
     out.append(f"- the speed channel unexplained by the catalogue (it differs, bins of its map differ, no effect named in it) "
                f"in some comparison of the loop: {unexplained}/{n}; the last mend's twin carries a speed map: {carries_map}/{n}")
     out.append(f"- the wheels' yaw wander moved by a mend (the course against the wheels differs, no named effect in it, "
