@@ -167,7 +167,7 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
                 String::new()
             };
             format!(
-                "{:<22} {:<12} {} = {} ± {} {}; z {} (Holm {}); shows from {}; information (own estimate): {}{ambiguity}",
+                "{:<22} {:<12} {} = {} ± {} {}; z {} (Holm {}); shows from {}{}; information (own estimate): {}{ambiguity}",
                 l.effect.to_string(),
                 match p.verdict {
                     CarVerdict::Found => "FOUND",
@@ -185,6 +185,8 @@ fn car_rows(car: &PooledLimit, d: &DrivesDiagnosis, names: &[String]) -> Vec<Str
                 test.map_or("-".into(), |t| format!("{:.1}", t.z_critical)),
                 l.shown_smallest()
                     .map_or("-".into(), |v| format!("{} {}", num(Some(v)), l.unit)),
+                l.power_at_typical
+                    .map_or(String::new(), |p| format!(", a typical one with probability {p:.2}")),
                 shares.join(", ")
             )
         })
