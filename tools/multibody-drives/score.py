@@ -256,6 +256,13 @@ def limit_table(limits, null_limit):
             ids[e] += 1
     out.append(f"| all targets with a size | {totals[5]} | | | | {totals[3]}/{totals[5]} | "
                f"{totals[0]:.1f} ± {math.sqrt(totals[1]):.1f} ({totals[2]:.1f}) | {totals[4]}/{totals[5]} | | | |")
+    by_effect = defaultdict(list)
+    for (e, _), v in distinct.items():
+        if v[2] is not None:
+            by_effect[e].append(v)
+    svg_rows = [(e, len(vs), sum(v[1] for v in vs), sum(v[2] for v in vs),
+                 math.sqrt(sum(v[2] * (1 - v[2]) for v in vs))) for e, vs in by_effect.items()]
+    limit_table.svg_rows = svg_rows
     sized = [v for v in distinct.values() if v[2] is not None]
     bare = [v for v in distinct.values() if v[2] is None]
     out.append(f"| distinct (effect, drive) targets with a size | {len(sized)} | | | | {sum(v[0] for v in sized)}/{len(sized)} | "
@@ -277,6 +284,44 @@ def limit_table(limits, null_limit):
     out.append(f"joint Wald rule on null drives: {fd} of {len(null_limit)} with an effect beyond the critical z "
                f"(tyre physics aside): {dict(ids) or 'none'}")
     return out
+
+
+def expected_svg(rows, path, title):
+    """A dot plot of each row's named share of drives beside the share a
+    test at the drives' own information names (its expectation and
+    binomial spread), with the 90 % goal: `rows` of (label, drives,
+    named, expected, spread)."""
+    left, width, row_h, top = 330, 420, 22, 50
+    h = top + row_h * len(rows) + 66
+    x = lambda f: left + width * max(0.0, min(1.0, f))
+    out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{left + width + 40}" height="{h}" '
+           f'font-family="sans-serif" font-size="12">',
+           f'<rect width="100%" height="100%" fill="white"/>',
+           f'<text x="10" y="20" font-size="14" font-weight="bold">{title}</text>']
+    for k in range(0, 11, 2):
+        f = k / 10
+        out.append(f'<line x1="{x(f)}" y1="{top - 8}" x2="{x(f)}" y2="{top + row_h * len(rows)}" stroke="#ddd"/>')
+        out.append(f'<text x="{x(f)}" y="{top + row_h * len(rows) + 16}" text-anchor="middle">{k * 10} %</text>')
+    out.append(f'<line x1="{x(0.9)}" y1="{top - 8}" x2="{x(0.9)}" y2="{top + row_h * len(rows)}" '
+               f'stroke="#c00" stroke-dasharray="4 3"/>')
+    out.append(f'<text x="{x(0.9)}" y="{top - 12}" text-anchor="middle" fill="#c00">goal 90 %</text>')
+    for i, (label, n, named, exp, spread) in enumerate(rows):
+        y = top + row_h * i + row_h / 2
+        out.append(f'<text x="{left - 8}" y="{y + 4}" text-anchor="end">{label} ({n})</text>')
+        out.append(f'<line x1="{x((exp - spread) / n)}" y1="{y}" x2="{x((exp + spread) / n)}" y2="{y}" '
+                   f'stroke="#7aa6d8" stroke-width="8"/>')
+        out.append(f'<line x1="{x(exp / n)}" y1="{y - 6}" x2="{x(exp / n)}" y2="{y + 6}" stroke="#1f4e8c" stroke-width="2"/>')
+        out.append(f'<circle cx="{x(named / n)}" cy="{y}" r="5" fill="#222"/>')
+    ly = top + row_h * len(rows) + 34
+    out.append(f'<text x="{x(0.5)}" y="{ly}" text-anchor="middle">share of the row\'s drives named</text>')
+    out.append(f'<circle cx="{left - 300}" cy="{ly + 16}" r="5" fill="#222"/>'
+               f'<text x="{left - 290}" y="{ly + 20}">named by the product</text>')
+    out.append(f'<line x1="{left - 130}" y1="{ly + 16}" x2="{left - 100}" y2="{ly + 16}" stroke="#7aa6d8" stroke-width="8"/>'
+               f'<line x1="{left - 115}" y1="{ly + 10}" x2="{left - 115}" y2="{ly + 22}" stroke="#1f4e8c" stroke-width="2"/>'
+               f'<text x="{left - 94}" y="{ly + 20}">what a test at the drives\' own information names: expected ± binomial spread</text>')
+    out.append("</svg>")
+    with open(path, "w") as f:
+        f.write("\n".join(out) + "\n")
 
 
 def effective_table(rows):
@@ -449,6 +494,9 @@ def main():
                    f"{sum(r['ambiguous'])} | {mb:.3f} -> {ma:.3f} m ({100 * (ma / mb - 1):+.0f} %) | "
                    f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
     out.extend(limit_table(limits, null_limit))
+    if getattr(limit_table, "svg_rows", None):
+        expected_svg(limit_table.svg_rows, os.path.join(a.out_dir, "expected.svg"),
+                     "Multibody drives: named against the drives' information (distinct drives per effect)")
     out.extend(effective_table(effective))
     out.extend(["", "Held-out position RMSE per vehicle (`fit.before` / `fit.after` of the JSON), mean over its drives:", "",
                 "| vehicle | drives | plain model | with the findings |", "|---|---|---|---|"])
