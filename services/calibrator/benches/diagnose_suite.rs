@@ -2,7 +2,7 @@
 //! drives with effects the diagnosis is not told about, scored against the
 //! simulator's truth.
 //!
-//! `cargo bench -p calibrator --bench diagnose_suite [-- --seeds N] [--quick] [--scale K] [--only] [--held-out-only] [--null-draws N]`
+//! `cargo bench -p calibrator --bench diagnose_suite [-- --seeds N] [--quick] [--scale K] [--only] [--held-out-only] [--null-draws N] [--duration S]`
 //!
 //! `--scale K` puts every single effect in at K times the simulator's
 //! typical size (the pairs, the paper case and the null drives as ever);
@@ -249,12 +249,19 @@ fn main() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(0);
     let mut redraws = (0usize, 0usize);
+    // `--duration S`: the mixed scenario's cases driven as the `long`
+    // scenario (the same city and ring road, round and round) for S
+    // seconds: how the named share grows with the drive's length.
+    let duration = num("--duration");
     let cases = cases(seeds, quick, scale, only);
     println!(
-        "{} drives ({} seeds{})",
+        "{} drives ({} seeds{}{})",
         cases.len(),
         seeds,
-        if quick { ", quick" } else { "" }
+        if quick { ", quick" } else { "" },
+        duration.map_or(String::new(), |d| format!(
+            ", the mixed cases as the long scenario for {d:.0} s"
+        ))
     );
     let mut tallies: BTreeMap<String, Tally> = BTreeMap::new();
     let mut null_drives = 0usize;
@@ -265,7 +272,14 @@ fn main() {
     // Wald rule names an effect beyond the allowed ones.
     let mut limit_null = (0usize, 0usize);
     for case in &cases {
-        let mut cfg = SimConfig::new(case.scenario, case.seed);
+        let mut cfg = match duration {
+            Some(d) if case.scenario == Scenario::Mixed => {
+                let mut c = SimConfig::new(Scenario::Long, case.seed);
+                c.duration_s = Some(d);
+                c
+            }
+            _ => SimConfig::new(case.scenario, case.seed),
+        };
         cfg.vehicle = case.vehicle;
         cfg.effects = case.effects;
         let drive = match simulate(&cfg) {
