@@ -350,23 +350,28 @@ fn the_real_drives_are_diagnosed() {
             }
         }
         if name == "comma2k19-seg40" {
-            // Its slip and the GNSS latency: the held-out blocks do not bear
-            // the name out, and the evidence says so (Known limits,
-            // docs/design/diagnose.md).
-            if let Some(f) = d
-                .findings
+            // A highway drive whose fixes come 60-90 ms late by three
+            // readings independent of the diagnosis. Its "longitudinal
+            // slip" (named at joint z 8.9 over the latency) was the
+            // latency's fingerprint taken over 4 ms, the CAN wheel speeds'
+            // steps in it (errors in variables, `limit::LATENCY_STEP_S`):
+            // no slip is named, and the latency alone reads within those
+            // readings.
+            assert!(
+                !d.findings
+                    .iter()
+                    .any(|f| f.effect == Effect::LongitudinalSlip),
+                "{:?}",
+                d.findings.iter().map(|f| f.effect).collect::<Vec<_>>()
+            );
+            let l = d.information_limit.as_ref().expect("limit");
+            let tau = l
+                .effects
                 .iter()
-                .find(|f| f.effect == Effect::LongitudinalSlip)
-            {
-                let m = f.partners.iter().find(|m| m.effect == Effect::GnssLatency);
-                let [own, latency] = m.and_then(|m| m.holdout_gains).expect("latency's check");
-                assert!(latency >= own, "{own} {latency}");
-                assert!(
-                    f.evidence.contains("do not bear the name out"),
-                    "{}",
-                    f.evidence
-                );
-            }
+                .find(|e| e.effect == Effect::GnssLatency)
+                .and_then(|e| e.estimate)
+                .expect("latency");
+            assert!((0.06..=0.1).contains(&tau), "{tau}");
         }
     }
 }

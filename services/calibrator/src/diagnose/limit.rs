@@ -1224,10 +1224,32 @@ pub struct DriveInformation {
     pub(super) heading_terms: Option<HeadingTerms>,
 }
 
-/// The finite-difference step of a parameter: 5 % of its typical size.
+/// The finite-difference step of a parameter: 5 % of its typical size;
+/// the GNSS latency's [`LATENCY_STEP_S`].
 fn step_of(p: Param) -> f64 {
+    if p == Param::GnssLatency {
+        return LATENCY_STEP_S;
+    }
     0.05 * p.spec().typical.abs().max(1e-9)
 }
+
+/// The GNSS latency's finite-difference step, s. Its fingerprint is the
+/// dead-reckoning read earlier and later by the step: the car's velocity
+/// over twice the step. Over a step of a few milliseconds (5 % of the
+/// typical latency) that velocity is one or two wheel samples' worth of
+/// encoder ticks: at 96 ticks per revolution and 15 m/s, about seven
+/// ticks per 10 ms sample, so 15 % noise on every fix's fingerprint. The
+/// GNSS error's Gauss-Markov part is whitened by what is nearly a
+/// difference between consecutive fixes, which keeps that noise and takes
+/// the smooth true signal down to its changes: a regressor with noise of
+/// its own (errors in variables) and the estimate shrinks toward zero. On
+/// a 30-minute simulated drive with a 0.16 s latency and 1 m of wander it
+/// was read at 0.33x alone and 0.07x beside its partners, the slip and the
+/// antenna named in its place; with 100 000 ticks per revolution at 0.98x.
+/// A quarter of a second either way averages 50 wheel samples at 100 Hz;
+/// the latency's own signal changes over seconds (its second-order term,
+/// step^2 / 6 times the jerk, is negligible).
+const LATENCY_STEP_S: f64 = 0.25;
 
 /// The information limit of every effect on this drive.
 pub fn information_limit(input: &LimitInput<'_>) -> Result<InformationLimit, InformationError> {
