@@ -264,7 +264,11 @@ fn a_null_pair_names_nothing() {
 #[test]
 fn draws_of_the_simulation_are_read_as_their_mean() {
     let cfg = DiagnoseConfig::default();
-    let dr = diagnose(&drive(1, &["gnss_lever_arm.x_m=0.3".to_string()]), &cfg).expect("diagnose");
+    // The catalogue's typical antenna offset: a 0.3 m one sat at the edge
+    // of this 10-minute drive's information (z 3.2-4.1 against 3.6 as the
+    // partners' fits changed), which is a question of power, not of how
+    // the draws are read.
+    let dr = diagnose(&drive(1, &["gnss_lever_arm.x_m=0.5".to_string()]), &cfg).expect("diagnose");
     let cfg = DiagnoseConfig {
         block_s: Some(dr.noise.block_s),
         ..cfg
