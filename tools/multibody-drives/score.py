@@ -219,7 +219,9 @@ def limit_table(limits, null_limit):
     every other effect free) against the true size, the held-out test's
     detectable size where it reported one, and the joint Wald rule
     (|z| beyond the family's critical z) as a detector, with its estimate
-    against the truth."""
+    against the truth. Returns the table's lines and, per effect over
+    distinct drives, (effect, drives, named, expected, spread) for
+    `expected_svg`."""
     out = ["", "The information limit (`information_limit` of the JSON): medians over the drives, sizes as multiples of the true size.", "",
            "| effect | drives | limit alone | limit, every effect free | held-out test needs | joint Wald: found | expected from the drives' information (Fisher's sigma alone) | the product found | wrong names | estimate / truth | abs(estimate - truth) / sigma |",
            "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -262,7 +264,6 @@ def limit_table(limits, null_limit):
             by_effect[e].append(v)
     svg_rows = [(e, len(vs), sum(v[1] for v in vs), sum(v[2] for v in vs),
                  math.sqrt(sum(v[2] * (1 - v[2]) for v in vs))) for e, vs in by_effect.items()]
-    limit_table.svg_rows = svg_rows
     sized = [v for v in distinct.values() if v[2] is not None]
     bare = [v for v in distinct.values() if v[2] is None]
     out.append(f"| distinct (effect, drive) targets with a size | {len(sized)} | | | | {sum(v[0] for v in sized)}/{len(sized)} | "
@@ -283,7 +284,7 @@ def limit_table(limits, null_limit):
     out.append("")
     out.append(f"joint Wald rule on null drives: {fd} of {len(null_limit)} with an effect beyond the critical z "
                f"(tyre physics aside): {dict(ids) or 'none'}")
-    return out
+    return out, svg_rows
 
 
 def expected_svg(rows, path, title):
@@ -405,6 +406,7 @@ def main():
                                if x["effect"] not in allowed
                                and abs(x.get("joint", {}).get("wald_z", 0.0)) >= lim["z_critical"]])
         if lim:
+            drive_id = drive_key(drive)
             by_id = {x["effect"]: x for x in lim["effects"]}
             beyond = [e for e, x in by_id.items()
                       if abs(x.get("joint", {}).get("wald_z", 0.0)) >= lim["z_critical"]]
@@ -418,7 +420,7 @@ def main():
                 j = x.get("joint", {})
                 r["found"].append(e in beyond)
                 r["named"].append(e in found)
-                r["key"].append(drive_key(drive))
+                r["key"].append(drive_id)
                 r["drive_power"].append(None)
                 r["wrong"].append(any(b not in truth and b not in allowed for b in beyond))
                 if tv:
@@ -493,9 +495,10 @@ def main():
         out.append(f"| {k} | {n} | {sum(r['detected'])}/{n} | {sum(r['attributed'])}/{n} | {sum(r['wrong'])} | "
                    f"{sum(r['ambiguous'])} | {mb:.3f} -> {ma:.3f} m ({100 * (ma / mb - 1):+.0f} %) | "
                    f"{', '.join(f'{x} x{c}' for x, c in sorted(oth.items()))} | {need} |")
-    out.extend(limit_table(limits, null_limit))
-    if getattr(limit_table, "svg_rows", None):
-        expected_svg(limit_table.svg_rows, os.path.join(a.out_dir, "expected.svg"),
+    table, svg_rows = limit_table(limits, null_limit)
+    out.extend(table)
+    if svg_rows:
+        expected_svg(svg_rows, os.path.join(a.out_dir, "expected.svg"),
                      "Multibody drives: named against the drives' information (distinct drives per effect)")
     out.extend(effective_table(effective))
     out.extend(["", "Held-out position RMSE per vehicle (`fit.before` / `fit.after` of the JSON), mean over its drives:", "",

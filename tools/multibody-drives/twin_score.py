@@ -224,16 +224,17 @@ def main():
         truth, allowed = case["truth"], allowed_on(case, drive)
         first = named(cs[0])
         extra = [e for e in first if e not in truth and e not in allowed]
+        drive_id = drive_key(drive)
         if truth:
             effect_drives += 1
             wrong += bool(extra)
-            distinct_wrong.setdefault(drive_key(drive), bool(extra))
+            distinct_wrong.setdefault(drive_id, bool(extra))
             for t in truth:
                 per_effect[t][1] += 1
                 per_effect[t][0] += t in first
                 p = recording_power(case, drive, t)
                 q = comparison_power(case, drive, cs[0], t)
-                distinct[t].setdefault(drive_key(drive), (t in first, q, p))
+                distinct[t].setdefault(drive_id, (t in first, q, p))
         else:
             null_false.append(bool(extra))
         unexplained += any((c.get("speed_map") or {}).get("unexplained", False) for c in cs)
@@ -261,7 +262,7 @@ def main():
                 rs = []
             route[2] += sum(r.get("channels_differing", 0) == 0 for r in rs)
             route[3] += len(rs)
-            distinct_replicates.setdefault(drive_key(drive),
+            distinct_replicates.setdefault(drive_id,
                                            (sum(r.get("channels_differing", 0) == 0 for r in rs), len(rs)))
         rows.append((case["drive"], truth, first, [named(c) for c in cs[1:]],
                      [f"{c['channels_within_noise']}/{len(c['channels'])}" for c in cs]))
